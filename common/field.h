@@ -1,0 +1,78 @@
+// A probe field on the CPU: the cascades' description, the three tile atlases (with 1-texel
+// borders, laid out exactly as on the GPU), the per-probe records and per-brick versions.
+// The server's update writes it, baked files store it, renderers sample it.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "../shaders/interop/field_desc.h"
+#include "scene.h"
+
+namespace pc {
+
+struct FieldSettings {
+  int raysPerProbe = 256;
+  float hysteresis = 0.97f;
+  float distanceExponent = 50.0f;
+  float normalBias = 0.1f;       // fraction of spacing
+  float viewBias = 0.3f;         // fraction of spacing
+  float maxRayDistance = 0.0f;   // world units; 0: 1.5 x the cage diagonal (see create)
+  float occlusionDistance = 1.0f;  // d_max, fraction of the finest spacing
+  float blendMargin = 1.0f;        // fraction of a cascade's spacing
+};
+
+// One probe's bookkeeping. `offset` is the relocation from its grid point.
+struct ProbeRecord {
+  glm::vec3 offset{0.0f};
+  int state = gpu::PC_PROBE_UNINITIALIZED;
+  std::uint32_t updates = 0;  // blends since the last history reset
+};
+
+// A float image of `channels` interleaved channels.
+struct Atlas {
+  int width = 0, height = 0, channels = 0;
+  std::vector<float> texels;
+  float* at(int x, int y) { return &texels[(std::size_t(y) * width + x) * channels]; }
+  const float* at(int x, int y) const { return &texels[(std::size_t(y) * width + x) * channels]; }
+};
+
+class Field {
+ public:
+  // Lays out the cascades; every probe starts uninitialized.
+  static Field create(const std::vector<ProbeVolume>& volumes, const FieldSettings& settings);
+
+  gpu::FieldDesc desc{};
+  FieldSettings settings;
+  Atlas irradiance;  // rgb: irradiance^(1/gamma), see PC_IRRADIANCE_GAMMA
+  Atlas depth;       // rg: mean and mean square of hit distance
+  Atlas occlusion;   // r: cos-weighted share of rays that travel past d_max
+  std::vector<ProbeRecord> probes;  // field-wide slot index: cascades[k].firstProbe + slot
+  std::vector<std::vector<std::uint64_t>> brickVersions;  // [cascade][brick]
+  std::uint64_t version = 0;  // bumped by every update that changes something
+  std::uint64_t sceneHash = 0;
+
+  int cascadeCount() const { return desc.cascadeCount; }
+  const gpu::CascadeDesc& cascade(int k) const { return desc.cascades[k]; }
+  ProbeRecord& probe(int k, int slot) { return probes[desc.cascades[k].firstProbe + slot]; }
+  const ProbeRecord& probe(int k, int slot) const { return probes[desc.cascades[k].firstProbe + slot]; }
+  int probeCount() const;  // real probes, not padding slots
+  glm::vec3 probePosition(int k, int slot) const;  // world, relocated
+
+  // Re-derives every tile's border from its interior (after interiors changed).
+  void fixBorders(int k, int slot);
+};
+
+// Irradiance (rgb, W/m^2) and occlusion (a) at surface point P with normal N, seen from
+// direction V (unit, towards the viewer). Uses the shared sampling code of
+// shaders/interop/probe_sampling.h. `coverage` < 1 where no cascade holds data.
+glm::vec4 sampleField(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
+                      float* coverage = nullptr);
+
+// Bilinear fetches used by sampleField, exposed for tests and the bake checks.
+glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir);  // decoded
+glm::vec2 fetchDepth(const Field& field, int cascade, int slot, glm::vec3 dir);
+
+}  // namespace pc

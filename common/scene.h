@@ -1,0 +1,143 @@
+// The scene every module works on: meshes split by material, materials, textures, instances,
+// lights, cameras, sky, probe volumes and simple animations. Loaded from glTF 2.0 or OBJ+MTL
+// plus an optional scene.json sidecar, or built in. World space is Y-up, in scene units after
+// the sidecar's unit scale.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "result.h"
+
+namespace pc {
+
+struct Texture {
+  std::string name;
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> rgba;  // 8-bit sRGB, row 0 at the top
+  // Bilinear, wrapping, returns linear RGB (alpha linear).
+  glm::vec4 sample(glm::vec2 uv) const;
+};
+
+struct Material {
+  std::string name;
+  glm::vec3 baseColor{0.8f};     // linear albedo, multiplied by the texture
+  int baseColorTexture = -1;     // index into Scene::textures
+  glm::vec3 emissive{0.0f};      // linear emitted radiance, multiplied by the texture
+  int emissiveTexture = -1;
+  bool isEmissive() const { return emissive.x > 0 || emissive.y > 0 || emissive.z > 0; }
+};
+
+struct Mesh {
+  std::string name;
+  std::vector<glm::vec3> positions;  // object space
+  std::vector<glm::vec3> normals;    // one per position, unit length (generated when missing)
+  std::vector<glm::vec2> uvs;        // one per position, or empty
+  std::vector<std::uint32_t> indices;  // triangles
+  int material = 0;
+  std::size_t triangleCount() const { return indices.size() / 3; }
+};
+
+enum class LightType { Point, Spot, Directional };
+
+// Radiometric units: point and spot `intensity` is radiant intensity (W/sr) so irradiance is
+// intensity * cos / d^2; directional `intensity` is irradiance (W/m^2) at normal incidence.
+struct Light {
+  std::string name;
+  LightType type = LightType::Point;
+  glm::vec3 position{0.0f};
+  glm::vec3 direction{0.0f, -1.0f, 0.0f};  // where the light travels (spot, directional)
+  glm::vec3 color{1.0f};
+  float intensity = 1.0f;
+  float range = 0.0f;               // 0: unlimited (inverse square only)
+  float innerConeAngle = 0.0f;      // radians (spot)
+  float outerConeAngle = 0.7853982f;
+  int animation = -1;               // index into Scene::animations
+};
+
+struct Camera {
+  std::string name;
+  glm::vec3 position{0.0f, 0.0f, 5.0f};
+  glm::vec3 forward{0.0f, 0.0f, -1.0f};
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
+  float yfov = 0.7853982f;  // vertical field of view, radians
+};
+
+// Sky radiance by direction: zenith above, horizon at y = 0, ground below (linear).
+struct Sky {
+  glm::vec3 zenith{0.0f}, horizon{0.0f}, ground{0.0f};
+  glm::vec3 radiance(glm::vec3 dir) const;
+  bool isBlack() const;
+};
+
+// One cascade of probes. Cascades are ordered finest first.
+struct ProbeVolume {
+  glm::vec3 origin{0.0f};  // world position of probe (0,0,0)
+  float spacing = 1.0f;
+  glm::ivec3 counts{8};
+};
+
+// A light moving along a looping polyline, or an instance rotating about an axis.
+struct Animation {
+  enum class Kind { Path, Rotate } kind = Kind::Path;
+  std::vector<glm::vec3> points;  // Path: positions visited in order
+  float period = 4.0f;            // Path: seconds per loop
+  glm::vec3 axis{0.0f, 1.0f, 0.0f};  // Rotate
+  glm::vec3 pivot{0.0f};             // Rotate: world-space point the axis goes through
+  float radiansPerSecond = 0.5f;     // Rotate
+};
+
+struct Instance {
+  int mesh = 0;
+  glm::mat4 transform{1.0f};  // object to world at time 0
+  int animation = -1;
+};
+
+// How emissive surfaces light the scene: sampled as area lights with shadow rays (sharp
+// direct light, for small bright emitters) or only through the probe field (for large dim
+// emitters, where sampling is noisy and the field is accurate).
+enum class EmissiveMode { Auto, Lights, Field };
+
+struct Scene {
+  std::string name;
+  std::filesystem::path source;  // file it came from, empty when built in
+  std::vector<Mesh> meshes;
+  std::vector<Material> materials;
+  std::vector<Texture> textures;
+  std::vector<Instance> instances;
+  std::vector<Light> lights;
+  std::vector<Camera> cameras;
+  std::vector<Animation> animations;
+  std::vector<ProbeVolume> volumes;  // empty: derive from bounds (see defaultVolumes)
+  Sky sky;
+  EmissiveMode emissiveMode = EmissiveMode::Auto;
+  float exposure = 1.0f;  // scale applied before tone mapping by every renderer
+  std::uint64_t hash = 0;  // of geometry, materials, lights: names the scene on the wire
+
+  glm::vec3 boundsMin{0.0f}, boundsMax{0.0f};  // world, at time 0
+  std::size_t triangleCount() const;
+  bool hasLights() const;  // any light or emissive material
+};
+
+// Loads .gltf/.glb/.obj; `sidecar` (scene.json format, see docs/SCENES.md) may be empty, in
+// which case <scene dir>/scene.json and data/sidecars/<scene dir name>.json are tried.
+Result<Scene> loadScene(const std::filesystem::path& path,
+                        const std::filesystem::path& sidecar = {});
+// Cornell-style room with a moving light and a rotating block; needs no files.
+Scene builtinScene();
+// Cascades covering the scene's bounds when the scene names none.
+std::vector<ProbeVolume> defaultVolumes(const Scene& scene, int maxProbesPerAxis = 24);
+
+// Lights and instance transforms at animation time t (seconds).
+struct SceneState {
+  double time = 0.0;
+  std::vector<Light> lights;
+  std::vector<glm::mat4> instanceTransforms;
+};
+SceneState evaluateScene(const Scene& scene, double time);
+
+}  // namespace pc

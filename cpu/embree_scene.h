@@ -1,0 +1,67 @@
+// The scene in Embree 3: one triangle geometry per instance, in world space. Animated
+// instances get their vertices re-transformed on update(); the scene is committed again.
+// Owns the Embree device and scene (RAII). Thread-safe for queries after update().
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <embree3/rtcore.h>
+#include <glm/glm.hpp>
+
+#include "../common/result.h"
+#include "../common/scene.h"
+
+namespace pc {
+
+struct Hit {
+  float t = 0.0f;
+  unsigned instance = RTC_INVALID_GEOMETRY_ID;  // index into Scene::instances
+  unsigned primitive = 0;
+  glm::vec2 barycentric{0.0f};
+  glm::vec3 geometricNormal{0.0f};  // world, unnormalized, as Embree reports it
+};
+
+// What shading needs at a hit.
+struct SurfacePoint {
+  glm::vec3 position{0.0f};
+  glm::vec3 normal{0.0f};           // shading normal, flipped to face the incoming ray
+  glm::vec3 geometricNormal{0.0f};  // unit, flipped to face the incoming ray
+  bool backface = false;            // the ray hit the back of the triangle's winding
+  glm::vec3 albedo{0.0f};
+  glm::vec3 emission{0.0f};         // radiance emitted toward the ray origin
+  int material = 0;
+};
+
+class EmbreeScene {
+ public:
+  static Result<std::unique_ptr<EmbreeScene>> create(const Scene& scene);
+  ~EmbreeScene();
+  EmbreeScene(const EmbreeScene&) = delete;
+  EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+  // Moves animated instances to their transforms in `state` and recommits.
+  void update(const SceneState& state);
+
+  bool intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, Hit& hit) const;
+  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar) const;
+  // Closest hits for a packet of rays already in Embree's layout (throughput measurements
+  // and the field update's batched tracing use this).
+  void intersect1M(RTCRayHit* rays, unsigned count) const;
+
+  SurfacePoint surface(const Hit& hit, glm::vec3 origin, glm::vec3 dir) const;
+
+  const Scene& scene() const { return *scene_; }
+  RTCScene handle() const { return rtcScene_; }
+
+ private:
+  EmbreeScene() = default;
+  const Scene* scene_ = nullptr;
+  RTCDevice device_ = nullptr;
+  RTCScene rtcScene_ = nullptr;
+  std::vector<RTCGeometry> geometries_;                // per instance
+  std::vector<std::vector<glm::vec3>> worldNormals_;  // per instance, per vertex
+  std::vector<glm::mat4> transforms_;
+};
+
+}  // namespace pc

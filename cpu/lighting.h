@@ -1,0 +1,59 @@
+// Direct light at a surface point, shared by the field update, the reference path tracer and
+// the probe-lit render: punctual lights and (per the scene's EmissiveMode) emissive
+// triangles, each with shadow rays; plus the sky's radiance for rays that escape.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "../common/scene.h"
+#include "embree_scene.h"
+#include "random.h"
+
+namespace pc {
+
+// Emissive triangles in world space, sampled by area x radiance.
+class EmissiveLights {
+ public:
+  // Picks the emissive triangles that are sampled as lights (EmissiveMode; Auto chooses
+  // lights when the emissive area is a small part of the scene's surface).
+  static EmissiveLights build(const Scene& scene, const SceneState& state);
+  bool empty() const { return triangles_.empty(); }
+  // True when a hit on this material's emission is already counted by light sampling, so a
+  // path must not add it again after a bounce (and the field must not store it).
+  bool sampled(int material) const;
+  std::size_t count() const { return triangles_.size(); }
+
+  struct Triangle {
+    glm::vec3 p0, e1, e2;  // p0 + u e1 + v e2
+    glm::vec3 normal;      // unit, front side
+    float area;
+    glm::vec3 radiance;    // mean emitted radiance (textures averaged)
+  };
+  const std::vector<Triangle>& triangles() const { return triangles_; }
+  const std::vector<float>& cdf() const { return cdf_; }
+  float totalPower() const { return totalPower_; }
+
+ private:
+  std::vector<Triangle> triangles_;
+  std::vector<float> cdf_;  // by power, normalized
+  std::vector<bool> sampledMaterials_;
+  float totalPower_ = 0.0f;
+};
+
+struct DirectLightOptions {
+  int emissiveSamples = 1;  // shadow rays toward emissive triangles per call
+};
+
+// Irradiance E (W/m^2) arriving at P (normal N, unit) directly from lights, shadowed.
+// Multiply by albedo / pi for the reflected radiance of a diffuse surface.
+glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
+                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 N, Rng& rng,
+                           const DirectLightOptions& options = {});
+
+// Offset along the geometric normal that keeps secondary rays from re-hitting their origin.
+glm::vec3 offsetRayOrigin(glm::vec3 P, glm::vec3 geometricNormal);
+
+}  // namespace pc

@@ -1,0 +1,67 @@
+// GPU-visible description of a probe field: one CascadeDesc per cascade and the constants
+// every side (Embree path, CPU renders, shaders, wire format) agrees on. std430 layout:
+// 16-byte rows are marked; C++ checks the sizes with static_assert.
+#ifndef PC_FIELD_DESC_H
+#define PC_FIELD_DESC_H
+
+#include "pc_interop.h"
+
+PC_BEGIN
+
+// Texels per side of each probe tile, without the 1-texel border. Fixed at compile time so the
+// shaders can size their shared memory and loops; the wire format records them anyway.
+PC_CONST int PC_IRRADIANCE_TEXELS = 8;
+PC_CONST int PC_DEPTH_TEXELS = 16;
+PC_CONST int PC_OCCLUSION_TEXELS = 8;
+PC_CONST int PC_BRICK_SIZE = 4;     // probes per brick side
+PC_CONST int PC_MAX_CASCADES = 4;
+PC_CONST int PC_ATLAS_TILES_PER_ROW = 128;  // tiles per atlas row; cascades stack vertically
+
+// Probe states (ProbeRecord.state).
+PC_CONST int PC_PROBE_ACTIVE = 0;
+PC_CONST int PC_PROBE_SLEEPING = 1;  // no geometry near: kept, sampled, not traced every update
+PC_CONST int PC_PROBE_INSIDE = 2;    // inside geometry: never sampled
+PC_CONST int PC_PROBE_UNINITIALIZED = 3;  // no data yet: never sampled
+
+PC_CONST float PC_PI = 3.14159265358979f;
+PC_CONST float PC_IRRADIANCE_GAMMA = 5.0f;  // encoding gamma of the irradiance atlas
+
+struct CascadeDesc {
+  vec3 origin;         // world position of logical probe (0,0,0)
+  float spacing;       // distance between neighbouring probes (same on all axes)
+  // -- 16
+  ivec3 counts;        // probes per axis
+  int firstProbe;      // index of this cascade's first probe in field-wide probe arrays
+  // -- 32
+  ivec3 scroll;        // toroidal shift: physical = (logical + scroll) mod counts
+  int atlasTileRow;    // first atlas tile row of this cascade
+  // -- 48
+  float normalBias;    // world units, along the surface normal
+  float viewBias;      // world units, towards the viewer
+  float maxRayDistance;  // depth moments are clamped to this
+  float blendMargin;   // world units over which a point fades to the next coarser cascade
+  // -- 64
+};
+
+struct FieldDesc {
+  int cascadeCount;
+  int probeCount;      // all cascades
+  float hysteresis;
+  float distanceExponent;
+  // -- 16
+  float occlusionDistance;  // d_max of the occlusion tile
+  int atlasTileRows;        // all cascades
+  int pad0;
+  int pad1;
+  // -- 32
+  CascadeDesc cascades[PC_MAX_CASCADES];
+};
+
+PC_END
+
+#ifdef __cplusplus
+static_assert(sizeof(pc::gpu::CascadeDesc) == 64);
+static_assert(sizeof(pc::gpu::FieldDesc) == 32 + 64 * pc::gpu::PC_MAX_CASCADES);
+#endif
+
+#endif

@@ -1,0 +1,164 @@
+// Probe math shared by the Embree path, the CPU renders and the shaders: octahedral mapping,
+// ray directions, probe and brick indexing, atlas addressing and tile borders.
+#ifndef PC_PROBE_MATH_H
+#define PC_PROBE_MATH_H
+
+#include "field_desc.h"
+
+PC_BEGIN
+
+// ---- octahedral mapping ------------------------------------------------------------------
+// Unit direction <-> point of [-1,1]^2. The +z hemisphere maps to the inner diamond.
+
+PC_FN float pcSignNotZero(float v) { return v >= 0.0f ? 1.0f : -1.0f; }
+
+PC_FN vec2 pcOctEncode(vec3 n) {
+  float l1 = abs(n.x) + abs(n.y) + abs(n.z);
+  vec2 uv = vec2(n.x / l1, n.y / l1);
+  if (n.z < 0.0f) {
+    uv = vec2((1.0f - abs(uv.y)) * pcSignNotZero(uv.x), (1.0f - abs(uv.x)) * pcSignNotZero(uv.y));
+  }
+  return uv;
+}
+
+PC_FN vec3 pcOctDecode(vec2 uv) {
+  vec3 n = vec3(uv.x, uv.y, 1.0f - abs(uv.x) - abs(uv.y));
+  if (n.z < 0.0f) {
+    n = vec3((1.0f - abs(uv.y)) * pcSignNotZero(uv.x), (1.0f - abs(uv.x)) * pcSignNotZero(uv.y),
+             n.z);
+  }
+  return normalize(n);
+}
+
+// Direction through the centre of interior texel (tx, ty) of an n x n tile.
+PC_FN vec3 pcTexelDirection(int tx, int ty, int n) {
+  vec2 uv = vec2((float(tx) + 0.5f) / float(n), (float(ty) + 0.5f) / float(n));
+  return pcOctDecode(vec2(uv.x * 2.0f - 1.0f, uv.y * 2.0f - 1.0f));
+}
+
+// Continuous texel coordinate (texel centres at k + 0.5) inside a bordered tile of n interior
+// texels for direction d: the value to sample bilinearly, in [1, n + 1].
+PC_FN vec2 pcTileCoord(vec3 d, int n) {
+  vec2 uv = pcOctEncode(d);
+  return vec2(1.0f + (uv.x * 0.5f + 0.5f) * float(n), 1.0f + (uv.y * 0.5f + 0.5f) * float(n));
+}
+
+// The interior texel a border texel copies, for a tile of n interior texels with a 1-texel
+// border: (bx, by) in [0, n+1]^2 on the border; returns interior coordinates in [0, n-1]^2.
+// Edges mirror (the octahedral fold), corners take the diagonally opposite interior corner.
+PC_FN ivec2 pcBorderSource(int bx, int by, int n) {
+  bool left = bx == 0, right = bx == n + 1, top = by == 0, bottom = by == n + 1;
+  if ((left || right) && (top || bottom)) {
+    return ivec2(left ? n - 1 : 0, top ? n - 1 : 0);
+  }
+  if (top || bottom) return ivec2(n - bx, top ? 0 : n - 1);
+  return ivec2(left ? 0 : n - 1, n - by);
+}
+
+// ---- ray directions ------------------------------------------------------------------------
+
+// Spherical Fibonacci point i of count: near-uniform, deterministic directions.
+PC_FN vec3 pcFibonacciDirection(int i, int count) {
+  const float goldenFrac = 0.61803398875f;  // fractional part of the golden ratio
+  float k = float(i) * goldenFrac;
+  float phi = 2.0f * PC_PI * (k - floor(k));
+  float cosTheta = 1.0f - (2.0f * float(i) + 1.0f) / float(count);
+  float sinTheta = sqrt(clamp(1.0f - cosTheta * cosTheta, 0.0f, 1.0f));
+  return vec3(cos(phi) * sinTheta, sin(phi) * sinTheta, cosTheta);
+}
+
+// PCG hash: well-mixed 32-bit values from a counter, the same on CPU and GPU.
+PC_FN uint pcHash(uint v) {
+  uint state = v * 747796405u + 2891336453u;
+  uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+  return (word >> 22u) ^ word;
+}
+PC_FN float pcHashToFloat(uint h) { return float(h >> 8u) * (1.0f / 16777216.0f); }
+
+// Uniformly random rotation (Shoemake's quaternion method) from a seed; one per update so
+// the fixed Fibonacci set covers the sphere over time.
+PC_FN mat3 pcRandomRotation(uint seed) {
+  float u1 = pcHashToFloat(pcHash(seed * 3u + 0u));
+  float u2 = pcHashToFloat(pcHash(seed * 3u + 1u));
+  float u3 = pcHashToFloat(pcHash(seed * 3u + 2u));
+  float a = sqrt(1.0f - u1), b = sqrt(u1);
+  float qx = a * sin(2.0f * PC_PI * u2), qy = a * cos(2.0f * PC_PI * u2);
+  float qz = b * sin(2.0f * PC_PI * u3), qw = b * cos(2.0f * PC_PI * u3);
+  // Column-major, as GLSL and GLM both store it.
+  return mat3(vec3(1.0f - 2.0f * (qy * qy + qz * qz), 2.0f * (qx * qy + qz * qw),
+                   2.0f * (qx * qz - qy * qw)),
+              vec3(2.0f * (qx * qy - qz * qw), 1.0f - 2.0f * (qx * qx + qz * qz),
+                   2.0f * (qy * qz + qx * qw)),
+              vec3(2.0f * (qx * qz + qy * qw), 2.0f * (qy * qz - qx * qw),
+                   1.0f - 2.0f * (qx * qx + qy * qy)));
+}
+
+// ---- probe and brick indexing --------------------------------------------------------------
+
+PC_FN ivec3 pcWrap(ivec3 v, ivec3 n) { return ivec3(((v.x % n.x) + n.x) % n.x, ((v.y % n.y) + n.y) % n.y, ((v.z % n.z) + n.z) % n.z); }
+
+// Logical grid coordinate -> physical storage coordinate (toroidal scroll).
+PC_FN ivec3 pcPhysicalCoord(CascadeDesc c, ivec3 logical) { return pcWrap(logical + c.scroll, c.counts); }
+PC_FN ivec3 pcLogicalCoord(CascadeDesc c, ivec3 physical) { return pcWrap(physical - c.scroll, c.counts); }
+
+// Physical coordinate -> index within the cascade. Probes are stored brick by brick so a
+// brick's probes are contiguous (one range to read, upload or send).
+PC_FN ivec3 pcBrickCounts(CascadeDesc c) {
+  return ivec3((c.counts.x + PC_BRICK_SIZE - 1) / PC_BRICK_SIZE,
+               (c.counts.y + PC_BRICK_SIZE - 1) / PC_BRICK_SIZE,
+               (c.counts.z + PC_BRICK_SIZE - 1) / PC_BRICK_SIZE);
+}
+PC_FN int pcBrickCount(CascadeDesc c) {
+  ivec3 b = pcBrickCounts(c);
+  return b.x * b.y * b.z;
+}
+PC_FN int pcBrickIndex(CascadeDesc c, ivec3 physical) {
+  ivec3 b = pcBrickCounts(c);
+  ivec3 bc = physical / PC_BRICK_SIZE;
+  return bc.x + b.x * (bc.y + b.y * bc.z);
+}
+PC_FN ivec3 pcBrickCoord(CascadeDesc c, int brick) {
+  ivec3 b = pcBrickCounts(c);
+  return ivec3(brick % b.x, (brick / b.x) % b.y, brick / (b.x * b.y));
+}
+PC_CONST int PC_PROBES_PER_BRICK = PC_BRICK_SIZE * PC_BRICK_SIZE * PC_BRICK_SIZE;
+// Slot index of a probe inside the cascade: brick * 64 + position in brick. Slots of bricks
+// that overhang the grid edge are allocated but never hold a probe.
+PC_FN int pcProbeSlot(CascadeDesc c, ivec3 physical) {
+  ivec3 inb = physical - (physical / PC_BRICK_SIZE) * PC_BRICK_SIZE;
+  return pcBrickIndex(c, physical) * PC_PROBES_PER_BRICK + inb.x +
+         PC_BRICK_SIZE * (inb.y + PC_BRICK_SIZE * inb.z);
+}
+PC_FN ivec3 pcSlotCoord(CascadeDesc c, int slot) {
+  ivec3 bc = pcBrickCoord(c, slot / PC_PROBES_PER_BRICK);
+  int s = slot % PC_PROBES_PER_BRICK;
+  return bc * PC_BRICK_SIZE + ivec3(s % PC_BRICK_SIZE, (s / PC_BRICK_SIZE) % PC_BRICK_SIZE,
+                                    s / (PC_BRICK_SIZE * PC_BRICK_SIZE));
+}
+PC_FN int pcSlotCount(CascadeDesc c) { return pcBrickCount(c) * PC_PROBES_PER_BRICK; }
+PC_FN bool pcSlotValid(CascadeDesc c, int slot) {
+  ivec3 p = pcSlotCoord(c, slot);
+  return p.x < c.counts.x && p.y < c.counts.y && p.z < c.counts.z;
+}
+
+// World position of a probe's grid point (before relocation).
+PC_FN vec3 pcProbeGridPosition(CascadeDesc c, ivec3 logical) {
+  return c.origin + vec3(logical) * c.spacing;
+}
+
+// ---- atlas addressing -------------------------------------------------------------------------
+// Every channel's atlas holds one bordered tile per probe slot, PC_ATLAS_TILES_PER_ROW tiles per
+// row; cascade k starts at tile row c.atlasTileRow. Tile size = interior texels + 2.
+
+PC_FN int pcAtlasTileRows(int slotCount) {
+  return (slotCount + PC_ATLAS_TILES_PER_ROW - 1) / PC_ATLAS_TILES_PER_ROW;
+}
+// Pixel origin (top-left border texel) of a slot's tile in an atlas of tiles of `tileSize`.
+PC_FN ivec2 pcAtlasTileOrigin(CascadeDesc c, int slot, int tileSize) {
+  return ivec2((slot % PC_ATLAS_TILES_PER_ROW) * tileSize,
+               (c.atlasTileRow + slot / PC_ATLAS_TILES_PER_ROW) * tileSize);
+}
+
+PC_END
+
+#endif

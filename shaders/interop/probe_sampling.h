@@ -1,0 +1,123 @@
+// Shading from a probe field: the 8-probe cage of each cascade, weighted by trilinear
+// position, wrap-shaded backface term and Chebyshev visibility on the depth moments, with
+// normal and view bias, blended from the finest cascade to coarser ones near cascade edges.
+//
+// The includer provides the texel fetches (textures on the GPU, arrays on the CPU) before
+// including this file:
+//   PC_FIELD_PARAM / PC_FIELD_ARG  an extra leading parameter/argument (empty in GLSL)
+//   vec3  pcFetchIrradiance(PC_FIELD_PARAM int cascade, int slot, vec3 dir)  gamma-encoded, bilinear
+//   vec2  pcFetchDepth(PC_FIELD_PARAM int cascade, int slot, vec3 dir)       mean, mean square
+//   float pcFetchOcclusion(PC_FIELD_PARAM int cascade, int slot, vec3 dir)
+//   vec4  pcFetchProbe(PC_FIELD_PARAM int cascade, int slot)                 offset xyz, state w
+#ifndef PC_PROBE_SAMPLING_H
+#define PC_PROBE_SAMPLING_H
+
+#include "probe_math.h"
+
+PC_BEGIN
+
+PC_CONST int PC_SAMPLE_DEFAULT = 0;
+PC_CONST int PC_SAMPLE_NO_VISIBILITY = 1;  // trilinear only: the naive baseline that leaks
+
+// Chebyshev upper bound on the chance that a point at `dist` from the probe is visible,
+// given the mean and mean square of the probe's hit distances in that direction.
+PC_FN float pcChebyshevVisibility(vec2 moments, float dist) {
+  float mean = moments.x;
+  if (dist <= mean) return 1.0f;
+  float variance = abs(moments.y - mean * mean);
+  float d = dist - mean;
+  float p = variance / (variance + d * d);
+  return max(p * p * p, 0.0f);  // cubed: sharpens the soft bound toward the real occluder
+}
+
+// Irradiance (rgb, W/m^2) and sky occlusion (a) from one cascade; `weightSum` returns the sum
+// of cage weights (0 when no probe of the cage holds data).
+PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N,
+                           vec3 V, int flags, PC_INOUT(float) weightSum) {
+  vec3 biasedP = P + N * c.normalBias + V * c.viewBias;
+  vec3 grid = (biasedP - c.origin) / c.spacing;
+  ivec3 base = clamp(ivec3(floor(grid)), ivec3(0), max(c.counts - ivec3(2), ivec3(0)));
+  vec3 alpha = clamp(grid - vec3(base), vec3(0.0f), vec3(1.0f));
+
+  vec3 irradiance = vec3(0.0f);
+  float occlusion = 0.0f;
+  weightSum = 0.0f;
+  for (int i = 0; i < 8; ++i) {
+    ivec3 offset = ivec3(i & 1, (i >> 1) & 1, (i >> 2) & 1);
+    ivec3 logical = min(base + offset, c.counts - ivec3(1));
+    int slot = pcProbeSlot(c, pcPhysicalCoord(c, logical));
+    vec4 probe = pcFetchProbe(PC_FIELD_ARG cascade, slot);
+    int state = int(probe.w);
+    if (state == PC_PROBE_INSIDE || state == PC_PROBE_UNINITIALIZED) continue;
+    vec3 probeP = pcProbeGridPosition(c, logical) + vec3(probe.x, probe.y, probe.z);
+
+    vec3 tri = mix(vec3(1.0f) - alpha, alpha, vec3(offset));
+    float trilinear = max(0.001f, tri.x * tri.y * tri.z);
+    float weight = 1.0f;
+    if ((flags & PC_SAMPLE_NO_VISIBILITY) == 0) {
+      // Smooth backface term: probes behind the surface count less, never zero, so a point
+      // with every probe behind it still gets light.
+      vec3 toProbe = normalize(probeP - P);
+      float wrap = (dot(toProbe, N) + 1.0f) * 0.5f;
+      weight *= wrap * wrap + 0.2f;
+
+      vec3 probeToPoint = biasedP - probeP;
+      float dist = length(probeToPoint);
+      vec3 dir = dist > 0.0f ? probeToPoint / dist : N;
+      vec2 moments = pcFetchDepth(PC_FIELD_ARG cascade, slot, dir);
+      weight *= max(0.05f, pcChebyshevVisibility(moments, dist));
+      weight = max(0.000001f, weight);
+      // Crush tiny weights: they come from occluded probes whose light would leak.
+      const float crush = 0.2f;
+      if (weight < crush) weight *= weight * weight / (crush * crush);
+    }
+    weight *= trilinear;
+
+    vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, N);
+    // Interpolate in a perceptual space (square root of irradiance) like RTXGI: the atlas
+    // holds irradiance^(1/gamma), so raise to gamma/2 here and square the weighted mean.
+    vec3 e = max(encoded, vec3(0.0f));
+    irradiance += weight * pow(e, vec3(0.5f * PC_IRRADIANCE_GAMMA));
+    occlusion += weight * pcFetchOcclusion(PC_FIELD_ARG cascade, slot, N);
+    weightSum += weight;
+  }
+  if (weightSum <= 0.0f) return vec4(0.0f);
+  vec3 m = irradiance / weightSum;
+  return vec4(m * m, occlusion / weightSum);
+}
+
+// How much cascade `c` owns point P: 1 well inside, fading to 0 over blendMargin at the edge
+// of the region its probes span.
+PC_FN float pcCascadeCoverage(PC_IN(CascadeDesc) c, vec3 P) {
+  vec3 lo = c.origin;
+  vec3 hi = c.origin + vec3(c.counts - ivec3(1)) * c.spacing;
+  vec3 inside = min(P - lo, hi - P);
+  float d = min(inside.x, min(inside.y, inside.z));
+  if (c.blendMargin <= 0.0f) return d >= 0.0f ? 1.0f : 0.0f;
+  return clamp(d / c.blendMargin, 0.0f, 1.0f);
+}
+
+// Irradiance and occlusion at a surface point from all cascades (finest first). The coarsest
+// cascade takes whatever the finer ones leave, even outside its extent (clamped cage).
+// `coverage` returns how much of the result came from probes that hold data (0..1).
+PC_FN vec4 pcSampleField(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 V, int flags,
+                         PC_INOUT(float) coverage) {
+  vec4 result = vec4(0.0f);
+  float remaining = 1.0f;
+  for (int k = 0; k < f.cascadeCount; ++k) {
+    float w = k == f.cascadeCount - 1 ? 1.0f : pcCascadeCoverage(f.cascades[k], P);
+    if (w <= 0.0f) continue;
+    float weightSum = 0.0f;
+    vec4 s = pcSampleCascade(PC_FIELD_ARG f.cascades[k], k, P, N, V, flags, weightSum);
+    if (weightSum <= 0.0f) continue;
+    result += remaining * w * s;
+    remaining *= 1.0f - w;
+    if (remaining <= 0.0f) break;
+  }
+  coverage = 1.0f - remaining;
+  return coverage > 0.0f ? result / coverage : vec4(0.0f);
+}
+
+PC_END
+
+#endif
