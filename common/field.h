@@ -8,7 +8,7 @@
 
 #include <glm/glm.hpp>
 
-#include "../shaders/interop/field_desc.h"
+#include "../shaders/interop/probe_math.h"
 #include "scene.h"
 
 namespace pc {

@@ -45,6 +45,8 @@ class EmissiveLights {
 
 struct DirectLightOptions {
   int emissiveSamples = 1;  // shadow rays toward emissive triangles per call
+  // When set, incremented by the number of shadow rays traced (ray budgets and Mrays/s).
+  std::uint64_t* shadowRayCount = nullptr;
 };
 
 // Irradiance E (W/m^2) arriving at P (normal N, unit) directly from lights, shadowed.
@@ -55,5 +57,19 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
 
 // Offset along the geometric normal that keeps secondary rays from re-hitting their origin.
 glm::vec3 offsetRayOrigin(glm::vec3 P, glm::vec3 geometricNormal);
+
+// Rec. 709 luminance of linear RGB.
+inline float luminance(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+// Auto's rule: emitters are sampled as lights when they cover less than this share of the
+// scene's surface area (see lighting.cpp for why).
+inline constexpr float kEmissiveLightsMaxAreaShare = 0.1f;
+
+// Whether `mode` makes the emissive surfaces of a scene sampled lights, given their area and
+// the scene's total surface area.
+bool emissiveAsLights(EmissiveMode mode, double emissiveArea, double totalArea);
+
+// Cosine-weighted direction about the unit normal N (pdf = cos / pi).
+glm::vec3 sampleCosineHemisphere(glm::vec3 N, float u1, float u2);
 
 }  // namespace pc

@@ -23,6 +23,11 @@ PC_CONST int PC_PROBE_SLEEPING = 1;  // no geometry near: kept, sampled, not tra
 PC_CONST int PC_PROBE_INSIDE = 2;    // inside geometry: never sampled
 PC_CONST int PC_PROBE_UNINITIALIZED = 3;  // no data yet: never sampled
 
+// Sampling flags (pcSampleField).
+PC_CONST int PC_SAMPLE_DEFAULT = 0;
+PC_CONST int PC_SAMPLE_NO_VISIBILITY = 1;  // trilinear only: the naive baseline that leaks
+PC_CONST int PC_SAMPLE_NO_OCCLUSION = 2;   // skip the occlusion tile (probe-ray hit shading)
+
 PC_CONST float PC_PI = 3.14159265358979f;
 PC_CONST float PC_IRRADIANCE_GAMMA = 5.0f;  // encoding gamma of the irradiance atlas
 
@@ -62,6 +67,8 @@ PC_END
 #ifdef __cplusplus
 static_assert(sizeof(pc::gpu::CascadeDesc) == 64);
 static_assert(sizeof(pc::gpu::FieldDesc) == 32 + 64 * pc::gpu::PC_MAX_CASCADES);
+// probe_sampling.h decodes e^(gamma/2) as e*e*sqrt(e): valid for gamma 5 only.
+static_assert(pc::gpu::PC_IRRADIANCE_GAMMA == 5.0f);
 #endif
 
 #endif

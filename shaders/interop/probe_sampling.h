@@ -16,9 +16,6 @@
 
 PC_BEGIN
 
-PC_CONST int PC_SAMPLE_DEFAULT = 0;
-PC_CONST int PC_SAMPLE_NO_VISIBILITY = 1;  // trilinear only: the naive baseline that leaks
-
 // Chebyshev upper bound on the chance that a point at `dist` from the probe is visible,
 // given the mean and mean square of the probe's hit distances in that direction.
 PC_FN float pcChebyshevVisibility(vec2 moments, float dist) {
@@ -76,13 +73,16 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
     vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, N);
     // Interpolate in a perceptual space (square root of irradiance) like RTXGI: the atlas
     // holds irradiance^(1/gamma), so raise to gamma/2 here and square the weighted mean.
+    // e^(gamma/2) with gamma = 5 as two multiplies and a square root (pow is slow on CPUs).
     vec3 e = max(encoded, vec3(0.0f));
-    irradiance += weight * pow(e, vec3(0.5f * PC_IRRADIANCE_GAMMA));
-    occlusion += weight * pcFetchOcclusion(PC_FIELD_ARG cascade, slot, N);
+    irradiance += weight * (e * e * sqrt(e));
+    if ((flags & PC_SAMPLE_NO_OCCLUSION) == 0) {
+      occlusion += weight * pcFetchOcclusion(PC_FIELD_ARG cascade, slot, N);
+    }
     weightSum += weight;
   }
   if (weightSum <= 0.0f) return vec4(0.0f);
-  vec3 m = irradiance / weightSum;
+  vec3 m = irradiance / weightSum;  // squared below: back from the sqrt-irradiance space
   return vec4(m * m, occlusion / weightSum);
 }
 

@@ -1,0 +1,179 @@
+#include "field.h"
+
+#include "../shaders/interop/probe_update.h"
+
+#include <algorithm>
+#include <cmath>
+
+// The shared sampling code reads the field through these fetches; on the CPU they read the
+// atlases bilinearly, exactly as a GPU sampler with linear filtering would.
+namespace pc::gpu {
+vec3 pcFetchIrradiance(const pc::Field& field, int cascade, int slot, vec3 dir);
+vec2 pcFetchDepth(const pc::Field& field, int cascade, int slot, vec3 dir);
+float pcFetchOcclusion(const pc::Field& field, int cascade, int slot, vec3 dir);
+vec4 pcFetchProbe(const pc::Field& field, int cascade, int slot);
+}  // namespace pc::gpu
+#define PC_FIELD_PARAM const pc::Field &field,
+#define PC_FIELD_ARG field,
+#include "../shaders/interop/probe_sampling.h"
+
+namespace pc {
+
+using namespace pc::gpu;
+
+namespace {
+
+Atlas makeAtlas(int tileSize, int tileRows, int channels) {
+  Atlas a;
+  a.width = PC_ATLAS_TILES_PER_ROW * tileSize;
+  a.height = tileRows * tileSize;
+  a.channels = channels;
+  a.texels.assign(std::size_t(a.width) * a.height * channels, 0.0f);
+  return a;
+}
+
+// Bilinear sample of a bordered tile at continuous tile coordinate `tc` (texel centres at
+// k + 0.5). The border guarantees all four texels lie inside the tile.
+template <int C>
+void bilinear(const Atlas& atlas, ivec2 origin, vec2 tc, int tileSize, float* out) {
+  float fx = tc.x - 0.5f, fy = tc.y - 0.5f;
+  int x0 = std::clamp(int(std::floor(fx)), 0, tileSize - 2);
+  int y0 = std::clamp(int(std::floor(fy)), 0, tileSize - 2);
+  float ax = std::clamp(fx - float(x0), 0.0f, 1.0f), ay = std::clamp(fy - float(y0), 0.0f, 1.0f);
+  const float* t00 = atlas.at(origin.x + x0, origin.y + y0);
+  const float* t10 = atlas.at(origin.x + x0 + 1, origin.y + y0);
+  const float* t01 = atlas.at(origin.x + x0, origin.y + y0 + 1);
+  const float* t11 = atlas.at(origin.x + x0 + 1, origin.y + y0 + 1);
+  for (int c = 0; c < C; ++c) {
+    float top = t00[c] + (t10[c] - t00[c]) * ax;
+    float bottom = t01[c] + (t11[c] - t01[c]) * ax;
+    out[c] = top + (bottom - top) * ay;
+  }
+}
+
+void fixTileBorder(Atlas& atlas, ivec2 origin, int n) {
+  const int size = n + 2;
+  for (int by = 0; by < size; ++by) {
+    for (int bx = 0; bx < size; ++bx) {
+      if (bx != 0 && by != 0 && bx != size - 1 && by != size - 1) continue;
+      ivec2 src = pcBorderSource(bx, by, n);
+      const float* s = atlas.at(origin.x + 1 + src.x, origin.y + 1 + src.y);
+      float* d = atlas.at(origin.x + bx, origin.y + by);
+      std::copy(s, s + atlas.channels, d);
+    }
+  }
+}
+
+}  // namespace
+
+Field Field::create(const std::vector<ProbeVolume>& volumes, const FieldSettings& settings) {
+  Field f;
+  f.settings = settings;
+  const int count = std::min<int>(int(volumes.size()), PC_MAX_CASCADES);
+  f.desc.cascadeCount = count;
+  f.desc.hysteresis = settings.hysteresis;
+  f.desc.distanceExponent = settings.distanceExponent;
+  float finest = count > 0 ? volumes[0].spacing : 1.0f;
+  f.desc.occlusionDistance = settings.occlusionDistance * finest;
+  int slots = 0, rows = 0;
+  for (int k = 0; k < count; ++k) {
+    const ProbeVolume& v = volumes[k];
+    CascadeDesc& c = f.desc.cascades[k];
+    c.origin = v.origin;
+    c.spacing = v.spacing;
+    c.counts = max(v.counts, ivec3(1));
+    c.firstProbe = slots;
+    c.scroll = ivec3(0);
+    c.atlasTileRow = rows;
+    c.normalBias = settings.normalBias * v.spacing;
+    c.viewBias = settings.viewBias * v.spacing;
+    // A probe's depth only matters out to the far corner of the cages it belongs to.
+    c.maxRayDistance = settings.maxRayDistance > 0.0f ? settings.maxRayDistance
+                                                      : 1.5f * std::sqrt(3.0f) * v.spacing;
+    c.blendMargin = settings.blendMargin * v.spacing;
+    int n = pcSlotCount(c);
+    slots += n;
+    rows += pcAtlasTileRows(n);
+  }
+  f.desc.probeCount = slots;
+  f.desc.atlasTileRows = rows;
+  f.irradiance = makeAtlas(PC_IRRADIANCE_TEXELS + 2, rows, 3);
+  f.depth = makeAtlas(PC_DEPTH_TEXELS + 2, rows, 2);
+  f.occlusion = makeAtlas(PC_OCCLUSION_TEXELS + 2, rows, 1);
+  f.probes.assign(slots, ProbeRecord{});
+  f.brickVersions.resize(count);
+  for (int k = 0; k < count; ++k) f.brickVersions[k].assign(pcBrickCount(f.desc.cascades[k]), 0);
+  return f;
+}
+
+int Field::probeCount() const {
+  int n = 0;
+  for (int k = 0; k < desc.cascadeCount; ++k) {
+    ivec3 c = desc.cascades[k].counts;
+    n += c.x * c.y * c.z;
+  }
+  return n;
+}
+
+glm::vec3 Field::probePosition(int k, int slot) const {
+  const CascadeDesc& c = desc.cascades[k];
+  ivec3 logical = pcLogicalCoord(c, pcSlotCoord(c, slot));
+  return pcProbeGridPosition(c, logical) + probe(k, slot).offset;
+}
+
+void Field::fixBorders(int k, int slot) {
+  const CascadeDesc& c = desc.cascades[k];
+  fixTileBorder(irradiance, pcAtlasTileOrigin(c, slot, PC_IRRADIANCE_TEXELS + 2), PC_IRRADIANCE_TEXELS);
+  fixTileBorder(depth, pcAtlasTileOrigin(c, slot, PC_DEPTH_TEXELS + 2), PC_DEPTH_TEXELS);
+  fixTileBorder(occlusion, pcAtlasTileOrigin(c, slot, PC_OCCLUSION_TEXELS + 2), PC_OCCLUSION_TEXELS);
+}
+
+glm::vec4 sampleField(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
+                      float* coverage) {
+  float cov = 0.0f;
+  vec4 r = pcSampleField(field, field.desc, P, N, V, flags, cov);
+  if (coverage) *coverage = cov;
+  return r;
+}
+
+glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir) {
+  return pcDecodeIrradiance(pcFetchIrradiance(field, cascade, slot, dir));
+}
+glm::vec2 fetchDepth(const Field& field, int cascade, int slot, glm::vec3 dir) {
+  return pcFetchDepth(field, cascade, slot, dir);
+}
+
+}  // namespace pc
+
+namespace pc::gpu {
+
+vec3 pcFetchIrradiance(const pc::Field& field, int cascade, int slot, vec3 dir) {
+  constexpr int n = PC_IRRADIANCE_TEXELS;
+  vec3 out;
+  pc::bilinear<3>(field.irradiance, pcAtlasTileOrigin(field.desc.cascades[cascade], slot, n + 2),
+                  pcTileCoord(dir, n), n + 2, &out.x);
+  return out;
+}
+
+vec2 pcFetchDepth(const pc::Field& field, int cascade, int slot, vec3 dir) {
+  constexpr int n = PC_DEPTH_TEXELS;
+  vec2 out;
+  pc::bilinear<2>(field.depth, pcAtlasTileOrigin(field.desc.cascades[cascade], slot, n + 2),
+                  pcTileCoord(dir, n), n + 2, &out.x);
+  return out;
+}
+
+float pcFetchOcclusion(const pc::Field& field, int cascade, int slot, vec3 dir) {
+  constexpr int n = PC_OCCLUSION_TEXELS;
+  float out;
+  pc::bilinear<1>(field.occlusion, pcAtlasTileOrigin(field.desc.cascades[cascade], slot, n + 2),
+                  pcTileCoord(dir, n), n + 2, &out);
+  return out;
+}
+
+vec4 pcFetchProbe(const pc::Field& field, int cascade, int slot) {
+  const pc::ProbeRecord& p = field.probe(cascade, slot);
+  return vec4(p.offset, float(p.state));
+}
+
+}  // namespace pc::gpu

@@ -1,0 +1,163 @@
+#include "embree_tracer.h"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/enumerable_thread_specific.h>
+
+#include "../shaders/interop/probe_math.h"
+#include "probe_blend.h"
+
+namespace pc {
+
+using Clock = std::chrono::steady_clock;
+static double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+std::vector<glm::vec3> probeRayDirections(int rayCount, std::uint32_t rotationSeed) {
+  glm::mat3 rotation = gpu::pcRandomRotation(rotationSeed);
+  std::vector<glm::vec3> dirs(rayCount);
+  for (int i = 0; i < rayCount; ++i) dirs[i] = rotation * gpu::pcFibonacciDirection(i, rayCount);
+  return dirs;
+}
+
+std::vector<ProbeRef> allProbes(const Field& field) {
+  std::vector<ProbeRef> probes;
+  for (int k = 0; k < field.cascadeCount(); ++k) {
+    const gpu::CascadeDesc& c = field.cascade(k);
+    for (int s = 0; s < gpu::pcSlotCount(c); ++s)
+      if (gpu::pcSlotValid(c, s)) probes.push_back({k, s});
+  }
+  return probes;
+}
+
+Result<std::unique_ptr<Tracer>> makeEmbreeTracer(const Scene& scene, const TracerOptions& options) {
+  auto t = EmbreeTracer::create(scene, options);
+  if (!t) return t.error();
+  return std::unique_ptr<Tracer>(std::move(t).value());
+}
+
+Result<std::unique_ptr<EmbreeTracer>> EmbreeTracer::create(const Scene& scene,
+                                                           const TracerOptions& options) {
+  auto embree = EmbreeScene::create(scene);
+  if (!embree) return embree.error();
+  std::unique_ptr<EmbreeTracer> tracer(new EmbreeTracer(scene, std::move(embree).value(), options));
+  tracer->setState(evaluateScene(scene, 0.0));
+  return tracer;
+}
+
+EmbreeTracer::EmbreeTracer(const Scene& scene, std::unique_ptr<EmbreeScene> embree,
+                           const TracerOptions& options)
+    : scene_(scene), embree_(std::move(embree)), options_(options) {}
+
+void EmbreeTracer::setState(const SceneState& state) {
+  state_ = state;
+  embree_->update(state);
+  emissive_ = EmissiveLights::build(scene_, state);
+}
+
+UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
+  UpdateStats stats;
+  const auto t0 = Clock::now();
+  const int rayCount = field.settings.raysPerProbe;
+  const std::vector<glm::vec3> dirs = probeRayDirections(rayCount, request.rotationSeed);
+  const std::size_t probeCount = request.probes.size();
+  std::vector<RayResult> results(probeCount * rayCount);
+  const float inf = std::numeric_limits<float>::infinity();
+  tbb::enumerable_thread_specific<std::uint64_t> shadowRays(0);
+
+  // Phase 1: trace and shade. Reads the field (indirect light at hits) but never writes it.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probeCount, 4), [&](const auto& range) {
+    std::uint64_t& shadows = shadowRays.local();
+    DirectLightOptions lightOptions;
+    lightOptions.emissiveSamples = options_.emissiveSamples;
+    lightOptions.shadowRayCount = &shadows;
+    for (std::size_t p = range.begin(); p != range.end(); ++p) {
+      const ProbeRef ref = request.probes[p];
+      const glm::vec3 origin = field.probePosition(ref.cascade, ref.slot);
+      Rng rng(request.rotationSeed * 0x9E3779B97F4A7C15ull + p, 7);
+      RayResult* out = &results[p * rayCount];
+      for (int i = 0; i < rayCount; ++i) {
+        Hit hit;
+        if (!embree_->intersect(origin, dirs[i], 0.0f, inf, hit)) {
+          out[i] = {scene_.sky.radiance(dirs[i]), inf};
+          continue;
+        }
+        SurfacePoint sp = embree_->surface(hit, origin, dirs[i]);
+        if (sp.backface) {
+          out[i] = {glm::vec3(0.0f), -hit.t};
+          continue;
+        }
+        glm::vec3 irradiance =
+            directIrradiance(*embree_, state_, emissive_, sp.position, sp.normal, rng, lightOptions);
+        if (!(request.shading & kShadeNoIndirect)) {
+          irradiance += glm::vec3(sampleField(field, sp.position, sp.normal, -dirs[i],
+                                              gpu::PC_SAMPLE_NO_OCCLUSION));
+        }
+        glm::vec3 emitted = emissive_.sampled(sp.material) ? glm::vec3(0.0f) : sp.emission;
+        out[i] = {emitted + sp.albedo * (1.0f / gpu::PC_PI) * irradiance, hit.t};
+      }
+    }
+  });
+  stats.traceMs = msSince(t0);
+  stats.probeRays = std::uint64_t(probeCount) * rayCount;
+  for (std::uint64_t n : shadowRays) stats.shadowRays += n;
+
+  // Phase 2: blend every probe (disjoint tiles, so in parallel), then mark changed bricks.
+  const auto t1 = Clock::now();
+  std::vector<float> change(probeCount, 0.0f);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probeCount, 8), [&](const auto& range) {
+    for (std::size_t p = range.begin(); p != range.end(); ++p) {
+      const ProbeRef ref = request.probes[p];
+      change[p] = blendProbe(field, ref.cascade, ref.slot, &results[p * rayCount], dirs.data(),
+                             rayCount);
+    }
+  });
+  const std::uint64_t next = field.version + 1;
+  for (std::size_t p = 0; p < probeCount; ++p) {
+    if (change[p] <= request.changeThreshold) continue;
+    const ProbeRef ref = request.probes[p];
+    std::uint64_t& v = field.brickVersions[ref.cascade][ref.slot / gpu::PC_PROBES_PER_BRICK];
+    if (v != next) {
+      v = next;
+      ++stats.bricksChanged;
+    }
+  }
+  if (stats.bricksChanged > 0) field.version = next;
+  stats.blendMs = msSince(t1);
+  stats.probesUpdated = int(probeCount);
+  stats.totalMs = msSince(t0);
+  return stats;
+}
+
+double EmbreeTracer::traceOnly(const Field& field, const UpdateRequest& request,
+                               std::uint64_t* hits) const {
+  const int rayCount = field.settings.raysPerProbe;
+  const std::vector<glm::vec3> dirs = probeRayDirections(rayCount, request.rotationSeed);
+  const std::size_t probeCount = request.probes.size();
+  const float inf = std::numeric_limits<float>::infinity();
+  std::atomic<std::uint64_t> hitCount{0};
+  const auto t0 = Clock::now();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probeCount, 4), [&](const auto& range) {
+    std::uint64_t local = 0;
+    for (std::size_t p = range.begin(); p != range.end(); ++p) {
+      const ProbeRef ref = request.probes[p];
+      const glm::vec3 origin = field.probePosition(ref.cascade, ref.slot);
+      for (int i = 0; i < rayCount; ++i) {
+        Hit hit;
+        local += embree_->intersect(origin, dirs[i], 0.0f, inf, hit) ? 1 : 0;
+      }
+    }
+    hitCount += local;
+  });
+  double ms = msSince(t0);
+  if (hits) *hits = hitCount;
+  return ms;
+}
+
+}  // namespace pc

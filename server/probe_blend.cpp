@@ -1,0 +1,195 @@
+#include "probe_blend.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "../shaders/interop/probe_update.h"
+
+namespace pc {
+
+using namespace pc::gpu;
+
+namespace {
+
+std::vector<glm::vec3> tileDirections(int n) {
+  std::vector<glm::vec3> dirs;
+  dirs.reserve(std::size_t(n) * n);
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) dirs.push_back(pcTexelDirection(x, y, n));
+  return dirs;
+}
+
+// x^e for the depth lobe; integer exponents (the usual case) by squaring, which is far
+// cheaper than pow in the innermost loop.
+struct LobePower {
+  explicit LobePower(float e) : exponent(e), integer(e == std::floor(e) && e >= 0 && e < 1024) {}
+  float operator()(float x) const {
+    if (!integer) return std::pow(x, exponent);
+    float result = 1.0f, base = x;
+    for (unsigned n = unsigned(exponent); n; n >>= 1) {
+      if (n & 1u) result *= base;
+      base *= base;
+    }
+    return result;
+  }
+  float exponent;
+  bool integer;
+};
+
+// Accumulates one channel group of a tile: for each texel, the weighted mean of `value` over
+// rays whose lobe weight exceeds `cutoff`. Rays are in structure-of-arrays form so the dot
+// products vectorize.
+struct RaysSoA {
+  std::vector<float> x, y, z;
+  void assign(const glm::vec3* dirs, int n) {
+    x.resize(n), y.resize(n), z.resize(n);
+    for (int i = 0; i < n; ++i) x[i] = dirs[i].x, y[i] = dirs[i].y, z[i] = dirs[i].z;
+  }
+};
+
+void dots(const RaysSoA& r, glm::vec3 d, float* out) {
+  const int n = int(r.x.size());
+  const float* __restrict rx = r.x.data();
+  const float* __restrict ry = r.y.data();
+  const float* __restrict rz = r.z.data();
+  for (int i = 0; i < n; ++i) out[i] = rx[i] * d.x + ry[i] * d.y + rz[i] * d.z;
+}
+
+}  // namespace
+
+const TexelDirections& TexelDirections::get() {
+  static const TexelDirections dirs{tileDirections(PC_IRRADIANCE_TEXELS),
+                                    tileDirections(PC_DEPTH_TEXELS),
+                                    tileDirections(PC_OCCLUSION_TEXELS)};
+  return dirs;
+}
+
+float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm::vec3* dirs,
+                 int rayCount) {
+  const CascadeDesc& c = field.cascade(k);
+  ProbeRecord& record = field.probe(k, slot);
+  const TexelDirections& texels = TexelDirections::get();
+  const float inf = std::numeric_limits<float>::infinity();
+
+  // ---- classification and relocation statistics ----
+  int backfaces = 0;
+  float closestBack = inf, closestFront = inf;
+  glm::vec3 closestBackDir(0.0f), closestFrontDir(0.0f);
+  for (int i = 0; i < rayCount; ++i) {
+    float d = rays[i].distance;
+    if (d < 0.0f) {
+      ++backfaces;
+      if (-d < closestBack) closestBack = -d, closestBackDir = dirs[i];
+    } else if (d < closestFront) {
+      closestFront = d, closestFrontDir = dirs[i];
+    }
+  }
+  const float backfaceFraction = float(backfaces) / float(std::max(rayCount, 1));
+  const int oldState = record.state;
+  const glm::vec3 oldOffset = record.offset;
+  record.offset = pcRelocate(record.offset, backfaceFraction, closestBack, closestBackDir,
+                             closestFront, closestFrontDir, 0.2f * c.spacing, 0.45f * c.spacing);
+  const bool moved = glm::length(record.offset - oldOffset) > 0.01f * c.spacing;
+
+  if (backfaceFraction > PC_INSIDE_BACKFACE_FRACTION) {
+    // Inside geometry: its tiles describe the inside of a wall; never sampled. History is
+    // dropped so that, once relocated out, it starts clean.
+    record.state = PC_PROBE_INSIDE;
+    record.updates = 0;
+    return oldState != PC_PROBE_INSIDE || moved ? inf : 0.0f;
+  }
+  // No surface within reach of any cage this probe belongs to: nothing shades from it, so it
+  // can sleep (traced rarely) until something moves near.
+  const float reach = std::sqrt(3.0f) * c.spacing;
+  record.state = (backfaces == 0 && closestFront > reach) ? PC_PROBE_SLEEPING : PC_PROBE_ACTIVE;
+
+  const bool hasHistory = record.updates > 0 && !moved;
+  // Running mean for the first updates, exponential (hysteresis) after: converges in few
+  // updates from nothing, yet keeps the temporal filtering of DDGI.
+  const float alpha =
+      hasHistory ? std::min(field.settings.hysteresis, float(record.updates) / float(record.updates + 1))
+                 : 0.0f;
+  record.updates = hasHistory ? record.updates + 1 : 1;
+
+  RaysSoA soa;
+  soa.assign(dirs, rayCount);
+  std::vector<float> cosines(rayCount);
+  float maxChange = (oldState != record.state || moved) ? inf : 0.0f;
+
+  // ---- irradiance: E = pi * cos-weighted mean radiance; backface rays carry no light ----
+  {
+    constexpr int n = PC_IRRADIANCE_TEXELS;
+    glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
+    for (int t = 0; t < n * n; ++t) {
+      dots(soa, texels.irradiance[t], cosines.data());
+      glm::vec3 sum(0.0f);
+      float weight = 0.0f;
+      for (int i = 0; i < rayCount; ++i) {
+        float w = cosines[i];
+        if (w <= 0.0f || rays[i].distance < 0.0f) continue;
+        sum += w * rays[i].radiance;
+        weight += w;
+      }
+      if (weight <= 0.0f) continue;
+      glm::vec3 sample = pcEncodeIrradiance(PC_PI * sum / weight);
+      float* texel = field.irradiance.at(origin.x + 1 + t % n, origin.y + 1 + t / n);
+      glm::vec3 old(texel[0], texel[1], texel[2]);
+      glm::vec3 blended = glm::mix(sample, old, alpha);
+      glm::vec3 delta = glm::abs(blended - old);
+      maxChange = std::max(maxChange, std::max(delta.x, std::max(delta.y, delta.z)));
+      texel[0] = blended.x, texel[1] = blended.y, texel[2] = blended.z;
+    }
+  }
+  // ---- depth moments: sharp lobe; backface hits count at a fraction of their distance ----
+  {
+    constexpr int n = PC_DEPTH_TEXELS;
+    glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
+    const LobePower lobe(field.settings.distanceExponent);
+    // Below this cosine the lobe weight is under 1e-4: skip the power.
+    const float cutoff = std::exp(std::log(1e-4f) / std::max(lobe.exponent, 1.0f));
+    std::vector<float> distance(rayCount);
+    for (int i = 0; i < rayCount; ++i) {
+      float d = rays[i].distance;
+      distance[i] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : std::min(d, c.maxRayDistance);
+    }
+    for (int t = 0; t < n * n; ++t) {
+      dots(soa, texels.depth[t], cosines.data());
+      float m1 = 0.0f, m2 = 0.0f, weight = 0.0f;
+      for (int i = 0; i < rayCount; ++i) {
+        if (cosines[i] <= cutoff) continue;
+        float w = lobe(cosines[i]);
+        m1 += w * distance[i];
+        m2 += w * distance[i] * distance[i];
+        weight += w;
+      }
+      if (weight <= 0.0f) continue;
+      float* texel = field.depth.at(origin.x + 1 + t % n, origin.y + 1 + t / n);
+      texel[0] = glm::mix(m1 / weight, texel[0], alpha);
+      texel[1] = glm::mix(m2 / weight, texel[1], alpha);
+    }
+  }
+  // ---- occlusion: cos-weighted share of rays that travel past d_max ----
+  {
+    constexpr int n = PC_OCCLUSION_TEXELS;
+    glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
+    const float dmax = field.desc.occlusionDistance;
+    for (int t = 0; t < n * n; ++t) {
+      dots(soa, texels.occlusion[t], cosines.data());
+      float open = 0.0f, weight = 0.0f;
+      for (int i = 0; i < rayCount; ++i) {
+        float w = cosines[i];
+        if (w <= 0.0f) continue;
+        open += rays[i].distance > dmax ? w : 0.0f;
+        weight += w;
+      }
+      if (weight <= 0.0f) continue;
+      float* texel = field.occlusion.at(origin.x + 1 + t % n, origin.y + 1 + t / n);
+      texel[0] = glm::mix(open / weight, texel[0], alpha);
+    }
+  }
+  field.fixBorders(k, slot);
+  return maxChange;
+}
+
+}  // namespace pc

@@ -1,0 +1,35 @@
+// Chooses the probes to update each tick: active and new probes every tick, sleeping and
+// inside-geometry probes now and then (staggered, so their cost spreads evenly), and under a
+// budget, the stalest probes nearest a viewer first.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "tracer.h"
+
+namespace pc {
+
+struct SchedulerOptions {
+  int sleepingPeriod = 8;   // ticks between updates of a sleeping probe
+  int insidePeriod = 16;    // ticks between retries of a probe inside geometry
+  int budget = 0;           // most probes per tick; 0: no limit
+};
+
+class ProbeScheduler {
+ public:
+  explicit ProbeScheduler(SchedulerOptions options = {}) : options_(options) {}
+  // `viewers`: world positions of the viewers (empty: no preference).
+  std::vector<ProbeRef> plan(const Field& field, std::uint64_t tick,
+                             const std::vector<glm::vec3>& viewers = {});
+  // Forces every probe into the next plan (scene cut, history reset).
+  void resetAll() { lastUpdate_.clear(); }
+
+ private:
+  SchedulerOptions options_;
+  std::vector<std::uint64_t> lastUpdate_;  // per field-wide slot; 0 = never
+};
+
+}  // namespace pc

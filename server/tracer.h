@@ -1,0 +1,64 @@
+// The Tracer interface: one field update (trace probe rays, shade hits, blend into the
+// atlases, fix borders, classify and relocate probes, mark changed bricks). Two backends
+// implement it and must agree within a stated tolerance: Embree on the CPU and Vulkan
+// ray-tracing pipelines on a GPU.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "../common/field.h"
+#include "../common/result.h"
+#include "../common/scene.h"
+
+namespace pc {
+
+// One probe to update: cascade and slot.
+struct ProbeRef {
+  int cascade = 0;
+  int slot = 0;
+};
+
+struct UpdateRequest {
+  std::uint32_t rotationSeed = 0;  // picks the random rotation of the ray directions
+  std::vector<ProbeRef> probes;    // probes to update this tick (see ProbeScheduler)
+  int shading = 0;                 // ShadingFlags
+  float changeThreshold = 0.0f;    // encoded-irradiance change that marks a brick changed
+};
+
+enum ShadingFlags : int {
+  kShadeDefault = 0,
+  kShadeNoIndirect = 1,  // single bounce: do not sample the previous field at hits
+};
+
+struct UpdateStats {
+  double traceMs = 0, shadeMs = 0, blendMs = 0, totalMs = 0;  // trace+shade are fused on the CPU
+  std::uint64_t probeRays = 0;
+  std::uint64_t shadowRays = 0;
+  int probesUpdated = 0;
+  int bricksChanged = 0;
+};
+
+class Tracer {
+ public:
+  virtual ~Tracer() = default;
+  virtual std::string name() const = 0;
+  // Moves lights and animated instances to `state` (refit or rebuild as needed).
+  virtual void setState(const SceneState& state) = 0;
+  // Runs one update on `field`. On return the field's version is bumped when any brick
+  // changed, and those bricks carry the new version.
+  virtual UpdateStats update(Field& field, const UpdateRequest& request) = 0;
+};
+
+struct TracerOptions {
+  int emissiveSamples = 1;  // light samples toward emissive triangles per hit
+};
+
+Result<std::unique_ptr<Tracer>> makeEmbreeTracer(const Scene& scene, const TracerOptions& options = {});
+
+// Every probe of the field, for full updates.
+std::vector<ProbeRef> allProbes(const Field& field);
+
+}  // namespace pc
