@@ -36,7 +36,8 @@ struct Mesh {
   std::string name;
   std::vector<glm::vec3> positions;  // object space
   std::vector<glm::vec3> normals;    // one per position, unit length (generated when missing)
-  std::vector<glm::vec2> uvs;        // one per position, or empty
+  std::vector<glm::vec2> uvs;        // one per position, or empty; (0,0) is the image's top left
+                                     // (glTF convention; OBJ v is flipped on load)
   std::vector<std::uint32_t> indices;  // triangles
   int material = 0;
   std::size_t triangleCount() const { return indices.size() / 3; }
@@ -67,7 +68,8 @@ struct Camera {
   float yfov = 0.7853982f;  // vertical field of view, radians
 };
 
-// Sky radiance by direction: zenith above, horizon at y = 0, ground below (linear).
+// Sky radiance by direction: zenith above, horizon at y = 0, ground below (linear). Between them
+// the radiance is interpolated linearly in dir.y: horizon..zenith for y > 0, horizon..ground below.
 struct Sky {
   glm::vec3 zenith{0.0f}, horizon{0.0f}, ground{0.0f};
   glm::vec3 radiance(glm::vec3 dir) const;
@@ -81,7 +83,9 @@ struct ProbeVolume {
   glm::ivec3 counts{8};
 };
 
-// A light moving along a looping polyline, or an instance rotating about an axis.
+// A light moving along a looping polyline, or an instance rotating about an axis. A path is
+// closed (the last point leads back to the first) and every segment takes period / points.size()
+// seconds; an instance on a path is translated by path(t) - points[0].
 struct Animation {
   enum class Kind { Path, Rotate } kind = Kind::Path;
   std::vector<glm::vec3> points;  // Path: positions visited in order
@@ -92,6 +96,7 @@ struct Animation {
 };
 
 struct Instance {
+  std::string name;  // glTF node name, or the mesh name
   int mesh = 0;
   glm::mat4 transform{1.0f};  // object to world at time 0
   int animation = -1;
@@ -105,6 +110,8 @@ enum class EmissiveMode { Auto, Lights, Field };
 struct Scene {
   std::string name;
   std::filesystem::path source;  // file it came from, empty when built in
+  std::filesystem::path sidecar;  // scene.json that was applied, empty when none
+  std::vector<std::string> warnings;  // non-fatal problems met while loading (missing textures)
   std::vector<Mesh> meshes;
   std::vector<Material> materials;
   std::vector<Texture> textures;
@@ -119,16 +126,21 @@ struct Scene {
   std::uint64_t hash = 0;  // of geometry, materials, lights: names the scene on the wire
 
   glm::vec3 boundsMin{0.0f}, boundsMax{0.0f};  // world, at time 0
-  std::size_t triangleCount() const;
+  std::size_t triangleCount() const;  // over instances (a mesh drawn twice counts twice)
   bool hasLights() const;  // any light or emissive material
 };
 
 // Loads .gltf/.glb/.obj; `sidecar` (scene.json format, see docs/SCENES.md) may be empty, in
-// which case <scene dir>/scene.json and data/sidecars/<scene dir name>.json are tried.
+// which case <scene dir>/scene.json, data/sidecars/<scene file stem>.json and
+// data/sidecars/<scene dir name>.json are tried in that order. Errors name the file and the
+// problem: "<file>: <problem>", and for a sidecar "<file>: at <JSON pointer>: <problem>".
 Result<Scene> loadScene(const std::filesystem::path& path,
                         const std::filesystem::path& sidecar = {});
 // Cornell-style room with a moving light and a rotating block; needs no files.
 Scene builtinScene();
+// A closed cube of side `size` whose walls all have albedo `albedo` and emit `emission`
+// (EmissiveMode::Field): the energy-conservation test scene, with a 4x4x4 probe volume.
+Scene furnaceBox(float albedo, float emission, float size = 2.0f);
 // Cascades covering the scene's bounds when the scene names none.
 std::vector<ProbeVolume> defaultVolumes(const Scene& scene, int maxProbesPerAxis = 24);
 

@@ -1,0 +1,459 @@
+// glTF 2.0 (.gltf, .glb) through tinygltf: triangle primitives (one pc::Mesh each), the node
+// hierarchy, base colour and emission (with their textures), KHR_lights_punctual and
+// perspective cameras. Every index the file holds is checked before it is followed.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <set>
+#include <string>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include <tiny_gltf.h>
+
+#include "common/scene_loaders.h"
+
+namespace pc::scene_detail {
+
+namespace {
+
+// Extensions whose meaning we honour (or that change nothing we read); a file that requires
+// any other one cannot be shown correctly and is refused.
+// (ior and specular only shape specular reflection, which diffuse GI does not use.)
+const std::set<std::string> kSupportedExtensions = {
+    "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization",
+    "KHR_materials_ior",   "KHR_materials_specular",
+};
+
+// Thrown inside this file only, turned into an Error at loadGltf's boundary.
+struct GltfError {
+  std::string message;
+};
+
+class GltfReader {
+ public:
+  GltfReader(const tinygltf::Model& model, Scene& scene) : m_(model), scene_(scene) {}
+
+  void readScene() {
+    int sceneIndex = m_.defaultScene >= 0 ? m_.defaultScene : 0;
+    std::vector<int> roots;
+    if (!m_.scenes.empty()) {
+      check(sceneIndex, m_.scenes.size(), "scene");
+      roots = m_.scenes[sceneIndex].nodes;
+    } else {
+      // No scene list: every node that is nobody's child is a root.
+      std::vector<bool> isChild(m_.nodes.size(), false);
+      for (const auto& n : m_.nodes)
+        for (int c : n.children)
+          if (c >= 0 && std::size_t(c) < isChild.size()) isChild[c] = true;
+      for (std::size_t i = 0; i < m_.nodes.size(); ++i)
+        if (!isChild[i]) roots.push_back(int(i));
+    }
+    for (int r : roots) visit(r, glm::mat4(1.0f), 0);
+  }
+
+ private:
+  static void check(int index, std::size_t size, const char* what) {
+    if (index < 0 || std::size_t(index) >= size)
+      throw GltfError{std::string(what) + " index " + std::to_string(index) +
+                      " out of range (" + std::to_string(size) + " " + what + "s)"};
+  }
+
+  static glm::mat4 localMatrix(const tinygltf::Node& n) {
+    if (n.matrix.size() == 16) {
+      float v[16];
+      for (int i = 0; i < 16; ++i) v[i] = float(n.matrix[i]);
+      return glm::make_mat4(v);  // glTF matrices are column-major, as glm's
+    }
+    glm::mat4 t(1.0f), r(1.0f), s(1.0f);
+    if (n.translation.size() == 3)
+      t = glm::translate(glm::mat4(1.0f), glm::vec3(float(n.translation[0]),
+                                                    float(n.translation[1]),
+                                                    float(n.translation[2])));
+    if (n.rotation.size() == 4) {
+      glm::quat q(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]),
+                  float(n.rotation[2]));
+      r = glm::mat4_cast(glm::normalize(q));
+    }
+    if (n.scale.size() == 3)
+      s = glm::scale(glm::mat4(1.0f),
+                     glm::vec3(float(n.scale[0]), float(n.scale[1]), float(n.scale[2])));
+    return t * r * s;
+  }
+
+  void visit(int nodeIndex, const glm::mat4& parent, int depth) {
+    check(nodeIndex, m_.nodes.size(), "node");
+    // A cycle in the hierarchy would recurse forever; real files are far shallower.
+    if (depth > 256) throw GltfError{"node hierarchy deeper than 256 (a cycle?)"};
+    const tinygltf::Node& node = m_.nodes[nodeIndex];
+    glm::mat4 world = parent * localMatrix(node);
+    std::string nodeName = node.name.empty() ? "node" + std::to_string(nodeIndex) : node.name;
+
+    if (node.mesh >= 0) {
+      check(node.mesh, m_.meshes.size(), "mesh");
+      for (int meshIndex : meshesFor(node.mesh)) {
+        Instance inst;
+        inst.name = nodeName;
+        inst.mesh = meshIndex;
+        inst.transform = world;
+        scene_.instances.push_back(inst);
+      }
+    }
+    if (node.camera >= 0) addCamera(node.camera, world, nodeName);
+    auto ext = node.extensions.find("KHR_lights_punctual");
+    if (ext != node.extensions.end() && ext->second.IsObject() && ext->second.Has("light")) {
+      const tinygltf::Value& li = ext->second.Get("light");
+      if (!li.IsNumber()) throw GltfError{"node '" + nodeName + "': light index is not a number"};
+      addLight(int(li.GetNumberAsDouble()), world, nodeName);
+    }
+    for (int child : node.children) visit(child, world, depth + 1);
+  }
+
+  void addCamera(int index, const glm::mat4& world, const std::string& nodeName) {
+    check(index, m_.cameras.size(), "camera");
+    const tinygltf::Camera& c = m_.cameras[index];
+    if (c.type != "perspective") return;  // orthographic views are not used by any renderer
+    Camera cam;
+    cam.name = c.name.empty() ? nodeName : c.name;
+    cam.position = glm::vec3(world * glm::vec4(0, 0, 0, 1));
+    cam.forward = glm::normalize(glm::vec3(world * glm::vec4(0, 0, -1, 0)));
+    cam.up = glm::normalize(glm::vec3(world * glm::vec4(0, 1, 0, 0)));
+    if (c.perspective.yfov > 0) cam.yfov = float(c.perspective.yfov);
+    scene_.cameras.push_back(cam);
+  }
+
+  void addLight(int index, const glm::mat4& world, const std::string& nodeName) {
+    check(index, m_.lights.size(), "light");
+    const tinygltf::Light& l = m_.lights[index];
+    Light light;
+    light.name = l.name.empty() ? nodeName : l.name;
+    if (l.type == "point") {
+      light.type = LightType::Point;
+    } else if (l.type == "spot") {
+      light.type = LightType::Spot;
+      light.innerConeAngle = float(l.spot.innerConeAngle);
+      light.outerConeAngle = float(l.spot.outerConeAngle);
+    } else if (l.type == "directional") {
+      light.type = LightType::Directional;
+    } else {
+      throw GltfError{"light '" + light.name + "': unknown type '" + l.type + "'"};
+    }
+    // Intensity is taken as given (candela and lux read as W/sr and W/m^2): the sidecar's
+    // exposure is where a scene is brought to a sensible brightness.
+    if (l.color.size() == 3)
+      light.color = glm::vec3(float(l.color[0]), float(l.color[1]), float(l.color[2]));
+    light.intensity = float(l.intensity);
+    light.range = float(l.range);
+    light.position = glm::vec3(world * glm::vec4(0, 0, 0, 1));
+    glm::vec3 dir = glm::vec3(world * glm::vec4(0, 0, -1, 0));  // lights shine along node -Z
+    if (glm::length(dir) > 0.0f) light.direction = glm::normalize(dir);
+    scene_.lights.push_back(light);
+  }
+
+  // pc meshes made from glTF mesh `index` (one per triangle primitive), built on first use.
+  const std::vector<int>& meshesFor(int index) {
+    auto it = meshCache_.find(index);
+    if (it != meshCache_.end()) return it->second;
+    std::vector<int> made;
+    const tinygltf::Mesh& gm = m_.meshes[index];
+    std::string base = gm.name.empty() ? "mesh" + std::to_string(index) : gm.name;
+    for (std::size_t p = 0; p < gm.primitives.size(); ++p) {
+      std::string name = gm.primitives.size() > 1 ? base + "/" + std::to_string(p) : base;
+      Mesh mesh;
+      mesh.name = name;
+      try {
+        if (!readPrimitive(gm.primitives[p], mesh)) continue;
+      } catch (const GltfError& e) {
+        throw GltfError{"mesh '" + name + "': " + e.message};
+      }
+      made.push_back(int(scene_.meshes.size()));
+      scene_.meshes.push_back(std::move(mesh));
+    }
+    return meshCache_.emplace(index, std::move(made)).first->second;
+  }
+
+  // Reads accessor `index` as `comps` floats per element (integers normalised when flagged).
+  std::vector<float> readFloats(int index, int comps, const char* what) {
+    check(index, m_.accessors.size(), "accessor");
+    const tinygltf::Accessor& a = m_.accessors[index];
+    int have = tinygltf::GetNumComponentsInType(a.type);
+    if (have != comps)
+      throw GltfError{std::string(what) + " accessor " + std::to_string(index) + " has " +
+                      std::to_string(have) + " components, expected " + std::to_string(comps)};
+    std::vector<float> out(a.count * comps, 0.0f);
+    forEachElement(a, index, [&](const unsigned char* src, std::size_t i) {
+      for (int c = 0; c < comps; ++c) out[i * comps + c] = component(src, a, c);
+    });
+    return out;
+  }
+
+  std::vector<std::uint32_t> readIndices(int index) {
+    check(index, m_.accessors.size(), "accessor");
+    const tinygltf::Accessor& a = m_.accessors[index];
+    if (tinygltf::GetNumComponentsInType(a.type) != 1)
+      throw GltfError{"index accessor " + std::to_string(index) + " is not scalar"};
+    std::vector<std::uint32_t> out(a.count, 0);
+    forEachElement(a, index, [&](const unsigned char* src, std::size_t i) {
+      switch (a.componentType) {
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: out[i] = src[0]; break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+          std::uint16_t v;
+          std::memcpy(&v, src, 2);
+          out[i] = v;
+          break;
+        }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: std::memcpy(&out[i], src, 4); break;
+        default:
+          throw GltfError{"index accessor " + std::to_string(index) +
+                          " has a non-integer component type"};
+      }
+    });
+    return out;
+  }
+
+  static float component(const unsigned char* src, const tinygltf::Accessor& a, int c) {
+    switch (a.componentType) {
+      case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+        float v;
+        std::memcpy(&v, src + 4 * c, 4);
+        return v;
+      }
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: {
+        float v = float(src[c]);
+        return a.normalized ? v / 255.0f : v;
+      }
+      case TINYGLTF_COMPONENT_TYPE_BYTE: {
+        float v = float(std::int8_t(src[c]));
+        return a.normalized ? std::max(v / 127.0f, -1.0f) : v;
+      }
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+        std::uint16_t u;
+        std::memcpy(&u, src + 2 * c, 2);
+        return a.normalized ? float(u) / 65535.0f : float(u);
+      }
+      case TINYGLTF_COMPONENT_TYPE_SHORT: {
+        std::int16_t s;
+        std::memcpy(&s, src + 2 * c, 2);
+        return a.normalized ? std::max(float(s) / 32767.0f, -1.0f) : float(s);
+      }
+      default:
+        throw GltfError{"accessor has unsupported component type " +
+                        std::to_string(a.componentType)};
+    }
+  }
+
+  // Calls f(pointer to element i, i) for every element, after checking the whole range lies
+  // inside its buffer (a truncated or lying file must not make us read past the end).
+  template <typename F>
+  void forEachElement(const tinygltf::Accessor& a, int index, F&& f) {
+    if (a.sparse.isSparse)
+      throw GltfError{"accessor " + std::to_string(index) + " is sparse (not supported)"};
+    if (a.count == 0) return;
+    if (a.bufferView < 0) {
+      // No buffer view: the spec says all zeros, which our zero-filled outputs already are.
+      return;
+    }
+    check(a.bufferView, m_.bufferViews.size(), "bufferView");
+    const tinygltf::BufferView& view = m_.bufferViews[a.bufferView];
+    check(view.buffer, m_.buffers.size(), "buffer");
+    const tinygltf::Buffer& buf = m_.buffers[view.buffer];
+    int compSize = tinygltf::GetComponentSizeInBytes(a.componentType);
+    int comps = tinygltf::GetNumComponentsInType(a.type);
+    if (compSize <= 0 || comps <= 0)
+      throw GltfError{"accessor " + std::to_string(index) + " has an invalid type"};
+    std::size_t elemSize = std::size_t(compSize) * comps;
+    std::size_t stride = view.byteStride ? view.byteStride : elemSize;
+    std::size_t start = view.byteOffset + a.byteOffset;
+    std::size_t end = start + stride * (a.count - 1) + elemSize;
+    if (end > view.byteOffset + view.byteLength || end > buf.data.size())
+      throw GltfError{"accessor " + std::to_string(index) + " reads past the end of buffer " +
+                      std::to_string(view.buffer) + " (needs " + std::to_string(end) +
+                      " bytes, has " + std::to_string(buf.data.size()) + ")"};
+    for (std::size_t i = 0; i < a.count; ++i) f(buf.data.data() + start + i * stride, i);
+  }
+
+  // False for primitives that hold no triangles (points, lines).
+  bool readPrimitive(const tinygltf::Primitive& prim, Mesh& mesh) {
+    int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+    if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
+        mode != TINYGLTF_MODE_TRIANGLE_FAN)
+      return false;
+    auto pos = prim.attributes.find("POSITION");
+    if (pos == prim.attributes.end()) throw GltfError{"primitive has no POSITION"};
+    std::vector<float> p = readFloats(pos->second, 3, "POSITION");
+    std::size_t n = p.size() / 3;
+    mesh.positions.resize(n);
+    for (std::size_t i = 0; i < n; ++i) mesh.positions[i] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
+    if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) {
+      std::vector<float> v = readFloats(it->second, 3, "NORMAL");
+      if (v.size() == p.size()) {
+        mesh.normals.resize(n);
+        for (std::size_t i = 0; i < n; ++i) mesh.normals[i] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+      }
+    }
+    if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) {
+      std::vector<float> v = readFloats(it->second, 2, "TEXCOORD_0");
+      if (v.size() == 2 * n) {
+        mesh.uvs.resize(n);
+        for (std::size_t i = 0; i < n; ++i) mesh.uvs[i] = {v[2 * i], v[2 * i + 1]};
+      }
+    }
+    std::vector<std::uint32_t> idx;
+    if (prim.indices >= 0) {
+      idx = readIndices(prim.indices);
+    } else {
+      idx.resize(n);
+      for (std::size_t i = 0; i < n; ++i) idx[i] = std::uint32_t(i);
+    }
+    mesh.indices = toTriangleList(idx, mode);
+    mesh.material = materialFor(prim.material);
+    return true;
+  }
+
+  static std::vector<std::uint32_t> toTriangleList(const std::vector<std::uint32_t>& idx,
+                                                   int mode) {
+    if (mode == TINYGLTF_MODE_TRIANGLES) {
+      std::vector<std::uint32_t> out = idx;
+      out.resize(idx.size() / 3 * 3);  // a trailing partial triangle is dropped
+      return out;
+    }
+    std::vector<std::uint32_t> out;
+    for (std::size_t i = 2; i < idx.size(); ++i) {
+      if (mode == TINYGLTF_MODE_TRIANGLE_FAN) {
+        out.insert(out.end(), {idx[0], idx[i - 1], idx[i]});
+      } else if (i % 2 == 0) {  // strips alternate winding to keep it consistent
+        out.insert(out.end(), {idx[i - 2], idx[i - 1], idx[i]});
+      } else {
+        out.insert(out.end(), {idx[i - 1], idx[i - 2], idx[i]});
+      }
+    }
+    return out;
+  }
+
+  int materialFor(int gltfMaterial) {
+    if (gltfMaterial < 0) {
+      if (defaultMaterial_ < 0) {
+        defaultMaterial_ = int(scene_.materials.size());
+        Material d;
+        d.name = "default";
+        scene_.materials.push_back(d);
+      }
+      return defaultMaterial_;
+    }
+    check(gltfMaterial, m_.materials.size(), "material");
+    auto it = materialCache_.find(gltfMaterial);
+    if (it != materialCache_.end()) return it->second;
+    const tinygltf::Material& gm = m_.materials[gltfMaterial];
+    Material mat;
+    mat.name = gm.name.empty() ? "material" + std::to_string(gltfMaterial) : gm.name;
+    const auto& bc = gm.pbrMetallicRoughness.baseColorFactor;
+    if (bc.size() >= 3) mat.baseColor = glm::vec3(float(bc[0]), float(bc[1]), float(bc[2]));
+    mat.baseColorTexture = textureFor(gm.pbrMetallicRoughness.baseColorTexture.index);
+    const auto& ef = gm.emissiveFactor;
+    if (ef.size() == 3) mat.emissive = glm::vec3(float(ef[0]), float(ef[1]), float(ef[2]));
+    auto strength = gm.extensions.find("KHR_materials_emissive_strength");
+    if (strength != gm.extensions.end() && strength->second.IsObject() &&
+        strength->second.Has("emissiveStrength") &&
+        strength->second.Get("emissiveStrength").IsNumber())
+      mat.emissive *= float(strength->second.Get("emissiveStrength").GetNumberAsDouble());
+    // An emissive texture without a factor means nothing in glTF (factor defaults to 0).
+    if (mat.isEmissive()) mat.emissiveTexture = textureFor(gm.emissiveTexture.index);
+    int out = int(scene_.materials.size());
+    scene_.materials.push_back(mat);
+    materialCache_[gltfMaterial] = out;
+    return out;
+  }
+
+  // Scene texture index for glTF texture `index`, or -1 (with a warning) if its image is
+  // missing or could not be decoded.
+  int textureFor(int index) {
+    if (index < 0) return -1;
+    check(index, m_.textures.size(), "texture");
+    int source = m_.textures[index].source;
+    if (source < 0) return -1;
+    check(source, m_.images.size(), "image");
+    auto it = imageCache_.find(source);
+    if (it != imageCache_.end()) return it->second;
+    const tinygltf::Image& img = m_.images[source];
+    std::string label = img.uri.empty() ? "image " + std::to_string(source) : img.uri;
+    int out = -1;
+    std::size_t texels = img.width > 0 && img.height > 0 ? std::size_t(img.width) * img.height : 0;
+    int bytesPerComp = img.bits == 16 ? 2 : 1;
+    if (texels == 0 || img.component < 1 || img.component > 4 ||
+        img.image.size() < texels * img.component * bytesPerComp) {
+      scene_.warnings.push_back(label + ": image missing or not decodable; using white");
+    } else {
+      Texture tex;
+      tex.name = img.name.empty() ? label : img.name;
+      tex.width = img.width;
+      tex.height = img.height;
+      tex.rgba.resize(texels * 4);
+      for (std::size_t t = 0; t < texels; ++t) {
+        std::uint8_t c[4] = {0, 0, 0, 255};
+        for (int k = 0; k < img.component; ++k) {
+          // 16-bit images keep their high byte (little-endian storage).
+          std::size_t at = (t * img.component + k) * bytesPerComp + (bytesPerComp - 1);
+          c[k] = img.image[at];
+        }
+        if (img.component == 1 || img.component == 2) {  // grey (+ alpha)
+          std::uint8_t a = img.component == 2 ? c[1] : 255;
+          c[1] = c[2] = c[0];
+          c[3] = a;
+        }
+        std::memcpy(&tex.rgba[t * 4], c, 4);
+      }
+      out = int(scene_.textures.size());
+      scene_.textures.push_back(std::move(tex));
+    }
+    imageCache_[source] = out;
+    return out;
+  }
+
+  const tinygltf::Model& m_;
+  Scene& scene_;
+  std::map<int, std::vector<int>> meshCache_;
+  std::map<int, int> materialCache_;
+  std::map<int, int> imageCache_;
+  int defaultMaterial_ = -1;
+};
+
+std::string trimmed(std::string s) {
+  while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+  return s;
+}
+
+}  // namespace
+
+Result<Scene> loadGltf(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  tinygltf::Model model;
+  tinygltf::TinyGLTF loader;
+  std::string err, warn;
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  bool ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, file)
+                          : loader.LoadASCIIFromFile(&model, &err, &warn, file);
+  // Refuse what we cannot honour before anything else: tinygltf itself ignores the list.
+  for (const std::string& req : model.extensionsRequired)
+    if (!kSupportedExtensions.count(req))
+      return Error{file + ": unsupported required glTF extension '" + req + "'"};
+  if (!ok) {
+    std::string why = trimmed(err.empty() ? warn : err);
+    return Error{file + ": cannot parse glTF: " + (why.empty() ? "unknown error" : why)};
+  }
+
+  Scene scene;
+  if (!warn.empty()) scene.warnings.push_back(file + ": " + trimmed(warn));
+  try {
+    GltfReader reader(model, scene);
+    reader.readScene();
+  } catch (const GltfError& e) {
+    return Error{file + ": " + e.message};
+  }
+  return scene;
+}
+
+}  // namespace pc::scene_detail

@@ -1,0 +1,280 @@
+// loadScene: picks the reader by extension, then runs the steps every format shares:
+// validation, normal generation, the sidecar, bounds and the scene hash.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "common/scene_loaders.h"
+
+namespace pc {
+
+namespace scene_detail {
+
+Status validateMesh(const Mesh& mesh) {
+  const std::string where = "mesh '" + mesh.name + "': ";
+  if (mesh.indices.size() % 3 != 0)
+    return Error{where + "index count " + std::to_string(mesh.indices.size()) +
+                 " is not a multiple of 3"};
+  for (std::size_t i = 0; i < mesh.indices.size(); ++i)
+    if (mesh.indices[i] >= mesh.positions.size())
+      return Error{where + "index " + std::to_string(mesh.indices[i]) + " (at " +
+                   std::to_string(i) + ") out of range (" +
+                   std::to_string(mesh.positions.size()) + " vertices)"};
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    const glm::vec3& p = mesh.positions[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+      return Error{where + "vertex " + std::to_string(i) + " has a non-finite position (" +
+                   std::to_string(p.x) + ", " + std::to_string(p.y) + ", " +
+                   std::to_string(p.z) + ")"};
+  }
+  if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+    return Error{where + "normal count differs from vertex count"};
+  if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
+    return Error{where + "uv count differs from vertex count"};
+  return Status::success();
+}
+
+void generateNormals(Mesh& mesh) {
+  const std::size_t nv = mesh.positions.size(), nt = mesh.triangleCount();
+  // Face normals, length = twice the area: summing them weights by area.
+  std::vector<glm::vec3> faceN(nt), faceUnit(nt);
+  for (std::size_t t = 0; t < nt; ++t) {
+    const glm::vec3& a = mesh.positions[mesh.indices[3 * t]];
+    const glm::vec3& b = mesh.positions[mesh.indices[3 * t + 1]];
+    const glm::vec3& c = mesh.positions[mesh.indices[3 * t + 2]];
+    faceN[t] = glm::cross(b - a, c - a);
+    float len = glm::length(faceN[t]);
+    faceUnit[t] = len > 0.0f ? faceN[t] / len : glm::vec3(0.0f);
+  }
+  // Faces around each vertex, as offsets into one array (compact and cache-friendly).
+  std::vector<std::uint32_t> start(nv + 1, 0), faces(mesh.indices.size());
+  for (std::uint32_t i : mesh.indices) ++start[i + 1];
+  for (std::size_t v = 0; v < nv; ++v) start[v + 1] += start[v];
+  std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+  for (std::size_t k = 0; k < mesh.indices.size(); ++k)
+    faces[fill[mesh.indices[k]]++] = std::uint32_t(k / 3);
+
+  // A corner takes the faces around its vertex that are within 60 degrees of its own face, so
+  // curved surfaces shade smoothly and boxes keep hard edges.
+  constexpr float kCosSmooth = 0.5f;
+  std::vector<glm::vec3> positions, normals;
+  std::vector<glm::vec2> uvs;
+  std::vector<std::uint32_t> indices(mesh.indices.size());
+  // Per original vertex, the split copies made so far: (normal, new index).
+  std::vector<std::vector<std::pair<glm::vec3, std::uint32_t>>> copies(nv);
+  positions.reserve(nv);
+  normals.reserve(nv);
+  for (std::size_t k = 0; k < mesh.indices.size(); ++k) {
+    std::uint32_t v = mesh.indices[k];
+    std::size_t t = k / 3;
+    glm::vec3 sum(0.0f);
+    for (std::uint32_t j = start[v]; j < start[v + 1]; ++j) {
+      std::uint32_t f = faces[j];
+      if (glm::dot(faceUnit[f], faceUnit[t]) >= kCosSmooth) sum += faceN[f];
+    }
+    float len = glm::length(sum);
+    glm::vec3 n = len > 0.0f ? sum / len : faceUnit[t];
+    if (n == glm::vec3(0.0f)) n = glm::vec3(0.0f, 1.0f, 0.0f);  // degenerate triangle
+    std::uint32_t out = 0;
+    bool found = false;
+    for (const auto& [cn, ci] : copies[v])
+      if (glm::dot(cn, n) > 0.9999f) {
+        out = ci;
+        found = true;
+        break;
+      }
+    if (!found) {
+      out = std::uint32_t(positions.size());
+      positions.push_back(mesh.positions[v]);
+      normals.push_back(n);
+      if (!mesh.uvs.empty()) uvs.push_back(mesh.uvs[v]);
+      copies[v].emplace_back(n, out);
+    }
+    indices[k] = out;
+  }
+  mesh.positions = std::move(positions);
+  mesh.normals = std::move(normals);
+  mesh.uvs = std::move(uvs);
+  mesh.indices = std::move(indices);
+}
+
+// Normals present but unusable (zero, NaN) are regenerated for the whole mesh: mixing file and
+// generated normals on one surface would show seams.
+static bool normalsUsable(Mesh& mesh) {
+  if (mesh.normals.size() != mesh.positions.size()) return false;
+  for (glm::vec3& n : mesh.normals) {
+    float len = glm::length(n);
+    if (!std::isfinite(len) || len < 1e-8f) return false;
+    n /= len;
+  }
+  return true;
+}
+
+void computeBounds(Scene& scene) {
+  glm::vec3 lo(INFINITY), hi(-INFINITY);
+  for (const Instance& inst : scene.instances) {
+    if (inst.mesh < 0 || std::size_t(inst.mesh) >= scene.meshes.size()) continue;
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    for (std::uint32_t i : mesh.indices) {  // only referenced vertices count
+      glm::vec3 p = glm::vec3(inst.transform * glm::vec4(mesh.positions[i], 1.0f));
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+  }
+  if (lo.x > hi.x) lo = hi = glm::vec3(0.0f);
+  scene.boundsMin = lo;
+  scene.boundsMax = hi;
+}
+
+namespace {
+
+// 64-bit FNV-1a over explicit little-endian bytes, so the hash is the same on every machine.
+class Hasher {
+ public:
+  void bytes(const void* data, std::size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < n; ++i) {
+      h_ ^= p[i];
+      h_ *= 0x100000001b3ull;
+    }
+  }
+  void u64(std::uint64_t v) {
+    unsigned char b[8];
+    for (int i = 0; i < 8; ++i) b[i] = static_cast<unsigned char>(v >> (8 * i));
+    bytes(b, 8);
+  }
+  void i32(int v) { u64(std::uint64_t(std::int64_t(v))); }
+  void f32(float v) {
+    if (v == 0.0f) v = 0.0f;  // -0 and +0 are the same scene
+    std::uint32_t u;
+    std::memcpy(&u, &v, 4);
+    u64(u);
+  }
+  void vec(glm::vec2 v) {
+    f32(v.x);
+    f32(v.y);
+  }
+  void vec(glm::vec3 v) {
+    f32(v.x);
+    f32(v.y);
+    f32(v.z);
+  }
+  void str(const std::string& s) {
+    u64(s.size());
+    bytes(s.data(), s.size());
+  }
+  std::uint64_t value() const { return h_; }
+
+ private:
+  std::uint64_t h_ = 0xcbf29ce484222325ull;
+};
+
+}  // namespace
+
+std::uint64_t hashScene(const Scene& scene) {
+  Hasher h;
+  h.u64(scene.meshes.size());
+  for (const Mesh& m : scene.meshes) {
+    h.u64(m.positions.size());
+    for (const auto& p : m.positions) h.vec(p);
+    h.u64(m.uvs.size());
+    for (const auto& uv : m.uvs) h.vec(uv);
+    h.u64(m.indices.size());
+    for (std::uint32_t i : m.indices) h.u64(i);
+    h.i32(m.material);
+  }
+  h.u64(scene.materials.size());
+  for (const Material& m : scene.materials) {
+    h.vec(m.baseColor);
+    h.i32(m.baseColorTexture);
+    h.vec(m.emissive);
+    h.i32(m.emissiveTexture);
+  }
+  h.u64(scene.textures.size());
+  for (const Texture& t : scene.textures) {
+    h.i32(t.width);
+    h.i32(t.height);
+    h.bytes(t.rgba.data(), t.rgba.size());
+  }
+  h.u64(scene.instances.size());
+  for (const Instance& inst : scene.instances) {
+    h.i32(inst.mesh);
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r) h.f32(inst.transform[c][r]);
+    h.i32(inst.animation);
+  }
+  h.u64(scene.lights.size());
+  for (const Light& l : scene.lights) {
+    h.i32(int(l.type));
+    h.vec(l.position);
+    h.vec(l.direction);
+    h.vec(l.color);
+    h.f32(l.intensity);
+    h.f32(l.range);
+    h.f32(l.innerConeAngle);
+    h.f32(l.outerConeAngle);
+    h.i32(l.animation);
+  }
+  // Animation and sky change the field as much as geometry does.
+  h.u64(scene.animations.size());
+  for (const Animation& a : scene.animations) {
+    h.i32(int(a.kind));
+    h.u64(a.points.size());
+    for (const auto& p : a.points) h.vec(p);
+    h.f32(a.period);
+    h.vec(a.axis);
+    h.vec(a.pivot);
+    h.f32(a.radiansPerSecond);
+  }
+  h.vec(scene.sky.zenith);
+  h.vec(scene.sky.horizon);
+  h.vec(scene.sky.ground);
+  h.i32(int(scene.emissiveMode));
+  return h.value();
+}
+
+}  // namespace scene_detail
+
+using namespace scene_detail;
+
+Result<Scene> loadScene(const std::filesystem::path& path, const std::filesystem::path& sidecar) {
+  const std::string file = path.string();
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return Error{file + ": file not found"};
+  if (!std::filesystem::is_regular_file(path, ec)) return Error{file + ": not a regular file"};
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+
+  Result<Scene> loaded = Error{""};
+  if (ext == ".gltf" || ext == ".glb") {
+    loaded = loadGltf(path);
+  } else if (ext == ".obj") {
+    loaded = loadObj(path);
+  } else {
+    return Error{file + ": unsupported scene format '" + ext + "' (expected .gltf, .glb or .obj)"};
+  }
+  if (!loaded) return loaded.error();
+  Scene scene = std::move(loaded).value();
+  scene.name = path.stem().string();
+  scene.source = path;
+
+  for (Mesh& mesh : scene.meshes) {
+    if (Status s = validateMesh(mesh); !s) return Error{file + ": " + s.error().message};
+    if (!normalsUsable(mesh)) generateNormals(mesh);
+  }
+  if (scene.triangleCount() == 0) return Error{file + ": no triangles"};
+
+  Result<std::filesystem::path> found = findSidecar(path, sidecar);
+  if (!found) return found.error();
+  if (!found.value().empty()) {
+    if (Status s = applySidecar(scene, found.value()); !s) return s.error();
+    scene.sidecar = found.value();
+  }
+
+  computeBounds(scene);
+  scene.hash = hashScene(scene);
+  return scene;
+}
+
+}  // namespace pc

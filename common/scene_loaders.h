@@ -1,0 +1,41 @@
+// Internal to scene loading: the format readers and the steps loadScene runs after them.
+// Not part of pc_common's interface.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+#include "common/scene.h"
+
+namespace pc::scene_detail {
+
+// Format readers. They fill meshes, materials, textures, instances, lights and cameras in the
+// file's own units and axes; normals may be left empty (generated later).
+Result<Scene> loadGltf(const std::filesystem::path& path);
+Result<Scene> loadObj(const std::filesystem::path& path);
+
+// Decodes an image file (PNG, JPEG, ...) to 8-bit RGBA.
+Status loadImageFile(const std::filesystem::path& path, Texture& out);
+
+// The sidecar that applies to `scene` (explicit one first), or empty when there is none.
+Result<std::filesystem::path> findSidecar(const std::filesystem::path& scene,
+                                          const std::filesystem::path& explicitSidecar);
+// Reads the sidecar and applies it: unit scale and up axis to what the file gave, then the
+// sidecar's own lights, cameras, sky, volumes and animations (already in world units).
+Status applySidecar(Scene& scene, const std::filesystem::path& sidecar);
+
+// Area-weighted normals, shared only between faces less than ~60 degrees apart; vertices on
+// sharper edges are split. Replaces positions/uvs/indices with the split ones.
+void generateNormals(Mesh& mesh);
+
+// Index ranges, finite positions, attribute sizes. The message names the mesh.
+Status validateMesh(const Mesh& mesh);
+
+void computeBounds(Scene& scene);
+std::uint64_t hashScene(const Scene& scene);
+
+// The sRGB decoding curve, as in shaders/interop/tonemap.h (pcSrgbDecode).
+float srgbToLinear(float v);
+
+}  // namespace pc::scene_detail

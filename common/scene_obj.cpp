@@ -1,0 +1,215 @@
+// Wavefront OBJ + MTL through tinyobjloader: one mesh per (group, material), diffuse colour and
+// texture (map_Kd), emission (Ke). Missing textures are warnings: such scenes still light.
+#include <cmath>
+#include <map>
+#include <unordered_map>
+
+#include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
+#include <tiny_obj_loader.h>
+
+#include "common/scene_loaders.h"
+
+namespace pc::scene_detail {
+
+Status loadImageFile(const std::filesystem::path& path, Texture& out) {
+  int w = 0, h = 0, comps = 0;
+  stbi_uc* data = stbi_load(path.string().c_str(), &w, &h, &comps, 4);
+  if (!data) {
+    const char* why = stbi_failure_reason();
+    return Error{path.string() + ": cannot read image: " + (why ? why : "unknown error")};
+  }
+  out.width = w;
+  out.height = h;
+  out.rgba.assign(data, data + std::size_t(w) * h * 4);
+  out.name = path.filename().string();
+  stbi_image_free(data);
+  return Status::success();
+}
+
+namespace {
+
+// Grey for materials whose only colour was a texture that is missing: mid albedo keeps the
+// scene's light balance plausible.
+constexpr float kMissingTextureAlbedo = 0.6f;
+
+struct CornerKey {
+  int v, vt, vn;
+  bool operator==(const CornerKey& o) const { return v == o.v && vt == o.vt && vn == o.vn; }
+};
+struct CornerHash {
+  std::size_t operator()(const CornerKey& k) const {
+    std::uint64_t h = std::uint64_t(std::uint32_t(k.v)) * 0x9E3779B97F4A7C15ull;
+    h ^= std::uint64_t(std::uint32_t(k.vt)) * 0xC2B2AE3D27D4EB4Full + (h >> 29);
+    h ^= std::uint64_t(std::uint32_t(k.vn)) * 0x165667B19E3779F9ull + (h >> 31);
+    return std::size_t(h);
+  }
+};
+
+class ObjBuilder {
+ public:
+  ObjBuilder(const std::filesystem::path& path, const tinyobj::attrib_t& attrib, Scene& scene)
+      : path_(path), attrib_(attrib), scene_(scene) {}
+
+  void addMaterials(const std::vector<tinyobj::material_t>& mats) {
+    std::filesystem::path dir = path_.parent_path();
+    for (const auto& m : mats) {
+      Material mat;
+      mat.name = m.name;
+      mat.baseColor = glm::vec3(m.diffuse[0], m.diffuse[1], m.diffuse[2]);
+      mat.emissive = glm::vec3(m.emission[0], m.emission[1], m.emission[2]);
+      if (!m.diffuse_texname.empty()) {
+        // MTL files often give map_Kd without Kd (tinyobj then reports Kd = 0): the texture
+        // is the colour.
+        bool noKd = mat.baseColor == glm::vec3(0.0f);
+        mat.baseColorTexture = texture(dir / m.diffuse_texname);
+        if (noKd)
+          mat.baseColor = glm::vec3(mat.baseColorTexture >= 0 ? 1.0f : kMissingTextureAlbedo);
+      }
+      scene_.materials.push_back(mat);
+    }
+  }
+
+  // Face corners of shape `shapeIndex`, split by material into meshes. Fails on an index
+  // outside the file's vertex, texcoord or normal lists.
+  Status addShape(const tinyobj::shape_t& shape, std::size_t shapeIndex) {
+    const auto& mesh = shape.mesh;
+    std::size_t nv = attrib_.vertices.size() / 3, nt = attrib_.texcoords.size() / 2,
+                nn = attrib_.normals.size() / 3;
+    // Faces grouped by material, in file order within each group.
+    std::map<int, std::vector<std::size_t>> byMaterial;
+    for (std::size_t f = 0; f < mesh.num_face_vertices.size(); ++f) {
+      if (mesh.num_face_vertices[f] != 3) continue;  // lines/points left after triangulation
+      int mat = f < mesh.material_ids.size() ? mesh.material_ids[f] : -1;
+      if (mat < 0 || std::size_t(mat) >= scene_.materials.size()) mat = -1;
+      byMaterial[mat].push_back(f);
+    }
+    // tinyobj keeps faces as a flat corner list; face f starts at 3 * f once triangulated.
+    std::string base = shape.name.empty() ? "shape" + std::to_string(shapeIndex) : shape.name;
+    for (auto& [mat, faces] : byMaterial) {
+      Mesh out;
+      int material = mat >= 0 ? mat : defaultMaterial();
+      out.name = byMaterial.size() > 1 ? base + "/" + scene_.materials[material].name : base;
+      out.material = material;
+      bool haveNormals = true, haveUvs = false;
+      std::unordered_map<CornerKey, std::uint32_t, CornerHash> corners;
+      for (std::size_t f : faces) {
+        for (int c = 0; c < 3; ++c) {
+          const tinyobj::index_t& idx = mesh.indices[3 * f + c];
+          if (idx.vertex_index < 0 || std::size_t(idx.vertex_index) >= nv)
+            return Error{path_.string() + ": face " + std::to_string(f + 1) + " of '" + base +
+                         "': vertex index " + std::to_string(idx.vertex_index + 1) +
+                         " out of range (" + std::to_string(nv) + " vertices)"};
+          if (idx.texcoord_index >= 0 && std::size_t(idx.texcoord_index) >= nt)
+            return Error{path_.string() + ": face " + std::to_string(f + 1) + " of '" + base +
+                         "': texcoord index " + std::to_string(idx.texcoord_index + 1) +
+                         " out of range (" + std::to_string(nt) + " texcoords)"};
+          if (idx.normal_index >= 0 && std::size_t(idx.normal_index) >= nn)
+            return Error{path_.string() + ": face " + std::to_string(f + 1) + " of '" + base +
+                         "': normal index " + std::to_string(idx.normal_index + 1) +
+                         " out of range (" + std::to_string(nn) + " normals)"};
+          if (idx.normal_index < 0) haveNormals = false;
+          if (idx.texcoord_index >= 0) haveUvs = true;
+          CornerKey key{idx.vertex_index, idx.texcoord_index, idx.normal_index};
+          auto [it, inserted] = corners.emplace(key, std::uint32_t(out.positions.size()));
+          if (inserted) pushVertex(out, key);
+          out.indices.push_back(it->second);
+        }
+      }
+      if (out.indices.empty()) continue;
+      if (!haveNormals) out.normals.clear();  // generated later, with hard edges kept
+      if (!haveUvs) out.uvs.clear();
+      Instance inst;
+      inst.name = out.name;
+      inst.mesh = int(scene_.meshes.size());
+      scene_.instances.push_back(inst);
+      scene_.meshes.push_back(std::move(out));
+    }
+    return Status::success();
+  }
+
+ private:
+  void pushVertex(Mesh& out, const CornerKey& k) {
+    const auto& v = attrib_.vertices;
+    out.positions.emplace_back(v[3 * k.v], v[3 * k.v + 1], v[3 * k.v + 2]);
+    if (k.vn >= 0) {
+      const auto& n = attrib_.normals;
+      out.normals.emplace_back(n[3 * k.vn], n[3 * k.vn + 1], n[3 * k.vn + 2]);
+    } else {
+      out.normals.emplace_back(0.0f);
+    }
+    if (k.vt >= 0) {
+      const auto& t = attrib_.texcoords;
+      out.uvs.emplace_back(t[2 * k.vt], 1.0f - t[2 * k.vt + 1]);  // OBJ v points up
+    } else {
+      out.uvs.emplace_back(0.0f, 1.0f);
+    }
+  }
+
+  int texture(const std::filesystem::path& file) {
+    auto it = textureCache_.find(file.string());
+    if (it != textureCache_.end()) return it->second;
+    Texture tex;
+    int index = -1;
+    if (Status s = loadImageFile(file, tex); s) {
+      index = int(scene_.textures.size());
+      scene_.textures.push_back(std::move(tex));
+    } else {
+      scene_.warnings.push_back(s.error().message);
+    }
+    textureCache_[file.string()] = index;
+    return index;
+  }
+
+  int defaultMaterial() {
+    if (defaultMaterial_ < 0) {
+      defaultMaterial_ = int(scene_.materials.size());
+      Material d;
+      d.name = "default";
+      scene_.materials.push_back(d);
+    }
+    return defaultMaterial_;
+  }
+
+  const std::filesystem::path& path_;
+  const tinyobj::attrib_t& attrib_;
+  Scene& scene_;
+  std::map<std::string, int> textureCache_;
+  int defaultMaterial_ = -1;
+};
+
+}  // namespace
+
+Result<Scene> loadObj(const std::filesystem::path& path) {
+  tinyobj::ObjReaderConfig config;
+  config.triangulate = true;
+  config.vertex_color = false;
+  config.mtl_search_path = path.parent_path().string();
+  tinyobj::ObjReader reader;
+  if (!reader.ParseFromFile(path.string(), config)) {
+    std::string why = reader.Error();
+    while (!why.empty() && why.back() == '\n') why.pop_back();
+    return Error{path.string() + ": cannot parse OBJ: " + (why.empty() ? "unknown error" : why)};
+  }
+  Scene scene;
+  // A missing .mtl only costs colours; tinyobj reports it as a warning.
+  if (!reader.Warning().empty()) {
+    std::string w = reader.Warning();
+    while (!w.empty() && w.back() == '\n') w.pop_back();
+    scene.warnings.push_back(path.string() + ": " + w);
+  }
+  const tinyobj::attrib_t& attrib = reader.GetAttrib();
+  // Non-finite coordinates would poison bounds and acceleration structures: refuse them here,
+  // numbering vertices from 1 as the file's face lines do.
+  for (std::size_t i = 0; i < attrib.vertices.size(); ++i)
+    if (!std::isfinite(attrib.vertices[i]))
+      return Error{path.string() + ": vertex " + std::to_string(i / 3 + 1) +
+                   " has a non-finite position"};
+  ObjBuilder builder(path, attrib, scene);
+  builder.addMaterials(reader.GetMaterials());
+  const auto& shapes = reader.GetShapes();
+  for (std::size_t s = 0; s < shapes.size(); ++s)
+    if (Status st = builder.addShape(shapes[s], s); !st) return st.error();
+  return scene;
+}
+
+}  // namespace pc::scene_detail
