@@ -56,12 +56,16 @@ class EmbreeScene {
 
  private:
   EmbreeScene() = default;
+  // Writes instance i's world-space vertices and normals for `transform`.
+  void transformInstance(std::size_t i, const glm::mat4& transform);
+
   const Scene* scene_ = nullptr;
   RTCDevice device_ = nullptr;
   RTCScene rtcScene_ = nullptr;
   std::vector<RTCGeometry> geometries_;                // per instance
   std::vector<std::vector<glm::vec3>> worldNormals_;  // per instance, per vertex
   std::vector<glm::mat4> transforms_;
+  bool dynamic_ = false;  // any animated instance
 };
 
 }  // namespace pc

@@ -1,0 +1,83 @@
+#include "probe_lit_render.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "camera.h"
+#include "path_tracer.h"
+
+namespace pc {
+namespace {
+
+constexpr float kInvPi = 0.318309886f;
+// Pass number of the probe-lit render's per-pixel seeds, distinct from the path tracer's
+// passes so the two renders never share random streams.
+constexpr int kProbeLitPass = 16;
+
+}  // namespace
+
+Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
+                     const EmissiveLights& emissive, const Field& field, const Camera& camera,
+                     const ProbeLitOptions& options, Progress* progress) {
+  const int width = options.width, height = options.height;
+  const int primary = std::max(1, options.primarySamples);
+  const DirectLightOptions direct{std::max(1, options.emissiveSamples)};
+  const PinholeCamera pinhole(camera, width, height);
+  const Sky& sky = scene.scene().sky;
+  Image image(width, height);
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, height, 1), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y != r.end(); ++y) {
+      for (int x = 0; x < width; ++x) {
+        Rng rng(pixelSeed(options.seed, x, y, kProbeLitPass));
+        glm::vec3 sum(0.0f);
+        for (int s = 0; s < primary; ++s) {
+          const glm::vec3 origin = pinhole.origin();
+          const glm::vec3 dir = pinhole.direction(x, y, rng.uniform(), rng.uniform());
+          Hit hit;
+          if (!scene.intersect(origin, dir, 0.0f, INFINITY, hit)) {
+            sum += sky.radiance(dir);
+            continue;
+          }
+          const SurfacePoint sp = scene.surface(hit, origin, dir);
+          const glm::vec3 P = offsetRayOrigin(sp.position, sp.geometricNormal);
+          const glm::vec3 E = directIrradiance(scene, state, emissive, P, sp.normal, rng, direct);
+          // The field's sampler applies its own normal and view biases, so it gets the
+          // surface point itself; V points from the surface back toward the camera.
+          const glm::vec4 indirect =
+              sampleField(field, sp.position, sp.normal, -dir, options.sampleFlags);
+          const glm::vec3 L =
+              sp.emission + sp.albedo * kInvPi * (E + glm::vec3(indirect.x, indirect.y, indirect.z));
+          if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) sum += L;
+        }
+        image.at(x, y) = sum / float(primary);
+      }
+      if (progress) progress->advance();
+    }
+  });
+  return image;
+}
+
+Result<Image> renderProbeLit(const Scene& scene, const Field& field,
+                             const ProbeLitOptions& options, Progress* progress) {
+  if (options.width <= 0 || options.height <= 0) return Error{"image size must be positive"};
+  Camera camera;
+  if (options.explicitCamera) {
+    camera = *options.explicitCamera;
+  } else {
+    Result<Camera> chosen = sceneCamera(scene, options.camera);
+    if (!chosen) return chosen.error();
+    camera = chosen.value();
+  }
+  auto embree = EmbreeScene::create(scene);
+  if (!embree) return embree.error();
+  const SceneState state = evaluateScene(scene, options.time);
+  (*embree)->update(state);
+  const EmissiveLights emissive = EmissiveLights::build(scene, state);
+  return renderProbeLit(**embree, state, emissive, field, camera, options, progress);
+}
+
+}  // namespace pc
