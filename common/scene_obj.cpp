@@ -1,7 +1,10 @@
 // Wavefront OBJ + MTL through tinyobjloader: one mesh per (group, material), diffuse colour and
 // texture (map_Kd), emission (Ke). Missing textures are warnings: such scenes still light.
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
 #include <map>
+#include <sstream>
 #include <unordered_map>
 
 #include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
@@ -95,10 +98,14 @@ class ObjBuilder {
       for (std::size_t f : faces) {
         for (int c = 0; c < 3; ++c) {
           const tinyobj::index_t& idx = mesh.indices[3 * f + c];
+          // (A negative index here was a relative one reaching before the first vertex.)
           if (idx.vertex_index < 0 || std::size_t(idx.vertex_index) >= nv)
             return Error{path_.string() + ": face " + std::to_string(f + 1) + " of '" + base +
-                         "': vertex index " + std::to_string(idx.vertex_index + 1) +
-                         " out of range (" + std::to_string(nv) + " vertices)"};
+                         "': " +
+                         (idx.vertex_index < 0
+                              ? std::string("relative vertex index reaches before vertex 1")
+                              : "vertex index " + std::to_string(idx.vertex_index + 1) +
+                                    " out of range (" + std::to_string(nv) + " vertices)")};
           if (idx.texcoord_index >= 0 && std::size_t(idx.texcoord_index) >= nt)
             return Error{path_.string() + ": face " + std::to_string(f + 1) + " of '" + base +
                          "': texcoord index " + std::to_string(idx.texcoord_index + 1) +
@@ -177,9 +184,35 @@ class ObjBuilder {
   int defaultMaterial_ = -1;
 };
 
+// tinyobj reads "nan" and "inf" as 0, so non-finite coordinates are looked for in the text
+// itself (the file is read once more; cheap next to parsing).
+Status checkVertexLines(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  std::size_t lineNo = 0, vertex = 0;
+  while (std::getline(in, line)) {
+    ++lineNo;
+    std::size_t i = line.find_first_not_of(" \t");
+    if (i == std::string::npos || line[i] != 'v' || i + 1 >= line.size() ||
+        (line[i + 1] != ' ' && line[i + 1] != '\t'))
+      continue;
+    ++vertex;
+    std::istringstream tokens(line.substr(i + 2));
+    std::string tok;
+    for (int k = 0; k < 3 && tokens >> tok; ++k) {
+      double v = std::strtod(tok.c_str(), nullptr);
+      if (!std::isfinite(v))
+        return Error{path.string() + ":" + std::to_string(lineNo) + ": vertex " +
+                     std::to_string(vertex) + " has a non-finite coordinate '" + tok + "'"};
+    }
+  }
+  return Status::success();
+}
+
 }  // namespace
 
 Result<Scene> loadObj(const std::filesystem::path& path) {
+  if (Status s = checkVertexLines(path); !s) return s.error();
   tinyobj::ObjReaderConfig config;
   config.triangulate = true;
   config.vertex_color = false;

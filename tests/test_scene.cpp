@@ -1,0 +1,656 @@
+// Scene loading: the built-in room, small generated glTF/OBJ files (features and broken
+// files), sidecars, animation, and the shared scenes where ../shared/scenes is present.
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include "common/scene.h"
+
+namespace fs = std::filesystem;
+using pc::Scene;
+
+namespace {
+
+// A fresh directory per test, removed afterwards.
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = fs::temp_directory_path() /
+            ("pc_test_scene_" + std::string(info->test_suite_name()) + "_" + info->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  fs::path operator/(const std::string& name) const { return path_ / name; }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+void writeFile(const fs::path& p, const std::string& text) {
+  std::ofstream(p, std::ios::binary) << text;
+}
+
+void writeBytes(const fs::path& p, const std::vector<unsigned char>& bytes) {
+  std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                           std::streamsize(bytes.size()));
+}
+
+// Binary payload of a unit quad in the XY plane: 4 float3 positions, then 6 uint16 indices.
+std::vector<unsigned char> quadBuffer(float firstX = 0.0f) {
+  const float pos[12] = {firstX, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const std::uint16_t idx[6] = {0, 1, 2, 0, 2, 3};
+  std::vector<unsigned char> out(sizeof pos + sizeof idx);
+  std::memcpy(out.data(), pos, sizeof pos);
+  std::memcpy(out.data() + sizeof pos, idx, sizeof idx);
+  return out;
+}
+
+// glTF JSON for the quad; `extra` is spliced into the top-level object, `nodes` replaces the
+// default single node.
+std::string quadGltf(const std::string& uri, const std::string& extra = "",
+                     const std::string& nodes = R"([{"name": "quad", "mesh": 0}])") {
+  return R"({
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0]}],
+  "nodes": )" +
+         nodes + R"(,
+  "meshes": [{"name": "quadmesh", "primitives": [{"attributes": {"POSITION": 0}, "indices": 1,
+              "material": 0}]}],
+  "materials": [{"name": "mat", "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.25, 1, 1]},
+                 "emissiveFactor": [1, 0.5, 0.25],
+                 "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4}}}],
+  "buffers": [{)" +
+         (uri.empty() ? std::string() : "\"uri\": \"" + uri + "\", ") + R"("byteLength": 60}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                  {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                 "min": [0, 0, 0], "max": [1, 1, 0]},
+                {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}])" +
+         extra + "\n}\n";
+}
+
+// A .glb holding `json` and `bin` (chunks padded to 4 bytes as the format requires).
+std::vector<unsigned char> makeGlb(std::string json, std::vector<unsigned char> bin) {
+  while (json.size() % 4) json += ' ';
+  while (bin.size() % 4) bin.push_back(0);
+  std::vector<unsigned char> out;
+  auto u32 = [&](std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) out.push_back(static_cast<unsigned char>(v >> (8 * i)));
+  };
+  out.insert(out.end(), {'g', 'l', 'T', 'F'});
+  u32(2);
+  u32(std::uint32_t(12 + 8 + json.size() + 8 + bin.size()));
+  u32(std::uint32_t(json.size()));
+  out.insert(out.end(), {'J', 'S', 'O', 'N'});
+  out.insert(out.end(), json.begin(), json.end());
+  u32(std::uint32_t(bin.size()));
+  out.insert(out.end(), {'B', 'I', 'N', 0});
+  out.insert(out.end(), bin.begin(), bin.end());
+  return out;
+}
+
+// Writes quad.gltf + quad.bin into `dir` and returns the .gltf path.
+fs::path writeQuadGltf(const TempDir& dir, const std::string& extra = "",
+                       const std::string& nodes = R"([{"name": "quad", "mesh": 0}])") {
+  writeBytes(dir / "quad.bin", quadBuffer());
+  writeFile(dir / "quad.gltf", quadGltf("quad.bin", extra, nodes));
+  return dir / "quad.gltf";
+}
+
+// An explicit empty sidecar keeps the project's data/sidecars out of small tests.
+fs::path emptySidecar(const TempDir& dir) {
+  writeFile(dir / "empty.json", "{}");
+  return dir / "empty.json";
+}
+
+void expectError(const pc::Result<Scene>& r, const std::string& file, const std::string& what) {
+  ASSERT_FALSE(r.ok()) << "expected an error mentioning '" << what << "'";
+  EXPECT_NE(r.error().message.find(file), std::string::npos) << r.error().message;
+  EXPECT_NE(r.error().message.find(what), std::string::npos) << r.error().message;
+}
+
+void expectNear(glm::vec3 a, glm::vec3 b, float tol = 1e-4f) {
+  EXPECT_NEAR(a.x, b.x, tol);
+  EXPECT_NEAR(a.y, b.y, tol);
+  EXPECT_NEAR(a.z, b.z, tol);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Built-in scene, model helpers, animation
+
+TEST(BuiltinScene, IsAClosedLitRoomWithCameraAndCascades) {
+  Scene s = pc::builtinScene();
+  EXPECT_EQ(s.triangleCount(), 8u + 2u + 2u + 12u + 12u);
+  EXPECT_TRUE(s.hasLights());
+  ASSERT_FALSE(s.cameras.empty());
+  ASSERT_EQ(s.volumes.size(), 2u);
+  EXPECT_LT(s.volumes[0].spacing, s.volumes[1].spacing);  // finest first
+  expectNear(s.boundsMin, {-1, 0, -1});
+  expectNear(s.boundsMax, {1, 2, 1});
+  EXPECT_NE(s.hash, 0u);
+  EXPECT_EQ(s.hash, pc::builtinScene().hash);  // deterministic
+  // The camera is inside the room, looking at its middle.
+  const pc::Camera& cam = s.cameras[0];
+  EXPECT_TRUE(glm::all(glm::greaterThan(cam.position, s.boundsMin)));
+  EXPECT_TRUE(glm::all(glm::lessThan(cam.position, s.boundsMax)));
+  glm::vec3 toCentre = glm::normalize(glm::vec3(0, 1, 0) - cam.position);
+  EXPECT_GT(glm::dot(cam.forward, toCentre), 0.9f);
+  // Every probe of every cascade lies inside the room.
+  for (const pc::ProbeVolume& v : s.volumes) {
+    glm::vec3 last = v.origin + v.spacing * glm::vec3(v.counts - 1);
+    EXPECT_TRUE(glm::all(glm::greaterThan(v.origin, s.boundsMin)));
+    EXPECT_TRUE(glm::all(glm::lessThan(last, s.boundsMax)));
+  }
+  for (const pc::Mesh& m : s.meshes) {
+    ASSERT_EQ(m.normals.size(), m.positions.size());
+    for (glm::vec3 n : m.normals) EXPECT_NEAR(glm::length(n), 1.0f, 1e-5f);
+    for (std::uint32_t i : m.indices) EXPECT_LT(i, m.positions.size());
+  }
+  // Room walls face inward: the floor's normal points up.
+  EXPECT_GT(s.meshes[0].normals[0].y, 0.9f);
+  // One light and one instance are animated.
+  ASSERT_EQ(s.lights.size(), 1u);
+  EXPECT_GE(s.lights[0].animation, 0);
+  int animated = 0;
+  for (const pc::Instance& inst : s.instances) animated += inst.animation >= 0;
+  EXPECT_EQ(animated, 1);
+}
+
+TEST(SceneModel, TextureSampleIsBilinearWrappedAndLinear) {
+  pc::Texture t;
+  t.width = 2;
+  t.height = 1;
+  t.rgba = {255, 0, 0, 255, 0, 0, 255, 0};  // red opaque, blue transparent
+  glm::vec4 left = t.sample({0.25f, 0.5f});
+  EXPECT_NEAR(left.r, 1.0f, 1e-5f);
+  EXPECT_NEAR(left.b, 0.0f, 1e-5f);
+  EXPECT_NEAR(left.a, 1.0f, 1e-5f);
+  glm::vec4 mid = t.sample({0.5f, 0.5f});
+  EXPECT_NEAR(mid.r, 0.5f, 1e-5f);
+  EXPECT_NEAR(mid.a, 0.5f, 1e-5f);
+  // u = 0 lies between the last and first texel: wrapping blends them.
+  glm::vec4 edge = t.sample({0.0f, 0.5f});
+  EXPECT_NEAR(edge.r, 0.5f, 1e-5f);
+  EXPECT_NEAR(edge.b, 0.5f, 1e-5f);
+  glm::vec4 wrapped = t.sample({3.25f, -4.5f});
+  EXPECT_NEAR(wrapped.r, left.r, 1e-5f);
+  // sRGB 128 decodes to about 0.2158 linear.
+  pc::Texture g;
+  g.width = g.height = 1;
+  g.rgba = {128, 128, 128, 255};
+  EXPECT_NEAR(g.sample({0.3f, 0.7f}).g, 0.21586f, 1e-4f);
+}
+
+TEST(SceneModel, SkyInterpolatesBetweenZenithHorizonGround) {
+  pc::Sky sky;
+  EXPECT_TRUE(sky.isBlack());
+  sky.zenith = {0, 0, 1};
+  sky.horizon = {0, 1, 0};
+  sky.ground = {1, 0, 0};
+  EXPECT_FALSE(sky.isBlack());
+  expectNear(sky.radiance({0, 1, 0}), {0, 0, 1});
+  expectNear(sky.radiance({1, 0, 0}), {0, 1, 0});
+  expectNear(sky.radiance({0, -2, 0}), {1, 0, 0});
+  expectNear(sky.radiance(glm::normalize(glm::vec3(1, 1, 0))), {0, 1 - 0.70711f, 0.70711f});
+}
+
+TEST(SceneModel, DefaultVolumesCoverTheBoundsInsetFinestFirst) {
+  Scene s;
+  s.boundsMin = {0, 0, 0};
+  s.boundsMax = {24, 6, 12};
+  std::vector<pc::ProbeVolume> v = pc::defaultVolumes(s, 24);
+  ASSERT_EQ(v.size(), 2u);
+  EXPECT_FLOAT_EQ(v[0].spacing, 1.0f);
+  EXPECT_EQ(v[0].counts, glm::ivec3(24, 6, 12));
+  expectNear(v[0].origin, {0.5f, 0.5f, 0.5f});  // half a spacing in from the faces
+  EXPECT_FLOAT_EQ(v[1].spacing, 2.0f);
+  // Small grids get one cascade.
+  EXPECT_EQ(pc::defaultVolumes(s, 8).size(), 1u);
+}
+
+TEST(SceneState, LightFollowsClosedPathAndBlockRotatesAboutPivot) {
+  Scene s = pc::builtinScene();
+  const pc::Animation& path = s.animations[s.lights[0].animation];
+  ASSERT_EQ(path.points.size(), 4u);
+  const float seg = path.period / 4.0f;
+  expectNear(pc::evaluateScene(s, 0.0).lights[0].position, path.points[0]);
+  expectNear(pc::evaluateScene(s, seg).lights[0].position, path.points[1]);
+  expectNear(pc::evaluateScene(s, 0.5 * seg).lights[0].position,
+             0.5f * (path.points[0] + path.points[1]));
+  // The last segment leads back to the first point; time loops.
+  expectNear(pc::evaluateScene(s, 3.5 * seg).lights[0].position,
+             0.5f * (path.points[3] + path.points[0]));
+  expectNear(pc::evaluateScene(s, path.period * 10.0 + seg).lights[0].position, path.points[1]);
+  expectNear(pc::evaluateScene(s, -seg).lights[0].position, path.points[3]);
+
+  std::size_t spinning = 0;
+  while (s.instances[spinning].animation < 0) ++spinning;
+  const pc::Animation& spin = s.animations[s.instances[spinning].animation];
+  double t = 2.0;
+  pc::SceneState st = pc::evaluateScene(s, t);
+  ASSERT_EQ(st.instanceTransforms.size(), s.instances.size());
+  // Unanimated instances keep their transform.
+  EXPECT_EQ(st.instanceTransforms[0], s.instances[0].transform);
+  // The pivot stays put; a point one unit off the axis turns by radiansPerSecond * t.
+  glm::mat4 delta = st.instanceTransforms[spinning] * glm::inverse(s.instances[spinning].transform);
+  expectNear(glm::vec3(delta * glm::vec4(spin.pivot, 1)), spin.pivot);
+  glm::vec3 off = glm::vec3(delta * glm::vec4(spin.pivot + glm::vec3(1, 0, 0), 1)) - spin.pivot;
+  float angle = float(spin.radiansPerSecond * t);
+  expectNear(off, {std::cos(angle), 0, -std::sin(angle)});  // right-handed turn about +Y
+}
+
+// ---------------------------------------------------------------------------------------------
+// glTF features
+
+TEST(GltfLoad, QuadWithMaterialEmissionAndGeneratedNormals) {
+  TempDir dir;
+  auto r = pc::loadScene(writeQuadGltf(dir), emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Scene& s = r.value();
+  EXPECT_EQ(s.triangleCount(), 2u);
+  ASSERT_EQ(s.meshes.size(), 1u);
+  const pc::Mesh& m = s.meshes[0];
+  ASSERT_EQ(m.normals.size(), m.positions.size());
+  for (glm::vec3 n : m.normals) expectNear(n, {0, 0, 1});
+  const pc::Material& mat = s.materials[m.material];
+  expectNear(mat.baseColor, {0.5f, 0.25f, 1.0f});
+  expectNear(mat.emissive, {4.0f, 2.0f, 1.0f});  // factor times KHR_materials_emissive_strength
+  EXPECT_TRUE(s.hasLights());
+  expectNear(s.boundsMin, {0, 0, 0});
+  expectNear(s.boundsMax, {1, 1, 0});
+  EXPECT_EQ(s.instances[0].name, "quad");
+}
+
+TEST(GltfLoad, GlbWithHierarchyLightsCameraAndTexture) {
+  TempDir dir;
+  // A 2x1 RGBA PNG: red, blue.
+  const std::vector<unsigned char> png = {
+      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
+      0x44, 0x52, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00,
+      0x00, 0xf4, 0x22, 0x7f, 0x8a, 0x00, 0x00, 0x00, 0x0e, 0x49, 0x44, 0x41, 0x54, 0x78,
+      0x9c, 0x63, 0xf8, 0xcf, 0xc0, 0x00, 0x42, 0xff, 0x01, 0x0f, 0xf9, 0x03, 0xfd, 0x85,
+      0x11, 0x99, 0x76, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60,
+      0x82};
+  std::vector<unsigned char> bin = quadBuffer();
+  const std::size_t pngOffset = bin.size();
+  bin.insert(bin.end(), png.begin(), png.end());
+  // Parent moved up by 2, child scaled by 3; a spot light turned to point down; a camera.
+  const std::string nodes = R"([
+    {"name": "parent", "translation": [0, 2, 0], "children": [1, 2, 3]},
+    {"name": "child", "mesh": 0, "scale": [3, 3, 3]},
+    {"name": "lamp", "rotation": [-0.7071068, 0, 0, 0.7071068],
+     "extensions": {"KHR_lights_punctual": {"light": 0}}},
+    {"name": "eye", "translation": [0, 0, 5], "camera": 0}])";
+  std::string extra = R"(,
+  "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_emissive_strength"],
+  "extensions": {"KHR_lights_punctual": {"lights": [
+    {"name": "spot", "type": "spot", "color": [1, 0.5, 0.25], "intensity": 7,
+     "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.6}}]}},
+  "cameras": [{"name": "cam", "type": "perspective", "perspective": {"yfov": 0.9, "znear": 0.1}}],
+  "images": [{"bufferView": 2, "mimeType": "image/png"}],
+  "textures": [{"source": 0}])";
+  std::string json = quadGltf("", extra, nodes);
+  // Third buffer view for the PNG; the buffer grows to hold it.
+  json.replace(json.find("\"byteLength\": 60}"), 17,
+               "\"byteLength\": " + std::to_string(bin.size()) + "}");
+  const std::string indexView = R"({"buffer": 0, "byteOffset": 48, "byteLength": 12})";
+  json.replace(json.find(indexView), indexView.size(),
+               indexView + R"(, {"buffer": 0, "byteOffset": )" + std::to_string(pngOffset) +
+                   R"(, "byteLength": )" + std::to_string(png.size()) + "}");
+  json.replace(json.find("\"baseColorFactor\""), 17,
+               "\"baseColorTexture\": {\"index\": 0}, \"baseColorFactor\"");
+  writeBytes(dir / "scene.glb", makeGlb(json, bin));
+
+  auto r = pc::loadScene(dir / "scene.glb", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Scene& s = r.value();
+  expectNear(s.boundsMin, {0, 2, 0});
+  expectNear(s.boundsMax, {3, 5, 0});
+  ASSERT_EQ(s.lights.size(), 1u);
+  const pc::Light& l = s.lights[0];
+  EXPECT_EQ(l.type, pc::LightType::Spot);
+  expectNear(l.position, {0, 2, 0});
+  expectNear(l.direction, {0, -1, 0});  // node -Z turned down by -90 degrees about X
+  expectNear(l.color, {1, 0.5f, 0.25f});
+  EXPECT_FLOAT_EQ(l.intensity, 7.0f);
+  EXPECT_FLOAT_EQ(l.outerConeAngle, 0.6f);
+  ASSERT_EQ(s.cameras.size(), 1u);
+  expectNear(s.cameras[0].position, {0, 2, 5});
+  expectNear(s.cameras[0].forward, {0, 0, -1});
+  EXPECT_FLOAT_EQ(s.cameras[0].yfov, 0.9f);
+  ASSERT_EQ(s.textures.size(), 1u);
+  EXPECT_EQ(s.textures[0].width, 2);
+  EXPECT_EQ(s.materials[0].baseColorTexture, 0);
+  EXPECT_NEAR(s.textures[0].sample({0.25f, 0.5f}).r, 1.0f, 1e-5f);
+  EXPECT_NEAR(s.textures[0].sample({0.75f, 0.5f}).b, 1.0f, 1e-5f);
+}
+
+// ---------------------------------------------------------------------------------------------
+// OBJ features
+
+TEST(ObjLoad, SplitsByMaterialLoadsKdKeAndWarnsOnMissingTexture) {
+  TempDir dir;
+  writeFile(dir / "box.mtl",
+            "newmtl white\nKd 0.7 0.7 0.7\n"
+            "newmtl lamp\nKd 0.5 0.5 0.5\nKe 10 9 8\n"
+            "newmtl tex\nmap_Kd textures/missing.png\n");
+  // A unit cube without normals (8 shared vertices) plus an emissive quad and a textured quad.
+  writeFile(dir / "box.obj",
+            "mtllib box.mtl\n"
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+            "v 0 3 0\nv 1 3 0\nv 1 3 1\nv 0 3 1\n"
+            "vt 0 0\nvt 1 0\nvt 1 1\n"
+            "g cube\nusemtl white\n"
+            "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 4 8 7 3\nf 1 5 8 4\nf 2 3 7 6\n"
+            "g light\nusemtl lamp\nf 9 10 11 12\n"
+            "g tiles\nusemtl tex\nf 1/1 2/2 3/3\n");
+  auto r = pc::loadScene(dir / "box.obj", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Scene& s = r.value();
+  EXPECT_EQ(s.triangleCount(), 12u + 2u + 1u);
+  ASSERT_EQ(s.meshes.size(), 3u);
+  const pc::Mesh& cube = s.meshes[0];
+  EXPECT_EQ(cube.name, "cube");
+  // Hard edges stay hard: every corner normal is an axis, so vertices were split (6 faces x 4).
+  EXPECT_EQ(cube.positions.size(), 24u);
+  for (glm::vec3 n : cube.normals) EXPECT_NEAR(std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)}), 1.0f, 1e-5f);
+  // Outward: the face at z = 1 has normal +Z.
+  for (std::size_t i = 0; i < cube.positions.size(); ++i) {
+    if (cube.positions[i].z == 1.0f && cube.normals[i].z != 0.0f) {
+      EXPECT_GT(cube.normals[i].z, 0.0f);
+    }
+  }
+  expectNear(s.materials[cube.material].baseColor, {0.7f, 0.7f, 0.7f});
+  expectNear(s.materials[s.meshes[1].material].emissive, {10, 9, 8});
+  EXPECT_TRUE(s.hasLights());
+  // Missing map_Kd: a warning naming the file, a grey stand-in colour, no texture.
+  const pc::Material& tex = s.materials[s.meshes[2].material];
+  EXPECT_EQ(tex.baseColorTexture, -1);
+  EXPECT_GT(tex.baseColor.x, 0.1f);
+  bool warned = false;
+  for (const std::string& w : s.warnings) warned = warned || w.find("missing.png") != std::string::npos;
+  EXPECT_TRUE(warned) << "no warning names the missing texture";
+  // OBJ v is flipped to the glTF convention (row 0 at the top).
+  ASSERT_EQ(s.meshes[2].uvs.size(), 3u);
+  EXPECT_FLOAT_EQ(s.meshes[2].uvs[2].y, 0.0f);
+}
+
+TEST(ObjLoad, SmoothSurfacesShareNormals) {
+  TempDir dir;
+  // Two triangles meeting at 20 degrees: below the 60 degree threshold, so the shared edge
+  // gets one averaged normal.
+  const float a = glm::radians(20.0f);
+  writeFile(dir / "fold.obj", "v 0 0 0\nv 0 0 1\nv -1 0 0\nv " + std::to_string(std::cos(a)) +
+                                  " " + std::to_string(std::sin(a)) + " 0\n"
+                                  "f 1 2 3\nf 2 1 4\n");
+  auto r = pc::loadScene(dir / "fold.obj", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r.value().meshes[0].positions.size(), 4u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Broken files: the error names the file and the problem
+
+TEST(BadFiles, MissingFile) {
+  TempDir dir;
+  expectError(pc::loadScene(dir / "nothere.glb"), "nothere.glb", "file not found");
+}
+
+TEST(BadFiles, UnsupportedFormat) {
+  TempDir dir;
+  writeFile(dir / "scene.fbx", "x");
+  expectError(pc::loadScene(dir / "scene.fbx"), "scene.fbx", "unsupported scene format");
+}
+
+TEST(BadFiles, TruncatedGlb) {
+  TempDir dir;
+  std::vector<unsigned char> glb = makeGlb(quadGltf(""), quadBuffer());
+  glb.resize(glb.size() / 2);
+  writeBytes(dir / "cut.glb", glb);
+  expectError(pc::loadScene(dir / "cut.glb", emptySidecar(dir)), "cut.glb", "cannot parse glTF");
+}
+
+TEST(BadFiles, GlbWithShortBuffer) {
+  TempDir dir;
+  // Well-formed container, but the accessors reach past the 24 bytes the buffer really has.
+  std::vector<unsigned char> bin = quadBuffer();
+  bin.resize(24);
+  std::string json = quadGltf("");
+  json.replace(json.find("\"byteLength\": 60}"), 17, "\"byteLength\": 24}");
+  writeBytes(dir / "short.glb", makeGlb(json, bin));
+  auto r = pc::loadScene(dir / "short.glb", emptySidecar(dir));
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("short.glb"), std::string::npos) << r.error().message;
+}
+
+TEST(BadFiles, GltfIndexOutOfRange) {
+  TempDir dir;
+  std::vector<unsigned char> bin = quadBuffer();
+  const std::uint16_t bad = 9;
+  std::memcpy(bin.data() + 48 + 2 * 4, &bad, 2);
+  writeBytes(dir / "quad.bin", bin);
+  writeFile(dir / "quad.gltf", quadGltf("quad.bin"));
+  expectError(pc::loadScene(dir / "quad.gltf", emptySidecar(dir)), "quad.gltf",
+              "index 9 (at 4) out of range (4 vertices)");
+}
+
+TEST(BadFiles, GltfNaNPosition) {
+  TempDir dir;
+  writeBytes(dir / "quad.bin", quadBuffer(std::numeric_limits<float>::quiet_NaN()));
+  writeFile(dir / "quad.gltf", quadGltf("quad.bin"));
+  expectError(pc::loadScene(dir / "quad.gltf", emptySidecar(dir)), "quad.gltf",
+              "vertex 0 has a non-finite position");
+}
+
+TEST(BadFiles, GltfUnknownRequiredExtension) {
+  TempDir dir;
+  fs::path p = writeQuadGltf(dir, R"(,
+  "extensionsUsed": ["EXT_imaginary_compression"],
+  "extensionsRequired": ["EXT_imaginary_compression"])");
+  expectError(pc::loadScene(p, emptySidecar(dir)), "quad.gltf",
+              "unsupported required glTF extension 'EXT_imaginary_compression'");
+}
+
+TEST(BadFiles, ObjIndexOutOfRange) {
+  TempDir dir;
+  writeFile(dir / "bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
+  expectError(pc::loadScene(dir / "bad.obj", emptySidecar(dir)), "bad.obj",
+              "vertex index 7 out of range (3 vertices)");
+}
+
+TEST(BadFiles, ObjNaNVertex) {
+  TempDir dir;
+  writeFile(dir / "nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n");
+  expectError(pc::loadScene(dir / "nan.obj", emptySidecar(dir)), "nan.obj:2",
+              "vertex 2 has a non-finite coordinate 'nan'");
+}
+
+TEST(BadFiles, NoTriangles) {
+  TempDir dir;
+  writeFile(dir / "empty.obj", "v 0 0 0\nv 1 0 0\n");
+  expectError(pc::loadScene(dir / "empty.obj", emptySidecar(dir)), "empty.obj", "no triangles");
+}
+
+TEST(BadFiles, MalformedSidecarJson) {
+  TempDir dir;
+  fs::path scene = writeQuadGltf(dir);
+  writeFile(dir / "broken.json", "{ \"lights\": [ }");
+  expectError(pc::loadScene(scene, dir / "broken.json"), "broken.json", "invalid JSON");
+  expectError(pc::loadScene(scene, dir / "absent.json"), "absent.json", "sidecar file not found");
+}
+
+TEST(BadFiles, SidecarWrongTypesNamePointer) {
+  TempDir dir;
+  fs::path scene = writeQuadGltf(dir);
+  writeFile(dir / "s1.json", R"({"exposure": "bright"})");
+  expectError(pc::loadScene(scene, dir / "s1.json"), "s1.json",
+              "at /exposure: expected a number, got string");
+  writeFile(dir / "s2.json", R"({"lights": [{"type": "point"}, {"type": "area"}]})");
+  expectError(pc::loadScene(scene, dir / "s2.json"), "s2.json",
+              "at /lights/1/type: unknown light type 'area'");
+  writeFile(dir / "s3.json", R"({"cameras": [{"position": [0, 1], "target": [0, 0, 0]}]})");
+  expectError(pc::loadScene(scene, dir / "s3.json"), "s3.json",
+              "at /cameras/0/position: expected an array of 3 numbers");
+  writeFile(dir / "s4.json", R"({"exposur": 2})");
+  expectError(pc::loadScene(scene, dir / "s4.json"), "s4.json", "at /exposur: unknown key");
+  writeFile(dir / "s5.json", R"({"animations": [{"type": "rotate", "instances": ["nope"]}]})");
+  expectError(pc::loadScene(scene, dir / "s5.json"), "s5.json",
+              "at /animations/0/instances/0: no node or mesh named 'nope'");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sidecar features
+
+TEST(Sidecar, UnitScaleUpAxisCamerasVolumesAnimations) {
+  TempDir dir;
+  fs::path scene = writeQuadGltf(dir);  // quad in the XY plane of a Z-up file: it stands up
+  writeFile(dir / "scene.json", R"({
+    "_comment": "keys starting with _ are ignored",
+    "unit_scale": 2, "up_axis": "z", "exposure": 0.5, "emissive_mode": "field",
+    "sky": {"color": [0.1, 0.2, 0.3]},
+    "lights": [{"name": "bulb", "type": "point", "position": [0, 1, 0], "intensity": 3,
+                "animation": "orbit"},
+               {"name": "sun", "type": "directional", "direction": [0, -2, 0]}],
+    "cameras": [{"name": "a", "position": [0, 1, 5], "yaw": 90, "pitch": 0, "fov": 60},
+                {"name": "b", "position": [0, 1, 5], "yaw": 0, "pitch": 30}],
+    "volumes": [{"min": [0, 0, 0], "max": [2, 1, 1], "spacing": 0.5},
+                {"origin": [-1, -1, -1], "spacing": 1, "counts": [4, 3, 2]}],
+    "animations": [{"name": "orbit", "type": "path", "points": [[0, 1, 0], [2, 1, 0]],
+                    "period": 2},
+                   {"name": "spin", "type": "rotate", "axis": [0, 1, 0], "pivot": [1, 0, 0],
+                    "degrees_per_second": 90, "instances": ["quadmesh"]}]
+  })");
+  // <scene dir>/scene.json is found without being named.
+  auto r = pc::loadScene(scene);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Scene& s = r.value();
+  EXPECT_EQ(s.sidecar, dir / "scene.json");
+  // (x, y, z) -> (x, z, -y), then doubled: the quad spans x 0..2, y 0, z -2..0.
+  expectNear(s.boundsMin, {0, 0, -2});
+  expectNear(s.boundsMax, {2, 0, 0});
+  EXPECT_FLOAT_EQ(s.exposure, 0.5f);
+  EXPECT_EQ(s.emissiveMode, pc::EmissiveMode::Field);
+  expectNear(s.sky.horizon, {0.1f, 0.2f, 0.3f});
+  ASSERT_EQ(s.lights.size(), 2u);
+  expectNear(s.lights[1].direction, {0, -1, 0});
+  ASSERT_EQ(s.cameras.size(), 2u);
+  expectNear(s.cameras[0].forward, {1, 0, 0});  // yaw 90: from -Z toward +X
+  EXPECT_NEAR(s.cameras[0].yfov, glm::radians(60.0f), 1e-6f);
+  expectNear(s.cameras[1].forward, {0, 0.5f, -0.866025f});  // positive pitch looks up
+  expectNear(s.cameras[1].up, {0, 0.866025f, 0.5f});
+  ASSERT_EQ(s.volumes.size(), 2u);
+  EXPECT_EQ(s.volumes[0].counts, glm::ivec3(5, 3, 3));
+  expectNear(s.volumes[0].origin, {0, 0, 0});
+  EXPECT_EQ(s.volumes[1].counts, glm::ivec3(4, 3, 2));
+  // Animations: the light on its path, the quad turning about the pivot.
+  pc::SceneState st = pc::evaluateScene(s, 0.5);
+  expectNear(st.lights[0].position, {1, 1, 0});
+  glm::vec3 corner = glm::vec3(st.instanceTransforms[0] * glm::vec4(1, 0, 0, 1));  // -> (2,0,0)
+  const float c45 = std::cos(glm::radians(45.0f));
+  expectNear(corner, {1 + c45, 0, -c45});
+  EXPECT_NE(s.hash, 0u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Shared scenes (skipped where ../shared/scenes is absent)
+
+namespace {
+
+struct SharedScene {
+  const char* file;
+  std::size_t triangles;
+  std::size_t minLights;   // from the sidecar (or emissive material: 0 here)
+  bool emissive;           // lit by an emissive material from the file
+};
+
+const SharedScene kShared[] = {
+    {"rtxgi-cornell/cornell.glb", 34, 1, false},
+    {"rtxgi-furnace/furnace.glb", 12, 0, false},
+    {"rtxgi-two-rooms/two-rooms.glb", 90, 1, false},
+    {"rtxgi-tunnel/tunnel.glb", 348, 1, false},
+    {"mcguire-cornellbox/CornellBox-Original.obj", 36, 0, true},
+    {"godot-living-room/living_room.glb", 5088, 3, false},
+    {"sauer-pandora/pandora.obj", 60810, 1, false},
+};
+
+}  // namespace
+
+class SharedScenes : public ::testing::TestWithParam<SharedScene> {};
+
+TEST_P(SharedScenes, LoadWithSidecar) {
+  const fs::path root = PC_SCENES_DIR;
+  const SharedScene& p = GetParam();
+  if (!fs::is_directory(root))
+    GTEST_SKIP() << "shared scenes folder " << root << " is absent";
+  const fs::path file = root / p.file;
+  if (!fs::exists(file)) GTEST_SKIP() << file << " is absent";
+  auto r = pc::loadScene(file);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Scene& s = r.value();
+  EXPECT_EQ(s.triangleCount(), p.triangles);
+  EXPECT_FALSE(s.sidecar.empty()) << "no sidecar found for " << p.file;
+  EXPECT_GE(s.lights.size(), p.minLights);
+  EXPECT_TRUE(s.hasLights() || !s.sky.isBlack());
+  if (p.emissive) {
+    EXPECT_TRUE(s.hasLights());
+  }
+  ASSERT_FALSE(s.cameras.empty());
+  ASSERT_FALSE(s.volumes.empty());
+  EXPECT_TRUE(glm::all(glm::lessThan(s.boundsMin, s.boundsMax)) ||
+              s.boundsMin.y == s.boundsMax.y);
+  // Sidecar cameras look at the scene: the view ray's direction points toward the bounds.
+  const pc::Camera& cam = s.cameras[0];
+  glm::vec3 centre = 0.5f * (s.boundsMin + s.boundsMax);
+  bool inside = glm::all(glm::greaterThan(cam.position, s.boundsMin)) &&
+                glm::all(glm::lessThan(cam.position, s.boundsMax));
+  if (!inside) {
+    EXPECT_GT(glm::dot(cam.forward, glm::normalize(centre - cam.position)), 0.5f);
+  }
+  for (const pc::Mesh& m : s.meshes) {
+    ASSERT_EQ(m.normals.size(), m.positions.size()) << m.name;
+    for (std::uint32_t i : m.indices) ASSERT_LT(i, m.positions.size());
+  }
+  // Loading twice gives the same hash.
+  auto again = pc::loadScene(file);
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again.value().hash, s.hash);
+}
+
+INSTANTIATE_TEST_SUITE_P(All, SharedScenes, ::testing::ValuesIn(kShared),
+                         [](const ::testing::TestParamInfo<SharedScene>& info) {
+                           std::string name = fs::path(info.param.file).stem().string();
+                           for (char& c : name)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
+
+TEST(SharedScenesDetail, SidecarValuesLandWhereExpected) {
+  const fs::path root = PC_SCENES_DIR;
+  if (!fs::exists(root / "sauer-pandora/pandora.obj") ||
+      !fs::exists(root / "rtxgi-cornell/cornell.glb"))
+    GTEST_SKIP() << "shared scenes folder " << root << " is absent";
+  auto pandora = pc::loadScene(root / "sauer-pandora/pandora.obj");
+  ASSERT_TRUE(pandora.ok()) << pandora.error().message;
+  // Game units scaled by 0.05; missing textures are warnings, not errors.
+  EXPECT_NEAR(pandora->boundsMax.x - pandora->boundsMin.x, 73.6f, 0.01f);
+  EXPECT_FALSE(pandora->warnings.empty());
+  EXPECT_EQ(pandora->volumes[0].counts, glm::ivec3(32, 16, 32));
+  auto cornell = pc::loadScene(root / "rtxgi-cornell/cornell.glb");
+  ASSERT_TRUE(cornell.ok()) << cornell.error().message;
+  EXPECT_EQ(cornell->lights[0].type, pc::LightType::Directional);
+  EXPECT_EQ(cornell->volumes[0].counts, glm::ivec3(9));
+  expectNear(cornell->cameras[0].forward, {0, 0, -1});
+}
