@@ -11,13 +11,20 @@ namespace {
 
 const char* deviceErrorName(RTCError code) {
   switch (code) {
-    case RTC_ERROR_NONE: return "no error";
-    case RTC_ERROR_INVALID_ARGUMENT: return "invalid argument";
-    case RTC_ERROR_INVALID_OPERATION: return "invalid operation";
-    case RTC_ERROR_OUT_OF_MEMORY: return "out of memory";
-    case RTC_ERROR_UNSUPPORTED_CPU: return "unsupported CPU";
-    case RTC_ERROR_CANCELLED: return "cancelled";
-    default: return "unknown error";
+    case RTC_ERROR_NONE:
+      return "no error";
+    case RTC_ERROR_INVALID_ARGUMENT:
+      return "invalid argument";
+    case RTC_ERROR_INVALID_OPERATION:
+      return "invalid operation";
+    case RTC_ERROR_OUT_OF_MEMORY:
+      return "out of memory";
+    case RTC_ERROR_UNSUPPORTED_CPU:
+      return "unsupported CPU";
+    case RTC_ERROR_CANCELLED:
+      return "cancelled";
+    default:
+      return "unknown error";
   }
 }
 
@@ -133,8 +140,8 @@ EmbreeScene::~EmbreeScene() {
 
 void EmbreeScene::transformInstance(std::size_t i, const glm::mat4& transform) {
   const Mesh& mesh = scene_->meshes[scene_->instances[i].mesh];
-  auto* vertex = static_cast<float*>(rtcGetGeometryBufferData(geometries_[i],
-                                                               RTC_BUFFER_TYPE_VERTEX, 0));
+  auto* vertex =
+      static_cast<float*>(rtcGetGeometryBufferData(geometries_[i], RTC_BUFFER_TYPE_VERTEX, 0));
   for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
     const glm::vec3 p = glm::vec3(transform * glm::vec4(mesh.positions[v], 1.0f));
     vertex[3 * v + 0] = p.x;
@@ -203,8 +210,8 @@ SurfacePoint EmbreeScene::surface(const Hit& hit, glm::vec3 origin, glm::vec3 di
   const Instance& inst = scene_->instances[hit.instance];
   const Mesh& mesh = scene_->meshes[inst.mesh];
   RTCGeometry geom = geometries_[hit.instance];
-  const auto* index = static_cast<const std::uint32_t*>(
-      rtcGetGeometryBufferData(geom, RTC_BUFFER_TYPE_INDEX, 0));
+  const auto* index =
+      static_cast<const std::uint32_t*>(rtcGetGeometryBufferData(geom, RTC_BUFFER_TYPE_INDEX, 0));
   const auto* vertex =
       static_cast<const float*>(rtcGetGeometryBufferData(geom, RTC_BUFFER_TYPE_VERTEX, 0));
   const std::uint32_t i0 = index[3 * hit.primitive + 0];

@@ -93,8 +93,10 @@ glm::vec3 punctualIrradiance(const EmbreeScene& scene, const Light& light, glm::
 
 bool emissiveAsLights(EmissiveMode mode, double emissiveArea, double totalArea) {
   switch (mode) {
-    case EmissiveMode::Lights: return true;
-    case EmissiveMode::Field: return false;
+    case EmissiveMode::Lights:
+      return true;
+    case EmissiveMode::Field:
+      return false;
     case EmissiveMode::Auto:
       // Small bright emitters (lamps, screens) cast sharp shadows that only light sampling
       // with shadow rays resolves, and a probe field is too coarse to hold them. Large dim

@@ -115,9 +115,9 @@ PathTraceResult pathTrace(const EmbreeScene& scene, const SceneState& state,
   PathTraceResult result;
   result.image = Image(width, height);
   for (std::size_t i = 0; i < result.image.pixels.size(); ++i) {
-    result.image.pixels[i] = (halves[0].pixels[i] * float(passSpp[0]) +
-                              halves[1].pixels[i] * float(passSpp[1])) /
-                             float(spp);
+    result.image.pixels[i] =
+        (halves[0].pixels[i] * float(passSpp[0]) + halves[1].pixels[i] * float(passSpp[1])) /
+        float(spp);
   }
   if (passSpp[0] > 0) {
     const float exposure = scene.scene().exposure;
@@ -126,8 +126,7 @@ PathTraceResult pathTrace(const EmbreeScene& scene, const SceneState& state,
   }
   result.spp = spp;
   result.samples = std::uint64_t(width) * std::uint64_t(height) * std::uint64_t(spp);
-  result.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
 

@@ -49,8 +49,8 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
           // surface point itself; V points from the surface back toward the camera.
           const glm::vec4 indirect =
               sampleField(field, sp.position, sp.normal, -dir, options.sampleFlags);
-          const glm::vec3 L =
-              sp.emission + sp.albedo * kInvPi * (E + glm::vec3(indirect.x, indirect.y, indirect.z));
+          const glm::vec3 L = sp.emission + sp.albedo * kInvPi *
+                                                (E + glm::vec3(indirect.x, indirect.y, indirect.z));
           if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) sum += L;
         }
         image.at(x, y) = sum / float(primary);
@@ -61,8 +61,8 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
   return image;
 }
 
-Result<Image> renderProbeLit(const Scene& scene, const Field& field,
-                             const ProbeLitOptions& options, Progress* progress) {
+Result<Image> renderProbeLit(const Scene& scene, const Field& field, const ProbeLitOptions& options,
+                             Progress* progress) {
   if (options.width <= 0 || options.height <= 0) return Error{"image size must be positive"};
   Camera camera;
   if (options.explicitCamera) {

@@ -19,9 +19,9 @@ namespace pc {
 
 struct ProbeLitOptions {
   int width = 640, height = 360;
-  int primarySamples = 8;    // jittered camera rays per pixel (anti-aliasing)
-  int emissiveSamples = 32;  // stratified shadow rays toward emitters per primary hit
-  int camera = 0;            // index into Scene::cameras
+  int primarySamples = 8;                // jittered camera rays per pixel (anti-aliasing)
+  int emissiveSamples = 32;              // stratified shadow rays toward emitters per primary hit
+  int camera = 0;                        // index into Scene::cameras
   std::optional<Camera> explicitCamera;  // used instead of `camera` when set
   double time = 0.0;                     // animation time of the frame
   int sampleFlags = 0;  // passed to sampleField (PC_SAMPLE_NO_VISIBILITY: the naive baseline)
@@ -34,8 +34,8 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
                      const ProbeLitOptions& options, Progress* progress = nullptr);
 
 // Builds the Embree scene and lights at options.time and renders the chosen camera.
-Result<Image> renderProbeLit(const Scene& scene, const Field& field,
-                             const ProbeLitOptions& options, Progress* progress = nullptr);
+Result<Image> renderProbeLit(const Scene& scene, const Field& field, const ProbeLitOptions& options,
+                             Progress* progress = nullptr);
 
 // Rows the render is split into (for sizing a Progress).
 inline int probeLitProgressTotal(const ProbeLitOptions& options) { return options.height; }

@@ -8,6 +8,8 @@
 #include <tbb/global_control.h>
 
 #include "common/field.h"
+#include "common/image.h"
+#include "common/scene.h"
 #include "cpu/embree_scene.h"
 #include "cpu/lighting.h"
 #include "cpu/path_tracer.h"
@@ -422,6 +424,31 @@ TEST(PathTracer, SameSeedSameImageOnAnyThreadCount) {
   EXPECT_NE(a.image.pixels, c.image.pixels);
 }
 
+TEST(PathTracer, NoiseEstimateMatchesErrorAgainstAConvergedImage) {
+  // The halves-based estimate of an image's noise should predict its PSNR against a far
+  // better converged render of the same view (whose own, smaller noise is accounted for).
+  const Scene scene = builtinScene();
+  PathTraceOptions options;
+  options.width = 32;
+  options.height = 24;
+  options.spp = 1024;
+  options.seed = 5;
+  auto truth = renderReference(scene, options);
+  ASSERT_TRUE(truth.ok()) << truth.error().message;
+  options.spp = 64;
+  options.seed = 6;
+  auto test = renderReference(scene, options);
+  ASSERT_TRUE(test.ok()) << test.error().message;
+  const double measured = psnr8(tonemap(test->image, scene.exposure),
+                                tonemap(truth->image, scene.exposure));
+  // Errors add in power: the test's noise plus the truth's.
+  const double expected = -10.0 * std::log10(std::pow(10.0, -test->noisePsnr / 10.0) +
+                                             std::pow(10.0, -truth->noisePsnr / 10.0));
+  std::printf("noise: estimated %.2f dB (truth %.2f dB), expected %.2f dB, measured %.2f dB\n",
+              test->noisePsnr, truth->noisePsnr, expected, measured);
+  EXPECT_NEAR(measured, expected, 1.0);
+}
+
 TEST(PathTracer, DirectOnlyMatchesAnalyticPointLight) {
   // Looking straight down at a lit floor from the light's position: with no bounces, a pixel
   // shows albedo / pi x E.
@@ -467,8 +494,7 @@ TEST(ProbeLitRender, UniformFieldAddsItsIrradiance) {
   options.height = 8;
   options.primarySamples = 2;
   options.sampleFlags = gpu::PC_SAMPLE_NO_VISIBILITY;
-  const Image image =
-      renderProbeLit(*embree, state, emissive, field, scene.cameras[0], options);
+  const Image image = renderProbeLit(*embree, state, emissive, field, scene.cameras[0], options);
   const float expected = Le + albedo / kPi * fieldE;
   for (const glm::vec3& p : image.pixels) EXPECT_NEAR(p.x, expected, 1e-3f * expected);
   const Image again = renderProbeLit(*embree, state, emissive, field, scene.cameras[0], options);

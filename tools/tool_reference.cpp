@@ -60,8 +60,8 @@ int main(int argc, char** argv) {
 
   pc::Result<pc::PathTraceResult> result = pc::Error{};
   {
-    pc::Progress progress("reference", std::uint64_t(pc::pathTraceTileCount(options.width,
-                                                                             options.height)));
+    pc::Progress progress("reference",
+                          std::uint64_t(pc::pathTraceTileCount(options.width, options.height)));
     result = pc::renderReference(scene, options, &progress);
   }
   if (!result) return fail(result.error().message);
