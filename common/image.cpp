@@ -60,9 +60,7 @@ std::string lowerExtension(const std::filesystem::path& path) {
   return ext;
 }
 
-bool validSize(int w, int h) {
-  return w > 0 && h > 0 && std::int64_t(w) * h <= kMaxPixels;
-}
+bool validSize(int w, int h) { return w > 0 && h > 0 && std::int64_t(w) * h <= kMaxPixels; }
 
 unsigned char toByte(float v) {
   return static_cast<unsigned char>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
@@ -173,8 +171,8 @@ Result<Image> readExr(const std::filesystem::path& path) {
   std::unique_ptr<float, ExrFree> owned(rgba);
   if (rc != TINYEXR_SUCCESS || !rgba) return fileError(path, "cannot read EXR: " + err.str());
   if (!validSize(w, h)) {
-    return fileError(path, "EXR has unsupported size " + std::to_string(w) + "x" +
-                               std::to_string(h));
+    return fileError(path,
+                     "EXR has unsupported size " + std::to_string(w) + "x" + std::to_string(h));
   }
   Image img(w, h);
   for (std::size_t i = 0; i < img.pixels.size(); ++i) {
@@ -205,8 +203,8 @@ Status writePng(const std::filesystem::path& path, const Image8& image) {
     return fileError(path, "cannot write PNG: image is empty or its size is inconsistent");
   }
   errno = 0;
-  int ok = stbi_write_png(path.c_str(), image.width, image.height, 3, image.rgb.data(),
-                          image.width * 3);
+  int ok =
+      stbi_write_png(path.c_str(), image.width, image.height, 3, image.rgb.data(), image.width * 3);
   if (!ok) {
     return fileError(path, std::string("cannot write PNG: ") +
                                (errno ? std::strerror(errno) : "encoder failed"));
@@ -226,8 +224,8 @@ Status writeExr(const std::filesystem::path& path, const Image& image) {
   // Full float: the files are references that metrics compare, so they stay lossless.
   static_assert(sizeof(glm::vec3) == 3 * sizeof(float));
   ExrMessage err;
-  int rc = SaveEXR(reinterpret_cast<const float*>(image.pixels.data()), image.width,
-                   image.height, 3, /*save_as_fp16=*/0, path.c_str(), &err.text);
+  int rc = SaveEXR(reinterpret_cast<const float*>(image.pixels.data()), image.width, image.height,
+                   3, /*save_as_fp16=*/0, path.c_str(), &err.text);
   if (rc != TINYEXR_SUCCESS) return fileError(path, "cannot write EXR: " + err.str());
   return Status::success();
 }
@@ -265,8 +263,8 @@ Result<Image8> readPng(const std::filesystem::path& path) {
     return fileError(path, std::string("cannot read PNG: ") + (why ? why : "decoder failed"));
   }
   if (!validSize(w, h)) {
-    return fileError(path, "PNG has unsupported size " + std::to_string(w) + "x" +
-                               std::to_string(h));
+    return fileError(path,
+                     "PNG has unsupported size " + std::to_string(w) + "x" + std::to_string(h));
   }
   Image8 img;
   img.width = w;

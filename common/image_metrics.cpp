@@ -128,8 +128,8 @@ double ssim8(const Image8& a, const Image8& b) {
       va /= n;
       vb /= n;
       cov /= n;
-      total += ((2.0 * ma * mb + C1) * (2.0 * cov + C2)) /
-               ((ma * ma + mb * mb + C1) * (va + vb + C2));
+      total +=
+          ((2.0 * ma * mb + C1) * (2.0 * cov + C2)) / ((ma * ma + mb * mb + C1) * (va + vb + C2));
       ++windows;
     }
   }

@@ -1,20 +1,19 @@
 // Image files (PNG, EXR, PFM round trips and error messages), metrics on known inputs, and the
 // probecast-imgdiff tool's exit codes.
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <memory>
 #include <random>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "common/image.h"
 #include "shaders/interop/tonemap.h"

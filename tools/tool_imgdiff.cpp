@@ -4,14 +4,13 @@
 // Linear inputs (.exr, .pfm) are tone-mapped with the same exposure and the shared tone curve,
 // then compared as 8-bit sRGB; their linear PSNR is reported too. PNG inputs are compared as
 // stored. Mixed inputs tone-map the linear one and compare in 8 bits.
+#include <CLI/CLI.hpp>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <string>
-
-#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "common/image.h"
 
