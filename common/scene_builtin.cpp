@@ -69,12 +69,13 @@ Scene builtinScene() {
   // Tall block, fixed, turned a little as in the classic box.
   glm::mat4 tall = glm::translate(glm::mat4(1.0f), {-0.35f, 0.6f, -0.35f});
   tall = glm::rotate(tall, glm::radians(17.0f), {0, 1, 0});
-  s.instances.push_back({.name = "tall-block", .mesh = 3,
-                         .transform = glm::scale(tall, {0.6f, 1.2f, 0.6f})});
+  s.instances.push_back(
+      {.name = "tall-block", .mesh = 3, .transform = glm::scale(tall, {0.6f, 1.2f, 0.6f})});
   // Short block, turning slowly about its own vertical axis.
   glm::mat4 shortB = glm::translate(glm::mat4(1.0f), {0.45f, 0.3f, 0.35f});
   shortB = glm::rotate(shortB, glm::radians(-18.0f), {0, 1, 0});
-  s.instances.push_back({.name = "short-block", .mesh = 3,
+  s.instances.push_back({.name = "short-block",
+                         .mesh = 3,
                          .transform = glm::scale(shortB, {0.6f, 0.6f, 0.6f}),
                          .animation = 1});
 
@@ -88,7 +89,8 @@ Scene builtinScene() {
                       .animation = 0});
   Animation path;
   path.kind = Animation::Kind::Path;
-  path.points = {{-0.5f, 1.5f, -0.5f}, {0.5f, 1.5f, -0.5f}, {0.5f, 1.5f, 0.5f}, {-0.5f, 1.5f, 0.5f}};
+  path.points = {
+      {-0.5f, 1.5f, -0.5f}, {0.5f, 1.5f, -0.5f}, {0.5f, 1.5f, 0.5f}, {-0.5f, 1.5f, 0.5f}};
   path.period = 8.0f;
   Animation spin;
   spin.kind = Animation::Kind::Rotate;
@@ -105,8 +107,9 @@ Scene builtinScene() {
                        .yfov = glm::radians(60.0f)});
 
   // Two cascades, probes half a spacing in from the walls.
-  s.volumes = {{.origin = glm::vec3(-0.875f, 0.125f, -0.875f), .spacing = 0.25f, .counts = glm::ivec3(8)},
-               {.origin = glm::vec3(-0.75f, 0.25f, -0.75f), .spacing = 0.5f, .counts = glm::ivec3(4)}};
+  s.volumes = {
+      {.origin = glm::vec3(-0.875f, 0.125f, -0.875f), .spacing = 0.25f, .counts = glm::ivec3(8)},
+      {.origin = glm::vec3(-0.75f, 0.25f, -0.75f), .spacing = 0.5f, .counts = glm::ivec3(4)}};
   s.exposure = 1.0f;
   scene_detail::computeBounds(s);
   s.hash = scene_detail::hashScene(s);

@@ -1,18 +1,18 @@
 // glTF 2.0 (.gltf, .glb) through tinygltf: triangle primitives (one pc::Mesh each), the node
 // hierarchy, base colour and emission (with their textures), KHR_lights_punctual and
 // perspective cameras. Every index the file holds is checked before it is followed.
+#include <tiny_gltf.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <map>
-#include <set>
-#include <string>
-
+#include <fstream>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
-
-#include <tiny_gltf.h>
+#include <map>
+#include <set>
+#include <string>
 
 #include "common/scene_loaders.h"
 
@@ -58,8 +58,8 @@ class GltfReader {
  private:
   static void check(int index, std::size_t size, const char* what) {
     if (index < 0 || std::size_t(index) >= size)
-      throw GltfError{std::string(what) + " index " + std::to_string(index) +
-                      " out of range (" + std::to_string(size) + " " + what + "s)"};
+      throw GltfError{std::string(what) + " index " + std::to_string(index) + " out of range (" +
+                      std::to_string(size) + " " + what + "s)"};
   }
 
   static glm::mat4 localMatrix(const tinygltf::Node& n) {
@@ -70,9 +70,9 @@ class GltfReader {
     }
     glm::mat4 t(1.0f), r(1.0f), s(1.0f);
     if (n.translation.size() == 3)
-      t = glm::translate(glm::mat4(1.0f), glm::vec3(float(n.translation[0]),
-                                                    float(n.translation[1]),
-                                                    float(n.translation[2])));
+      t = glm::translate(
+          glm::mat4(1.0f),
+          glm::vec3(float(n.translation[0]), float(n.translation[1]), float(n.translation[2])));
     if (n.rotation.size() == 4) {
       glm::quat q(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]),
                   float(n.rotation[2]));
@@ -198,14 +198,18 @@ class GltfReader {
     std::vector<std::uint32_t> out(a.count, 0);
     forEachElement(a, index, [&](const unsigned char* src, std::size_t i) {
       switch (a.componentType) {
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: out[i] = src[0]; break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+          out[i] = src[0];
+          break;
         case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
           std::uint16_t v;
           std::memcpy(&v, src, 2);
           out[i] = v;
           break;
         }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: std::memcpy(&out[i], src, 4); break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+          std::memcpy(&out[i], src, 4);
+          break;
         default:
           throw GltfError{"index accessor " + std::to_string(index) +
                           " has a non-integer component type"};
@@ -291,7 +295,8 @@ class GltfReader {
       std::vector<float> v = readFloats(it->second, 3, "NORMAL");
       if (v.size() == p.size()) {
         mesh.normals.resize(n);
-        for (std::size_t i = 0; i < n; ++i) mesh.normals[i] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+        for (std::size_t i = 0; i < n; ++i)
+          mesh.normals[i] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
       }
     }
     if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) {
@@ -425,6 +430,26 @@ std::string trimmed(std::string s) {
   return s;
 }
 
+// tinygltf says only "Invalid glTF binary" for a cut-off .glb; the header tells us more.
+Status checkGlbLength(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  unsigned char h[12] = {};
+  in.read(reinterpret_cast<char*>(h), 12);
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) return Status::success();
+  if (in.gcount() < 12)
+    return Error{path.string() + ": truncated .glb: " + std::to_string(size) +
+                 " bytes, shorter than the 12-byte header"};
+  if (std::memcmp(h, "glTF", 4) != 0) return Status::success();  // tinygltf reports it
+  std::uint32_t declared = std::uint32_t(h[8]) | std::uint32_t(h[9]) << 8 |
+                           std::uint32_t(h[10]) << 16 | std::uint32_t(h[11]) << 24;
+  if (declared > size)
+    return Error{path.string() + ": truncated .glb: header declares " + std::to_string(declared) +
+                 " bytes, file has " + std::to_string(size)};
+  return Status::success();
+}
+
 }  // namespace
 
 Result<Scene> loadGltf(const std::filesystem::path& path) {
@@ -433,7 +458,10 @@ Result<Scene> loadGltf(const std::filesystem::path& path) {
   tinygltf::TinyGLTF loader;
   std::string err, warn;
   std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  if (ext == ".glb")
+    if (Status s = checkGlbLength(path); !s) return s.error();
   bool ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, file)
                           : loader.LoadASCIIFromFile(&model, &err, &warn, file);
   // Refuse what we cannot honour before anything else: tinygltf itself ignores the list.

@@ -18,14 +18,14 @@ Status validateMesh(const Mesh& mesh) {
   for (std::size_t i = 0; i < mesh.indices.size(); ++i)
     if (mesh.indices[i] >= mesh.positions.size())
       return Error{where + "index " + std::to_string(mesh.indices[i]) + " (at " +
-                   std::to_string(i) + ") out of range (" +
-                   std::to_string(mesh.positions.size()) + " vertices)"};
+                   std::to_string(i) + ") out of range (" + std::to_string(mesh.positions.size()) +
+                   " vertices)"};
   for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
     const glm::vec3& p = mesh.positions[i];
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
       return Error{where + "vertex " + std::to_string(i) + " has a non-finite position (" +
-                   std::to_string(p.x) + ", " + std::to_string(p.y) + ", " +
-                   std::to_string(p.z) + ")"};
+                   std::to_string(p.x) + ", " + std::to_string(p.y) + ", " + std::to_string(p.z) +
+                   ")"};
   }
   if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
     return Error{where + "normal count differs from vertex count"};

@@ -1,14 +1,14 @@
 // Wavefront OBJ + MTL through tinyobjloader: one mesh per (group, material), diffuse colour and
 // texture (map_Kd), emission (Ke). Missing textures are warnings: such scenes still light.
+#include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
+#include <tiny_obj_loader.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <unordered_map>
-
-#include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
-#include <tiny_obj_loader.h>
 
 #include "common/scene_loaders.h"
 
@@ -100,12 +100,11 @@ class ObjBuilder {
           const tinyobj::index_t& idx = mesh.indices[3 * f + c];
           // (A negative index here was a relative one reaching before the first vertex.)
           if (idx.vertex_index < 0 || std::size_t(idx.vertex_index) >= nv)
-            return Error{path_.string() + ": face " + std::to_string(f + 1) + " of '" + base +
-                         "': " +
-                         (idx.vertex_index < 0
-                              ? std::string("relative vertex index reaches before vertex 1")
-                              : "vertex index " + std::to_string(idx.vertex_index + 1) +
-                                    " out of range (" + std::to_string(nv) + " vertices)")};
+            return Error{
+                path_.string() + ": face " + std::to_string(f + 1) + " of '" + base + "': " +
+                (idx.vertex_index < 0 ? std::string("relative vertex index reaches before vertex 1")
+                                      : "vertex index " + std::to_string(idx.vertex_index + 1) +
+                                            " out of range (" + std::to_string(nv) + " vertices)")};
           if (idx.texcoord_index >= 0 && std::size_t(idx.texcoord_index) >= nt)
             return Error{path_.string() + ": face " + std::to_string(f + 1) + " of '" + base +
                          "': texcoord index " + std::to_string(idx.texcoord_index + 1) +

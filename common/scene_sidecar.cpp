@@ -3,10 +3,9 @@
 // Every problem is reported with the sidecar's path and the JSON pointer of the bad value.
 #include <cmath>
 #include <fstream>
-#include <sstream>
-
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "common/scene_loaders.h"
 
@@ -264,8 +263,8 @@ Animation parseAnimation(const json& j, const std::string& ptr) {
     if (j.contains("axis")) a.axis = direction(j["axis"], ptr + "/axis");
     if (j.contains("pivot")) a.pivot = vec3(j["pivot"], ptr + "/pivot");
     if (j.contains("degrees_per_second"))
-      a.radiansPerSecond = glm::radians(number(j["degrees_per_second"],
-                                               ptr + "/degrees_per_second"));
+      a.radiansPerSecond =
+          glm::radians(number(j["degrees_per_second"], ptr + "/degrees_per_second"));
   } else {
     fail(ptr + "/type", "unknown animation type '" + type + "' (expected path or rotate)");
   }
@@ -283,8 +282,8 @@ bool instanceMatches(const Scene& scene, const Instance& inst, const std::string
 
 void applyJson(Scene& scene, const json& root) {
   object(root, "",
-         {"unit_scale", "up_axis", "exposure", "emissive_mode", "sky", "lights",
-          "keep_file_lights", "cameras", "volumes", "animations"});
+         {"unit_scale", "up_axis", "exposure", "emissive_mode", "sky", "lights", "keep_file_lights",
+          "cameras", "volumes", "animations"});
   Conversion conv;
   if (root.contains("unit_scale")) conv.scale = positive(root["unit_scale"], "/unit_scale");
   if (root.contains("up_axis")) {
@@ -314,7 +313,8 @@ void applyJson(Scene& scene, const json& root) {
 
   if (root.contains("keep_file_lights")) {
     if (!root["keep_file_lights"].is_boolean())
-      fail("/keep_file_lights", "expected true or false, got " + typeName(root["keep_file_lights"]));
+      fail("/keep_file_lights",
+           "expected true or false, got " + typeName(root["keep_file_lights"]));
     if (!root["keep_file_lights"].get<bool>()) scene.lights.clear();
   }
   // Light animation names are resolved once all animations are known.

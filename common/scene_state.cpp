@@ -1,8 +1,7 @@
 // Animation: the lights and instance transforms of a scene at a given time.
 #include <cmath>
-#include <numbers>
-
 #include <glm/gtc/matrix_transform.hpp>
+#include <numbers>
 
 #include "common/scene.h"
 
@@ -60,8 +59,8 @@ SceneState evaluateScene(const Scene& scene, double time) {
     glm::mat4 m = inst.transform;
     if (const Animation* a = animationOf(scene, inst.animation)) {
       if (a->kind == Animation::Kind::Path) {
-        glm::vec3 offset = pathPosition(*a, time) - (a->points.empty() ? glm::vec3(0.0f)
-                                                                        : a->points[0]);
+        glm::vec3 offset =
+            pathPosition(*a, time) - (a->points.empty() ? glm::vec3(0.0f) : a->points[0]);
         m = glm::translate(glm::mat4(1.0f), offset) * m;
       } else {
         m = rotation(*a, time) * m;

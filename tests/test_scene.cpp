@@ -1,15 +1,15 @@
 // Scene loading: the built-in room, small generated glTF/OBJ files (features and broken
 // files), sidecars, animation, and the shared scenes where ../shared/scenes is present.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <glm/gtc/matrix_transform.hpp>
-#include <gtest/gtest.h>
 
 #include "common/scene.h"
 
@@ -41,8 +41,8 @@ void writeFile(const fs::path& p, const std::string& text) {
 }
 
 void writeBytes(const fs::path& p, const std::vector<unsigned char>& bytes) {
-  std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
-                                           std::streamsize(bytes.size()));
+  std::ofstream(p, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
 // Binary payload of a unit quad in the XY plane: 4 float3 positions, then 6 uint16 indices.
@@ -278,12 +278,11 @@ TEST(GltfLoad, GlbWithHierarchyLightsCameraAndTexture) {
   TempDir dir;
   // A 2x1 RGBA PNG: red, blue.
   const std::vector<unsigned char> png = {
-      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
-      0x44, 0x52, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00,
-      0x00, 0xf4, 0x22, 0x7f, 0x8a, 0x00, 0x00, 0x00, 0x0e, 0x49, 0x44, 0x41, 0x54, 0x78,
-      0x9c, 0x63, 0xf8, 0xcf, 0xc0, 0x00, 0x42, 0xff, 0x01, 0x0f, 0xf9, 0x03, 0xfd, 0x85,
-      0x11, 0x99, 0x76, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60,
-      0x82};
+      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44,
+      0x52, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00, 0x00, 0xf4,
+      0x22, 0x7f, 0x8a, 0x00, 0x00, 0x00, 0x0e, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0xf8,
+      0xcf, 0xc0, 0x00, 0x42, 0xff, 0x01, 0x0f, 0xf9, 0x03, 0xfd, 0x85, 0x11, 0x99, 0x76, 0x00,
+      0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
   std::vector<unsigned char> bin = quadBuffer();
   const std::size_t pngOffset = bin.size();
   bin.insert(bin.end(), png.begin(), png.end());
@@ -366,7 +365,8 @@ TEST(ObjLoad, SplitsByMaterialLoadsKdKeAndWarnsOnMissingTexture) {
   EXPECT_EQ(cube.name, "cube");
   // Hard edges stay hard: every corner normal is an axis, so vertices were split (6 faces x 4).
   EXPECT_EQ(cube.positions.size(), 24u);
-  for (glm::vec3 n : cube.normals) EXPECT_NEAR(std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)}), 1.0f, 1e-5f);
+  for (glm::vec3 n : cube.normals)
+    EXPECT_NEAR(std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)}), 1.0f, 1e-5f);
   // Outward: the face at z = 1 has normal +Z.
   for (std::size_t i = 0; i < cube.positions.size(); ++i) {
     if (cube.positions[i].z == 1.0f && cube.normals[i].z != 0.0f) {
@@ -381,7 +381,8 @@ TEST(ObjLoad, SplitsByMaterialLoadsKdKeAndWarnsOnMissingTexture) {
   EXPECT_EQ(tex.baseColorTexture, -1);
   EXPECT_GT(tex.baseColor.x, 0.1f);
   bool warned = false;
-  for (const std::string& w : s.warnings) warned = warned || w.find("missing.png") != std::string::npos;
+  for (const std::string& w : s.warnings)
+    warned = warned || w.find("missing.png") != std::string::npos;
   EXPECT_TRUE(warned) << "no warning names the missing texture";
   // OBJ v is flipped to the glTF convention (row 0 at the top).
   ASSERT_EQ(s.meshes[2].uvs.size(), 3u);
@@ -393,8 +394,9 @@ TEST(ObjLoad, SmoothSurfacesShareNormals) {
   // Two triangles meeting at 20 degrees: below the 60 degree threshold, so the shared edge
   // gets one averaged normal.
   const float a = glm::radians(20.0f);
-  writeFile(dir / "fold.obj", "v 0 0 0\nv 0 0 1\nv -1 0 0\nv " + std::to_string(std::cos(a)) +
-                                  " " + std::to_string(std::sin(a)) + " 0\n"
+  writeFile(dir / "fold.obj", "v 0 0 0\nv 0 0 1\nv -1 0 0\nv " + std::to_string(std::cos(a)) + " " +
+                                  std::to_string(std::sin(a)) +
+                                  " 0\n"
                                   "f 1 2 3\nf 2 1 4\n");
   auto r = pc::loadScene(dir / "fold.obj", emptySidecar(dir));
   ASSERT_TRUE(r.ok()) << r.error().message;
@@ -420,7 +422,10 @@ TEST(BadFiles, TruncatedGlb) {
   std::vector<unsigned char> glb = makeGlb(quadGltf(""), quadBuffer());
   glb.resize(glb.size() / 2);
   writeBytes(dir / "cut.glb", glb);
-  expectError(pc::loadScene(dir / "cut.glb", emptySidecar(dir)), "cut.glb", "cannot parse glTF");
+  expectError(pc::loadScene(dir / "cut.glb", emptySidecar(dir)), "cut.glb", "truncated .glb");
+  // A file that is not glTF at all goes through the parser's own message.
+  writeFile(dir / "text.glb", "this is not a binary glTF file");
+  expectError(pc::loadScene(dir / "text.glb", emptySidecar(dir)), "text.glb", "cannot parse glTF");
 }
 
 TEST(BadFiles, GlbWithShortBuffer) {
@@ -572,8 +577,8 @@ namespace {
 struct SharedScene {
   const char* file;
   std::size_t triangles;
-  std::size_t minLights;   // from the sidecar (or emissive material: 0 here)
-  bool emissive;           // lit by an emissive material from the file
+  std::size_t minLights;  // from the sidecar (or emissive material: 0 here)
+  bool emissive;          // lit by an emissive material from the file
 };
 
 const SharedScene kShared[] = {
@@ -593,8 +598,7 @@ class SharedScenes : public ::testing::TestWithParam<SharedScene> {};
 TEST_P(SharedScenes, LoadWithSidecar) {
   const fs::path root = PC_SCENES_DIR;
   const SharedScene& p = GetParam();
-  if (!fs::is_directory(root))
-    GTEST_SKIP() << "shared scenes folder " << root << " is absent";
+  if (!fs::is_directory(root)) GTEST_SKIP() << "shared scenes folder " << root << " is absent";
   const fs::path file = root / p.file;
   if (!fs::exists(file)) GTEST_SKIP() << file << " is absent";
   auto r = pc::loadScene(file);
@@ -609,8 +613,7 @@ TEST_P(SharedScenes, LoadWithSidecar) {
   }
   ASSERT_FALSE(s.cameras.empty());
   ASSERT_FALSE(s.volumes.empty());
-  EXPECT_TRUE(glm::all(glm::lessThan(s.boundsMin, s.boundsMax)) ||
-              s.boundsMin.y == s.boundsMax.y);
+  EXPECT_TRUE(glm::all(glm::lessThan(s.boundsMin, s.boundsMax)) || s.boundsMin.y == s.boundsMax.y);
   // Sidecar cameras look at the scene: the view ray's direction points toward the bounds.
   const pc::Camera& cam = s.cameras[0];
   glm::vec3 centre = 0.5f * (s.boundsMin + s.boundsMax);
