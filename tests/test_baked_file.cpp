@@ -143,6 +143,12 @@ TEST(BakedField, FreshFieldRoundTrip) {
   auto back = pc::decodeBakedField(bytes, 0);
   ASSERT_TRUE(back.ok()) << back.error().message;
   expectEqual(f, *back);
+
+  // No cascades at all: empty atlases, still a valid file.
+  pc::Field empty = pc::Field::create({}, pc::FieldSettings{});
+  auto none = pc::decodeBakedField(encode(empty), 0);
+  ASSERT_TRUE(none.ok()) << none.error().message;
+  expectEqual(empty, *none);
 }
 
 TEST(BakedField, HalfPrecision) {
