@@ -66,12 +66,13 @@ float spotFactor(const Light& light, glm::vec3 towardLight) {
 }
 
 glm::vec3 punctualIrradiance(const EmbreeScene& scene, const Light& light, glm::vec3 P,
-                             glm::vec3 N) {
+                             glm::vec3 N, std::uint64_t& shadowRays) {
   const glm::vec3 power = light.color * light.intensity;
   if (light.type == LightType::Directional) {
     const glm::vec3 wi = -glm::normalize(light.direction);
     const float cosTheta = glm::dot(N, wi);
     if (cosTheta <= 0.0f) return glm::vec3(0.0f);
+    ++shadowRays;
     if (scene.occluded(P, wi, kShadowNear, INFINITY)) return glm::vec3(0.0f);
     return power * cosTheta;
   }
@@ -85,6 +86,7 @@ glm::vec3 punctualIrradiance(const EmbreeScene& scene, const Light& light, glm::
   float scale = cosTheta / d2 * rangeWindow(d, light.range);
   if (light.type == LightType::Spot) scale *= spotFactor(light, wi);
   if (scale <= 0.0f) return glm::vec3(0.0f);
+  ++shadowRays;
   if (scene.occluded(P, wi, kShadowNear, d * kShadowFarScale)) return glm::vec3(0.0f);
   return power * scale;
 }
@@ -166,7 +168,16 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
                            const EmissiveLights& emissive, glm::vec3 P, glm::vec3 N, Rng& rng,
                            const DirectLightOptions& options) {
   glm::vec3 E(0.0f);
-  for (const Light& light : state.lights) E += punctualIrradiance(scene, light, P, N);
+  std::uint64_t shadowRays = 0;
+  // Counted locally and added once: the counter may be shared by a thread's many calls.
+  struct Count {
+    std::uint64_t& local;
+    std::uint64_t* total;
+    ~Count() {
+      if (total) *total += local;
+    }
+  } count{shadowRays, options.shadowRayCount};
+  for (const Light& light : state.lights) E += punctualIrradiance(scene, light, P, N, shadowRays);
 
   const int samples = options.emissiveSamples;
   if (emissive.empty() || samples <= 0) return E;
@@ -198,6 +209,7 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
     // Aim at a point lifted off the emitter so the emitter itself never shadows the sample.
     const glm::vec3 target = offsetRayOrigin(Q, tri.normal);
     const float shadowFar = glm::length(target - P) * kShadowFarScale;
+    ++shadowRays;
     if (scene.occluded(P, wi, kShadowNear, shadowFar)) continue;
     const float pdfArea = pTriangle / tri.area;
     sum += tri.radiance * (cosSurface * cosLight / (d2 * pdfArea));

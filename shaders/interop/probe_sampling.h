@@ -86,15 +86,16 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
   return vec4(m * m, occlusion / weightSum);
 }
 
-// How much cascade `c` owns point P: 1 well inside, fading to 0 over blendMargin at the edge
-// of the region its probes span.
+// How much cascade `c` owns point P: 1 inside the box its probes span, fading to 0 over
+// blendMargin beyond it. Points up to blendMargin outside still get a (clamped) cage: volumes
+// are usually inset from the walls they light, and those walls must use their finest cascade.
 PC_FN float pcCascadeCoverage(PC_IN(CascadeDesc) c, vec3 P) {
   vec3 lo = c.origin;
   vec3 hi = c.origin + vec3(c.counts - ivec3(1)) * c.spacing;
   vec3 inside = min(P - lo, hi - P);
-  float d = min(inside.x, min(inside.y, inside.z));
+  float d = min(inside.x, min(inside.y, inside.z));  // < 0 outside the box
   if (c.blendMargin <= 0.0f) return d >= 0.0f ? 1.0f : 0.0f;
-  return clamp(d / c.blendMargin, 0.0f, 1.0f);
+  return clamp(1.0f + d / c.blendMargin, 0.0f, 1.0f);
 }
 
 // Irradiance and occlusion at a surface point from all cascades (finest first). The coarsest

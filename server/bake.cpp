@@ -1,0 +1,40 @@
+#include "bake.h"
+
+#include <algorithm>
+#include <chrono>
+
+namespace pc {
+
+void restartHistory(Field& field) {
+  for (ProbeRecord& p : field.probes) p.updates = std::min<std::uint32_t>(p.updates, 1);
+}
+
+BakeStats bakeField(Field& field, Tracer& tracer, const BakeOptions& options) {
+  BakeStats stats;
+  const auto t0 = std::chrono::steady_clock::now();
+  const float hysteresis = field.settings.hysteresis;
+  const int converge = std::clamp(int(options.updates * options.convergeFraction), 0, options.updates);
+  UpdateRequest request;
+  request.probes = allProbes(field);
+  request.shading = options.shading;
+  for (int i = 0; i < options.updates; ++i) {
+    if (i == 0 && converge > 0) field.settings.hysteresis = options.convergeHysteresis;
+    if (i == converge) {
+      field.settings.hysteresis = hysteresis;
+      restartHistory(field);
+    }
+    request.rotationSeed = options.seed * std::uint32_t(options.updates) + std::uint32_t(i);
+    UpdateStats u = tracer.update(field, request);
+    stats.probeRays += u.probeRays;
+    stats.shadowRays += u.shadowRays;
+    stats.traceMs += u.traceMs;
+    stats.blendMs += u.blendMs;
+    ++stats.updates;
+    if (options.progress) options.progress(i + 1, options.updates);
+  }
+  field.settings.hysteresis = hysteresis;
+  stats.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return stats;
+}
+
+}  // namespace pc

@@ -1,0 +1,33 @@
+// probecast-bench: every figure the project claims comes from here. Each benchmark prints a
+// readable table, then one line per figure: `FIGURE <name> <value> <unit>`.
+#pragma once
+
+#include <cstdio>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "common/result.h"
+#include "common/scene.h"
+
+namespace pc::bench {
+
+void figure(const std::string& name, double value, const std::string& unit);
+// One-line description of this machine (CPU model, cores) for the tables.
+std::string machineDescription();
+// Loads --scene PATH (or the built-in scene when PATH is "builtin"), with --sidecar.
+Result<Scene> loadBenchScene(const std::string& path, const std::string& sidecar);
+
+// Each benchmark registers its subcommand; `run` is called when it was chosen.
+struct Benchmark {
+  CLI::App* command = nullptr;
+  std::function<int()> run;
+};
+Benchmark addEnergy(CLI::App& app);
+Benchmark addTrace(CLI::App& app);
+Benchmark addQuality(CLI::App& app);
+Benchmark addLeak(CLI::App& app);
+
+}  // namespace pc::bench

@@ -1,0 +1,153 @@
+#include "bench_common.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "cpu/path_tracer.h"
+#include "cpu/probe_lit_render.h"
+#include "server/bake.h"
+#include "server/embree_tracer.h"
+
+namespace pc::bench {
+
+namespace fs = std::filesystem;
+
+void addRenderOptions(CLI::App& cmd, RenderSetup& s) {
+  cmd.add_option("--width", s.width, "image width");
+  cmd.add_option("--height", s.height, "image height");
+  cmd.add_option("--spp", s.spp, "reference paths per pixel");
+  cmd.add_option("--updates", s.updates, "field updates for the bake");
+  cmd.add_option("--camera", s.camera, "camera index");
+  cmd.add_option("--aa", s.primarySamples, "primary samples per pixel of the probe-lit render");
+  cmd.add_option("--cache", s.cacheDir, "folder for cached reference renders ('' to disable)");
+}
+
+std::string sceneSlug(const Scene& scene) {
+  std::string slug = scene.source.empty() ? scene.name : scene.source.stem().string();
+  for (char& c : slug)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '-';
+  return slug;
+}
+
+std::vector<std::string> sharedSceneFiles() {
+  std::vector<std::string> files;
+  const fs::path root = PC_SCENES_DIR;
+  if (!fs::is_directory(root)) return files;
+  std::vector<fs::path> dirs;
+  for (const auto& e : fs::directory_iterator(root))
+    if (e.is_directory()) dirs.push_back(e.path());
+  std::sort(dirs.begin(), dirs.end());
+  for (const fs::path& d : dirs) {
+    std::vector<fs::path> candidates;
+    for (const auto& e : fs::directory_iterator(d)) {
+      std::string ext = e.path().extension().string();
+      if (ext == ".glb" || ext == ".gltf" || ext == ".obj") candidates.push_back(e.path());
+    }
+    std::sort(candidates.begin(), candidates.end());
+    for (const fs::path& c : candidates) {
+      // Of the McGuire variants, the classic box is the one the figures name.
+      if (d.filename() == "mcguire-cornellbox" && c.stem() != "CornellBox-Original") continue;
+      files.push_back(c.string());
+    }
+  }
+  return files;
+}
+
+Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds) {
+  std::vector<ProbeVolume> volumes = scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes;
+  Field field = Field::create(volumes, FieldSettings{});
+  field.sceneHash = scene.hash;
+  auto tracer = makeEmbreeTracer(scene);
+  if (!tracer) return tracer.error();
+  BakeOptions options;
+  options.updates = updates;
+  BakeStats stats = bakeField(field, **tracer, options);
+  if (seconds) *seconds = stats.ms / 1000.0;
+  return field;
+}
+
+Result<Reference> cachedReference(const Scene& scene, const Camera& camera, const RenderSetup& setup) {
+  char key[160];
+  std::snprintf(key, sizeof key, "%016llx-%08x-%dx%d-%dspp",
+                (unsigned long long)scene.hash,
+                unsigned(std::hash<std::string>{}(std::to_string(camera.position.x) + std::to_string(camera.position.y) +
+                                                  std::to_string(camera.position.z) + std::to_string(camera.forward.x) +
+                                                  std::to_string(camera.forward.y) + std::to_string(camera.forward.z) +
+                                                  std::to_string(camera.yfov))),
+                setup.width, setup.height, setup.spp);
+  fs::path exr, meta;
+  if (!setup.cacheDir.empty()) {
+    exr = fs::path(setup.cacheDir) / (std::string(key) + ".exr");
+    meta = fs::path(setup.cacheDir) / (std::string(key) + ".txt");
+    if (fs::exists(exr) && fs::exists(meta)) {
+      auto image = readImage(exr);
+      std::ifstream in(meta);
+      Reference r;
+      if (image && (in >> r.noisePsnr >> r.seconds)) {
+        r.image = std::move(image).value();
+        return r;
+      }
+    }
+  }
+  PathTraceOptions options;
+  options.width = setup.width;
+  options.height = setup.height;
+  options.spp = setup.spp;
+  options.explicitCamera = camera;
+  Progress progress("reference " + sceneSlug(scene), std::uint64_t(pathTraceTileCount(setup.width, setup.height)));
+  auto result = renderReference(scene, options, &progress);
+  if (!result) return result.error();
+  Reference r{std::move(result->image), result->noisePsnr, result->seconds};
+  if (!exr.empty()) {
+    std::error_code ec;
+    fs::create_directories(exr.parent_path(), ec);
+    if (writeExr(exr, r.image)) {
+      std::ofstream(meta) << r.noisePsnr << " " << r.seconds << "\n";
+    }
+  }
+  return r;
+}
+
+Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& setup, const std::string& outDir) {
+  Comparison c;
+  auto camera = sceneCamera(scene, setup.camera);
+  if (!camera) return camera.error();
+  auto field = bakeSceneField(scene, setup.updates, &c.bakeSeconds);
+  if (!field) return field.error();
+  c.probes = field->probeCount();
+
+  ProbeLitOptions lit;
+  lit.width = setup.width;
+  lit.height = setup.height;
+  lit.primarySamples = setup.primarySamples;
+  lit.emissiveSamples = setup.emissiveSamples;
+  lit.explicitCamera = *camera;
+  auto probeLit = renderProbeLit(scene, *field, lit);
+  if (!probeLit) return probeLit.error();
+  c.probeLit = std::move(probeLit).value();
+
+  auto reference = cachedReference(scene, *camera, setup);
+  if (!reference) return reference.error();
+  c.reference = std::move(reference->image);
+  c.referenceNoisePsnr = reference->noisePsnr;
+  c.referenceSeconds = reference->seconds;
+
+  Image8 a = tonemap(c.probeLit, scene.exposure), b = tonemap(c.reference, scene.exposure);
+  c.psnr = psnr8(a, b);
+  c.ssim = ssim8(a, b);
+  c.psnrLinear = psnrLinear(c.probeLit, c.reference);
+  if (!outDir.empty()) {
+    std::error_code ec;
+    fs::create_directories(outDir, ec);
+    writePng(fs::path(outDir) / "probe_lit.png", a);
+    writePng(fs::path(outDir) / "reference.png", b);
+    writeExr(fs::path(outDir) / "probe_lit.exr", c.probeLit);
+    writeExr(fs::path(outDir) / "reference.exr", c.reference);
+    writePng(fs::path(outDir) / "diff.png", differenceImage(a, b));
+  }
+  return c;
+}
+
+}  // namespace pc::bench

@@ -1,0 +1,55 @@
+// Shared steps of the image benchmarks: bake a field for a scene, render it probe-lit,
+// path-trace the reference (cached on disk by scene hash, camera, size and samples) and
+// compare.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "common/field.h"
+#include "common/image.h"
+#include "common/result.h"
+#include "common/scene.h"
+
+namespace pc::bench {
+
+struct RenderSetup {
+  int width = 320, height = 240;
+  int spp = 512;             // reference paths per pixel
+  int updates = 64;          // bake updates
+  int camera = 0;
+  int primarySamples = 4;
+  int emissiveSamples = 32;
+  std::string cacheDir = "build/reference-cache";
+};
+void addRenderOptions(CLI::App& cmd, RenderSetup& setup);
+
+struct Comparison {
+  double psnr = 0, psnrLinear = 0, ssim = 0;
+  double referenceNoisePsnr = 0;  // expected PSNR of the reference vs its noise-free limit
+  double bakeSeconds = 0, referenceSeconds = 0;
+  int probes = 0;
+  Image probeLit, reference;
+};
+
+// Bakes the scene's field, renders camera `setup.camera` probe-lit and path traced, compares.
+// Writes probe_lit.png/.exr, reference.png/.exr and diff.png into `outDir` when not empty.
+Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& setup,
+                                        const std::string& outDir);
+Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds = nullptr);
+
+// Path-traced reference, from the cache when an identical render is there.
+struct Reference {
+  Image image;
+  double noisePsnr = 0, seconds = 0;
+};
+Result<Reference> cachedReference(const Scene& scene, const Camera& camera, const RenderSetup& setup);
+
+// Scene files under the shared scenes folder (one per folder; CornellBox-Original for the
+// McGuire set), for --all.
+std::vector<std::string> sharedSceneFiles();
+std::string sceneSlug(const Scene& scene);
+
+}  // namespace pc::bench

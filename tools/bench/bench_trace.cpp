@@ -1,0 +1,87 @@
+// trace: in one run, on the same scene and the same probe rays, (a) bare Embree closest-hit
+// throughput for the probe rays alone and (b) the full field update (probe rays, shadow rays,
+// shading with the previous field, blending). Prints both rates and their ratio.
+#include <chrono>
+
+#include "bench.h"
+#include "common/field.h"
+#include "server/bake.h"
+#include "server/embree_tracer.h"
+
+namespace pc::bench {
+
+Benchmark addTrace(CLI::App& app) {
+  auto* cmd = app.add_subcommand("trace", "Embree: raw probe-ray rate vs full field update rate");
+  static std::string scenePath = "builtin", sidecar;
+  static int updates = 6, warmup = 4, rays = 256;
+  static std::vector<int> counts;
+  cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
+  cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
+  cmd->add_option("--updates", updates, "measured updates");
+  cmd->add_option("--warmup", warmup, "updates before measuring (states, indirect light)");
+  cmd->add_option("--rays", rays, "rays per probe");
+  cmd->add_option("--counts", counts, "probes per axis of a single cascade over the scene (x y z)")->expected(3);
+  return {cmd, [] {
+            auto scene = loadBenchScene(scenePath, sidecar);
+            if (!scene) {
+              std::fprintf(stderr, "trace: %s\n", scene.error().message.c_str());
+              return 1;
+            }
+            std::vector<ProbeVolume> volumes = scene->volumes.empty() ? defaultVolumes(*scene) : scene->volumes;
+            if (counts.size() == 3) {
+              glm::vec3 extent = scene->boundsMax - scene->boundsMin;
+              glm::ivec3 n(counts[0], counts[1], counts[2]);
+              float spacing = std::max(extent.x / n.x, std::max(extent.y / n.y, extent.z / n.z));
+              glm::vec3 origin = 0.5f * (scene->boundsMin + scene->boundsMax) - 0.5f * spacing * glm::vec3(n - 1);
+              volumes = {ProbeVolume{origin, spacing, n}};
+            }
+            FieldSettings settings;
+            settings.raysPerProbe = rays;
+            Field field = Field::create(volumes, settings);
+            auto tracer = EmbreeTracer::create(*scene, {});
+            if (!tracer) {
+              std::fprintf(stderr, "trace: %s\n", tracer.error().message.c_str());
+              return 1;
+            }
+            BakeOptions warm;
+            warm.updates = warmup;
+            bakeField(field, **tracer, warm);
+
+            UpdateRequest request;
+            request.probes = allProbes(field);
+            double rawMs = 0, fullMs = 0;
+            std::uint64_t probeRays = 0, shadowRays = 0, hits = 0;
+            for (int i = 0; i < updates; ++i) {
+              request.rotationSeed = 1000u + std::uint32_t(i);
+              std::uint64_t h = 0;
+              rawMs += (*tracer)->traceOnly(field, request, &h);
+              hits += h;
+              UpdateStats s = (*tracer)->update(field, request);
+              fullMs += s.totalMs;
+              probeRays += s.probeRays;
+              shadowRays += s.shadowRays;
+            }
+            const double raw = double(probeRays) / (rawMs * 1e3);
+            const double full = double(probeRays + shadowRays) / (fullMs * 1e3);
+            const double fullProbe = double(probeRays) / (fullMs * 1e3);
+            std::printf("trace: %s (%zu triangles), %d probes x %d rays, %d measured updates\n",
+                        scene->name.c_str(), scene->triangleCount(), int(request.probes.size()), rays, updates);
+            std::printf("machine: %s; Embree 3 on TBB\n", machineDescription().c_str());
+            std::printf("%-34s %12s %12s %12s\n", "pass", "ms/update", "rays/update", "Mrays/s");
+            std::printf("%-34s %12.2f %12llu %12.2f\n", "raw closest hit (probe rays)", rawMs / updates,
+                        (unsigned long long)(probeRays / updates), raw);
+            std::printf("%-34s %12.2f %12llu %12.2f\n", "full update (probe + shadow rays)", fullMs / updates,
+                        (unsigned long long)((probeRays + shadowRays) / updates), full);
+            std::printf("%-34s %12s %12llu %12.2f\n", "full update (probe rays only)", "",
+                        (unsigned long long)(probeRays / updates), fullProbe);
+            std::printf("hit fraction %.3f, shadow rays per probe ray %.2f\n", double(hits) / probeRays,
+                        double(shadowRays) / probeRays);
+            figure("raw_mrays", raw, "Mrays/s");
+            figure("update_mrays", full, "Mrays/s");
+            figure("update_probe_mrays", fullProbe, "Mrays/s");
+            figure("trace_ratio", full / raw, "ratio");
+            return 0;
+          }};
+}
+
+}  // namespace pc::bench

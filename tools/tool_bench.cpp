@@ -1,0 +1,43 @@
+// probecast-bench <name> [options]: see tools/bench/bench.h and docs/BENCHMARKS.md.
+#include <fstream>
+#include <thread>
+
+#include "bench/bench.h"
+
+namespace pc::bench {
+
+void figure(const std::string& name, double value, const std::string& unit) {
+  std::printf("FIGURE %s %.6g %s\n", name.c_str(), value, unit.c_str());
+  std::fflush(stdout);
+}
+
+std::string machineDescription() {
+  std::ifstream cpuinfo("/proc/cpuinfo");
+  std::string line, model = "unknown CPU";
+  while (std::getline(cpuinfo, line)) {
+    if (line.rfind("model name", 0) == 0) {
+      model = line.substr(line.find(':') + 2);
+      break;
+    }
+  }
+  return model + ", " + std::to_string(std::thread::hardware_concurrency()) + " hardware threads";
+}
+
+Result<Scene> loadBenchScene(const std::string& path, const std::string& sidecar) {
+  if (path.empty() || path == "builtin") return builtinScene();
+  return loadScene(path, sidecar);
+}
+
+}  // namespace pc::bench
+
+int main(int argc, char** argv) {
+  CLI::App app{"probecast benchmarks: prints a table, then FIGURE <name> <value> <unit> lines"};
+  app.require_subcommand(1);
+  std::vector<pc::bench::Benchmark> benches = {
+      pc::bench::addEnergy(app), pc::bench::addTrace(app), pc::bench::addQuality(app),
+      pc::bench::addLeak(app)};
+  CLI11_PARSE(app, argc, argv);
+  for (auto& b : benches)
+    if (b.command->parsed()) return b.run();
+  return 1;
+}
