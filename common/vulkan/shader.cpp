@@ -1,0 +1,39 @@
+#include <fstream>
+
+#include <unistd.h>
+
+#include "context.h"
+
+namespace pc::vk {
+
+std::filesystem::path shaderPath(std::string_view name) {
+  // The executable's own location, so a bundle copied anywhere finds its shaders beside it.
+  std::error_code ec;
+  std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  std::filesystem::path dir = ec ? std::filesystem::current_path() : exe.parent_path();
+  return dir / "shaders" / std::string(name);
+}
+
+Result<UniqueShaderModule> createShaderModule(const Context& ctx, std::span<const std::uint32_t> spirv) {
+  VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  ci.codeSize = spirv.size_bytes();
+  ci.pCode = spirv.data();
+  VkShaderModule module = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateShaderModule(ctx.device(), &ci, nullptr, &module));
+  return UniqueShaderModule(ctx.device(), module);
+}
+
+Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name) {
+  const std::filesystem::path path = shaderPath(name);
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return Error{path.string() + ": cannot open shader (built by the pc_shaders target?)"};
+  const std::streamsize bytes = in.tellg();
+  if (bytes <= 0 || bytes % 4 != 0) return Error{path.string() + ": not a SPIR-V file"};
+  std::vector<std::uint32_t> words(std::size_t(bytes) / 4);
+  in.seekg(0);
+  if (!in.read(reinterpret_cast<char*>(words.data()), bytes)) return Error{path.string() + ": read failed"};
+  if (words[0] != 0x07230203u) return Error{path.string() + ": not a SPIR-V file (bad magic)"};
+  return createShaderModule(ctx, words);
+}
+
+}  // namespace pc::vk
