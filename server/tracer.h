@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "../common/field.h"
@@ -35,6 +36,12 @@ enum ShadingFlags : int {
 
 struct UpdateStats {
   double traceMs = 0, shadeMs = 0, blendMs = 0, totalMs = 0;  // trace+shade are fused on the CPU
+  // GPU backends: timestamps of each pass in execution order (name, ms) and their sum. The
+  // Vulkan tracer's passes: upload, tlas, trace (trace + shade), blend (blend, borders,
+  // classification, relocation), changes (brick detection + packing), readback.
+  std::vector<std::pair<std::string, double>> gpuPasses;
+  double gpuMs = 0;
+  std::uint64_t readbackBytes = 0;  // bytes copied back to the host (changed bricks, records)
   std::uint64_t probeRays = 0;
   std::uint64_t shadowRays = 0;
   int probesUpdated = 0;
@@ -57,6 +64,11 @@ struct TracerOptions {
 };
 
 Result<std::unique_ptr<Tracer>> makeEmbreeTracer(const Scene& scene, const TracerOptions& options = {});
+
+// The backend by name (--backend): "embree"; "vulkan" (any Vulkan device with ray tracing,
+// lavapipe included); "auto" or "" (a GPU with ray tracing, else Embree, saying why).
+Result<std::unique_ptr<Tracer>> makeTracer(const Scene& scene, const std::string& backend,
+                                           const TracerOptions& options = {});
 
 // Every probe of the field, for full updates.
 std::vector<ProbeRef> allProbes(const Field& field);

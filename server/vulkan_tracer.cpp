@@ -1,0 +1,906 @@
+#include "vulkan_tracer.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstring>
+
+#include "../common/log.h"
+#include "../cpu/lighting.h"
+#include "../shaders/interop/gpu_trace.h"
+#include "embree_tracer.h"
+#include "vulkan_accel.h"
+
+namespace pc {
+
+using namespace pc::gpu;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+constexpr VkBufferUsageFlags kStorage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+constexpr VkPipelineStageFlags2 kRayStage = VK_PIPELINE_STAGE_2_RAY_TRACING_SHADER_BIT_KHR;
+constexpr VkPipelineStageFlags2 kComputeStage = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+constexpr VkAccessFlags2 kShaderRW = VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
+
+// Dies with the failing call's message: resources the update cannot do without.
+template <typename T>
+T orDie(Result<T> r, const char* what) {
+  if (!r) {
+    logError(std::string("vulkan tracer: ") + what + ": " + r.error().message);
+    std::abort();
+  }
+  return std::move(r).value();
+}
+
+VkDeviceSize alignUp(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
+
+// A ray-tracing pipeline's shader binding table: one raygen record, the miss records, one hit
+// group record, in one buffer.
+struct BindingTable {
+  vk::Buffer buffer;
+  VkStridedDeviceAddressRegionKHR raygen{}, miss{}, hit{}, callable{};
+};
+
+Result<BindingTable> makeBindingTable(const vk::Context& ctx, VkPipeline pipeline, std::uint32_t missCount) {
+  const auto& props = ctx.rayTracingProperties();
+  const std::uint32_t handleSize = props.shaderGroupHandleSize;
+  const VkDeviceSize stride = alignUp(handleSize, props.shaderGroupHandleAlignment);
+  const VkDeviceSize base = props.shaderGroupBaseAlignment;
+  const std::uint32_t groupCount = 1 + missCount + 1;
+  std::vector<std::uint8_t> handles(std::size_t(groupCount) * handleSize);
+  PC_VK_TRY(ctx.rt().getRayTracingShaderGroupHandles(ctx.device(), pipeline, 0, groupCount, handles.size(),
+                                                     handles.data()));
+  const VkDeviceSize raygenSize = alignUp(stride, base);
+  const VkDeviceSize missSize = alignUp(stride * missCount, base);
+  const VkDeviceSize hitSize = alignUp(stride, base);
+  std::vector<std::uint8_t> table(raygenSize + missSize + hitSize, 0);
+  std::memcpy(&table[0], &handles[0], handleSize);
+  for (std::uint32_t m = 0; m < missCount; ++m)
+    std::memcpy(&table[raygenSize + m * stride], &handles[(1 + m) * handleSize], handleSize);
+  std::memcpy(&table[raygenSize + missSize], &handles[(1 + missCount) * handleSize], handleSize);
+  // The table's start must be aligned to the base alignment too: over-allocate and offset.
+  auto staging = vk::Buffer::create(ctx, table.size() + base,
+                                    VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR |
+                                        VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
+                                    vk::MemoryUsage::Upload);
+  if (!staging) return staging.error();
+  BindingTable t;
+  t.buffer = std::move(staging).value();
+  const VkDeviceAddress start = alignUp(t.buffer.address(), base);
+  t.buffer.write(table.data(), table.size(), start - t.buffer.address());
+  t.raygen = {start, raygenSize, raygenSize};
+  t.miss = {start + raygenSize, stride, missSize};
+  t.hit = {start + raygenSize + missSize, stride, hitSize};
+  return t;
+}
+
+GpuProbeRecord toGpu(const ProbeRecord& r) {
+  GpuProbeRecord g{};
+  g.offset = r.offset;
+  g.state = r.state;
+  g.updates = r.updates;
+  return g;
+}
+
+bool sameRecord(const ProbeRecord& a, const ProbeRecord& b) {
+  return a.offset == b.offset && a.state == b.state && a.updates == b.updates;
+}
+
+}  // namespace
+
+struct VulkanTracer::Impl {
+  const Scene* scene = nullptr;
+  TracerOptions options;
+  std::unique_ptr<vk::Context> ctx;
+  vk::CommandPool commandPool;
+  VkCommandBuffer cmd = VK_NULL_HANDLE;
+  vk::UniqueFence fence;
+  vk::GpuTimer timer;
+
+  // ---- scene ----
+  vk::Buffer vertices, indices, meshes, instances, materials, lights, emissive;
+  std::vector<int> instanceMesh;
+  SceneAccel accel;
+  bool tlasDirty = true;
+  std::vector<vk::Image> textures;
+  vk::UniqueSampler sampler;
+  SceneState state;
+
+  // ---- pipelines ----
+  vk::UniqueDescriptorSetLayout setLayout;
+  vk::UniqueDescriptorPool descriptorPool;
+  VkDescriptorSet set = VK_NULL_HANDLE;
+  vk::UniquePipelineLayout pipelineLayout;
+  vk::UniquePipeline tracePipeline, rawPipeline, blendPipeline, changesPipeline, packPipeline;
+  BindingTable traceTable, rawTable;
+
+  // ---- per-update buffers ----
+  vk::Buffer params, rayDirs, requests, rays, changes, counters, countersReadback;
+  std::size_t probeCapacity = 0, rayCapacity = 0;
+
+  // ---- field on the GPU ----
+  FieldDesc layoutDesc{};  // the layout the field buffers were made for
+  bool haveField = false;
+  vk::Buffer fieldDesc, irradiance, depth, occlusion, records, recordsReadback;
+  vk::Buffer brickFlags, brickList, brickListReadback, packed;
+  int brickTotal = 0;
+  std::array<int, PC_MAX_CASCADES> brickOffset{};
+  const Field* syncedField = nullptr;  // the Field whose atlases the GPU holds
+  std::uint64_t syncedVersion = 0;
+  std::vector<ProbeRecord> syncedRecords;  // the records the GPU holds
+  bool descriptorsDirty = true;
+
+  Status init(const VulkanTracerOptions& vulkan);
+  Status uploadScene();
+  Status createPipelines();
+  void writeDescriptors();
+  void ensureRequestCapacity(std::size_t probes, int rayCount);
+  bool ensureFieldBuffers(const Field& field);
+  void writeUpdateInputs(const Field& field, const UpdateRequest& request);
+  void begin();
+  void submitAndWait();
+  void recordFieldSync(const Field& field, std::vector<vk::Buffer>& staging);
+  void recordTrace(VkPipeline pipeline, const BindingTable& table, int probeCount, int rayCount);
+};
+
+// ---------------------------------------------------------------------------------------------
+// Creation
+
+Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
+  vk::ContextOptions co;
+  co.validation = vulkan.validation;
+  co.rayTracing = true;
+  co.allowCpuDevice = vulkan.allowCpuDevice;
+  co.deviceNameFilter = vulkan.deviceNameFilter;
+  auto c = vk::Context::create(co);
+  if (!c) return c.error();
+  ctx = std::move(c).value();
+  auto pool = vk::CommandPool::create(*ctx);
+  if (!pool) return pool.error();
+  commandPool = std::move(pool).value();
+  auto cb = commandPool.allocate();
+  if (!cb) return cb.error();
+  cmd = *cb;
+  VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+  VkFence f = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateFence(ctx->device(), &fci, nullptr, &f));
+  fence = vk::UniqueFence(ctx->device(), f);
+  auto t = vk::GpuTimer::create(*ctx, 16);
+  if (!t) return t.error();
+  timer = std::move(t).value();
+  if (Status s = uploadScene(); !s) return s;
+  if (Status s = createPipelines(); !s) return s;
+  ensureRequestCapacity(1, 1);
+  return Status::success();
+}
+
+Status VulkanTracer::Impl::uploadScene() {
+  const Scene& s = *scene;
+  std::vector<GpuVertex> verts;
+  std::vector<std::uint32_t> idx;
+  std::vector<GpuMesh> gpuMeshes;
+  std::vector<MeshRange> ranges;
+  for (const Mesh& m : s.meshes) {
+    GpuMesh gm{};
+    gm.firstVertex = int(verts.size());
+    gm.firstIndex = int(idx.size());
+    gm.material = m.material >= 0 && std::size_t(m.material) < s.materials.size() ? m.material : -1;
+    MeshRange r;
+    r.firstVertex = std::uint32_t(verts.size());
+    r.vertexCount = std::uint32_t(m.positions.size());
+    r.firstIndex = std::uint32_t(idx.size());
+    bool valid = true;
+    for (std::uint32_t i : m.indices) valid = valid && i < m.positions.size();
+    r.triangleCount = valid ? std::uint32_t(m.triangleCount()) : 0;
+    if (!valid) return Error{"mesh '" + m.name + "' has an index past its vertices"};
+    const bool normals = m.normals.size() == m.positions.size();
+    const bool uvs = m.uvs.size() == m.positions.size();
+    for (std::size_t v = 0; v < m.positions.size(); ++v) {
+      GpuVertex gv{};
+      gv.position = m.positions[v];
+      gv.normal = normals ? m.normals[v] : glm::vec3(0.0f);
+      gv.u = uvs ? m.uvs[v].x : 0.0f;
+      gv.v = uvs ? m.uvs[v].y : 0.0f;
+      verts.push_back(gv);
+    }
+    idx.insert(idx.end(), m.indices.begin(), m.indices.begin() + std::ptrdiff_t(r.triangleCount) * 3);
+    gpuMeshes.push_back(gm);
+    ranges.push_back(r);
+  }
+  const VkBufferUsageFlags asInput = VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
+  auto vb = vk::uploadBuffer(*ctx, verts.data(), verts.size() * sizeof(GpuVertex), kStorage | asInput);
+  if (!vb) return vb.error();
+  vertices = std::move(vb).value();
+  auto ib = vk::uploadBuffer(*ctx, idx.data(), idx.size() * 4, kStorage | asInput);
+  if (!ib) return ib.error();
+  indices = std::move(ib).value();
+  auto mb = vk::uploadBuffer(*ctx, gpuMeshes.data(), gpuMeshes.size() * sizeof(GpuMesh), kStorage);
+  if (!mb) return mb.error();
+  meshes = std::move(mb).value();
+
+  for (const Instance& inst : s.instances) {
+    instanceMesh.push_back(inst.mesh >= 0 && std::size_t(inst.mesh) < s.meshes.size() ? inst.mesh : -1);
+  }
+  auto as = SceneAccel::build(*ctx, vertices, sizeof(GpuVertex), indices, ranges, s.instances.size());
+  if (!as) return as.error();
+  accel = std::move(as).value();
+
+  // Textures: 8-bit sRGB, decoded to linear before filtering, as Texture::sample does.
+  for (const Texture& t : s.textures) {
+    vk::ImageDesc d;
+    const bool ok = t.width > 0 && t.height > 0 && t.rgba.size() >= std::size_t(t.width) * t.height * 4;
+    d.format = VK_FORMAT_R8G8B8A8_SRGB;
+    d.width = ok ? std::uint32_t(t.width) : 1;
+    d.height = ok ? std::uint32_t(t.height) : 1;
+    auto img = vk::Image::create(*ctx, d);
+    if (!img) return img.error();
+    const std::uint8_t white[4] = {255, 255, 255, 255};  // Texture::sample's answer for bad data
+    Status st = ok ? img->upload(t.rgba.data(), std::size_t(t.width) * t.height * 4) : img->upload(white, 4);
+    if (!st) return st;
+    textures.push_back(std::move(img).value());
+  }
+  if (textures.empty()) {  // the array binding needs one descriptor
+    auto img = vk::Image::create(*ctx, vk::ImageDesc{VK_FORMAT_R8G8B8A8_SRGB, 1, 1});
+    if (!img) return img.error();
+    const std::uint8_t white[4] = {255, 255, 255, 255};
+    if (Status st = img->upload(white, 4); !st) return st;
+    textures.push_back(std::move(img).value());
+  }
+  VkSamplerCreateInfo sci{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  sci.magFilter = VK_FILTER_LINEAR;
+  sci.minFilter = VK_FILTER_LINEAR;
+  sci.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+  sci.addressModeU = sci.addressModeV = sci.addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT;
+  sci.maxLod = 0.0f;
+  VkSampler smp = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateSampler(ctx->device(), &sci, nullptr, &smp));
+  sampler = vk::UniqueSampler(ctx->device(), smp);
+
+  // Materials; `sampled` is filled per state (the emissive rule depends on the geometry).
+  auto mat = vk::Buffer::create(*ctx, std::max<std::size_t>(s.materials.size(), 1) * sizeof(GpuMaterial), kStorage,
+                                vk::MemoryUsage::Upload);
+  if (!mat) return mat.error();
+  materials = std::move(mat).value();
+  auto ins = vk::Buffer::create(*ctx, std::max<std::size_t>(s.instances.size(), 1) * sizeof(GpuInstance), kStorage,
+                                vk::MemoryUsage::Upload);
+  if (!ins) return ins.error();
+  instances = std::move(ins).value();
+  return Status::success();
+}
+
+Status VulkanTracer::Impl::createPipelines() {
+  // ---- one descriptor set layout for every pipeline ----
+  std::vector<VkDescriptorSetLayoutBinding> bindings;
+  std::vector<VkDescriptorBindingFlags> flags;
+  for (int b = 0; b < PC_BINDING_COUNT; ++b) {
+    VkDescriptorSetLayoutBinding lb{};
+    lb.binding = std::uint32_t(b);
+    lb.descriptorCount = 1;
+    lb.stageFlags = VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT;
+    lb.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    VkDescriptorBindingFlags f = 0;
+    if (b == PC_BIND_TLAS) lb.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
+    if (b == PC_BIND_TEXTURES) {
+      lb.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+      lb.descriptorCount = std::uint32_t(textures.size());
+      f = VK_DESCRIPTOR_BINDING_PARTIALLY_BOUND_BIT | VK_DESCRIPTOR_BINDING_VARIABLE_DESCRIPTOR_COUNT_BIT;
+    }
+    bindings.push_back(lb);
+    flags.push_back(f);
+  }
+  VkDescriptorSetLayoutBindingFlagsCreateInfo bfi{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_BINDING_FLAGS_CREATE_INFO};
+  bfi.bindingCount = std::uint32_t(flags.size());
+  bfi.pBindingFlags = flags.data();
+  VkDescriptorSetLayoutCreateInfo lci{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  lci.pNext = &bfi;
+  lci.bindingCount = std::uint32_t(bindings.size());
+  lci.pBindings = bindings.data();
+  VkDescriptorSetLayout dsl = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateDescriptorSetLayout(ctx->device(), &lci, nullptr, &dsl));
+  setLayout = vk::UniqueDescriptorSetLayout(ctx->device(), dsl);
+
+  const VkDescriptorPoolSize sizes[] = {
+      {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 1},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, std::uint32_t(PC_BINDING_COUNT)},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, std::uint32_t(textures.size())}};
+  VkDescriptorPoolCreateInfo pci{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  pci.maxSets = 1;
+  pci.poolSizeCount = 3;
+  pci.pPoolSizes = sizes;
+  VkDescriptorPool dp = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateDescriptorPool(ctx->device(), &pci, nullptr, &dp));
+  descriptorPool = vk::UniqueDescriptorPool(ctx->device(), dp);
+  const std::uint32_t textureCount = std::uint32_t(textures.size());
+  VkDescriptorSetVariableDescriptorCountAllocateInfo vci{
+      VK_STRUCTURE_TYPE_DESCRIPTOR_SET_VARIABLE_DESCRIPTOR_COUNT_ALLOCATE_INFO};
+  vci.descriptorSetCount = 1;
+  vci.pDescriptorCounts = &textureCount;
+  VkDescriptorSetAllocateInfo sai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  sai.pNext = &vci;
+  sai.descriptorPool = dp;
+  sai.descriptorSetCount = 1;
+  sai.pSetLayouts = &dsl;
+  PC_VK_TRY(vkAllocateDescriptorSets(ctx->device(), &sai, &set));
+
+  VkPushConstantRange push{VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(int)};
+  VkPipelineLayoutCreateInfo plci{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  plci.setLayoutCount = 1;
+  plci.pSetLayouts = &dsl;
+  plci.pushConstantRangeCount = 1;
+  plci.pPushConstantRanges = &push;
+  VkPipelineLayout pl = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreatePipelineLayout(ctx->device(), &plci, nullptr, &pl));
+  pipelineLayout = vk::UniquePipelineLayout(ctx->device(), pl);
+
+  // ---- ray tracing: stages raygen, miss..., closest hit; groups in the same order ----
+  auto makeRayPipeline = [&](const char* raygen, std::vector<const char*> misses) -> Result<vk::UniquePipeline> {
+    std::vector<vk::UniqueShaderModule> modules;
+    std::vector<const char*> names = {raygen};
+    names.insert(names.end(), misses.begin(), misses.end());
+    names.push_back("probe_trace.rchit.spv");
+    std::vector<VkPipelineShaderStageCreateInfo> stages;
+    std::vector<VkRayTracingShaderGroupCreateInfoKHR> groups;
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      auto m = vk::loadShader(*ctx, names[i]);
+      if (!m) return m.error();
+      modules.push_back(std::move(m).value());
+      VkPipelineShaderStageCreateInfo st{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+      st.stage = i == 0 ? VK_SHADER_STAGE_RAYGEN_BIT_KHR
+                 : i + 1 == names.size() ? VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR
+                                         : VK_SHADER_STAGE_MISS_BIT_KHR;
+      st.module = modules.back().get();
+      st.pName = "main";
+      stages.push_back(st);
+      VkRayTracingShaderGroupCreateInfoKHR g{VK_STRUCTURE_TYPE_RAY_TRACING_SHADER_GROUP_CREATE_INFO_KHR};
+      g.generalShader = g.closestHitShader = g.anyHitShader = g.intersectionShader = VK_SHADER_UNUSED_KHR;
+      if (i + 1 == names.size()) {
+        g.type = VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR;
+        g.closestHitShader = std::uint32_t(i);
+      } else {
+        g.type = VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR;
+        g.generalShader = std::uint32_t(i);
+      }
+      groups.push_back(g);
+    }
+    VkRayTracingPipelineCreateInfoKHR rci{VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_KHR};
+    rci.stageCount = std::uint32_t(stages.size());
+    rci.pStages = stages.data();
+    rci.groupCount = std::uint32_t(groups.size());
+    rci.pGroups = groups.data();
+    rci.maxPipelineRayRecursionDepth = 1;  // shadow rays leave from ray generation too
+    rci.layout = pl;
+    VkPipeline p = VK_NULL_HANDLE;
+    PC_VK_TRY(ctx->rt().createRayTracingPipelines(ctx->device(), VK_NULL_HANDLE, VK_NULL_HANDLE, 1, &rci, nullptr, &p));
+    return vk::UniquePipeline(ctx->device(), p);
+  };
+  auto trace = makeRayPipeline("probe_trace.rgen.spv", {"probe_trace.rmiss.spv", "shadow.rmiss.spv"});
+  if (!trace) return trace.error();
+  tracePipeline = std::move(trace).value();
+  auto raw = makeRayPipeline("probe_trace_raw.rgen.spv", {"probe_trace.rmiss.spv"});
+  if (!raw) return raw.error();
+  rawPipeline = std::move(raw).value();
+  auto tt = makeBindingTable(*ctx, tracePipeline.get(), 2);
+  if (!tt) return tt.error();
+  traceTable = std::move(tt).value();
+  auto rt = makeBindingTable(*ctx, rawPipeline.get(), 1);
+  if (!rt) return rt.error();
+  rawTable = std::move(rt).value();
+
+  auto makeCompute = [&](const char* name) -> Result<vk::UniquePipeline> {
+    auto m = vk::loadShader(*ctx, name);
+    if (!m) return m.error();
+    VkComputePipelineCreateInfo cci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    cci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    cci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    cci.stage.module = m->get();
+    cci.stage.pName = "main";
+    cci.layout = pl;
+    VkPipeline p = VK_NULL_HANDLE;
+    PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
+    return vk::UniquePipeline(ctx->device(), p);
+  };
+  auto blend = makeCompute("probe_blend.comp.spv");
+  if (!blend) return blend.error();
+  blendPipeline = std::move(blend).value();
+  auto ch = makeCompute("brick_changes.comp.spv");
+  if (!ch) return ch.error();
+  changesPipeline = std::move(ch).value();
+  auto pk = makeCompute("brick_pack.comp.spv");
+  if (!pk) return pk.error();
+  packPipeline = std::move(pk).value();
+  return Status::success();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Buffers and descriptors
+
+void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount) {
+  probes = std::max<std::size_t>(probes, 1);
+  const std::size_t rayTotal = probes * std::size_t(std::max(rayCount, 1));
+  if (probes <= probeCapacity && rayTotal <= probeCapacity * std::size_t(rayCapacity) &&
+      std::size_t(rayCount) <= std::size_t(rayCapacity))
+    return;
+  probeCapacity = std::max(probes, probeCapacity);
+  rayCapacity = std::max<std::size_t>(std::size_t(rayCount), rayCapacity);
+  using vk::MemoryUsage;
+  params = orDie(vk::Buffer::create(*ctx, sizeof(UpdateParams), kStorage, MemoryUsage::Upload), "params");
+  rayDirs = orDie(vk::Buffer::create(*ctx, rayCapacity * 16, kStorage, MemoryUsage::Upload), "ray directions");
+  requests = orDie(vk::Buffer::create(*ctx, probeCapacity * 8, kStorage, MemoryUsage::Upload), "requests");
+  rays = orDie(vk::Buffer::create(*ctx, probeCapacity * rayCapacity * 16, kStorage, MemoryUsage::DeviceLocal),
+               "ray results");
+  changes = orDie(vk::Buffer::create(*ctx, probeCapacity * 4, kStorage, MemoryUsage::DeviceLocal), "changes");
+  counters = orDie(vk::Buffer::create(*ctx, PC_COUNTER_SLOTS * 4,
+                                      kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                      MemoryUsage::DeviceLocal),
+                   "counters");
+  countersReadback = orDie(vk::Buffer::create(*ctx, PC_COUNTER_SLOTS * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                              MemoryUsage::Readback),
+                           "counter readback");
+  descriptorsDirty = true;
+}
+
+// Makes the field buffers match `field`'s layout; true when they were (re)created.
+bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
+  if (haveField && std::memcmp(&layoutDesc, &field.desc, sizeof(FieldDesc)) == 0) return false;
+  using vk::MemoryUsage;
+  const VkBufferUsageFlags rw = kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  auto bytes = [](const Atlas& a) { return a.texels.size() * sizeof(float); };
+  fieldDesc = orDie(vk::Buffer::create(*ctx, sizeof(FieldDesc), kStorage, MemoryUsage::Upload), "field desc");
+  irradiance = orDie(vk::Buffer::create(*ctx, bytes(field.irradiance), rw, MemoryUsage::DeviceLocal), "irradiance");
+  depth = orDie(vk::Buffer::create(*ctx, bytes(field.depth), rw, MemoryUsage::DeviceLocal), "depth");
+  occlusion = orDie(vk::Buffer::create(*ctx, bytes(field.occlusion), rw, MemoryUsage::DeviceLocal), "occlusion");
+  const std::size_t recordBytes = std::max<std::size_t>(field.probes.size(), 1) * sizeof(GpuProbeRecord);
+  records = orDie(vk::Buffer::create(*ctx, recordBytes, rw, MemoryUsage::DeviceLocal), "records");
+  recordsReadback = orDie(vk::Buffer::create(*ctx, recordBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUsage::Readback),
+                          "record readback");
+  brickTotal = 0;
+  brickOffset.fill(0);
+  for (int k = 0; k < field.cascadeCount(); ++k) {
+    brickOffset[k] = brickTotal;
+    brickTotal += pcBrickCount(field.cascade(k));
+  }
+  for (int k = field.cascadeCount(); k < PC_MAX_CASCADES; ++k) brickOffset[k] = brickTotal;
+  const std::size_t bricks = std::size_t(std::max(brickTotal, 1));
+  brickFlags = orDie(vk::Buffer::create(*ctx, bricks * 4, rw, MemoryUsage::DeviceLocal), "brick flags");
+  const std::size_t listBytes = (PC_BRICK_LIST_HEADER + bricks) * 4;
+  brickList = orDie(vk::Buffer::create(*ctx, listBytes, rw | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, MemoryUsage::DeviceLocal),
+                    "brick list");
+  brickListReadback = orDie(vk::Buffer::create(*ctx, listBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUsage::Readback),
+                            "brick list readback");
+  // Shaders write the packed tiles straight into host memory: only changed bricks cross.
+  packed = orDie(vk::Buffer::create(*ctx, bricks * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float),
+                                    kStorage, MemoryUsage::Readback),
+                 "packed bricks");
+  layoutDesc = field.desc;
+  haveField = true;
+  syncedField = nullptr;
+  descriptorsDirty = true;
+  return true;
+}
+
+void VulkanTracer::Impl::writeDescriptors() {
+  if (!descriptorsDirty) return;
+  std::array<VkDescriptorBufferInfo, PC_BINDING_COUNT> infos{};
+  std::array<const vk::Buffer*, PC_BINDING_COUNT> buffers{};
+  buffers[PC_BIND_PARAMS] = &params;
+  buffers[PC_BIND_FIELD] = &fieldDesc;
+  buffers[PC_BIND_IRRADIANCE] = &irradiance;
+  buffers[PC_BIND_DEPTH] = &depth;
+  buffers[PC_BIND_OCCLUSION] = &occlusion;
+  buffers[PC_BIND_PROBES] = &records;
+  buffers[PC_BIND_REQUESTS] = &requests;
+  buffers[PC_BIND_RAY_DIRS] = &rayDirs;
+  buffers[PC_BIND_RAYS] = &rays;
+  buffers[PC_BIND_VERTICES] = &vertices;
+  buffers[PC_BIND_INDICES] = &indices;
+  buffers[PC_BIND_MESHES] = &meshes;
+  buffers[PC_BIND_INSTANCES] = &instances;
+  buffers[PC_BIND_MATERIALS] = &materials;
+  buffers[PC_BIND_LIGHTS] = &lights;
+  buffers[PC_BIND_EMISSIVE] = &emissive;
+  buffers[PC_BIND_CHANGES] = &changes;
+  buffers[PC_BIND_BRICK_FLAGS] = &brickFlags;
+  buffers[PC_BIND_BRICK_LIST] = &brickList;
+  buffers[PC_BIND_PACKED] = &packed;
+  buffers[PC_BIND_COUNTERS] = &counters;
+  std::vector<VkWriteDescriptorSet> writes;
+  for (int b = 0; b < PC_BINDING_COUNT; ++b) {
+    if (!buffers[b] || !buffers[b]->get()) continue;
+    infos[b] = buffers[b]->descriptor();
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = set;
+    w.dstBinding = std::uint32_t(b);
+    w.descriptorCount = 1;
+    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    w.pBufferInfo = &infos[b];
+    writes.push_back(w);
+  }
+  VkAccelerationStructureKHR tlas = accel.topLevel();
+  VkWriteDescriptorSetAccelerationStructureKHR asw{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
+  asw.accelerationStructureCount = 1;
+  asw.pAccelerationStructures = &tlas;
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.pNext = &asw;
+  w.dstSet = set;
+  w.dstBinding = PC_BIND_TLAS;
+  w.descriptorCount = 1;
+  w.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
+  writes.push_back(w);
+  std::vector<VkDescriptorImageInfo> images;
+  for (const vk::Image& t : textures)
+    images.push_back({sampler.get(), t.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+  VkWriteDescriptorSet tw{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  tw.dstSet = set;
+  tw.dstBinding = PC_BIND_TEXTURES;
+  tw.descriptorCount = std::uint32_t(images.size());
+  tw.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  tw.pImageInfo = images.data();
+  writes.push_back(tw);
+  vkUpdateDescriptorSets(ctx->device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
+  descriptorsDirty = false;
+}
+
+void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateRequest& request) {
+  const int rayCount = field.settings.raysPerProbe;
+  const std::size_t n = request.probes.size();
+  ensureRequestCapacity(n, rayCount);
+  ensureFieldBuffers(field);
+  writeDescriptors();
+
+  // The same directions as the Embree backend, computed once on the host.
+  const std::vector<glm::vec3> dirs = probeRayDirections(rayCount, request.rotationSeed);
+  auto* d = rayDirs.as<glm::vec4>();
+  for (int i = 0; i < rayCount; ++i) d[i] = glm::vec4(dirs[i], 0.0f);
+  auto* r = requests.as<glm::ivec2>();
+  for (std::size_t i = 0; i < n; ++i) r[i] = glm::ivec2(request.probes[i].cascade, request.probes[i].slot);
+
+  UpdateParams p{};
+  p.skyZenith = scene->sky.zenith;
+  p.skyHorizon = scene->sky.horizon;
+  p.skyGround = scene->sky.ground;
+  p.rayCount = rayCount;
+  p.probeCount = int(n);
+  p.shading = request.shading;
+  p.lightCount = int(state.lights.size());
+  p.emissiveCount = int(emissive.size() / sizeof(GpuEmissiveTriangle));
+  p.emissiveSamples = options.emissiveSamples;
+  p.seed = request.rotationSeed;
+  p.hysteresis = field.settings.hysteresis;
+  p.changeThreshold = request.changeThreshold;
+  p.brickTotal = brickTotal;
+  p.cascadeBrickOffset = glm::ivec4(brickOffset[0], brickOffset[1], brickOffset[2], brickOffset[3]);
+  params.write(&p, sizeof p);
+
+  // The blend reads the lobe exponent from the settings, as the CPU's blendProbe does.
+  FieldDesc desc = field.desc;
+  desc.distanceExponent = field.settings.distanceExponent;
+  fieldDesc.write(&desc, sizeof desc);
+}
+
+void VulkanTracer::Impl::begin() {
+  VK_CHECK(vkResetCommandBuffer(cmd, 0));
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
+  timer.reset(cmd);
+  // Host writes (parameters, requests, instance records) before any GPU read.
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_WRITE_BIT,
+                    VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT);
+}
+
+void VulkanTracer::Impl::submitAndWait() {
+  VK_CHECK(vkEndCommandBuffer(cmd));
+  VkCommandBufferSubmitInfo cbi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_SUBMIT_INFO};
+  cbi.commandBuffer = cmd;
+  VkSubmitInfo2 si{VK_STRUCTURE_TYPE_SUBMIT_INFO_2};
+  si.commandBufferInfoCount = 1;
+  si.pCommandBufferInfos = &cbi;
+  VkFence f = fence.get();
+  VK_CHECK(vkResetFences(ctx->device(), 1, &f));
+  VK_CHECK(vkQueueSubmit2(ctx->queue(), 1, &si, f));
+  VK_CHECK(vkWaitForFences(ctx->device(), 1, &f, VK_TRUE, UINT64_MAX));
+}
+
+// Uploads what the host changed since the GPU last saw the field: all atlases when this is a
+// different field (or version) than the GPU holds, probe records when they differ. `staging`
+// keeps the staging buffers alive until the submission finished.
+void VulkanTracer::Impl::recordFieldSync(const Field& field, std::vector<vk::Buffer>& staging) {
+  const bool atlases = syncedField != &field || syncedVersion != field.version;
+  bool recordsDiffer = atlases || syncedRecords.size() != field.probes.size();
+  for (std::size_t i = 0; !recordsDiffer && i < field.probes.size(); ++i)
+    recordsDiffer = !sameRecord(field.probes[i], syncedRecords[i]);
+  if (!atlases && !recordsDiffer) return;
+  timer.begin(cmd, "upload");
+  auto upload = [&](const vk::Buffer& dst, const void* data, std::size_t bytes) {
+    vk::Buffer s = orDie(vk::Buffer::create(*ctx, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUsage::Upload),
+                         "staging");
+    s.write(data, bytes);
+    VkBufferCopy copy{0, 0, bytes};
+    if (bytes > 0) vkCmdCopyBuffer(cmd, s.get(), dst.get(), 1, &copy);
+    staging.push_back(std::move(s));
+  };
+  if (atlases) {
+    upload(irradiance, field.irradiance.texels.data(), field.irradiance.texels.size() * sizeof(float));
+    upload(depth, field.depth.texels.data(), field.depth.texels.size() * sizeof(float));
+    upload(occlusion, field.occlusion.texels.data(), field.occlusion.texels.size() * sizeof(float));
+  }
+  std::vector<GpuProbeRecord> gpuRecords(field.probes.size());
+  for (std::size_t i = 0; i < field.probes.size(); ++i) gpuRecords[i] = toGpu(field.probes[i]);
+  upload(records, gpuRecords.data(), gpuRecords.size() * sizeof(GpuProbeRecord));
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                    kRayStage | kComputeStage, kShaderRW);
+  timer.end(cmd);
+}
+
+void VulkanTracer::Impl::recordTrace(VkPipeline pipeline, const BindingTable& table, int probeCount, int rayCount) {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipeline);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
+  // A launch's height is bounded by the compute limits and its size by the invocation limit.
+  const auto& limits = ctx->properties().limits;
+  const std::uint64_t maxHeight = std::min<std::uint64_t>(
+      {std::uint64_t(limits.maxComputeWorkGroupCount[1]) * limits.maxComputeWorkGroupSize[1],
+       ctx->rayTracingProperties().maxRayDispatchInvocationCount / std::uint64_t(std::max(rayCount, 1)), 65535u});
+  for (int base = 0; base < probeCount; base += int(maxHeight)) {
+    const int height = std::min(probeCount - base, int(maxHeight));
+    vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                       sizeof(int), &base);
+    ctx->rt().cmdTraceRays(cmd, &table.raygen, &table.miss, &table.hit, &table.callable, std::uint32_t(rayCount),
+                           std::uint32_t(height), 1);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The tracer
+
+Result<std::unique_ptr<VulkanTracer>> VulkanTracer::create(const Scene& scene, const TracerOptions& options,
+                                                           const VulkanTracerOptions& vulkan) {
+  auto impl = std::make_unique<Impl>();
+  impl->scene = &scene;
+  impl->options = options;
+  if (Status s = impl->init(vulkan); !s) return s.error();
+  std::unique_ptr<VulkanTracer> tracer(new VulkanTracer(std::move(impl)));
+  tracer->setState(evaluateScene(scene, 0.0));
+  return tracer;
+}
+
+VulkanTracer::VulkanTracer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+VulkanTracer::~VulkanTracer() {
+  if (impl_ && impl_->ctx) impl_->ctx->waitIdle();
+}
+
+std::string VulkanTracer::name() const { return "vulkan (" + impl_->ctx->deviceName() + ")"; }
+
+const vk::Context& VulkanTracer::context() const { return *impl_->ctx; }
+
+void VulkanTracer::setState(const SceneState& state) {
+  Impl& m = *impl_;
+  const Scene& scene = *m.scene;
+  m.state = state;
+  // Instances: transforms for shading and the top-level structure.
+  std::vector<glm::mat4> transforms(scene.instances.size());
+  auto* gi = m.instances.as<GpuInstance>();
+  for (std::size_t i = 0; i < scene.instances.size(); ++i) {
+    const glm::mat4 t = i < state.instanceTransforms.size() ? state.instanceTransforms[i] : scene.instances[i].transform;
+    transforms[i] = t;
+    GpuInstance g{};
+    g.objectToWorld = t;
+    g.normalToWorld = glm::mat4(glm::transpose(glm::inverse(glm::mat3(t))));
+    g.mesh = m.instanceMesh[i];
+    // The Embree scene fixes the winding from the time-0 transform; so does this.
+    g.side = glm::determinant(glm::mat3(scene.instances[i].transform)) < 0.0f ? -1.0f : 1.0f;
+    gi[i] = g;
+  }
+  m.accel.setInstances(transforms, m.instanceMesh);
+  m.tlasDirty = true;
+
+  // Lights, and emissive triangles by the same rule as the CPU (EmissiveLights).
+  std::vector<GpuLight> lights;
+  for (const Light& l : state.lights) {
+    GpuLight g{};
+    g.position = l.position;
+    g.type = l.type == LightType::Directional ? PC_LIGHT_DIRECTIONAL
+             : l.type == LightType::Spot      ? PC_LIGHT_SPOT
+                                              : PC_LIGHT_POINT;
+    g.direction = glm::normalize(l.direction);
+    g.range = l.range;
+    g.power = l.color * l.intensity;
+    g.cosOuter = std::cos(l.outerConeAngle);
+    g.cosInner = std::cos(std::min(l.innerConeAngle, l.outerConeAngle));
+    lights.push_back(g);
+  }
+  const EmissiveLights emissive = EmissiveLights::build(scene, state);
+  std::vector<GpuEmissiveTriangle> tris;
+  for (std::size_t k = 0; k < emissive.triangles().size(); ++k) {
+    const EmissiveLights::Triangle& t = emissive.triangles()[k];
+    GpuEmissiveTriangle g{};
+    g.p0 = t.p0;
+    g.e1 = t.e1;
+    g.e2 = t.e2;
+    g.normal = t.normal;
+    g.area = t.area;
+    g.radiance = t.radiance;
+    g.cdf = emissive.cdf()[k];
+    tris.push_back(g);
+  }
+  auto* mat = m.materials.as<GpuMaterial>();
+  for (std::size_t i = 0; i < scene.materials.size(); ++i) {
+    const Material& s = scene.materials[i];
+    const auto tex = [&](int t) { return t >= 0 && std::size_t(t) < scene.textures.size() ? t : -1; };
+    GpuMaterial g{};
+    g.baseColor = s.baseColor;
+    g.baseColorTexture = tex(s.baseColorTexture);
+    g.emissive = s.emissive;
+    g.emissiveTexture = tex(s.emissiveTexture);
+    g.sampled = emissive.sampled(int(i)) ? 1 : 0;
+    mat[i] = g;
+  }
+  // Sized exactly so the parameter counts follow from the sizes; replaced only when they change.
+  auto replace = [&](vk::Buffer& b, const void* data, std::size_t bytes) {
+    if (b.get() && b.size() == bytes) {
+      b.write(data, bytes);
+      return;
+    }
+    m.ctx->waitIdle();
+    b = orDie(vk::Buffer::create(*m.ctx, bytes, kStorage, vk::MemoryUsage::Upload), "scene state");
+    b.write(data, bytes);
+    m.descriptorsDirty = true;
+  };
+  replace(m.lights, lights.data(), lights.size() * sizeof(GpuLight));
+  replace(m.emissive, tris.data(), tris.size() * sizeof(GpuEmissiveTriangle));
+}
+
+UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
+  Impl& m = *impl_;
+  UpdateStats stats;
+  const auto t0 = Clock::now();
+  const int rayCount = field.settings.raysPerProbe;
+  const int n = int(request.probes.size());
+  if (n == 0) return stats;
+  m.writeUpdateInputs(field, request);
+  std::vector<vk::Buffer> staging;
+
+  m.begin();
+  VkCommandBuffer cmd = m.cmd;
+  m.recordFieldSync(field, staging);
+  if (m.tlasDirty) {
+    m.timer.begin(cmd, "tlas");
+    m.accel.recordTopLevelBuild(cmd);
+    m.timer.end(cmd);
+    m.tlasDirty = false;
+  }
+  // Clear the change list and counters.
+  vkCmdFillBuffer(cmd, m.brickFlags.get(), 0, VK_WHOLE_SIZE, 0);
+  const std::uint32_t header[PC_BRICK_LIST_HEADER] = {0, 1, 1};
+  vkCmdUpdateBuffer(cmd, m.brickList.get(), 0, sizeof header, header);
+  vkCmdFillBuffer(cmd, m.counters.get(), 0, VK_WHOLE_SIZE, 0);
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT | VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                    kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                    kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+
+  m.timer.begin(cmd, "trace");
+  m.recordTrace(m.tracePipeline.get(), m.traceTable, n, rayCount);
+  m.timer.end(cmd);
+  vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+
+  m.timer.begin(cmd, "blend");
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipelineLayout.get(), 0, 1, &m.set, 0, nullptr);
+  vkCmdDispatch(cmd, std::uint32_t(std::min(n, PC_BLEND_ROWS)), std::uint32_t((n + PC_BLEND_ROWS - 1) / PC_BLEND_ROWS), 1);
+  m.timer.end(cmd);
+  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
+
+  m.timer.begin(cmd, "changes");
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.changesPipeline.get());
+  vkCmdDispatch(cmd, std::uint32_t((n + 63) / 64), 1, 1);
+  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                    kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.packPipeline.get());
+  vkCmdDispatchIndirect(cmd, m.brickList.get(), 0);
+  m.timer.end(cmd);
+  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_READ_BIT);
+
+  m.timer.begin(cmd, "readback");
+  const VkBufferCopy recordCopy{0, 0, m.records.size()};
+  vkCmdCopyBuffer(cmd, m.records.get(), m.recordsReadback.get(), 1, &recordCopy);
+  const VkBufferCopy listCopy{0, 0, m.brickList.size()};
+  vkCmdCopyBuffer(cmd, m.brickList.get(), m.brickListReadback.get(), 1, &listCopy);
+  const VkBufferCopy counterCopy{0, 0, m.counters.size()};
+  vkCmdCopyBuffer(cmd, m.counters.get(), m.countersReadback.get(), 1, &counterCopy);
+  m.timer.end(cmd);
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | kComputeStage, VK_ACCESS_2_TRANSFER_WRITE_BIT | kShaderRW,
+                    VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
+  m.submitAndWait();
+  staging.clear();
+
+  // ---- back on the host: changed bricks, records, counters ----
+  const auto th = Clock::now();
+  m.brickListReadback.invalidate();
+  m.recordsReadback.invalidate();
+  m.countersReadback.invalidate();
+  m.packed.invalidate();
+  const auto* list = m.brickListReadback.as<std::uint32_t>();
+  const std::uint32_t changed = list[0];
+  const float* packed = m.packed.as<float>();
+  const std::uint64_t next = field.version + 1;
+  const int si = PC_IRRADIANCE_TEXELS + 2, sd = PC_DEPTH_TEXELS + 2, so = PC_OCCLUSION_TEXELS + 2;
+  for (std::uint32_t e = 0; e < changed; ++e) {
+    const int brick = int(list[PC_BRICK_LIST_HEADER + e]);
+    int k = 0;
+    while (k + 1 < field.cascadeCount() && brick >= m.brickOffset[k + 1]) ++k;
+    const int localBrick = brick - m.brickOffset[k];
+    const CascadeDesc& c = field.cascade(k);
+    for (int q = 0; q < PC_PROBES_PER_BRICK; ++q) {
+      const int slot = localBrick * PC_PROBES_PER_BRICK + q;
+      const float* src = packed + (std::size_t(e) * PC_PROBES_PER_BRICK + q) * PC_PACKED_PROBE_FLOATS;
+      const glm::ivec2 oi = pcAtlasTileOrigin(c, slot, si);
+      for (int y = 0; y < si; ++y, src += si * 3) std::memcpy(field.irradiance.at(oi.x, oi.y + y), src, si * 3 * 4);
+      const glm::ivec2 od = pcAtlasTileOrigin(c, slot, sd);
+      for (int y = 0; y < sd; ++y, src += sd * 2) std::memcpy(field.depth.at(od.x, od.y + y), src, sd * 2 * 4);
+      const glm::ivec2 oo = pcAtlasTileOrigin(c, slot, so);
+      for (int y = 0; y < so; ++y, src += so) std::memcpy(field.occlusion.at(oo.x, oo.y + y), src, so * 4);
+    }
+    field.brickVersions[k][localBrick] = next;
+  }
+  stats.bricksChanged = int(changed);
+  if (changed > 0) field.version = next;
+  const auto* gpuRecords = m.recordsReadback.as<GpuProbeRecord>();
+  for (std::size_t i = 0; i < field.probes.size(); ++i) {
+    ProbeRecord& r = field.probes[i];
+    r.offset = gpuRecords[i].offset;
+    r.state = gpuRecords[i].state;
+    r.updates = gpuRecords[i].updates;
+  }
+  m.syncedField = &field;
+  m.syncedVersion = field.version;
+  m.syncedRecords = field.probes;
+  stats.readbackBytes = std::uint64_t(changed) * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float) +
+                        m.records.size() + m.brickList.size() + m.counters.size();
+  const auto* counts = m.countersReadback.as<std::uint32_t>();
+  for (int i = 0; i < PC_COUNTER_SLOTS; ++i) stats.shadowRays += counts[i];
+  const double hostMs = msSince(th);
+
+  stats.gpuPasses = m.timer.results();
+  for (const auto& [name, ms] : stats.gpuPasses) {
+    stats.gpuMs += ms;
+    if (name == "trace") stats.traceMs = ms;
+    if (name == "blend" || name == "changes") stats.blendMs += ms;
+  }
+  stats.gpuPasses.emplace_back("host unpack (CPU)", hostMs);
+  stats.probeRays = std::uint64_t(n) * std::uint64_t(rayCount);
+  stats.probesUpdated = n;
+  stats.totalMs = msSince(t0);
+  return stats;
+}
+
+double VulkanTracer::traceOnly(Field& field, const UpdateRequest& request) {
+  Impl& m = *impl_;
+  const int n = int(request.probes.size());
+  if (n == 0) return 0.0;
+  m.writeUpdateInputs(field, request);
+  std::vector<vk::Buffer> staging;
+  m.begin();
+  m.recordFieldSync(field, staging);
+  if (m.tlasDirty) {
+    m.accel.recordTopLevelBuild(m.cmd);
+    m.tlasDirty = false;
+  }
+  m.timer.begin(m.cmd, "raw trace");
+  m.recordTrace(m.rawPipeline.get(), m.rawTable, n, field.settings.raysPerProbe);
+  m.timer.end(m.cmd);
+  m.submitAndWait();
+  // The field on the GPU is what the host holds: the sync above uploaded any difference.
+  m.syncedField = &field;
+  m.syncedVersion = field.version;
+  m.syncedRecords = field.probes;
+  for (const auto& [name, ms] : m.timer.results())
+    if (name == "raw trace") return ms;
+  return 0.0;
+}
+
+}  // namespace pc

@@ -1,0 +1,51 @@
+// The GPU backend of the Tracer interface: Vulkan ray-tracing pipelines (no ray queries, which
+// NVIDIA's data-centre GPUs lack) trace and shade the probe rays; compute shaders blend them
+// into the atlases, fix the borders, classify and relocate probes and pack the changed
+// bricks. The GPU holds the field between updates; only changed bricks' tiles and the probe
+// records come back into the pc::Field, which stays the host mirror the encoder and baked
+// files use.
+//
+// Host edits to a field are picked up at the next update: probe records are compared with
+// what the GPU holds, and a different Field object or version uploads the atlases again.
+// Base colour and emissive textures are sampled (bindless texture array, bilinear, level 0,
+// like the CPU's Texture::sample).
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "../common/vulkan/context.h"
+#include "tracer.h"
+
+namespace pc {
+
+struct VulkanTracerOptions {
+  bool validation = false;      // Khronos validation layer; errors are counted (tests fail on any)
+  bool allowCpuDevice = false;  // lavapipe
+  std::string deviceNameFilter;
+};
+
+class VulkanTracer final : public Tracer {
+ public:
+  static Result<std::unique_ptr<VulkanTracer>> create(const Scene& scene, const TracerOptions& options,
+                                                      const VulkanTracerOptions& vulkan);
+  ~VulkanTracer() override;
+  std::string name() const override;
+  void setState(const SceneState& state) override;
+  UpdateStats update(Field& field, const UpdateRequest& request) override;
+
+  // Traces the same probe rays as update() through a pipeline with trivial shaders (closest
+  // hit only: no shading, blending or readback) and returns the GPU milliseconds of the trace.
+  double traceOnly(Field& field, const UpdateRequest& request);
+
+  const vk::Context& context() const;
+  std::uint32_t validationErrorCount() const { return context().validationErrorCount(); }
+
+  struct Impl;
+
+ private:
+  explicit VulkanTracer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace pc

@@ -1,0 +1,201 @@
+// The Vulkan ray-tracing backend against the Embree backend, on lavapipe in CI with the
+// validation layer on (any validation error fails). Both backends trace the same ray
+// directions (same seeds) and shade with the same rules; scenes without light-sampled
+// emitters have no other randomness, so after N updates the fields agree up to float
+// rounding and traversal differences. Tolerance: mean relative difference <= 1% for
+// irradiance and depth over probes active in both.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include "common/field.h"
+#include "common/scene.h"
+#include "server/bake.h"
+#include "server/embree_tracer.h"
+#include "server/vulkan_tracer.h"
+#include "shaders/interop/probe_update.h"
+
+namespace pc {
+namespace {
+
+std::unique_ptr<VulkanTracer> makeGpu(const Scene& scene, std::string* why) {
+  VulkanTracerOptions vo;
+  vo.validation = true;
+  vo.allowCpuDevice = true;
+  auto t = VulkanTracer::create(scene, {}, vo);
+  if (!t) {
+    *why = t.error().message;
+    return nullptr;
+  }
+  return std::move(t).value();
+}
+
+struct FieldDiff {
+  double irradiance = 0, depth = 0;  // sum |gpu - cpu| / sum |cpu| over interior texels
+  int probes = 0;                    // active in both
+  int stateMismatches = 0;
+};
+
+// Decoded irradiance and mean depth of every interior texel of probes active in both fields.
+FieldDiff compareFields(const Field& gpu, const Field& cpu) {
+  FieldDiff d;
+  double irrNum = 0, irrDen = 0, depNum = 0, depDen = 0;
+  for (int k = 0; k < cpu.cascadeCount(); ++k) {
+    const gpu::CascadeDesc& c = cpu.cascade(k);
+    for (int s = 0; s < gpu::pcSlotCount(c); ++s) {
+      if (!gpu::pcSlotValid(c, s)) continue;
+      if (gpu.probe(k, s).state != cpu.probe(k, s).state) ++d.stateMismatches;
+      if (gpu.probe(k, s).state != gpu::PC_PROBE_ACTIVE || cpu.probe(k, s).state != gpu::PC_PROBE_ACTIVE) continue;
+      ++d.probes;
+      constexpr int ni = gpu::PC_IRRADIANCE_TEXELS, nd = gpu::PC_DEPTH_TEXELS;
+      const glm::ivec2 oi = gpu::pcAtlasTileOrigin(c, s, ni + 2);
+      for (int y = 1; y <= ni; ++y)
+        for (int x = 1; x <= ni; ++x) {
+          const float* a = gpu.irradiance.at(oi.x + x, oi.y + y);
+          const float* b = cpu.irradiance.at(oi.x + x, oi.y + y);
+          const glm::vec3 ea = gpu::pcDecodeIrradiance(glm::vec3(a[0], a[1], a[2]));
+          const glm::vec3 eb = gpu::pcDecodeIrradiance(glm::vec3(b[0], b[1], b[2]));
+          for (int ch = 0; ch < 3; ++ch) {
+            irrNum += std::abs(ea[ch] - eb[ch]);
+            irrDen += std::abs(eb[ch]);
+          }
+        }
+      const glm::ivec2 od = gpu::pcAtlasTileOrigin(c, s, nd + 2);
+      for (int y = 1; y <= nd; ++y)
+        for (int x = 1; x <= nd; ++x) {
+          depNum += std::abs(gpu.depth.at(od.x + x, od.y + y)[0] - cpu.depth.at(od.x + x, od.y + y)[0]);
+          depDen += std::abs(cpu.depth.at(od.x + x, od.y + y)[0]);
+        }
+    }
+  }
+  d.irradiance = irrDen > 0 ? irrNum / irrDen : 0;
+  d.depth = depDen > 0 ? depNum / depDen : 0;
+  return d;
+}
+
+void expectSameBrickVersions(const Field& gpu, const Field& cpu) {
+  EXPECT_EQ(gpu.version, cpu.version);
+  ASSERT_EQ(gpu.brickVersions.size(), cpu.brickVersions.size());
+  for (std::size_t k = 0; k < cpu.brickVersions.size(); ++k) EXPECT_EQ(gpu.brickVersions[k], cpu.brickVersions[k]);
+}
+
+TEST(VulkanTracer, BuiltinSceneMatchesEmbree) {
+  const Scene scene = builtinScene();
+  std::string why;
+  auto gpu = makeGpu(scene, &why);
+  if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  auto cpu = makeEmbreeTracer(scene);
+  ASSERT_TRUE(cpu) << cpu.error().message;
+
+  Field fg = Field::create(scene.volumes, FieldSettings{});
+  Field fc = Field::create(scene.volumes, FieldSettings{});
+  // Few updates: the comparison is exact up to rounding at any update count, and lavapipe
+  // runs this in about a second per update on two cores.
+  BakeOptions bake;
+  bake.updates = 6;
+  BakeStats sg = bakeField(fg, *gpu, bake);
+  BakeStats sc = bakeField(fc, **cpu, bake);
+  std::printf("bake: vulkan %.0f ms (%.2f Mrays/s incl. shadow rays), embree %.0f ms\n", sg.ms,
+              double(sg.probeRays + sg.shadowRays) / (sg.ms * 1e3), sc.ms);
+  EXPECT_EQ(sg.probeRays, sc.probeRays);
+  // Shadow rays depend only on geometry and light: the same count within traversal noise.
+  EXPECT_NEAR(double(sg.shadowRays), double(sc.shadowRays), 0.01 * double(sc.shadowRays));
+
+  FieldDiff d = compareFields(fg, fc);
+  std::printf("builtin (%s): %d active probes, irradiance rel diff %.2e, depth rel diff %.2e, "
+              "state mismatches %d\n",
+              gpu->name().c_str(), d.probes, d.irradiance, d.depth, d.stateMismatches);
+  EXPECT_GT(d.probes, 100);
+  EXPECT_LE(d.irradiance, 0.01);
+  EXPECT_LE(d.depth, 0.01);
+  EXPECT_LE(d.stateMismatches, 2);
+  expectSameBrickVersions(fg, fc);
+
+  // Move the light and the turning block (TLAS rebuild), then a few more updates each.
+  const SceneState later = evaluateScene(scene, 3.0);
+  gpu->setState(later);
+  (*cpu)->setState(later);
+  UpdateRequest request;
+  request.probes = allProbes(fc);
+  for (int i = 0; i < 2; ++i) {
+    request.rotationSeed = 5000u + std::uint32_t(i);
+    UpdateStats ug = gpu->update(fg, request);
+    UpdateStats uc = (*cpu)->update(fc, request);
+    EXPECT_EQ(ug.bricksChanged, uc.bricksChanged);
+    EXPECT_FALSE(ug.gpuPasses.empty());
+  }
+  d = compareFields(fg, fc);
+  std::printf("builtin after motion: irradiance rel diff %.2e, depth rel diff %.2e\n", d.irradiance, d.depth);
+  EXPECT_LE(d.irradiance, 0.01);
+  EXPECT_LE(d.depth, 0.01);
+  EXPECT_EQ(gpu->validationErrorCount(), 0u);
+}
+
+TEST(VulkanTracer, FurnaceEnergyMatchesEmbreeAndTheory) {
+  const float albedo = 0.5f, emission = 1.0f;
+  const Scene scene = furnaceBox(albedo, emission);
+  std::string why;
+  auto gpu = makeGpu(scene, &why);
+  if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  auto cpu = makeEmbreeTracer(scene);
+  ASSERT_TRUE(cpu) << cpu.error().message;
+  Field fg = Field::create(scene.volumes, FieldSettings{});
+  Field fc = Field::create(scene.volumes, FieldSettings{});
+  BakeOptions bake;
+  bake.updates = 48;
+  bakeField(fg, *gpu, bake);
+  bakeField(fc, **cpu, bake);
+  FieldDiff d = compareFields(fg, fc);
+  std::printf("furnace: irradiance rel diff %.2e, depth rel diff %.2e\n", d.irradiance, d.depth);
+  EXPECT_GE(d.probes, 56);  // the 8 central probes see no wall within reach: sleeping
+  EXPECT_EQ(d.stateMismatches, 0);
+  EXPECT_LE(d.irradiance, 0.01);
+  EXPECT_LE(d.depth, 0.01);
+  // Every point sees walls only: E = pi Le / (1 - a), minus what the finite bounce count lost.
+  const double expected = 3.14159265358979 * emission / (1.0 - albedo);
+  double sum = 0;
+  int n = 0;
+  for (const ProbeRef& p : allProbes(fg)) {
+    sum += fetchIrradiance(fg, p.cascade, p.slot, glm::vec3(0, 1, 0)).x;
+    ++n;
+  }
+  const double mean = sum / n;
+  std::printf("furnace: GPU mean irradiance %.4f, expected %.4f\n", mean, expected);
+  EXPECT_NEAR(mean, expected, 0.03 * expected);
+  EXPECT_EQ(gpu->validationErrorCount(), 0u);
+}
+
+TEST(VulkanTracer, OnlyRequestedProbesChangeAndHostEditsReachTheGpu) {
+  const Scene scene = builtinScene();
+  std::string why;
+  auto gpu = makeGpu(scene, &why);
+  if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  Field f = Field::create(scene.volumes, FieldSettings{});
+  UpdateRequest request;
+  request.rotationSeed = 1;
+  request.probes = {{0, 0}, {0, 1}, {1, 0}};
+  UpdateStats s = gpu->update(f, request);
+  EXPECT_EQ(s.probesUpdated, 3);
+  EXPECT_EQ(s.bricksChanged, 2);  // brick 0 of each cascade
+  EXPECT_EQ(f.version, 1u);
+  EXPECT_EQ(f.brickVersions[0][0], 1u);
+  EXPECT_EQ(f.brickVersions[1][0], 1u);
+  EXPECT_EQ(f.brickVersions[0][1], 0u);
+  EXPECT_NE(f.probe(0, 0).state, gpu::PC_PROBE_UNINITIALIZED);
+  EXPECT_EQ(f.probe(0, 64).state, gpu::PC_PROBE_UNINITIALIZED);
+  EXPECT_EQ(f.probe(0, 0).updates, 1u);
+
+  // A host-side history reset must reach the GPU: the next blend starts a fresh mean.
+  restartHistory(f);
+  f.probe(0, 0).updates = 0;
+  request.rotationSeed = 2;
+  gpu->update(f, request);
+  EXPECT_EQ(f.probe(0, 0).updates, 1u);
+  EXPECT_EQ(f.probe(0, 1).updates, 2u);
+  EXPECT_EQ(gpu->validationErrorCount(), 0u);
+}
+
+}  // namespace
+}  // namespace pc
