@@ -1,0 +1,61 @@
+#include "gpu_scene.h"
+
+namespace pc::client {
+
+Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene) {
+  GpuScene g;
+  g.packed_ = packScene(scene);
+  if (g.packed_.indices.empty()) return Error{"scene has no triangles to draw"};
+  auto vb = vk::uploadBuffer(ctx, g.packed_.vertices.data(), g.packed_.vertices.size() * sizeof(Vertex),
+                             VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+  if (!vb) return vb.error();
+  g.vertices_ = std::move(vb).value();
+  auto ib = vk::uploadBuffer(ctx, g.packed_.indices.data(),
+                             g.packed_.indices.size() * sizeof(std::uint32_t),
+                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+  if (!ib) return ib.error();
+  g.indices_ = std::move(ib).value();
+
+  auto addTexture = [&](int width, int height, const std::uint8_t* rgba) -> Status {
+    vk::ImageDesc d;
+    d.format = VK_FORMAT_R8G8B8A8_SRGB;  // decoded to linear by the sampler, as the CPU's LUT
+    d.width = std::uint32_t(width);
+    d.height = std::uint32_t(height);
+    auto image = vk::Image::create(ctx, d);
+    if (!image) return image.error();
+    Status s = image->upload(rgba, std::size_t(width) * height * 4);
+    if (!s) return s;
+    g.textures_.push_back(std::move(image).value());
+    return Status::success();
+  };
+  const std::uint8_t white[4] = {255, 255, 255, 255};
+  for (const Texture& t : scene.textures) {
+    const bool valid = t.width > 0 && t.height > 0 &&
+                       t.rgba.size() >= std::size_t(t.width) * t.height * 4;
+    Status s = valid ? addTexture(t.width, t.height, t.rgba.data()) : addTexture(1, 1, white);
+    if (!s) return s.error();
+  }
+  if (g.textures_.empty()) {
+    Status s = addTexture(1, 1, white);
+    if (!s) return s.error();
+  }
+
+  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  si.magFilter = si.minFilter = VK_FILTER_LINEAR;
+  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT;
+  si.maxLod = 0.0f;
+  VkSampler sampler = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateSampler(ctx.device(), &si, nullptr, &sampler));
+  g.sampler_ = vk::UniqueSampler(ctx.device(), sampler);
+  return g;
+}
+
+std::vector<VkDescriptorImageInfo> GpuScene::textureInfos() const {
+  std::vector<VkDescriptorImageInfo> infos;
+  for (const vk::Image& t : textures_)
+    infos.push_back({sampler_.get(), t.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+  return infos;
+}
+
+}  // namespace pc::client

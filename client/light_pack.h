@@ -1,0 +1,48 @@
+// Direct lights as the rasterizer sees them: the scene's punctual lights, plus virtual point
+// lights standing in for the emissive surfaces that the CPU renders sample as area lights
+// (EmissiveLights), each with the shadow views it needs.
+//
+// Emitters: every emissive triangle chosen for light sampling is split into k x k similar
+// sub-triangles (k from its share of the emitted power), and each sub-triangle becomes one
+// cosine-emitting point light at its centroid carrying its power, with a cube shadow map.
+// Many small emitter triangles are instead sampled: `areaLights` triangles picked in
+// proportion to power, each carrying an equal share. The soft shadow of the area is then the
+// average of these hard (filtered) shadows.
+#pragma once
+
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "common/scene.h"
+#include "cpu/lighting.h"
+#include "shaders/interop/client_frame.h"
+
+namespace pc::client {
+
+struct ShadowSettings {
+  int largeSize = 2048;  // sun, spot and point light maps (texels per side)
+  int smallSize = 512;   // the emitters' virtual point lights
+  int areaLights = 16;   // about this many virtual point lights for all emitters together
+};
+
+// One shadow map layer to render: the array (0 large, 1 small), its layer, the light's
+// view-projection (Vulkan depth 0..1).
+struct ShadowView {
+  int array = 0;
+  int layer = 0;
+  glm::mat4 viewProj{1.0f};
+};
+
+struct LightSet {
+  std::vector<gpu::GpuLight> lights;
+  std::vector<glm::mat4> matrices;  // indexed by GpuLight::shadowMatrix (+ cube face)
+  std::vector<ShadowView> views;    // the layers to render
+  int largeLayers = 0, smallLayers = 0;
+  int areaLightCount = 0;
+};
+
+LightSet buildLights(const Scene& scene, const SceneState& state, const EmissiveLights& emitters,
+                     const ShadowSettings& settings);
+
+}  // namespace pc::client

@@ -1,0 +1,897 @@
+#include "renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "camera.h"
+#include "common/log.h"
+#include "overlay_text.h"
+#include "vk_util.h"
+
+namespace pc::client {
+
+namespace {
+
+constexpr VkFormat kDirectFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
+constexpr VkFormat kPositionFormat = VK_FORMAT_R32G32B32A32_SFLOAT;  // world units need float32
+constexpr VkFormat kNormalFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
+constexpr VkFormat kAlbedoFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
+constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
+constexpr VkFormat kHdrFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+constexpr VkFormat kOffscreenFormat = VK_FORMAT_R8G8B8A8_UNORM;
+constexpr VkFormat kLargeShadowFormat = VK_FORMAT_D32_SFLOAT;
+constexpr VkFormat kSmallShadowFormat = VK_FORMAT_D16_UNORM;  // many small maps: half the memory
+
+constexpr VkPipelineStageFlags2 kShaderStages =
+    VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+
+struct ShaderStage {
+  VkShaderStageFlagBits stage;
+  VkShaderModule module;
+  const VkSpecializationInfo* specialization = nullptr;
+};
+
+std::vector<VkPipelineShaderStageCreateInfo> stageInfos(std::initializer_list<ShaderStage> stages) {
+  std::vector<VkPipelineShaderStageCreateInfo> out;
+  for (const ShaderStage& s : stages) {
+    VkPipelineShaderStageCreateInfo info{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    info.stage = s.stage;
+    info.module = s.module;
+    info.pName = "main";
+    info.pSpecializationInfo = s.specialization;
+    out.push_back(info);
+  }
+  return out;
+}
+
+// The fixed-function state the client's graphics pipelines share, filled per pipeline.
+struct GraphicsDesc {
+  std::vector<VkPipelineShaderStageCreateInfo> stages;
+  bool vertexInput = true;     // the packed Vertex layout (else no vertex buffer)
+  bool positionOnly = false;   // only location 0 (shadow maps)
+  std::vector<VkFormat> colorFormats;
+  VkFormat depthFormat = VK_FORMAT_UNDEFINED;
+  VkCompareOp depthCompare = VK_COMPARE_OP_GREATER;
+  bool depthBias = false;
+  VkSampleCountFlagBits samples = VK_SAMPLE_COUNT_1_BIT;
+  std::uint32_t viewMask = 0;
+};
+
+Result<vk::UniquePipeline> createGraphicsPipeline(const vk::Context& ctx, VkPipelineLayout layout,
+                                                  const GraphicsDesc& d) {
+  VkVertexInputBindingDescription binding{0, sizeof(Vertex), VK_VERTEX_INPUT_RATE_VERTEX};
+  const VkVertexInputAttributeDescription attributes[3] = {
+      {0, 0, VK_FORMAT_R32G32B32_SFLOAT, offsetof(Vertex, position)},
+      {1, 0, VK_FORMAT_R32G32B32_SFLOAT, offsetof(Vertex, normal)},
+      {2, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(Vertex, uv)}};
+  VkPipelineVertexInputStateCreateInfo vertexInput{
+      VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+  if (d.vertexInput) {
+    vertexInput.vertexBindingDescriptionCount = 1;
+    vertexInput.pVertexBindingDescriptions = &binding;
+    vertexInput.vertexAttributeDescriptionCount = d.positionOnly ? 1 : 3;
+    vertexInput.pVertexAttributeDescriptions = attributes;
+  }
+  VkPipelineInputAssemblyStateCreateInfo assembly{
+      VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkPipelineViewportStateCreateInfo viewport{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  viewport.viewportCount = 1;
+  viewport.scissorCount = 1;
+  VkPipelineRasterizationStateCreateInfo raster{
+      VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  raster.polygonMode = VK_POLYGON_MODE_FILL;
+  raster.cullMode = VK_CULL_MODE_NONE;  // surfaces are two-sided, as in the CPU renders
+  // Vulkan's framebuffer y points down, and the projection flips y: the triangles that are
+  // counter-clockwise in the scene's (y-up) view come out clockwise here.
+  raster.frontFace = VK_FRONT_FACE_CLOCKWISE;
+  raster.lineWidth = 1.0f;
+  raster.depthBiasEnable = d.depthBias ? VK_TRUE : VK_FALSE;
+  raster.depthBiasConstantFactor = 2.0f;
+  raster.depthBiasSlopeFactor = 2.0f;
+  VkPipelineMultisampleStateCreateInfo multisample{
+      VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  multisample.rasterizationSamples = d.samples;
+  VkPipelineDepthStencilStateCreateInfo depth{
+      VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
+  depth.depthTestEnable = d.depthFormat != VK_FORMAT_UNDEFINED;
+  depth.depthWriteEnable = depth.depthTestEnable;
+  depth.depthCompareOp = d.depthCompare;
+  std::vector<VkPipelineColorBlendAttachmentState> blends(d.colorFormats.size());
+  for (auto& b : blends) {
+    b = {};
+    b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
+                       VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+  }
+  VkPipelineColorBlendStateCreateInfo blend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  blend.attachmentCount = std::uint32_t(blends.size());
+  blend.pAttachments = blends.data();
+  const VkDynamicState dynamics[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  VkPipelineDynamicStateCreateInfo dynamic{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+  dynamic.dynamicStateCount = 2;
+  dynamic.pDynamicStates = dynamics;
+  VkPipelineRenderingCreateInfo rendering{VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO};
+  rendering.viewMask = d.viewMask;
+  rendering.colorAttachmentCount = std::uint32_t(d.colorFormats.size());
+  rendering.pColorAttachmentFormats = d.colorFormats.data();
+  rendering.depthAttachmentFormat = d.depthFormat;
+
+  VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  info.pNext = &rendering;
+  info.stageCount = std::uint32_t(d.stages.size());
+  info.pStages = d.stages.data();
+  info.pVertexInputState = &vertexInput;
+  info.pInputAssemblyState = &assembly;
+  info.pViewportState = &viewport;
+  info.pRasterizationState = &raster;
+  info.pMultisampleState = &multisample;
+  info.pDepthStencilState = &depth;
+  info.pColorBlendState = &blend;
+  info.pDynamicState = &dynamic;
+  info.layout = layout;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateGraphicsPipelines(ctx.device(), VK_NULL_HANDLE, 1, &info, nullptr, &pipeline));
+  return vk::UniquePipeline(ctx.device(), pipeline);
+}
+
+Result<vk::UniqueSampler> createSampler(const vk::Context& ctx, VkFilter filter, bool compare) {
+  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  si.magFilter = si.minFilter = filter;
+  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  si.compareEnable = compare ? VK_TRUE : VK_FALSE;
+  si.compareOp = VK_COMPARE_OP_LESS_OR_EQUAL;  // lit where the receiver is not behind the map
+  si.maxLod = 0.0f;
+  VkSampler sampler = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateSampler(ctx.device(), &si, nullptr, &sampler));
+  return vk::UniqueSampler(ctx.device(), sampler);
+}
+
+void setViewport(VkCommandBuffer cmd, std::uint32_t width, std::uint32_t height) {
+  const VkViewport vp{0.0f, 0.0f, float(width), float(height), 0.0f, 1.0f};
+  const VkRect2D scissor{{0, 0}, {width, height}};
+  vkCmdSetViewport(cmd, 0, 1, &vp);
+  vkCmdSetScissor(cmd, 0, 1, &scissor);
+}
+
+}  // namespace
+
+struct Renderer::Slot {
+  VkCommandBuffer cmd = VK_NULL_HANDLE;
+  vk::UniqueFence fence;
+  vk::Buffer frame, draws, lights, matrices, overlay;
+  VkDescriptorSet set = VK_NULL_HANDLE;
+  std::optional<vk::GpuTimer> timer;
+  std::vector<ShadowView> shadowViews;
+  bool submitted = false;
+};
+
+Renderer::~Renderer() {
+  if (ctx_) ctx_->waitIdle();
+}
+
+void Renderer::waitIdle() const { ctx_->waitIdle(); }
+
+Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const Scene& scene,
+                                                   FieldMirror& mirror,
+                                                   const RendererOptions& options) {
+  if (options.width <= 0 || options.height <= 0) return Error{"render size must be positive"};
+  if (options.views != 1 && options.views != 2) return Error{"views must be 1 or 2"};
+  if (options.msaa != 2 && options.msaa != 4 && options.msaa != 8)
+    return Error{"msaa must be 2, 4 or 8 samples"};
+  if (options.views == 2 && !ctx.options().multiview)
+    return Error{"stereo needs a Vulkan context created with multiview"};
+  std::unique_ptr<Renderer> r(new Renderer);
+  r->ctx_ = &ctx;
+  r->scene_ = &scene;
+  r->mirror_ = &mirror;
+  r->options_ = options;
+
+  const float diagonal = std::max(glm::length(scene.boundsMax - scene.boundsMin), 1e-3f);
+  r->nearPlane_ = 5e-4f * diagonal;
+  if (options.ambient) {
+    r->ambient_ = *options.ambient;
+  } else {
+    // A plain ambient term: the irradiance an open sky would give (pi x its mean radiance),
+    // or a dim grey in closed, sky-less scenes so their shapes stay visible.
+    const Sky& sky = scene.sky;
+    const glm::vec3 mean = 0.5f * sky.horizon + 0.25f * (sky.zenith + sky.ground);
+    r->ambient_ = sky.isBlack() ? glm::vec3(0.1f) : 3.14159265f * mean;
+  }
+
+  auto gpuScene = GpuScene::create(ctx, scene);
+  if (!gpuScene) return gpuScene.error();
+  r->gpuScene_.emplace(std::move(gpuScene).value());
+
+  auto field = FieldGpu::create(ctx, mirror.desc(), kFrameSlots, options.bricksPerFrame);
+  if (!field) return field.error();
+  r->field_.emplace(std::move(field).value());
+  // The field present at start-up (a baked file) goes up before the first frame; later bricks
+  // stream in through the frames' upload budget.
+  Status uploaded = r->field_->uploadAll(mirror);
+  if (!uploaded) return uploaded.error();
+
+  // Light and shadow layer counts are fixed by the scene (animation moves lights, never adds).
+  const SceneState state0 = evaluateScene(scene, 0.0);
+  const LightSet lights0 = buildLights(scene, state0, EmissiveLights::build(scene, state0),
+                                       options.shadows);
+  r->lightCount_ = int(lights0.lights.size());
+  r->matrixCount_ = int(lights0.matrices.size());
+  r->largeLayers_ = lights0.largeLayers;
+  r->smallLayers_ = lights0.smallLayers;
+  r->areaLights_ = lights0.areaLightCount;
+
+  auto linear = createSampler(ctx, VK_FILTER_LINEAR, false);
+  if (!linear) return linear.error();
+  r->linearSampler_ = std::move(linear).value();
+  auto shadow = createSampler(ctx, VK_FILTER_LINEAR, true);
+  if (!shadow) return shadow.error();
+  r->shadowSampler_ = std::move(shadow).value();
+
+  // Shadow maps: at least one layer each, so the descriptors are always valid.
+  auto shadowArray = [&](VkFormat format, int size, int layers, vk::Image& image,
+                         vk::UniqueImageView& arrayView,
+                         std::vector<vk::UniqueImageView>& layerViews) -> Status {
+    vk::ImageDesc d;
+    d.format = format;
+    d.width = d.height = std::uint32_t(size);
+    d.layers = std::uint32_t(std::max(1, layers));
+    d.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+    auto img = vk::Image::create(ctx, d);
+    if (!img) return img.error();
+    image = std::move(img).value();
+    auto view = makeView(ctx, image.get(), format, VK_IMAGE_VIEW_TYPE_2D_ARRAY,
+                         VK_IMAGE_ASPECT_DEPTH_BIT, 0, d.layers);
+    if (!view) return view.error();
+    arrayView = std::move(view).value();
+    for (std::uint32_t l = 0; l < d.layers; ++l) {
+      auto lv = makeView(ctx, image.get(), format, VK_IMAGE_VIEW_TYPE_2D, VK_IMAGE_ASPECT_DEPTH_BIT, l, 1);
+      if (!lv) return lv.error();
+      layerViews.push_back(std::move(lv).value());
+    }
+    return Status::success();
+  };
+  Status s = shadowArray(kLargeShadowFormat, options.shadows.largeSize, r->largeLayers_,
+                         r->largeShadows_, r->largeShadowView_, r->largeLayerViews_);
+  if (!s) return s.error();
+  s = shadowArray(kSmallShadowFormat, options.shadows.smallSize, r->smallLayers_, r->smallShadows_,
+                  r->smallShadowView_, r->smallLayerViews_);
+  if (!s) return s.error();
+
+  auto pool = vk::CommandPool::create(ctx);
+  if (!pool) return pool.error();
+  r->commandPool_.emplace(std::move(pool).value());
+
+  s = r->createTargets();
+  if (!s) return s.error();
+  s = r->createPipelines();
+  if (!s) return s.error();
+
+  const std::size_t drawCount = std::max<std::size_t>(1, r->gpuScene_->packed().drawInstances.size());
+  for (int i = 0; i < kFrameSlots; ++i) {
+    auto slot = std::make_unique<Slot>();
+    auto cmd = r->commandPool_->allocate();
+    if (!cmd) return cmd.error();
+    slot->cmd = *cmd;
+    VkFenceCreateInfo fi{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    fi.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+    VkFence fence = VK_NULL_HANDLE;
+    PC_VK_TRY(vkCreateFence(ctx.device(), &fi, nullptr, &fence));
+    slot->fence = vk::UniqueFence(ctx.device(), fence);
+    auto buffer = [&](std::size_t bytes, VkBufferUsageFlags usage, vk::Buffer& out) -> Status {
+      auto b = vk::Buffer::create(ctx, bytes, usage, vk::MemoryUsage::Upload);
+      if (!b) return b.error();
+      out = std::move(b).value();
+      return Status::success();
+    };
+    const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    for (Status st : {buffer(sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, slot->frame),
+                      buffer(drawCount * sizeof(gpu::DrawData), storage, slot->draws),
+                      buffer(std::max(1, r->lightCount_) * sizeof(gpu::GpuLight), storage, slot->lights),
+                      buffer(std::max(1, r->matrixCount_) * sizeof(glm::mat4), storage, slot->matrices),
+                      buffer(sizeof(gpu::OverlayText), storage, slot->overlay)}) {
+      if (!st) return st.error();
+    }
+    auto timer = vk::GpuTimer::create(ctx, 16);
+    if (!timer) return timer.error();
+    slot->timer.emplace(std::move(timer).value());
+    r->slots_.push_back(std::move(slot));
+  }
+
+  // One descriptor set per slot: the slot's own buffers, the shared images.
+  const std::uint32_t textures = std::uint32_t(r->gpuScene_->textureCount());
+  const VkDescriptorPoolSize sizes[] = {
+      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2 * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 5 * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, (10 + textures) * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1 * kFrameSlots}};
+  VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  pi.maxSets = kFrameSlots;
+  pi.poolSizeCount = 4;
+  pi.pPoolSizes = sizes;
+  VkDescriptorPool dp = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateDescriptorPool(ctx.device(), &pi, nullptr, &dp));
+  r->descriptorPool_ = vk::UniqueDescriptorPool(ctx.device(), dp);
+  for (auto& slot : r->slots_) {
+    VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    ai.descriptorPool = dp;
+    ai.descriptorSetCount = 1;
+    const VkDescriptorSetLayout layout = r->setLayout_.get();
+    ai.pSetLayouts = &layout;
+    PC_VK_TRY(vkAllocateDescriptorSets(ctx.device(), &ai, &slot->set));
+  }
+  s = r->writeDescriptors();
+  if (!s) return s.error();
+  return r;
+}
+
+Status Renderer::createTargets() {
+  const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
+  const std::uint32_t layers = std::uint32_t(options_.views);
+  const auto samples = static_cast<VkSampleCountFlagBits>(options_.msaa);
+  auto make = [&](Target& t, VkFormat format, VkSampleCountFlagBits count, VkImageUsageFlags usage,
+                  VkImageAspectFlags aspect) -> Status {
+    vk::ImageDesc d;
+    d.format = format;
+    d.width = w;
+    d.height = h;
+    d.layers = layers;
+    d.samples = count;
+    d.usage = usage;
+    auto image = vk::Image::create(*ctx_, d);
+    if (!image) return image.error();
+    t.image = std::move(image).value();
+    auto view = makeView(*ctx_, t.image.get(), format, VK_IMAGE_VIEW_TYPE_2D_ARRAY, aspect, 0, layers);
+    if (!view) return view.error();
+    t.arrayView = std::move(view).value();
+    return Status::success();
+  };
+  const VkImageUsageFlags colorSampled = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  const VkImageAspectFlags color = VK_IMAGE_ASPECT_COLOR_BIT;
+  for (Status s : {make(direct_, kDirectFormat, samples, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT, color),
+                   make(directResolved_, kDirectFormat, VK_SAMPLE_COUNT_1_BIT, colorSampled, color),
+                   make(position_, kPositionFormat, samples, colorSampled, color),
+                   make(normal_, kNormalFormat, samples, colorSampled, color),
+                   make(albedo_, kAlbedoFormat, samples, colorSampled, color),
+                   make(depth_, kDepthFormat, samples, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
+                        VK_IMAGE_ASPECT_DEPTH_BIT),
+                   make(hdr_, kHdrFormat, VK_SAMPLE_COUNT_1_BIT,
+                        VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
+                            VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                        color),
+                   make(offscreen_, kOffscreenFormat, VK_SAMPLE_COUNT_1_BIT,
+                        VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, color)}) {
+    if (!s) return s;
+  }
+  auto rb = vk::Buffer::create(*ctx_, std::size_t(w) * h * layers * (16 + 4),
+                               VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::Readback);
+  if (!rb) return rb.error();
+  readback_ = std::move(rb).value();
+  return Status::success();
+}
+
+Status Renderer::createPipelines() {
+  // ---- layout: one set for everything (client_frame.h), the shadow pass's matrix pushed ----
+  const std::uint32_t textures = std::uint32_t(gpuScene_->textureCount());
+  struct B {
+    int binding;
+    VkDescriptorType type;
+    std::uint32_t count;
+  };
+  const B bindings[] = {
+      {gpu::PC_BIND_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+      {gpu::PC_BIND_FIELD_DESC, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+      {gpu::PC_BIND_DRAWS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_LIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_SHADOW_MATRICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_PROBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_IRRADIANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_OCCLUSION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_SHADOW_MAPS, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2},
+      {gpu::PC_BIND_TEXTURES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, textures},
+      {gpu::PC_BIND_G_POSITION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_G_NORMAL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_G_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_DIRECT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
+      {gpu::PC_BIND_HDR_TEXTURE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_OVERLAY, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
+  std::vector<VkDescriptorSetLayoutBinding> list;
+  for (const B& b : bindings) {
+    VkDescriptorSetLayoutBinding lb{};
+    lb.binding = std::uint32_t(b.binding);
+    lb.descriptorType = b.type;
+    lb.descriptorCount = b.count;
+    lb.stageFlags = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT;
+    list.push_back(lb);
+  }
+  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  li.bindingCount = std::uint32_t(list.size());
+  li.pBindings = list.data();
+  VkDescriptorSetLayout setLayout = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateDescriptorSetLayout(ctx_->device(), &li, nullptr, &setLayout));
+  setLayout_ = vk::UniqueDescriptorSetLayout(ctx_->device(), setLayout);
+  const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4)};
+  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  pli.setLayoutCount = 1;
+  pli.pSetLayouts = &setLayout;
+  pli.pushConstantRangeCount = 1;
+  pli.pPushConstantRanges = &push;
+  VkPipelineLayout pipelineLayout = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreatePipelineLayout(ctx_->device(), &pli, nullptr, &pipelineLayout));
+  pipelineLayout_ = vk::UniquePipelineLayout(ctx_->device(), pipelineLayout);
+
+  auto load = [&](const char* name) { return vk::loadShader(*ctx_, name); };
+  auto sceneVert = load("client_scene.vert.spv");
+  if (!sceneVert) return sceneVert.error();
+  auto sceneFrag = load("client_scene.frag.spv");
+  if (!sceneFrag) return sceneFrag.error();
+  auto shadowVert = load("client_shadow.vert.spv");
+  if (!shadowVert) return shadowVert.error();
+  auto indirect = load("client_indirect.comp.spv");
+  if (!indirect) return indirect.error();
+
+  const std::uint32_t viewMask = options_.views == 2 ? 0b11u : 0u;
+  const std::int32_t textureCount = std::int32_t(textures);
+  const VkSpecializationMapEntry entry{0, 0, sizeof(std::int32_t)};
+  const VkSpecializationInfo textureSpec{1, &entry, sizeof textureCount, &textureCount};
+  GraphicsDesc scene;
+  scene.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, sceneVert->get()},
+                             {VK_SHADER_STAGE_FRAGMENT_BIT, sceneFrag->get(), &textureSpec}});
+  scene.colorFormats = {kDirectFormat, kPositionFormat, kNormalFormat, kAlbedoFormat};
+  scene.depthFormat = kDepthFormat;
+  scene.depthCompare = VK_COMPARE_OP_GREATER;  // reversed depth: nearer is larger
+  scene.samples = static_cast<VkSampleCountFlagBits>(options_.msaa);
+  scene.viewMask = viewMask;
+  auto scenePipeline = createGraphicsPipeline(*ctx_, pipelineLayout, scene);
+  if (!scenePipeline) return scenePipeline.error();
+  scenePipeline_ = std::move(scenePipeline).value();
+
+  GraphicsDesc shadow;
+  shadow.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, shadowVert->get()}});
+  shadow.positionOnly = true;
+  shadow.depthCompare = VK_COMPARE_OP_LESS_OR_EQUAL;
+  shadow.depthBias = true;
+  shadow.depthFormat = kLargeShadowFormat;
+  auto large = createGraphicsPipeline(*ctx_, pipelineLayout, shadow);
+  if (!large) return large.error();
+  largeShadowPipeline_ = std::move(large).value();
+  shadow.depthFormat = kSmallShadowFormat;
+  auto small = createGraphicsPipeline(*ctx_, pipelineLayout, shadow);
+  if (!small) return small.error();
+  smallShadowPipeline_ = std::move(small).value();
+
+  const std::int32_t samples = options_.msaa;
+  const VkSpecializationInfo sampleSpec{1, &entry, sizeof samples, &samples};
+  VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  ci.stage = stageInfos({{VK_SHADER_STAGE_COMPUTE_BIT, indirect->get(), &sampleSpec}})[0];
+  ci.layout = pipelineLayout;
+  VkPipeline compute = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateComputePipelines(ctx_->device(), VK_NULL_HANDLE, 1, &ci, nullptr, &compute));
+  indirectPipeline_ = vk::UniquePipeline(ctx_->device(), compute);
+  return Status::success();
+}
+
+Result<VkPipeline> Renderer::tonemapPipeline(VkFormat format) {
+  auto it = tonemapPipelines_.find(format);
+  if (it != tonemapPipelines_.end()) return it->second.get();
+  auto vert = vk::loadShader(*ctx_, "client_fullscreen.vert.spv");
+  if (!vert) return vert.error();
+  auto frag = vk::loadShader(*ctx_, "client_tonemap.frag.spv");
+  if (!frag) return frag.error();
+  GraphicsDesc d;
+  d.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, vert->get()},
+                         {VK_SHADER_STAGE_FRAGMENT_BIT, frag->get()}});
+  d.vertexInput = false;
+  d.colorFormats = {format};
+  d.viewMask = options_.views == 2 ? 0b11u : 0u;
+  auto p = createGraphicsPipeline(*ctx_, pipelineLayout_.get(), d);
+  if (!p) return p.error();
+  VkPipeline handle = p->get();
+  tonemapPipelines_.emplace(format, std::move(p).value());
+  return handle;
+}
+
+Status Renderer::writeDescriptors() {
+  const VkSampler linear = linearSampler_.get();
+  const VkDescriptorImageInfo shadows[2] = {
+      {shadowSampler_.get(), largeShadowView_.get(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+      {shadowSampler_.get(), smallShadowView_.get(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}};
+  const std::vector<VkDescriptorImageInfo> textures = gpuScene_->textureInfos();
+  const VkDescriptorImageInfo irradiance = field_->irradiance(linear);
+  const VkDescriptorImageInfo depth = field_->depth(linear);
+  const VkDescriptorImageInfo occlusion = field_->occlusion(linear);
+  auto sampled = [&](const Target& t, VkImageLayout layout) {
+    return VkDescriptorImageInfo{linear, t.arrayView.get(), layout};
+  };
+  const VkImageLayout readOnly = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+  const VkDescriptorImageInfo gPosition = sampled(position_, readOnly);
+  const VkDescriptorImageInfo gNormal = sampled(normal_, readOnly);
+  const VkDescriptorImageInfo gAlbedo = sampled(albedo_, readOnly);
+  const VkDescriptorImageInfo direct = sampled(directResolved_, readOnly);
+  const VkDescriptorImageInfo hdrImage{VK_NULL_HANDLE, hdr_.arrayView.get(), VK_IMAGE_LAYOUT_GENERAL};
+  const VkDescriptorImageInfo hdrTexture = sampled(hdr_, VK_IMAGE_LAYOUT_GENERAL);
+  const VkDescriptorBufferInfo fieldDesc = field_->descBuffer();
+  const VkDescriptorBufferInfo probes = field_->probes();
+
+  for (auto& slot : slots_) {
+    const VkDescriptorBufferInfo frame = slot->frame.descriptor(), draws = slot->draws.descriptor(),
+                                 lights = slot->lights.descriptor(),
+                                 matrices = slot->matrices.descriptor(),
+                                 overlay = slot->overlay.descriptor();
+    std::vector<VkWriteDescriptorSet> writes;
+    auto buffer = [&](int binding, VkDescriptorType type, const VkDescriptorBufferInfo* info) {
+      VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      w.dstSet = slot->set;
+      w.dstBinding = std::uint32_t(binding);
+      w.descriptorCount = 1;
+      w.descriptorType = type;
+      w.pBufferInfo = info;
+      writes.push_back(w);
+    };
+    auto image = [&](int binding, VkDescriptorType type, const VkDescriptorImageInfo* info,
+                     std::uint32_t count) {
+      VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      w.dstSet = slot->set;
+      w.dstBinding = std::uint32_t(binding);
+      w.descriptorCount = count;
+      w.descriptorType = type;
+      w.pImageInfo = info;
+      writes.push_back(w);
+    };
+    const VkDescriptorType ubo = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+    const VkDescriptorType ssbo = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    const VkDescriptorType cis = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    buffer(gpu::PC_BIND_FRAME, ubo, &frame);
+    buffer(gpu::PC_BIND_FIELD_DESC, ubo, &fieldDesc);
+    buffer(gpu::PC_BIND_DRAWS, ssbo, &draws);
+    buffer(gpu::PC_BIND_LIGHTS, ssbo, &lights);
+    buffer(gpu::PC_BIND_SHADOW_MATRICES, ssbo, &matrices);
+    buffer(gpu::PC_BIND_PROBES, ssbo, &probes);
+    buffer(gpu::PC_BIND_OVERLAY, ssbo, &overlay);
+    image(gpu::PC_BIND_IRRADIANCE, cis, &irradiance, 1);
+    image(gpu::PC_BIND_DEPTH, cis, &depth, 1);
+    image(gpu::PC_BIND_OCCLUSION, cis, &occlusion, 1);
+    image(gpu::PC_BIND_SHADOW_MAPS, cis, shadows, 2);
+    image(gpu::PC_BIND_TEXTURES, cis, textures.data(), std::uint32_t(textures.size()));
+    image(gpu::PC_BIND_G_POSITION, cis, &gPosition, 1);
+    image(gpu::PC_BIND_G_NORMAL, cis, &gNormal, 1);
+    image(gpu::PC_BIND_G_ALBEDO, cis, &gAlbedo, 1);
+    image(gpu::PC_BIND_DIRECT, cis, &direct, 1);
+    image(gpu::PC_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, &hdrImage, 1);
+    image(gpu::PC_BIND_HDR_TEXTURE, cis, &hdrTexture, 1);
+    vkUpdateDescriptorSets(ctx_->device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
+  }
+  return Status::success();
+}
+
+Status Renderer::resize(int width, int height) {
+  if (width <= 0 || height <= 0) return Error{"render size must be positive"};
+  if (width == options_.width && height == options_.height) return Status::success();
+  ctx_->waitIdle();
+  options_.width = width;
+  options_.height = height;
+  Status s = createTargets();
+  if (!s) return s;
+  return writeDescriptors();
+}
+
+void Renderer::collectTimings(Slot& slot) {
+  if (!slot.submitted) return;
+  FrameTimings t;
+  for (const auto& [name, ms] : slot.timer->results()) {
+    t.valid = true;
+    if (name == "upload") t.uploadMs = ms;
+    if (name == "shadows") t.shadowMs = ms;
+    if (name == "main") t.mainMs = ms;
+    if (name == "probe") t.probeMs = ms;
+    if (name == "tonemap") t.tonemapMs = ms;
+  }
+  timings_ = t;
+  slot.submitted = false;
+}
+
+Result<VkCommandBuffer> Renderer::beginFrame() {
+  current_ = (current_ + 1) % kFrameSlots;
+  Slot& slot = *slots_[current_];
+  const VkFence fence = slot.fence.get();
+  PC_VK_TRY(vkWaitForFences(ctx_->device(), 1, &fence, VK_TRUE, UINT64_MAX));
+  collectTimings(slot);
+  PC_VK_TRY(vkResetFences(ctx_->device(), 1, &fence));
+  PC_VK_TRY(vkResetCommandBuffer(slot.cmd, 0));
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  PC_VK_TRY(vkBeginCommandBuffer(slot.cmd, &bi));
+  return slot.cmd;
+}
+
+void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
+  const Scene& scene = *scene_;
+  const SceneState state = evaluateScene(scene, input.time);
+  const std::vector<gpu::DrawData> draws = drawData(scene, gpuScene_->packed(), state);
+  if (!draws.empty()) slot.draws.write(draws.data(), draws.size() * sizeof(gpu::DrawData));
+
+  LightSet lights = buildLights(scene, state, EmissiveLights::build(scene, state), options_.shadows);
+  // Counts are fixed at creation; a scene whose emitters changed count keeps what fits.
+  const int lightCount = std::min(int(lights.lights.size()), lightCount_);
+  const int matrixCount = std::min(int(lights.matrices.size()), matrixCount_);
+  if (lightCount > 0) slot.lights.write(lights.lights.data(), lightCount * sizeof(gpu::GpuLight));
+  if (matrixCount > 0) slot.matrices.write(lights.matrices.data(), matrixCount * sizeof(glm::mat4));
+  slot.shadowViews.clear();
+  for (const ShadowView& v : lights.views) {
+    if (v.layer < (v.array == 0 ? largeLayers_ : smallLayers_)) slot.shadowViews.push_back(v);
+  }
+
+  gpu::FrameUniforms f{};
+  for (int v = 0; v < options_.views; ++v) {
+    const ViewMatrices m = viewMatrices(input.cameras[v], options_.width, options_.height, nearPlane_);
+    f.views[v].viewProj = m.viewProj;
+    f.views[v].invViewProj = m.invViewProj;
+    f.views[v].position = glm::vec4(m.position, 1.0f);
+  }
+  f.skyZenith = glm::vec4(scene.sky.zenith, 0.0f);
+  f.skyHorizon = glm::vec4(scene.sky.horizon, 0.0f);
+  f.skyGround = glm::vec4(scene.sky.ground, 0.0f);
+  f.ambient = glm::vec4(ambient_, 0.0f);
+  f.viewport = glm::vec2(float(options_.width), float(options_.height));
+  f.exposure = scene.exposure;
+  f.lightCount = lightCount;
+  f.viewCount = options_.views;
+  f.fieldPresent = field_->present() ? 1 : 0;
+  f.sampleFlags = options_.sampleFlags;
+  f.overlayLines = int(std::min<std::size_t>(input.overlay.size(), gpu::PC_OVERLAY_MAX_LINES));
+  slot.frame.write(&f, sizeof f);
+  if (!input.overlay.empty()) {
+    const gpu::OverlayText text = makeOverlayText(input.overlay);
+    slot.overlay.write(&text, sizeof text);
+  }
+}
+
+void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input, const OutputTarget& target) {
+  Slot& slot = *slots_[current_];
+  updateFrameData(slot, input);
+  vk::GpuTimer& timer = *slot.timer;
+  const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
+  const VkPipelineLayout layout = pipelineLayout_.get();
+  const PackedScene& packed = gpuScene_->packed();
+  auto drawScene = [&] {
+    const VkDeviceSize zero = 0;
+    const VkBuffer vb = gpuScene_->vertices();
+    vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &zero);
+    vkCmdBindIndexBuffer(cmd, gpuScene_->indices(), 0, VK_INDEX_TYPE_UINT32);
+    for (std::size_t d = 0; d < packed.drawInstances.size(); ++d) {
+      const MeshRange& m = packed.meshes[scene_->instances[packed.drawInstances[d]].mesh];
+      // firstInstance carries the draw's index: the shaders read draws[gl_InstanceIndex].
+      vkCmdDrawIndexed(cmd, m.indexCount, 1, m.firstIndex, m.vertexOffset, std::uint32_t(d));
+    }
+  };
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &slot.set, 0, nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &slot.set, 0, nullptr);
+
+  timer.reset(cmd);
+  timer.begin(cmd, "upload");
+  field_->recordUploads(cmd, current_, *mirror_);
+  timer.end(cmd);
+
+  // ---- shadow maps (redrawn every frame: lights and instances move) ----
+  timer.begin(cmd, "shadows");
+  const VkPipelineStageFlags2 depthStages =
+      VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
+  const VkAccessFlags2 depthAccess =
+      VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  const VkImageAspectFlags depthAspect = VK_IMAGE_ASPECT_DEPTH_BIT;
+  imageBarriers(cmd, {{largeShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
+                       VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+                       VK_ACCESS_2_NONE, depthStages, depthAccess},
+                      {smallShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
+                       VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+                       VK_ACCESS_2_NONE, depthStages, depthAccess}});
+  for (const ShadowView& v : slot.shadowViews) {
+    const bool large = v.array == 0;
+    const std::uint32_t size = std::uint32_t(large ? options_.shadows.largeSize : options_.shadows.smallSize);
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = (large ? largeLayerViews_ : smallLayerViews_)[std::size_t(v.layer)].get();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    depth.clearValue.depthStencil = {1.0f, 0};
+    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
+    ri.renderArea = {{0, 0}, {size, size}};
+    ri.layerCount = 1;
+    ri.pDepthAttachment = &depth;
+    vkCmdBeginRendering(cmd, &ri);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
+                      large ? largeShadowPipeline_.get() : smallShadowPipeline_.get());
+    setViewport(cmd, size, size);
+    vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &v.viewProj);
+    drawScene();
+    vkCmdEndRendering(cmd);
+  }
+  imageBarriers(cmd, {{largeShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+                       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, depthStages, depthAccess,
+                       VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT},
+                      {smallShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+                       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, depthStages, depthAccess,
+                       VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT}});
+  timer.end(cmd);
+
+  // ---- main pass: direct light, emission, G-buffer ----
+  timer.begin(cmd, "main");
+  const VkPipelineStageFlags2 colorStage = VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
+  const VkAccessFlags2 colorWrite = VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
+  auto toColor = [&](const Target& t) {
+    // Contents are discarded: the previous frame's probe pass read them (compute stage).
+    return ImageBarrier{t.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                        VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                        VK_ACCESS_2_NONE, colorStage, colorWrite};
+  };
+  imageBarriers(cmd, {toColor(direct_), toColor(directResolved_), toColor(position_), toColor(normal_),
+                      toColor(albedo_),
+                      {depth_.image.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
+                       VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, depthStages, VK_ACCESS_2_NONE,
+                       depthStages, depthAccess}});
+  VkRenderingAttachmentInfo colors[4];
+  const Target* targets[4] = {&direct_, &position_, &normal_, &albedo_};
+  for (int i = 0; i < 4; ++i) {
+    colors[i] = {VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    colors[i].imageView = targets[i]->arrayView.get();
+    colors[i].imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    colors[i].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // zero: no light, and position w = 0: sky
+    colors[i].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    colors[i].clearValue.color = {{0.0f, 0.0f, 0.0f, 0.0f}};
+  }
+  // Direct light resolves (box filter over the samples) into the image the probe pass adds to.
+  colors[0].resolveMode = VK_RESOLVE_MODE_AVERAGE_BIT;
+  colors[0].resolveImageView = directResolved_.arrayView.get();
+  colors[0].resolveImageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+  colors[0].storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  depth.imageView = depth_.arrayView.get();
+  depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+  depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  depth.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  depth.clearValue.depthStencil = {0.0f, 0};  // reversed depth: 0 is infinitely far
+  VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
+  ri.renderArea = {{0, 0}, {w, h}};
+  ri.layerCount = 1;
+  ri.viewMask = options_.views == 2 ? 0b11u : 0u;
+  ri.colorAttachmentCount = 4;
+  ri.pColorAttachments = colors;
+  ri.pDepthAttachment = &depth;
+  vkCmdBeginRendering(cmd, &ri);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scenePipeline_.get());
+  setViewport(cmd, w, h);
+  drawScene();
+  vkCmdEndRendering(cmd);
+  auto toRead = [&](const Target& t) {
+    return ImageBarrier{t.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, colorStage, colorWrite,
+                        VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
+  };
+  imageBarriers(cmd, {toRead(directResolved_), toRead(position_), toRead(normal_), toRead(albedo_),
+                      {hdr_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                       VK_IMAGE_LAYOUT_GENERAL,
+                       VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                       VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                       VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT}});
+  timer.end(cmd);
+
+  // ---- probe-sampling pass ----
+  timer.begin(cmd, "probe");
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, indirectPipeline_.get());
+  vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, std::uint32_t(options_.views));
+  timer.end(cmd);
+
+  // ---- tone mapping and overlay ----
+  timer.begin(cmd, "tonemap");
+  auto pipeline = tonemapPipeline(target.format);
+  imageBarriers(cmd, {{hdr_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_GENERAL,
+                       VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                       VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                       VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                       VK_ACCESS_2_SHADER_SAMPLED_READ_BIT | VK_ACCESS_2_TRANSFER_READ_BIT},
+                      {target.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                       VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, colorStage, VK_ACCESS_2_NONE,
+                       colorStage, colorWrite}});
+  VkRenderingAttachmentInfo out{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  out.imageView = target.view;
+  out.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+  out.loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;  // every pixel is written
+  out.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  VkRenderingInfo ti{VK_STRUCTURE_TYPE_RENDERING_INFO};
+  ti.renderArea = {{0, 0}, {w, h}};
+  ti.layerCount = 1;
+  ti.viewMask = options_.views == 2 ? 0b11u : 0u;
+  ti.colorAttachmentCount = 1;
+  ti.pColorAttachments = &out;
+  if (pipeline) {
+    vkCmdBeginRendering(cmd, &ti);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, *pipeline);
+    setViewport(cmd, w, h);
+    vkCmdDraw(cmd, 3, 1, 0, 0);
+    vkCmdEndRendering(cmd);
+  } else {
+    logError("tone mapping pipeline: " + pipeline.error().message);
+  }
+  const bool present = target.finalLayout == VK_IMAGE_LAYOUT_PRESENT_SRC_KHR;
+  imageBarriers(cmd, {{target.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                       target.finalLayout, colorStage, colorWrite,
+                       present ? VK_PIPELINE_STAGE_2_NONE : VK_PIPELINE_STAGE_2_COPY_BIT,
+                       present ? VK_ACCESS_2_NONE : VK_ACCESS_2_TRANSFER_READ_BIT}});
+  timer.end(cmd);
+}
+
+Status Renderer::endFrame(VkSemaphore wait, VkSemaphore signal) {
+  Slot& slot = *slots_[current_];
+  PC_VK_TRY(vkEndCommandBuffer(slot.cmd));
+  VkCommandBufferSubmitInfo cb{VK_STRUCTURE_TYPE_COMMAND_BUFFER_SUBMIT_INFO};
+  cb.commandBuffer = slot.cmd;
+  VkSemaphoreSubmitInfo waitInfo{VK_STRUCTURE_TYPE_SEMAPHORE_SUBMIT_INFO};
+  waitInfo.semaphore = wait;
+  waitInfo.stageMask = VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
+  VkSemaphoreSubmitInfo signalInfo{VK_STRUCTURE_TYPE_SEMAPHORE_SUBMIT_INFO};
+  signalInfo.semaphore = signal;
+  signalInfo.stageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
+  VkSubmitInfo2 si{VK_STRUCTURE_TYPE_SUBMIT_INFO_2};
+  si.commandBufferInfoCount = 1;
+  si.pCommandBufferInfos = &cb;
+  si.waitSemaphoreInfoCount = wait ? 1 : 0;
+  si.pWaitSemaphoreInfos = &waitInfo;
+  si.signalSemaphoreInfoCount = signal ? 1 : 0;
+  si.pSignalSemaphoreInfos = &signalInfo;
+  PC_VK_TRY(vkQueueSubmit2(ctx_->queue(), 1, &si, slot.fence.get()));
+  slot.submitted = true;
+  return Status::success();
+}
+
+Result<Renderer::Readback> Renderer::renderOffscreen(const FrameInput& input) {
+  auto cmd = beginFrame();
+  if (!cmd) return cmd.error();
+  OutputTarget target{offscreen_.image.get(), offscreen_.arrayView.get(), kOffscreenFormat,
+                      VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
+  recordFrame(*cmd, input, target);
+  const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
+  const std::uint32_t views = std::uint32_t(options_.views);
+  const VkDeviceSize hdrBytes = VkDeviceSize(w) * h * views * 16;
+  VkBufferImageCopy region{};
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, views};
+  region.imageExtent = {w, h, 1};
+  vkCmdCopyImageToBuffer(*cmd, hdr_.image.get(), VK_IMAGE_LAYOUT_GENERAL, readback_.get(), 1, &region);
+  region.bufferOffset = hdrBytes;
+  vkCmdCopyImageToBuffer(*cmd, offscreen_.image.get(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                         readback_.get(), 1, &region);
+  vk::memoryBarrier(*cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                    VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
+  Status s = endFrame();
+  if (!s) return s.error();
+  Slot& slot = *slots_[current_];
+  const VkFence fence = slot.fence.get();
+  PC_VK_TRY(vkWaitForFences(ctx_->device(), 1, &fence, VK_TRUE, UINT64_MAX));
+  readback_.invalidate();
+  collectTimings(slot);
+
+  Readback out;
+  const auto* hdr = readback_.as<const float>();
+  const auto* ldr = reinterpret_cast<const std::uint8_t*>(readback_.as<const char>() + hdrBytes);
+  for (std::uint32_t v = 0; v < views; ++v) {
+    Image linear{int(w), int(h)};
+    Image8 display;
+    display.width = int(w);
+    display.height = int(h);
+    display.rgb.resize(std::size_t(w) * h * 3);
+    const std::size_t base = std::size_t(v) * w * h;
+    for (std::size_t i = 0; i < std::size_t(w) * h; ++i) {
+      const float* p = hdr + (base + i) * 4;
+      linear.pixels[i] = glm::vec3(p[0], p[1], p[2]);
+      const std::uint8_t* q = ldr + (base + i) * 4;
+      std::memcpy(&display.rgb[i * 3], q, 3);
+    }
+    out.linear.push_back(std::move(linear));
+    out.display.push_back(std::move(display));
+  }
+  return out;
+}
+
+}  // namespace pc::client

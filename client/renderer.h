@@ -1,0 +1,144 @@
+// The client's frame: field uploads, shadow maps, the main pass (direct light, emission and a
+// multisampled G-buffer), the probe-sampling pass (indirect light from the field's cascades,
+// per distinct surface of each pixel) and tone mapping with the overlay, in one command
+// buffer per frame. Frames rotate through kFrameSlots slots, each with its own command
+// buffer, uniforms and staging, so the CPU prepares frame N+1 while the GPU draws frame N.
+// Stereo renders both eyes in every pass with VK_KHR_multiview (2-layer targets).
+#pragma once
+
+#include <array>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "common/image.h"
+#include "common/result.h"
+#include "common/scene.h"
+#include "common/vulkan/context.h"
+#include "cpu/lighting.h"
+#include "field_gpu.h"
+#include "field_mirror.h"
+#include "gpu_scene.h"
+#include "light_pack.h"
+
+namespace pc::client {
+
+inline constexpr int kFrameSlots = 2;
+
+struct RendererOptions {
+  int width = 640, height = 360;
+  int views = 1;     // 2: stereo (multiview)
+  int msaa = 4;      // samples per pixel: 2, 4 or 8
+  ShadowSettings shadows;
+  int sampleFlags = 0;        // PC_SAMPLE_* for the field
+  int bricksPerFrame = 32;    // field upload budget per frame
+  std::optional<glm::vec3> ambient;  // irradiance where no field covers; default from the sky
+};
+
+struct FrameInput {
+  double time = 0.0;                   // animation time (lights and instances move)
+  std::array<Camera, 2> cameras;       // [0] mono or left eye, [1] right eye
+  std::vector<std::string> overlay;    // text lines; empty: no overlay
+};
+
+// Where tone mapping writes: an 8-bit UNORM color image with one layer per view.
+struct OutputTarget {
+  VkImage image = VK_NULL_HANDLE;
+  VkImageView view = VK_NULL_HANDLE;  // 2D_ARRAY view for multiview targets, else 2D
+  VkFormat format = VK_FORMAT_R8G8B8A8_UNORM;
+  VkImageLayout finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+};
+
+// GPU milliseconds of one finished frame (timestamp queries).
+struct FrameTimings {
+  bool valid = false;
+  double uploadMs = 0, shadowMs = 0, mainMs = 0, probeMs = 0, tonemapMs = 0;
+  double frameMs() const { return uploadMs + shadowMs + mainMs + probeMs + tonemapMs; }
+};
+
+class Renderer {
+ public:
+  static Result<std::unique_ptr<Renderer>> create(const vk::Context& ctx, const Scene& scene,
+                                                  FieldMirror& mirror,
+                                                  const RendererOptions& options);
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  const RendererOptions& options() const { return options_; }
+  int areaLightCount() const { return areaLights_; }
+  // New render size; waits for the GPU (resizes are rare).
+  Status resize(int width, int height);
+
+  // Waits for the next slot's previous frame (normally finished long ago), collects its
+  // timings and returns the slot's command buffer, begun.
+  Result<VkCommandBuffer> beginFrame();
+  // Records the whole frame into the command buffer from beginFrame.
+  void recordFrame(VkCommandBuffer cmd, const FrameInput& input, const OutputTarget& target);
+  // Ends and submits it; `wait` semaphores gate the tone-mapping output, `signal` (optional)
+  // fires when it is done.
+  Status endFrame(VkSemaphore wait = VK_NULL_HANDLE, VkSemaphore signal = VK_NULL_HANDLE);
+  // Timings of the most recently completed frame.
+  const FrameTimings& lastTimings() const { return timings_; }
+  void waitIdle() const;
+
+  // Headless: renders one frame into an offscreen target and reads back the linear and the
+  // tone-mapped image of every view (waits for the frame).
+  struct Readback {
+    std::vector<Image> linear;    // per view
+    std::vector<Image8> display;  // per view
+  };
+  Result<Readback> renderOffscreen(const FrameInput& input);
+
+ private:
+  Renderer() = default;
+  struct Slot;
+  Status createTargets();
+  Status createPipelines();
+  Status writeDescriptors();
+  Result<VkPipeline> tonemapPipeline(VkFormat format);
+  void updateFrameData(Slot& slot, const FrameInput& input);
+  void collectTimings(Slot& slot);
+
+  const vk::Context* ctx_ = nullptr;
+  const Scene* scene_ = nullptr;
+  FieldMirror* mirror_ = nullptr;
+  RendererOptions options_;
+  std::optional<GpuScene> gpuScene_;
+  std::optional<FieldGpu> field_;
+  int areaLights_ = 0;
+  int largeLayers_ = 0, smallLayers_ = 0;
+  int lightCount_ = 0, matrixCount_ = 0;
+  float nearPlane_ = 0.01f;
+  glm::vec3 ambient_{0.0f};
+
+  // Render targets (shared by the slots: the queue runs frames in order).
+  struct Target {
+    vk::Image image;
+    vk::UniqueImageView arrayView;
+  };
+  Target direct_, directResolved_, position_, normal_, albedo_, depth_, hdr_, offscreen_;
+  vk::Image largeShadows_, smallShadows_;
+  vk::UniqueImageView largeShadowView_, smallShadowView_;
+  std::vector<vk::UniqueImageView> largeLayerViews_, smallLayerViews_;
+
+  vk::UniqueSampler linearSampler_, shadowSampler_;
+  vk::UniqueDescriptorSetLayout setLayout_;
+  vk::UniquePipelineLayout pipelineLayout_;
+  vk::UniqueDescriptorPool descriptorPool_;
+  vk::UniquePipeline scenePipeline_, largeShadowPipeline_, smallShadowPipeline_, indirectPipeline_;
+  std::map<VkFormat, vk::UniquePipeline> tonemapPipelines_;
+
+  std::optional<vk::CommandPool> commandPool_;
+  std::vector<std::unique_ptr<Slot>> slots_;
+  int current_ = -1;
+  FrameTimings timings_;
+  vk::Buffer readback_;
+};
+
+}  // namespace pc::client

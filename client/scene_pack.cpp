@@ -1,0 +1,62 @@
+#include "scene_pack.h"
+
+namespace pc::client {
+
+PackedScene packScene(const Scene& scene) {
+  PackedScene p;
+  p.meshes.resize(scene.meshes.size());
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
+    const Mesh& mesh = scene.meshes[m];
+    MeshRange& range = p.meshes[m];
+    range.firstIndex = std::uint32_t(p.indices.size());
+    range.vertexOffset = std::int32_t(p.vertices.size());
+    const bool hasNormals = mesh.normals.size() == mesh.positions.size();
+    const bool hasUvs = mesh.uvs.size() == mesh.positions.size();
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+      p.vertices.push_back({mesh.positions[v], hasNormals ? mesh.normals[v] : glm::vec3(0.0f),
+                            hasUvs ? mesh.uvs[v] : glm::vec2(0.0f)});
+    }
+    // Triangles with an index out of range are dropped, as the CPU renders drop them.
+    for (std::size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+      const std::uint32_t a = mesh.indices[t], b = mesh.indices[t + 1], c = mesh.indices[t + 2];
+      if (a >= mesh.positions.size() || b >= mesh.positions.size() || c >= mesh.positions.size())
+        continue;
+      p.indices.insert(p.indices.end(), {a, b, c});
+    }
+    range.indexCount = std::uint32_t(p.indices.size()) - range.firstIndex;
+  }
+  for (std::size_t i = 0; i < scene.instances.size(); ++i) {
+    const int mesh = scene.instances[i].mesh;
+    if (mesh >= 0 && std::size_t(mesh) < p.meshes.size() && p.meshes[mesh].indexCount > 0)
+      p.drawInstances.push_back(int(i));
+  }
+  return p;
+}
+
+std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packed,
+                                    const SceneState& state) {
+  std::vector<gpu::DrawData> draws;
+  draws.reserve(packed.drawInstances.size());
+  for (int i : packed.drawInstances) {
+    const Instance& inst = scene.instances[i];
+    gpu::DrawData d{};
+    d.model = std::size_t(i) < state.instanceTransforms.size() ? state.instanceTransforms[i]
+                                                               : inst.transform;
+    d.normalMatrix = glm::transpose(glm::inverse(d.model));
+    const int mat = scene.meshes[inst.mesh].material;
+    d.textures = glm::ivec4(-1, -1, 0, 0);
+    d.baseColor = glm::vec4(0.8f, 0.8f, 0.8f, 0.0f);
+    if (mat >= 0 && std::size_t(mat) < scene.materials.size()) {
+      const Material& m = scene.materials[mat];
+      d.baseColor = glm::vec4(m.baseColor, 0.0f);
+      d.emissive = glm::vec4(m.emissive, 0.0f);
+      const int textures = int(scene.textures.size());
+      d.textures.x = m.baseColorTexture < textures ? m.baseColorTexture : -1;
+      d.textures.y = m.emissiveTexture < textures ? m.emissiveTexture : -1;
+    }
+    draws.push_back(d);
+  }
+  return draws;
+}
+
+}  // namespace pc::client

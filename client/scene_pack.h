@@ -1,0 +1,41 @@
+// The scene in the form the rasterizer draws it: one vertex and one index array for all
+// meshes, and one DrawData record per instance (transform and material), rebuilt per frame
+// from the animated SceneState.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "common/scene.h"
+#include "shaders/interop/client_frame.h"
+
+namespace pc::client {
+
+struct Vertex {
+  glm::vec3 position;
+  glm::vec3 normal;
+  glm::vec2 uv;
+};
+static_assert(sizeof(Vertex) == 32);
+
+struct MeshRange {
+  std::uint32_t firstIndex = 0, indexCount = 0;
+  std::int32_t vertexOffset = 0;
+};
+
+struct PackedScene {
+  std::vector<Vertex> vertices;
+  std::vector<std::uint32_t> indices;
+  std::vector<MeshRange> meshes;  // per Scene::meshes entry
+  std::vector<int> drawInstances;  // instance of each draw (instances with a drawable mesh)
+};
+
+PackedScene packScene(const Scene& scene);
+
+// One record per draw of `packed`, at the state's animation time.
+std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packed,
+                                    const SceneState& state);
+
+}  // namespace pc::client

@@ -1,0 +1,126 @@
+// GPU-visible structs of the client renderer, shared by client/ and shaders/client/: the
+// per-frame uniforms, one record per draw, one per light, and the descriptor bindings. std140
+// (uniforms) and std430 (buffers) agree on these layouts because every member is a scalar,
+// a vec4 or a mat4 placed on a 16-byte boundary; C++ checks the sizes with static_assert.
+#ifndef PC_CLIENT_FRAME_H
+#define PC_CLIENT_FRAME_H
+
+#include "pc_interop.h"
+
+PC_BEGIN
+
+// Descriptor bindings of the client's one descriptor set (set 0).
+PC_CONST int PC_BIND_FRAME = 0;          // uniform FrameUniforms
+PC_CONST int PC_BIND_FIELD_DESC = 1;     // uniform FieldDesc
+PC_CONST int PC_BIND_DRAWS = 2;          // buffer DrawData[]
+PC_CONST int PC_BIND_LIGHTS = 3;         // buffer GpuLight[]
+PC_CONST int PC_BIND_SHADOW_MATRICES = 4;  // buffer mat4[] (one per shadow layer)
+PC_CONST int PC_BIND_PROBES = 5;         // buffer vec4[]: relocation offset xyz, state w
+PC_CONST int PC_BIND_IRRADIANCE = 6;     // sampler2D, linear
+PC_CONST int PC_BIND_DEPTH = 7;          // sampler2D, linear
+PC_CONST int PC_BIND_OCCLUSION = 8;      // sampler2D, linear
+PC_CONST int PC_BIND_SHADOW_MAPS = 9;    // sampler2DArrayShadow[2]: large maps, small maps
+PC_CONST int PC_BIND_TEXTURES = 10;      // sampler2D[textureCount]
+PC_CONST int PC_BIND_G_POSITION = 11;    // sampler2DMSArray: world position, w = 1 on geometry
+PC_CONST int PC_BIND_G_NORMAL = 12;      // sampler2DMSArray: shading normal
+PC_CONST int PC_BIND_G_ALBEDO = 13;      // sampler2DMSArray: diffuse albedo
+PC_CONST int PC_BIND_DIRECT = 14;        // sampler2DArray: resolved direct light + emission
+PC_CONST int PC_BIND_HDR_IMAGE = 15;     // image2DArray rgba32f: the final linear frame
+PC_CONST int PC_BIND_HDR_TEXTURE = 16;   // sampler2DArray: the same image, read by tone mapping
+PC_CONST int PC_BIND_OVERLAY = 17;       // buffer OverlayText
+PC_CONST int PC_BINDING_COUNT = 18;
+
+// Light kinds (GpuLight.type). Area lights are virtual point lights standing for a patch of
+// an emissive surface: they emit only to their front (cosine falloff), like the emitter.
+PC_CONST int PC_LIGHT_POINT = 0;
+PC_CONST int PC_LIGHT_SPOT = 1;
+PC_CONST int PC_LIGHT_DIRECTIONAL = 2;
+PC_CONST int PC_LIGHT_AREA = 3;
+
+PC_CONST int PC_MAX_VIEWS = 2;
+
+struct ClientView {
+  mat4 viewProj;     // world -> clip (Vulkan: y down, reversed depth 1 at near, 0 at infinity)
+  mat4 invViewProj;  // clip -> world
+  vec4 position;     // camera position, w unused
+};
+
+struct FrameUniforms {
+  ClientView views[PC_MAX_VIEWS];
+  // -- 288
+  vec4 skyZenith;   // rgb radiance, w unused
+  vec4 skyHorizon;
+  vec4 skyGround;
+  vec4 ambient;     // rgb: irradiance used where no cascade holds data
+  // -- 352
+  vec2 viewport;    // render size in pixels
+  float exposure;
+  int lightCount;
+  // -- 368
+  int viewCount;
+  int fieldPresent;  // 0: no field at all, ambient everywhere
+  int sampleFlags;   // PC_SAMPLE_* of field_desc.h
+  int overlayLines;  // 0: no overlay text
+  // -- 384
+};
+
+// One draw: an instance of a mesh with its material. Indexed by gl_InstanceIndex (each draw
+// is issued with firstInstance = its index).
+struct DrawData {
+  mat4 model;         // object -> world
+  mat4 normalMatrix;  // inverse transpose of model (upper 3x3 used)
+  vec4 baseColor;     // linear albedo factor, w unused
+  vec4 emissive;      // linear emitted radiance factor, w unused
+  ivec4 textures;     // x: base color texture (-1 none), y: emissive texture (-1 none)
+};
+
+struct GpuLight {
+  vec3 position;
+  int type;           // PC_LIGHT_*
+  // -- 16
+  vec3 direction;     // where the light travels (spot, directional); area: the emitter normal
+  float range;        // 0: unlimited
+  // -- 32
+  vec3 power;         // color x intensity: W/sr (point, spot), W/m^2 (directional);
+                      // area: radiance x patch area (W/sr at normal incidence)
+  float cosOuter;
+  // -- 48
+  float cosInner;
+  int shadowLayer;    // first layer in its shadow array (6 for cube faces), -1: no shadow
+  int shadowArray;    // 0: large maps (sun, spots, points), 1: small maps (area lights)
+  float normalOffset;  // world units per unit of distance (perspective) or absolute (sun)
+  // -- 64
+  int shadowMatrix;   // index of its first matrix in the shadow matrix buffer
+  float shadowTexel;  // 1 / shadow map resolution
+  float depthBias;    // subtracted from the receiver's shadow-map depth
+  int pad0;
+  // -- 80
+};
+
+// Overlay text: `lines` x `columns` character codes (ASCII), one per uint, drawn with the
+// 5x7 font in `glyphs` (7 rows of 5 bits per glyph, glyphs for codes 32..127).
+PC_CONST int PC_OVERLAY_COLUMNS = 48;
+PC_CONST int PC_OVERLAY_MAX_LINES = 4;
+PC_CONST int PC_FONT_FIRST = 32;
+PC_CONST int PC_FONT_GLYPHS = 96;
+PC_CONST int PC_FONT_ROWS = 7;
+PC_CONST int PC_FONT_COLUMNS = 5;
+
+struct OverlayText {
+  uint glyphs[PC_FONT_GLYPHS * PC_FONT_ROWS];
+  uint text[PC_OVERLAY_MAX_LINES * PC_OVERLAY_COLUMNS];
+};
+
+PC_END
+
+#ifdef __cplusplus
+static_assert(sizeof(pc::gpu::ClientView) == 144);
+static_assert(sizeof(pc::gpu::FrameUniforms) == 384);
+static_assert(sizeof(pc::gpu::DrawData) == 176);
+static_assert(sizeof(pc::gpu::GpuLight) == 80);
+static_assert(sizeof(pc::gpu::OverlayText) ==
+              4 * (pc::gpu::PC_FONT_GLYPHS * pc::gpu::PC_FONT_ROWS +
+                   pc::gpu::PC_OVERLAY_MAX_LINES * pc::gpu::PC_OVERLAY_COLUMNS));
+#endif
+
+#endif

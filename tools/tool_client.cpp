@@ -1,0 +1,83 @@
+// probecast-client: renders a scene lit directly and by the probe field it holds (the baked
+// fallback file here; the server's stream later), headless to PNG/EXR files or in a window.
+#include <cstdio>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "client/client_app.h"
+#include "common/log.h"
+
+namespace {
+
+// "x,y,z" -> vec3; false on bad text.
+bool parseVec3(const std::string& text, glm::vec3& out) {
+  float x, y, z;
+  char tail;
+  if (std::sscanf(text.c_str(), "%f,%f,%f%c", &x, &y, &z, &tail) != 3) return false;
+  out = glm::vec3(x, y, z);
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"probecast client: Vulkan raster lit directly and by the probe cascades"};
+  pc::client::ClientConfig c;
+  std::string pos, dir, target, resize;
+  float fov = 0.0f;
+  bool noOverlay = false, noExr = false;
+  app.add_option("--scene", c.scene, "scene file (.gltf/.glb/.obj) or 'builtin'")->required();
+  app.add_option("--sidecar", c.sidecar, "scene.json sidecar");
+  app.add_option("--probes", c.probes, "baked field (.probes): the fallback indirect light");
+  app.add_option("--out", c.outDir, "headless: output folder");
+  app.add_option("--prefix", c.prefix, "headless: file name prefix");
+  app.add_option("--width", c.width, "render width");
+  app.add_option("--height", c.height, "render height");
+  app.add_option("--frames", c.frames, "frames to render (windowed: 0 runs until closed)");
+  app.add_option("--time", c.startTime, "animation time of the first frame, seconds");
+  app.add_option("--dt", c.dt, "seconds per frame (windowed: negative follows the clock)");
+  app.add_option("--camera", c.camera, "scene camera index");
+  app.add_option("--pos", pos, "camera position x,y,z");
+  app.add_option("--dir", dir, "camera direction x,y,z");
+  app.add_option("--target", target, "camera target x,y,z");
+  app.add_option("--fov", fov, "vertical field of view, degrees");
+  app.add_flag("--stereo", c.stereo, "render both eyes in one pass (multiview)");
+  app.add_option("--ipd", c.ipd, "interpupillary distance, scene units");
+  app.add_flag("--window", c.windowed, "open a window (GLFW) instead of writing files");
+  app.add_flag("--validation", c.validation, "Vulkan validation layer; errors fail the run");
+  app.add_flag("--no-overlay", noOverlay, "windowed: no text overlay");
+  app.add_flag("--no-exr", noExr, "headless: PNG only");
+  app.add_option("--msaa", c.msaa, "samples per pixel (2, 4, 8)");
+  app.add_option("--shadow-size", c.shadows.largeSize, "sun, spot and point shadow maps, texels");
+  app.add_option("--area-shadow-size", c.shadows.smallSize, "emitter light shadow maps, texels");
+  app.add_option("--area-lights", c.shadows.areaLights, "virtual point lights for emitters");
+  app.add_option("--sample-flags", c.sampleFlags, "field sampling flags (1: no visibility)");
+  app.add_option("--ready-file", c.readyFile, "windowed: written after half the frames");
+  app.add_option("--test-resize", resize, "windowed: resize the window to WxH after 2 frames");
+  CLI11_PARSE(app, argc, argv);
+
+  glm::vec3 v;
+  if (!pos.empty()) {
+    if (!parseVec3(pos, v)) return pc::logError("--pos: expected x,y,z"), 1;
+    c.position = v;
+  }
+  if (!dir.empty()) {
+    if (!parseVec3(dir, v)) return pc::logError("--dir: expected x,y,z"), 1;
+    c.direction = v;
+  }
+  if (!target.empty()) {
+    if (!parseVec3(target, v)) return pc::logError("--target: expected x,y,z"), 1;
+    c.target = v;
+  }
+  if (fov > 0.0f) c.fovDegrees = fov;
+  if (!resize.empty()) {
+    int w = 0, h = 0;
+    if (std::sscanf(resize.c_str(), "%dx%d", &w, &h) != 2 || w <= 0 || h <= 0)
+      return pc::logError("--test-resize: expected WxH"), 1;
+    c.testResize = glm::ivec2(w, h);
+  }
+  c.overlay = !noOverlay;
+  c.writeExr = !noExr;
+  return c.windowed ? pc::client::runWindowed(c) : pc::client::runHeadless(c);
+}
