@@ -36,9 +36,10 @@ Atlas makeAtlas(int tileSize, int tileRows, int channels) {
 // k + 0.5). The border guarantees all four texels lie inside the tile.
 template <int C>
 void bilinear(const Atlas& atlas, ivec2 origin, vec2 tc, int tileSize, float* out) {
+  // tc lies in [1, tileSize - 1], so fx and fy are positive and truncation is floor.
   float fx = tc.x - 0.5f, fy = tc.y - 0.5f;
-  int x0 = std::clamp(int(std::floor(fx)), 0, tileSize - 2);
-  int y0 = std::clamp(int(std::floor(fy)), 0, tileSize - 2);
+  int x0 = std::clamp(int(fx), 0, tileSize - 2);
+  int y0 = std::clamp(int(fy), 0, tileSize - 2);
   float ax = std::clamp(fx - float(x0), 0.0f, 1.0f), ay = std::clamp(fy - float(y0), 0.0f, 1.0f);
   const float* t00 = atlas.at(origin.x + x0, origin.y + y0);
   const float* t10 = atlas.at(origin.x + x0 + 1, origin.y + y0);
@@ -69,6 +70,7 @@ void fixTileBorder(Atlas& atlas, ivec2 origin, int n) {
 Field Field::create(const std::vector<ProbeVolume>& volumes, const FieldSettings& settings) {
   Field f;
   f.settings = settings;
+  f.settings.raysPerProbe = std::clamp(settings.raysPerProbe, 16, 1024);
   const int count = std::min<int>(int(volumes.size()), PC_MAX_CASCADES);
   f.desc.cascadeCount = count;
   f.desc.hysteresis = settings.hysteresis;
@@ -147,11 +149,26 @@ glm::vec2 fetchDepth(const Field& field, int cascade, int slot, glm::vec3 dir) {
 
 namespace pc::gpu {
 
+namespace {
+// The irradiance and occlusion fetches of one cage all look up the surface normal: remember
+// the last direction's tile coordinate instead of encoding it eight times.
+template <int N>
+vec2 cachedTileCoord(vec3 dir) {
+  thread_local vec3 lastDir(0.0f);
+  thread_local vec2 lastCoord = pcTileCoord(vec3(0.0f, 0.0f, 1.0f), N);
+  if (dir != lastDir) {
+    lastDir = dir;
+    lastCoord = pcTileCoord(dir, N);
+  }
+  return lastCoord;
+}
+}  // namespace
+
 vec3 pcFetchIrradiance(const pc::Field& field, int cascade, int slot, vec3 dir) {
   constexpr int n = PC_IRRADIANCE_TEXELS;
   vec3 out;
   pc::bilinear<3>(field.irradiance, pcAtlasTileOrigin(field.desc.cascades[cascade], slot, n + 2),
-                  pcTileCoord(dir, n), n + 2, &out.x);
+                  cachedTileCoord<n>(dir), n + 2, &out.x);
   return out;
 }
 
@@ -167,7 +184,7 @@ float pcFetchOcclusion(const pc::Field& field, int cascade, int slot, vec3 dir) 
   constexpr int n = PC_OCCLUSION_TEXELS;
   float out;
   pc::bilinear<1>(field.occlusion, pcAtlasTileOrigin(field.desc.cascades[cascade], slot, n + 2),
-                  pcTileCoord(dir, n), n + 2, &out);
+                  pcTileCoord(dir, n), n + 2, &out);  // rarely needed: no cache
   return out;
 }
 

@@ -14,7 +14,7 @@
 namespace pc {
 
 struct FieldSettings {
-  int raysPerProbe = 256;
+  int raysPerProbe = 256;        // 16..1024 (Field::create clamps)
   float hysteresis = 0.97f;
   float distanceExponent = 50.0f;
   float normalBias = 0.1f;       // fraction of spacing

@@ -19,6 +19,44 @@ static double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
+namespace {
+
+// A probe-ray hit waiting for its indirect light.
+struct DeferredHit {
+  static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
+  glm::vec3 position, normal, reflectance;  // reflectance = albedo / pi
+  std::uint32_t key;                        // Morton code of the position, kNone: nothing to do
+};
+
+// Morton code of a position quantized to the finest cascade's spacing (10 bits per axis).
+std::uint32_t spatialKey(const Field& field, glm::vec3 p) {
+  const gpu::CascadeDesc& c = field.cascade(0);
+  glm::ivec3 q = glm::clamp(glm::ivec3(glm::floor((p - c.origin) / c.spacing)) + 512, 0, 1023);
+  auto spread = [](std::uint32_t v) {
+    v = (v | (v << 16)) & 0x030000FFu;
+    v = (v | (v << 8)) & 0x0300F00Fu;
+    v = (v | (v << 4)) & 0x030C30C3u;
+    v = (v | (v << 2)) & 0x09249249u;
+    return v;
+  };
+  return spread(std::uint32_t(q.x)) | spread(std::uint32_t(q.y)) << 1 | spread(std::uint32_t(q.z)) << 2;
+}
+
+// Sorts by the upper 32 bits (LSD radix, 8 bits a pass, stable): linear time where the hit
+// count runs to millions.
+void radixSortByHighWord(std::vector<std::uint64_t>& v) {
+  std::vector<std::uint64_t> tmp(v.size());
+  for (int shift = 32; shift < 64; shift += 8) {
+    std::size_t count[257] = {};
+    for (std::uint64_t x : v) ++count[((x >> shift) & 0xFF) + 1];
+    for (int i = 0; i < 256; ++i) count[i + 1] += count[i];
+    for (std::uint64_t x : v) tmp[count[(x >> shift) & 0xFF]++] = x;
+    v.swap(tmp);
+  }
+}
+
+}  // namespace
+
 std::vector<glm::vec3> probeRayDirections(int rayCount, std::uint32_t rotationSeed) {
   glm::mat3 rotation = gpu::pcRandomRotation(rotationSeed);
   std::vector<glm::vec3> dirs(rayCount);
@@ -71,7 +109,10 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
   const float inf = std::numeric_limits<float>::infinity();
   tbb::enumerable_thread_specific<std::uint64_t> shadowRays(0);
 
-  // Phase 1: trace and shade. Reads the field (indirect light at hits) but never writes it.
+  // Phase 1: trace, shade with direct light and emission. Hits that need indirect light from
+  // the field are deferred: evaluated in phase 1b in spatial order.
+  const bool indirect = !(request.shading & kShadeNoIndirect);
+  std::vector<DeferredHit> deferred(indirect ? probeCount * rayCount : 0);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probeCount, 4), [&](const auto& range) {
     std::uint64_t& shadows = shadowRays.local();
     DirectLightOptions lightOptions;
@@ -84,6 +125,7 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
       RayResult* out = &results[p * rayCount];
       for (int i = 0; i < rayCount; ++i) {
         Hit hit;
+        if (indirect) deferred[p * rayCount + i].key = DeferredHit::kNone;
         if (!embree_->intersect(origin, dirs[i], 0.0f, inf, hit)) {
           out[i] = {scene_.sky.radiance(dirs[i]), inf};
           continue;
@@ -95,15 +137,37 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
         }
         glm::vec3 irradiance =
             directIrradiance(*embree_, state_, emissive_, sp.position, sp.normal, rng, lightOptions);
-        if (!(request.shading & kShadeNoIndirect)) {
-          irradiance += glm::vec3(sampleField(field, sp.position, sp.normal, -dirs[i],
-                                              gpu::PC_SAMPLE_NO_OCCLUSION));
-        }
         glm::vec3 emitted = emissive_.sampled(sp.material) ? glm::vec3(0.0f) : sp.emission;
-        out[i] = {emitted + sp.albedo * (1.0f / gpu::PC_PI) * irradiance, hit.t};
+        glm::vec3 reflectance = sp.albedo * (1.0f / gpu::PC_PI);
+        out[i] = {emitted + reflectance * irradiance, hit.t};
+        if (indirect && (reflectance.x > 0 || reflectance.y > 0 || reflectance.z > 0)) {
+          deferred[p * rayCount + i] = {sp.position, sp.normal, reflectance,
+                                        spatialKey(field, sp.position)};
+        }
       }
     }
   });
+
+  // Phase 1b: indirect light at the hits from the field of the previous update. Sampling the
+  // field touches the tiles of eight probes per hit; in ray order those are scattered over the
+  // atlases and most reads miss the caches. Sorted along a Morton curve, consecutive hits share
+  // their cages and the tiles stay cached.
+  if (indirect) {
+    std::vector<std::uint64_t> order;
+    order.reserve(deferred.size());
+    for (std::size_t r = 0; r < deferred.size(); ++r)
+      if (deferred[r].key != DeferredHit::kNone) order.push_back(std::uint64_t(deferred[r].key) << 32 | r);
+    radixSortByHighWord(order);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, order.size(), 256), [&](const auto& range) {
+      for (std::size_t j = range.begin(); j != range.end(); ++j) {
+        const std::size_t r = std::size_t(order[j] & 0xFFFFFFFFu);
+        const DeferredHit& h = deferred[r];
+        const glm::vec3 V = -dirs[r % std::size_t(rayCount)];
+        results[r].radiance +=
+            h.reflectance * glm::vec3(sampleField(field, h.position, h.normal, V, gpu::PC_SAMPLE_NO_OCCLUSION));
+      }
+    });
+  }
   stats.traceMs = msSince(t0);
   stats.probeRays = std::uint64_t(probeCount) * rayCount;
   for (std::uint64_t n : shadowRays) stats.shadowRays += n;
@@ -111,11 +175,12 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
   // Phase 2: blend every probe (disjoint tiles, so in parallel), then mark changed bricks.
   const auto t1 = Clock::now();
   std::vector<float> change(probeCount, 0.0f);
+  const BlendTaps taps = BlendTaps::build(dirs.data(), rayCount, field.settings.distanceExponent);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probeCount, 8), [&](const auto& range) {
     for (std::size_t p = range.begin(); p != range.end(); ++p) {
       const ProbeRef ref = request.probes[p];
       change[p] = blendProbe(field, ref.cascade, ref.slot, &results[p * rayCount], dirs.data(),
-                             rayCount);
+                             rayCount, taps);
     }
   });
   const std::uint64_t next = field.version + 1;

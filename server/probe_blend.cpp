@@ -37,26 +37,36 @@ struct LobePower {
   bool integer;
 };
 
-// Accumulates one channel group of a tile: for each texel, the weighted mean of `value` over
-// rays whose lobe weight exceeds `cutoff`. Rays are in structure-of-arrays form so the dot
-// products vectorize.
-struct RaysSoA {
-  std::vector<float> x, y, z;
-  void assign(const glm::vec3* dirs, int n) {
-    x.resize(n), y.resize(n), z.resize(n);
-    for (int i = 0; i < n; ++i) x[i] = dirs[i].x, y[i] = dirs[i].y, z[i] = dirs[i].z;
-  }
-};
+}  // namespace
 
-void dots(const RaysSoA& r, glm::vec3 d, float* out) {
-  const int n = int(r.x.size());
-  const float* __restrict rx = r.x.data();
-  const float* __restrict ry = r.y.data();
-  const float* __restrict rz = r.z.data();
-  for (int i = 0; i < n; ++i) out[i] = rx[i] * d.x + ry[i] * d.y + rz[i] * d.z;
+TexelTaps TexelTaps::build(const std::vector<glm::vec3>& texelDirs, const glm::vec3* rayDirs,
+                           int rayCount, float exponent, float minWeight) {
+  TexelTaps taps;
+  const LobePower lobe(exponent);
+  taps.begin.reserve(texelDirs.size() + 1);
+  for (const glm::vec3& t : texelDirs) {
+    taps.begin.push_back(std::uint32_t(taps.ray.size()));
+    for (int i = 0; i < rayCount; ++i) {
+      float c = glm::dot(t, rayDirs[i]);
+      if (c <= 0.0f) continue;
+      float w = exponent == 1.0f ? c : lobe(c);
+      if (w <= minWeight) continue;
+      taps.ray.push_back(std::uint16_t(i));
+      taps.weight.push_back(w);
+    }
+  }
+  taps.begin.push_back(std::uint32_t(taps.ray.size()));
+  return taps;
 }
 
-}  // namespace
+BlendTaps BlendTaps::build(const glm::vec3* rayDirs, int rayCount, float distanceExponent) {
+  const TexelDirections& t = TexelDirections::get();
+  // Depth: weights under 1e-4 of the peak change the moments by less than float rounding of
+  // a typical sum; they are most of the pairs, since the cos^50 lobe is narrow.
+  return {TexelTaps::build(t.irradiance, rayDirs, rayCount, 1.0f, 0.0f),
+          TexelTaps::build(t.depth, rayDirs, rayCount, distanceExponent, 1e-4f),
+          TexelTaps::build(t.occlusion, rayDirs, rayCount, 1.0f, 0.0f)};
+}
 
 const TexelDirections& TexelDirections::get() {
   static const TexelDirections dirs{tileDirections(PC_IRRADIANCE_TEXELS),
@@ -66,10 +76,9 @@ const TexelDirections& TexelDirections::get() {
 }
 
 float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm::vec3* dirs,
-                 int rayCount) {
+                 int rayCount, const BlendTaps& taps) {
   const CascadeDesc& c = field.cascade(k);
   ProbeRecord& record = field.probe(k, slot);
-  const TexelDirections& texels = TexelDirections::get();
   const float inf = std::numeric_limits<float>::infinity();
 
   // ---- classification and relocation statistics ----
@@ -112,24 +121,21 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
                  : 0.0f;
   record.updates = hasHistory ? record.updates + 1 : 1;
 
-  RaysSoA soa;
-  soa.assign(dirs, rayCount);
-  std::vector<float> cosines(rayCount);
   float maxChange = (oldState != record.state || moved) ? inf : 0.0f;
 
   // ---- irradiance: E = pi * cos-weighted mean radiance; backface rays carry no light ----
   {
     constexpr int n = PC_IRRADIANCE_TEXELS;
+    const TexelTaps& tt = taps.irradiance;
     glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
     for (int t = 0; t < n * n; ++t) {
-      dots(soa, texels.irradiance[t], cosines.data());
       glm::vec3 sum(0.0f);
       float weight = 0.0f;
-      for (int i = 0; i < rayCount; ++i) {
-        float w = cosines[i];
-        if (w <= 0.0f || rays[i].distance < 0.0f) continue;
-        sum += w * rays[i].radiance;
-        weight += w;
+      for (std::uint32_t j = tt.begin[t]; j < tt.begin[t + 1]; ++j) {
+        const RayResult& r = rays[tt.ray[j]];
+        if (r.distance < 0.0f) continue;
+        sum += tt.weight[j] * r.radiance;
+        weight += tt.weight[j];
       }
       if (weight <= 0.0f) continue;
       glm::vec3 sample = pcEncodeIrradiance(PC_PI * sum / weight);
@@ -144,23 +150,20 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
   // ---- depth moments: sharp lobe; backface hits count at a fraction of their distance ----
   {
     constexpr int n = PC_DEPTH_TEXELS;
+    const TexelTaps& tt = taps.depth;
     glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
-    const LobePower lobe(field.settings.distanceExponent);
-    // Below this cosine the lobe weight is under 1e-4: skip the power.
-    const float cutoff = std::exp(std::log(1e-4f) / std::max(lobe.exponent, 1.0f));
-    std::vector<float> distance(rayCount);
-    for (int i = 0; i < rayCount; ++i) {
+    float distance[1024];
+    const int count = std::min(rayCount, 1024);
+    for (int i = 0; i < count; ++i) {
       float d = rays[i].distance;
       distance[i] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : std::min(d, c.maxRayDistance);
     }
     for (int t = 0; t < n * n; ++t) {
-      dots(soa, texels.depth[t], cosines.data());
       float m1 = 0.0f, m2 = 0.0f, weight = 0.0f;
-      for (int i = 0; i < rayCount; ++i) {
-        if (cosines[i] <= cutoff) continue;
-        float w = lobe(cosines[i]);
-        m1 += w * distance[i];
-        m2 += w * distance[i] * distance[i];
+      for (std::uint32_t j = tt.begin[t]; j < tt.begin[t + 1]; ++j) {
+        const float d = distance[tt.ray[j]], w = tt.weight[j];
+        m1 += w * d;
+        m2 += w * d * d;
         weight += w;
       }
       if (weight <= 0.0f) continue;
@@ -172,16 +175,14 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
   // ---- occlusion: cos-weighted share of rays that travel past d_max ----
   {
     constexpr int n = PC_OCCLUSION_TEXELS;
+    const TexelTaps& tt = taps.occlusion;
     glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
     const float dmax = field.desc.occlusionDistance;
     for (int t = 0; t < n * n; ++t) {
-      dots(soa, texels.occlusion[t], cosines.data());
       float open = 0.0f, weight = 0.0f;
-      for (int i = 0; i < rayCount; ++i) {
-        float w = cosines[i];
-        if (w <= 0.0f) continue;
-        open += rays[i].distance > dmax ? w : 0.0f;
-        weight += w;
+      for (std::uint32_t j = tt.begin[t]; j < tt.begin[t + 1]; ++j) {
+        open += rays[tt.ray[j]].distance > dmax ? tt.weight[j] : 0.0f;
+        weight += tt.weight[j];
       }
       if (weight <= 0.0f) continue;
       float* texel = field.occlusion.at(origin.x + 1 + t % n, origin.y + 1 + t / n);

@@ -4,6 +4,7 @@
 // shared math (shaders/interop/probe_update.h).
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -25,9 +26,26 @@ struct TexelDirections {
   static const TexelDirections& get();
 };
 
-// Blends `rays` (with directions `dirs`) into probe (k, slot); returns the largest change of
-// an encoded irradiance texel, for change detection.
+// Which rays feed which texel, with what lobe weight. Every probe of an update shares the ray
+// directions, so the weights are computed once per update rather than once per probe; only
+// taps above a negligible weight are kept (the depth lobe is narrow).
+struct TexelTaps {
+  std::vector<std::uint32_t> begin;  // texel t's taps: [begin[t], begin[t + 1])
+  std::vector<std::uint16_t> ray;
+  std::vector<float> weight;
+  static TexelTaps build(const std::vector<glm::vec3>& texelDirs, const glm::vec3* rayDirs,
+                         int rayCount, float exponent, float minWeight);
+};
+
+struct BlendTaps {
+  TexelTaps irradiance, depth, occlusion;
+  static BlendTaps build(const glm::vec3* rayDirs, int rayCount, float distanceExponent);
+};
+
+// Blends `rays` (with directions `dirs`, weights `taps` built from the same directions) into
+// probe (k, slot); returns the largest change of an encoded irradiance texel, for change
+// detection.
 float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm::vec3* dirs,
-                 int rayCount);
+                 int rayCount, const BlendTaps& taps);
 
 }  // namespace pc

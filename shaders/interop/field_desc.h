@@ -38,7 +38,7 @@ struct CascadeDesc {
   ivec3 counts;        // probes per axis
   int firstProbe;      // index of this cascade's first probe in field-wide probe arrays
   // -- 32
-  ivec3 scroll;        // toroidal shift: physical = (logical + scroll) mod counts
+  ivec3 scroll;        // toroidal shift, in [0, counts): physical = (logical + scroll) mod counts
   int atlasTileRow;    // first atlas tile row of this cascade
   // -- 48
   float normalBias;    // world units, along the surface normal

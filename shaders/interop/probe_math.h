@@ -97,52 +97,61 @@ PC_FN mat3 pcRandomRotation(uint seed) {
 
 PC_FN ivec3 pcWrap(ivec3 v, ivec3 n) { return ivec3(((v.x % n.x) + n.x) % n.x, ((v.y % n.y) + n.y) % n.y, ((v.z % n.z) + n.z) % n.z); }
 
-// Logical grid coordinate -> physical storage coordinate (toroidal scroll).
-PC_FN ivec3 pcPhysicalCoord(CascadeDesc c, ivec3 logical) { return pcWrap(logical + c.scroll, c.counts); }
-PC_FN ivec3 pcLogicalCoord(CascadeDesc c, ivec3 physical) { return pcWrap(physical - c.scroll, c.counts); }
+// Logical grid coordinate -> physical storage coordinate (toroidal scroll). Both the
+// coordinate and the scroll lie in [0, counts), so one conditional subtraction wraps: this runs
+// for every probe of every cage, and integer division by a variable is slow on every processor.
+PC_FN int pcWrapOnce(int v, int n) { return v >= n ? v - n : v; }
+PC_FN ivec3 pcPhysicalCoord(PC_IN(CascadeDesc) c, ivec3 logical) {
+  ivec3 v = logical + c.scroll;
+  return ivec3(pcWrapOnce(v.x, c.counts.x), pcWrapOnce(v.y, c.counts.y), pcWrapOnce(v.z, c.counts.z));
+}
+PC_FN ivec3 pcLogicalCoord(PC_IN(CascadeDesc) c, ivec3 physical) {
+  ivec3 v = physical - c.scroll + c.counts;
+  return ivec3(pcWrapOnce(v.x, c.counts.x), pcWrapOnce(v.y, c.counts.y), pcWrapOnce(v.z, c.counts.z));
+}
 
 // Physical coordinate -> index within the cascade. Probes are stored brick by brick so a
 // brick's probes are contiguous (one range to read, upload or send).
-PC_FN ivec3 pcBrickCounts(CascadeDesc c) {
+PC_FN ivec3 pcBrickCounts(PC_IN(CascadeDesc) c) {
   return ivec3((c.counts.x + PC_BRICK_SIZE - 1) / PC_BRICK_SIZE,
                (c.counts.y + PC_BRICK_SIZE - 1) / PC_BRICK_SIZE,
                (c.counts.z + PC_BRICK_SIZE - 1) / PC_BRICK_SIZE);
 }
-PC_FN int pcBrickCount(CascadeDesc c) {
+PC_FN int pcBrickCount(PC_IN(CascadeDesc) c) {
   ivec3 b = pcBrickCounts(c);
   return b.x * b.y * b.z;
 }
-PC_FN int pcBrickIndex(CascadeDesc c, ivec3 physical) {
+PC_FN int pcBrickIndex(PC_IN(CascadeDesc) c, ivec3 physical) {
   ivec3 b = pcBrickCounts(c);
   ivec3 bc = physical / PC_BRICK_SIZE;
   return bc.x + b.x * (bc.y + b.y * bc.z);
 }
-PC_FN ivec3 pcBrickCoord(CascadeDesc c, int brick) {
+PC_FN ivec3 pcBrickCoord(PC_IN(CascadeDesc) c, int brick) {
   ivec3 b = pcBrickCounts(c);
   return ivec3(brick % b.x, (brick / b.x) % b.y, brick / (b.x * b.y));
 }
 PC_CONST int PC_PROBES_PER_BRICK = PC_BRICK_SIZE * PC_BRICK_SIZE * PC_BRICK_SIZE;
 // Slot index of a probe inside the cascade: brick * 64 + position in brick. Slots of bricks
 // that overhang the grid edge are allocated but never hold a probe.
-PC_FN int pcProbeSlot(CascadeDesc c, ivec3 physical) {
+PC_FN int pcProbeSlot(PC_IN(CascadeDesc) c, ivec3 physical) {
   ivec3 inb = physical - (physical / PC_BRICK_SIZE) * PC_BRICK_SIZE;
   return pcBrickIndex(c, physical) * PC_PROBES_PER_BRICK + inb.x +
          PC_BRICK_SIZE * (inb.y + PC_BRICK_SIZE * inb.z);
 }
-PC_FN ivec3 pcSlotCoord(CascadeDesc c, int slot) {
+PC_FN ivec3 pcSlotCoord(PC_IN(CascadeDesc) c, int slot) {
   ivec3 bc = pcBrickCoord(c, slot / PC_PROBES_PER_BRICK);
   int s = slot % PC_PROBES_PER_BRICK;
   return bc * PC_BRICK_SIZE + ivec3(s % PC_BRICK_SIZE, (s / PC_BRICK_SIZE) % PC_BRICK_SIZE,
                                     s / (PC_BRICK_SIZE * PC_BRICK_SIZE));
 }
-PC_FN int pcSlotCount(CascadeDesc c) { return pcBrickCount(c) * PC_PROBES_PER_BRICK; }
-PC_FN bool pcSlotValid(CascadeDesc c, int slot) {
+PC_FN int pcSlotCount(PC_IN(CascadeDesc) c) { return pcBrickCount(c) * PC_PROBES_PER_BRICK; }
+PC_FN bool pcSlotValid(PC_IN(CascadeDesc) c, int slot) {
   ivec3 p = pcSlotCoord(c, slot);
   return p.x < c.counts.x && p.y < c.counts.y && p.z < c.counts.z;
 }
 
 // World position of a probe's grid point (before relocation).
-PC_FN vec3 pcProbeGridPosition(CascadeDesc c, ivec3 logical) {
+PC_FN vec3 pcProbeGridPosition(PC_IN(CascadeDesc) c, ivec3 logical) {
   return c.origin + vec3(logical) * c.spacing;
 }
 
@@ -154,7 +163,7 @@ PC_FN int pcAtlasTileRows(int slotCount) {
   return (slotCount + PC_ATLAS_TILES_PER_ROW - 1) / PC_ATLAS_TILES_PER_ROW;
 }
 // Pixel origin (top-left border texel) of a slot's tile in an atlas of tiles of `tileSize`.
-PC_FN ivec2 pcAtlasTileOrigin(CascadeDesc c, int slot, int tileSize) {
+PC_FN ivec2 pcAtlasTileOrigin(PC_IN(CascadeDesc) c, int slot, int tileSize) {
   return ivec2((slot % PC_ATLAS_TILES_PER_ROW) * tileSize,
                (c.atlasTileRow + slot / PC_ATLAS_TILES_PER_ROW) * tileSize);
 }

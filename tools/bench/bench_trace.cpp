@@ -49,7 +49,7 @@ Benchmark addTrace(CLI::App& app) {
 
             UpdateRequest request;
             request.probes = allProbes(field);
-            double rawMs = 0, fullMs = 0;
+            double rawMs = 0, fullMs = 0, shadeMs = 0, blendMs = 0;
             std::uint64_t probeRays = 0, shadowRays = 0, hits = 0;
             for (int i = 0; i < updates; ++i) {
               request.rotationSeed = 1000u + std::uint32_t(i);
@@ -58,6 +58,8 @@ Benchmark addTrace(CLI::App& app) {
               hits += h;
               UpdateStats s = (*tracer)->update(field, request);
               fullMs += s.totalMs;
+              shadeMs += s.traceMs;
+              blendMs += s.blendMs;
               probeRays += s.probeRays;
               shadowRays += s.shadowRays;
             }
@@ -74,6 +76,8 @@ Benchmark addTrace(CLI::App& app) {
                         (unsigned long long)((probeRays + shadowRays) / updates), full);
             std::printf("%-34s %12s %12llu %12.2f\n", "full update (probe rays only)", "",
                         (unsigned long long)(probeRays / updates), fullProbe);
+            std::printf("  of which trace + shade %.2f ms, blend + borders + classify %.2f ms per update\n",
+                        shadeMs / updates, blendMs / updates);
             std::printf("hit fraction %.3f, shadow rays per probe ray %.2f\n", double(hits) / probeRays,
                         double(shadowRays) / probeRays);
             figure("raw_mrays", raw, "Mrays/s");
