@@ -83,9 +83,10 @@ Result<vk::UniquePipeline> createGraphicsPipeline(const vk::Context& ctx, VkPipe
       VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
   raster.polygonMode = VK_POLYGON_MODE_FILL;
   raster.cullMode = VK_CULL_MODE_NONE;  // surfaces are two-sided, as in the CPU renders
-  // Vulkan's framebuffer y points down, and the projection flips y: the triangles that are
-  // counter-clockwise in the scene's (y-up) view come out clockwise here.
-  raster.frontFace = VK_FRONT_FACE_CLOCKWISE;
+  // Front faces are counter-clockwise as the viewer sees them (glTF, OBJ). The projection's
+  // y flip and Vulkan's y-down framebuffer cancel in the spec's signed-area rule, so this is
+  // the scene's own winding.
+  raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
   raster.lineWidth = 1.0f;
   raster.depthBiasEnable = d.depthBias ? VK_TRUE : VK_FALSE;
   raster.depthBiasConstantFactor = 2.0f;

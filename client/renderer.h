@@ -85,6 +85,8 @@ class Renderer {
   Status endFrame(VkSemaphore wait = VK_NULL_HANDLE, VkSemaphore signal = VK_NULL_HANDLE);
   // Timings of the most recently completed frame.
   const FrameTimings& lastTimings() const { return timings_; }
+  // The frame slot beginFrame chose (for per-slot objects of the caller, like semaphores).
+  int currentSlot() const { return current_; }
   void waitIdle() const;
 
   // Headless: renders one frame into an offscreen target and reads back the linear and the

@@ -65,16 +65,18 @@ TEST(ClientGolden, McGuireCornellBoxOriginal) {
   if (!std::filesystem::exists(scenePath("mcguire-cornellbox/CornellBox-Original.obj")))
     GTEST_SKIP() << "no shared scenes at " << PC_SCENES_DIR;
   const Golden g = measure("mcguire-cornellbox/CornellBox-Original.obj", 24, 256, "cornellbox-original");
-  EXPECT_GE(g.vsCpu, 30.0);
-  EXPECT_GE(g.vsReference, 25.0);
+  // Achieved on lavapipe: 36.5 dB vs CPU, 34.1 dB vs reference.
+  EXPECT_GE(g.vsCpu, 34.5);
+  EXPECT_GE(g.vsReference, 32.5);
 }
 
 TEST(ClientGolden, RtxgiCornell) {
   if (!std::filesystem::exists(scenePath("rtxgi-cornell/cornell.glb")))
     GTEST_SKIP() << "no shared scenes at " << PC_SCENES_DIR;
   const Golden g = measure("rtxgi-cornell/cornell.glb", 24, 256, "rtxgi-cornell");
-  EXPECT_GE(g.vsCpu, 30.0);
-  EXPECT_GE(g.vsReference, 25.0);
+  // Achieved on lavapipe: 33.6 dB vs CPU, 33.6 dB vs reference.
+  EXPECT_GE(g.vsCpu, 32.0);
+  EXPECT_GE(g.vsReference, 32.0);
 }
 
 TEST(ClientStereo, LeftEyeEqualsMonoRenderOfTheSamePose) {
