@@ -70,7 +70,7 @@ void fixTileBorder(Atlas& atlas, ivec2 origin, int n) {
 Field Field::create(const std::vector<ProbeVolume>& volumes, const FieldSettings& settings) {
   Field f;
   f.settings = settings;
-  f.settings.raysPerProbe = std::clamp(settings.raysPerProbe, 16, 1024);
+  f.settings.raysPerProbe = std::clamp(settings.raysPerProbe, kMinRaysPerProbe, kMaxRaysPerProbe);
   const int count = std::min<int>(int(volumes.size()), PC_MAX_CASCADES);
   f.desc.cascadeCount = count;
   f.desc.hysteresis = settings.hysteresis;

@@ -13,8 +13,13 @@
 
 namespace pc {
 
+// Rays per probe per update: the blend indexes rays with 16 bits and keeps per-ray scratch on
+// the stack, and a baked file may not ask for more.
+inline constexpr int kMinRaysPerProbe = 16;
+inline constexpr int kMaxRaysPerProbe = 1024;
+
 struct FieldSettings {
-  int raysPerProbe = 256;        // 16..1024 (Field::create clamps)
+  int raysPerProbe = 256;        // kMinRaysPerProbe..kMaxRaysPerProbe (Field::create clamps)
   float hysteresis = 0.97f;
   float distanceExponent = 50.0f;
   float normalBias = 0.1f;       // fraction of spacing

@@ -316,7 +316,9 @@ Status validateField(const Field& f) {
     if (!std::isfinite(v)) return Error{"field parameters not finite"};
   }
   const FieldSettings& s = f.settings;
-  if (s.raysPerProbe <= 0) return Error{"rays per probe " + std::to_string(s.raysPerProbe)};
+  if (s.raysPerProbe < kMinRaysPerProbe || s.raysPerProbe > kMaxRaysPerProbe)
+    return Error{"rays per probe " + std::to_string(s.raysPerProbe) + " outside " +
+                 std::to_string(kMinRaysPerProbe) + ".." + std::to_string(kMaxRaysPerProbe)};
   for (float v : {s.hysteresis, s.distanceExponent, s.normalBias, s.viewBias, s.maxRayDistance,
                   s.occlusionDistance, s.blendMargin}) {
     if (!std::isfinite(v)) return Error{"field settings not finite"};

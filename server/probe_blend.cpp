@@ -77,6 +77,9 @@ const TexelDirections& TexelDirections::get() {
 
 float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm::vec3* dirs,
                  int rayCount, const BlendTaps& taps) {
+  // Field::create and baked-file decoding keep the ray count in range; the per-ray scratch
+  // below relies on it.
+  if (rayCount < 1 || rayCount > kMaxRaysPerProbe) return 0.0f;
   const CascadeDesc& c = field.cascade(k);
   ProbeRecord& record = field.probe(k, slot);
   const float inf = std::numeric_limits<float>::infinity();
@@ -152,9 +155,8 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
     constexpr int n = PC_DEPTH_TEXELS;
     const TexelTaps& tt = taps.depth;
     glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
-    float distance[1024];
-    const int count = std::min(rayCount, 1024);
-    for (int i = 0; i < count; ++i) {
+    float distance[kMaxRaysPerProbe];
+    for (int i = 0; i < rayCount; ++i) {
       float d = rays[i].distance;
       distance[i] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : std::min(d, c.maxRayDistance);
     }
