@@ -14,8 +14,8 @@
 #include "common/scene.h"
 #include "server/bake.h"
 #include "server/embree_tracer.h"
+#include "server/field_compare.h"
 #include "server/vulkan_tracer.h"
-#include "shaders/interop/probe_update.h"
 
 namespace pc {
 namespace {
@@ -30,49 +30,6 @@ std::unique_ptr<VulkanTracer> makeGpu(const Scene& scene, std::string* why) {
     return nullptr;
   }
   return std::move(t).value();
-}
-
-struct FieldDiff {
-  double irradiance = 0, depth = 0;  // sum |gpu - cpu| / sum |cpu| over interior texels
-  int probes = 0;                    // active in both
-  int stateMismatches = 0;
-};
-
-// Decoded irradiance and mean depth of every interior texel of probes active in both fields.
-FieldDiff compareFields(const Field& gpu, const Field& cpu) {
-  FieldDiff d;
-  double irrNum = 0, irrDen = 0, depNum = 0, depDen = 0;
-  for (int k = 0; k < cpu.cascadeCount(); ++k) {
-    const gpu::CascadeDesc& c = cpu.cascade(k);
-    for (int s = 0; s < gpu::pcSlotCount(c); ++s) {
-      if (!gpu::pcSlotValid(c, s)) continue;
-      if (gpu.probe(k, s).state != cpu.probe(k, s).state) ++d.stateMismatches;
-      if (gpu.probe(k, s).state != gpu::PC_PROBE_ACTIVE || cpu.probe(k, s).state != gpu::PC_PROBE_ACTIVE) continue;
-      ++d.probes;
-      constexpr int ni = gpu::PC_IRRADIANCE_TEXELS, nd = gpu::PC_DEPTH_TEXELS;
-      const glm::ivec2 oi = gpu::pcAtlasTileOrigin(c, s, ni + 2);
-      for (int y = 1; y <= ni; ++y)
-        for (int x = 1; x <= ni; ++x) {
-          const float* a = gpu.irradiance.at(oi.x + x, oi.y + y);
-          const float* b = cpu.irradiance.at(oi.x + x, oi.y + y);
-          const glm::vec3 ea = gpu::pcDecodeIrradiance(glm::vec3(a[0], a[1], a[2]));
-          const glm::vec3 eb = gpu::pcDecodeIrradiance(glm::vec3(b[0], b[1], b[2]));
-          for (int ch = 0; ch < 3; ++ch) {
-            irrNum += std::abs(ea[ch] - eb[ch]);
-            irrDen += std::abs(eb[ch]);
-          }
-        }
-      const glm::ivec2 od = gpu::pcAtlasTileOrigin(c, s, nd + 2);
-      for (int y = 1; y <= nd; ++y)
-        for (int x = 1; x <= nd; ++x) {
-          depNum += std::abs(gpu.depth.at(od.x + x, od.y + y)[0] - cpu.depth.at(od.x + x, od.y + y)[0]);
-          depDen += std::abs(cpu.depth.at(od.x + x, od.y + y)[0]);
-        }
-    }
-  }
-  d.irradiance = irrDen > 0 ? irrNum / irrDen : 0;
-  d.depth = depDen > 0 ? depNum / depDen : 0;
-  return d;
 }
 
 void expectSameBrickVersions(const Field& gpu, const Field& cpu) {
@@ -103,7 +60,7 @@ TEST(VulkanTracer, BuiltinSceneMatchesEmbree) {
   // Shadow rays depend only on geometry and light: the same count within traversal noise.
   EXPECT_NEAR(double(sg.shadowRays), double(sc.shadowRays), 0.01 * double(sc.shadowRays));
 
-  FieldDiff d = compareFields(fg, fc);
+  FieldDifference d = compareFields(fg, fc);
   std::printf("builtin (%s): %d active probes, irradiance rel diff %.2e, depth rel diff %.2e, "
               "state mismatches %d\n",
               gpu->name().c_str(), d.probes, d.irradiance, d.depth, d.stateMismatches);
@@ -147,7 +104,7 @@ TEST(VulkanTracer, FurnaceEnergyMatchesEmbreeAndTheory) {
   bake.updates = 48;
   bakeField(fg, *gpu, bake);
   bakeField(fc, **cpu, bake);
-  FieldDiff d = compareFields(fg, fc);
+  FieldDifference d = compareFields(fg, fc);
   std::printf("furnace: irradiance rel diff %.2e, depth rel diff %.2e\n", d.irradiance, d.depth);
   EXPECT_GE(d.probes, 56);  // the 8 central probes see no wall within reach: sleeping
   EXPECT_EQ(d.stateMismatches, 0);

@@ -29,5 +29,7 @@ Benchmark addEnergy(CLI::App& app);
 Benchmark addTrace(CLI::App& app);
 Benchmark addQuality(CLI::App& app);
 Benchmark addLeak(CLI::App& app);
+Benchmark addClient(CLI::App& app);
+Benchmark addGpuTrace(CLI::App& app);
 
 }  // namespace pc::bench

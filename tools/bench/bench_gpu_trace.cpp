@@ -1,0 +1,201 @@
+// gpu-trace: the Vulkan ray-tracing backend on one scene, in one run:
+//   - speed: GPU milliseconds per pass, per update, probe rays per second end to end (trace,
+//     shade, blend, change detection) and all rays (with shadow rays), against the raw rate of
+//     the same probe rays through a pipeline with trivial shaders (the ceiling);
+//   - agreement: the GPU and Embree fields after the same updates (same seeds and settings);
+//   - quality: the probe-lit render from each field against the path-traced reference.
+// The Embree backend runs the same updates on this machine's cores for comparison.
+#include <chrono>
+#include <map>
+
+#include "bench.h"
+#include "bench_common.h"
+#include "common/field.h"
+#include "cpu/path_tracer.h"
+#include "cpu/probe_lit_render.h"
+#include "server/bake.h"
+#include "server/embree_tracer.h"
+#include "server/field_compare.h"
+#include "server/vulkan_tracer.h"
+
+namespace pc::bench {
+
+namespace {
+
+// One cascade of n probes per axis spread over the scene's bounds (as bench trace does).
+std::vector<ProbeVolume> volumesFor(const Scene& scene, const std::vector<int>& counts) {
+  if (counts.size() != 3) return scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes;
+  const glm::vec3 extent = scene.boundsMax - scene.boundsMin;
+  const glm::ivec3 n(counts[0], counts[1], counts[2]);
+  const float spacing = std::max(extent.x / n.x, std::max(extent.y / n.y, extent.z / n.z));
+  const glm::vec3 origin = 0.5f * (scene.boundsMin + scene.boundsMax) - 0.5f * spacing * glm::vec3(n - 1);
+  return {ProbeVolume{origin, spacing, n}};
+}
+
+double grays(std::uint64_t rays, double ms) { return ms > 0 ? double(rays) / (ms * 1e6) : 0.0; }
+
+}  // namespace
+
+Benchmark addGpuTrace(CLI::App& app) {
+  auto* cmd = app.add_subcommand("gpu-trace", "Vulkan ray tracing: speed per pass, raw ceiling, agreement with Embree, quality");
+  static std::string scenePath = "builtin", sidecar, device;
+  static int updates = 8, rays = 256;
+  static std::vector<int> counts;
+  static bool gpuOnly = false, skipEmbree = false, skipQuality = false;
+  static RenderSetup setup;
+  cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
+  cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
+  cmd->add_option("--measured", updates, "measured updates (after --updates bake updates of both backends)");
+  cmd->add_option("--rays", rays, "rays per probe");
+  cmd->add_option("--counts", counts, "probes per axis of a single cascade over the scene (x y z)")->expected(3);
+  cmd->add_option("--device", device, "substring of the Vulkan device name");
+  cmd->add_flag("--gpu-only", gpuOnly, "refuse CPU Vulkan implementations (lavapipe)");
+  cmd->add_flag("--no-embree", skipEmbree, "skip the Embree run (and the field comparison)");
+  cmd->add_flag("--no-quality", skipQuality, "skip the probe-lit renders and the reference");
+  addRenderOptions(*cmd, setup);
+  return {cmd, [] {
+            auto scene = loadBenchScene(scenePath, sidecar);
+            if (!scene) {
+              std::fprintf(stderr, "gpu-trace: %s\n", scene.error().message.c_str());
+              return 1;
+            }
+            FieldSettings settings;
+            settings.raysPerProbe = rays;
+            const std::vector<ProbeVolume> volumes = volumesFor(*scene, counts);
+            VulkanTracerOptions vo;
+            vo.allowCpuDevice = !gpuOnly;
+            vo.deviceNameFilter = device;
+            auto gpu = VulkanTracer::create(*scene, {}, vo);
+            if (!gpu) {
+              std::fprintf(stderr, "gpu-trace: %s\n", gpu.error().message.c_str());
+              return 1;
+            }
+            std::unique_ptr<EmbreeTracer> cpu;
+            if (!skipEmbree) {
+              auto e = EmbreeTracer::create(*scene, {});
+              if (!e) {
+                std::fprintf(stderr, "gpu-trace: %s\n", e.error().message.c_str());
+                return 1;
+              }
+              cpu = std::move(e).value();
+            }
+
+            // ---- the same bake on both backends, then the fields compared ----
+            Field fg = Field::create(volumes, settings);
+            Field fc = Field::create(volumes, settings);
+            BakeOptions bake;
+            bake.updates = setup.updates;
+            const BakeStats gpuBake = bakeField(fg, **gpu, bake);
+            BakeStats cpuBake;
+            if (cpu) cpuBake = bakeField(fc, *cpu, bake);
+
+            // ---- speed: raw ceiling and full updates on the same rays ----
+            UpdateRequest request;
+            request.probes = allProbes(fg);
+            const std::uint64_t probeRaysPerUpdate = std::uint64_t(request.probes.size()) * rays;
+            double rawMs = 0, gpuMs = 0, wallMs = 0, embreeMs = 0, embreeRawMs = 0;
+            std::uint64_t shadowRays = 0, embreeShadowRays = 0, readback = 0;
+            std::vector<std::string> passOrder;
+            std::map<std::string, double> passMs;
+            for (int i = 0; i < updates; ++i) {
+              request.rotationSeed = 100000u + std::uint32_t(i);
+              rawMs += (*gpu)->traceOnly(fg, request);
+              const UpdateStats s = (*gpu)->update(fg, request);
+              gpuMs += s.gpuMs;
+              wallMs += s.totalMs;
+              shadowRays += s.shadowRays;
+              readback += s.readbackBytes;
+              for (const auto& [name, ms] : s.gpuPasses) {
+                if (!passMs.count(name)) passOrder.push_back(name);
+                passMs[name] += ms;
+              }
+              if (cpu) {
+                embreeRawMs += cpu->traceOnly(fc, request, nullptr);
+                const UpdateStats e = cpu->update(fc, request);
+                embreeMs += e.totalMs;
+                embreeShadowRays += e.shadowRays;
+              }
+            }
+            const std::uint64_t probeRays = probeRaysPerUpdate * std::uint64_t(updates);
+            const double raw = grays(probeRays, rawMs);
+            const double probe = grays(probeRays, gpuMs);
+            const double all = grays(probeRays + shadowRays, gpuMs);
+
+            std::printf("gpu-trace: %s (%zu triangles), %d probes x %d rays, %d measured updates after %d\n",
+                        scene->name.c_str(), scene->triangleCount(), int(request.probes.size()), rays, updates,
+                        setup.updates);
+            std::printf("device: %s\n", (*gpu)->context().deviceName().c_str());
+            std::printf("host: %s\n", machineDescription().c_str());
+            std::printf("%-36s %12s\n", "GPU pass (timestamps)", "ms/update");
+            for (const std::string& name : passOrder)
+              std::printf("%-36s %12.3f\n", name.c_str(), passMs[name] / updates);
+            std::printf("%-36s %12.3f\n", "update, GPU passes", gpuMs / updates);
+            std::printf("%-36s %12.3f\n", "update, wall clock (submit..unpack)", wallMs / updates);
+            std::printf("%-36s %12.3f\n", "raw closest hit (trivial shaders)", rawMs / updates);
+            std::printf("%-36s %12.1f\n", "readback KiB/update", double(readback) / 1024.0 / updates);
+            std::printf("%-36s %12s %14s\n", "rate", "Grays/s", "rays/update");
+            std::printf("%-36s %12.4f %14llu\n", "raw probe rays", raw, (unsigned long long)probeRaysPerUpdate);
+            std::printf("%-36s %12.4f %14llu\n", "probe rays, end to end (GPU)", probe,
+                        (unsigned long long)probeRaysPerUpdate);
+            std::printf("%-36s %12.4f %14llu\n", "all rays incl. shadow, end to end", all,
+                        (unsigned long long)((probeRays + shadowRays) / updates));
+            std::printf("%-36s %12.4f\n", "probe rays, wall clock", grays(probeRays, wallMs));
+            if (cpu) {
+              std::printf("%-36s %12.4f %14s (%.2f ms/update)\n", "Embree raw probe rays", grays(probeRays, embreeRawMs),
+                          "", embreeRawMs / updates);
+              std::printf("%-36s %12.4f %14s (%.2f ms/update)\n", "Embree probe rays, full update",
+                          grays(probeRays, embreeMs), "", embreeMs / updates);
+              std::printf("%-36s %12.4f\n", "Embree all rays, full update", grays(probeRays + embreeShadowRays, embreeMs));
+            }
+            std::printf("bake of %d updates: vulkan %.1f s, embree %.1f s\n", setup.updates, gpuBake.ms / 1e3,
+                        cpuBake.ms / 1e3);
+
+            if (cpu) {
+              const FieldDifference d = compareFields(fg, fc);
+              std::printf("fields after identical updates: %d probes active in both, %d state mismatches\n", d.probes,
+                          d.stateMismatches);
+              figure("field_rel_diff_irradiance", d.irradiance, "ratio");
+              figure("field_rel_diff_depth", d.depth, "ratio");
+            }
+            if (cpu && !skipQuality) {
+              auto camera = sceneCamera(*scene, setup.camera);
+              if (!camera) {
+                std::fprintf(stderr, "gpu-trace: %s\n", camera.error().message.c_str());
+                return 1;
+              }
+              auto reference = cachedReference(*scene, *camera, setup);
+              if (!reference) {
+                std::fprintf(stderr, "gpu-trace: %s\n", reference.error().message.c_str());
+                return 1;
+              }
+              ProbeLitOptions lit;
+              lit.width = setup.width;
+              lit.height = setup.height;
+              lit.primarySamples = setup.primarySamples;
+              lit.emissiveSamples = setup.emissiveSamples;
+              lit.explicitCamera = *camera;
+              const Image8 ref8 = tonemap(reference->image, scene->exposure);
+              double psnr[2] = {0, 0};
+              const Field* fields[2] = {&fg, &fc};
+              for (int i = 0; i < 2; ++i) {
+                auto image = renderProbeLit(*scene, *fields[i], lit);
+                if (!image) {
+                  std::fprintf(stderr, "gpu-trace: %s\n", image.error().message.c_str());
+                  return 1;
+                }
+                psnr[i] = psnr8(tonemap(*image, scene->exposure), ref8);
+              }
+              std::printf("probe-lit vs reference: GPU field %.2f dB, Embree field %.2f dB (reference noise %.1f dB)\n",
+                          psnr[0], psnr[1], reference->noisePsnr);
+              figure("psnr_gpu_minus_cpu", psnr[0] - psnr[1], "dB");
+            }
+            figure("raw_grays", raw, "Grays/s");
+            figure("probe_grays", probe, "Grays/s");
+            figure("all_grays", all, "Grays/s");
+            figure("raw_fraction", raw > 0 ? probe / raw : 0.0, "ratio");
+            if (cpu) figure("embree_probe_grays", grays(probeRays, embreeMs), "Grays/s");
+            return 0;
+          }};
+}
+
+}  // namespace pc::bench
