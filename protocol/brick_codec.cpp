@@ -1,0 +1,359 @@
+// The QuantZstd brick codec: quantization, prediction, byte planes, zstd (PROTOCOL.md, "Brick
+// codec").
+#include "brick_codec.h"
+
+#include <zstd.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <string>
+
+namespace pc {
+
+namespace {
+
+using namespace pc::gpu;
+using namespace brick_layout;
+
+// Payload header: magic "QZ", format 1, flags (bit 0: residual).
+constexpr std::uint8_t kMagic0 = 'Q', kMagic1 = 'Z', kFormat = 1, kFlagResidual = 1;
+constexpr std::size_t kHeaderBytes = 4;
+constexpr std::size_t kRawBytes = kCodes * 2;
+
+// Irradiance mini-float: float bits rounded to kIrradianceMantissaBits mantissa bits; exponent
+// slots 1..31 cover e in [2^-15, 2^16); slot 0 is zero.
+constexpr int kDroppedBits = 23 - kIrradianceMantissaBits;
+constexpr std::uint32_t kExponentOffset = 127 - 16;  // float exponent of slot 0
+constexpr std::uint16_t kMaxIrradianceCode = (32u << kIrradianceMantissaBits) - 1;
+constexpr std::uint16_t kMaxOcclusionCode = 255;
+constexpr std::uint16_t kMaxStateCode = PC_PROBE_UNINITIALIZED;
+
+std::uint16_t unitCode(float v, float scale, std::uint16_t maxCode) {
+  if (!(v > 0.0f)) return 0;  // also NaN
+  float x = std::min(v * scale, 1.0f);
+  return std::uint16_t(std::lround(x * float(maxCode)));
+}
+
+std::uint16_t offsetCode(float v, float spacing) {
+  float x = std::isfinite(v) ? std::clamp(v / spacing, -1.0f, 1.0f) : 0.0f;
+  return std::uint16_t(32768 + std::lround(x * 32767.0f));
+}
+float offsetValue(std::uint16_t code, float spacing) {
+  return float(int(code) - 32768) / 32767.0f * spacing;
+}
+
+// Slot -> tile origin of its interior texels in an atlas with bordered tiles of n + 2.
+glm::ivec2 interiorOrigin(const CascadeDesc& c, int slot, int n) {
+  return pcAtlasTileOrigin(c, slot, n + 2) + glm::ivec2(1);
+}
+
+std::uint16_t zigzag(std::uint16_t d) {
+  auto s = std::int16_t(d);
+  return std::uint16_t((std::uint16_t(s) << 1) ^ std::uint16_t(s >> 15));
+}
+std::uint16_t unzigzag(std::uint16_t z) {
+  return std::uint16_t((z >> 1) ^ std::uint16_t(-std::int16_t(z & 1)));
+}
+
+// Spatial prediction for self-contained bricks. A plane of tiles (n x n texels each):
+// predict a texel from its left neighbour, the first of a row from the one above, the first of
+// a tile from the previous tile's first. Sequences of per-slot values: the previous value.
+template <typename F>
+void forEachPrediction(F&& f) {
+  auto tiles = [&](std::size_t start, int planes, int n) {
+    for (int p = 0; p < planes; ++p) {
+      const std::size_t plane = start + std::size_t(p) * kSlots * n * n;
+      for (int s = 0; s < kSlots; ++s) {
+        const std::size_t tile = plane + std::size_t(s) * n * n;
+        for (int y = 0; y < n; ++y) {
+          for (int x = 0; x < n; ++x) {
+            const std::size_t i = tile + std::size_t(y) * n + x;
+            std::size_t pred;
+            if (x > 0) pred = i - 1;
+            else if (y > 0) pred = i - n;
+            else if (s > 0) pred = tile - std::size_t(n) * n;
+            else pred = i;  // first of the plane: predicted by 0 (see below)
+            f(i, pred);
+          }
+        }
+      }
+    }
+  };
+  tiles(kIrradiance, 3, PC_IRRADIANCE_TEXELS);
+  tiles(kDepth, 2, PC_DEPTH_TEXELS);
+  tiles(kOcclusion, 1, PC_OCCLUSION_TEXELS);
+  for (std::size_t plane = kOffset; plane < kCodes; plane += kSlots) {
+    for (int s = 0; s < kSlots; ++s) f(plane + s, s > 0 ? plane + s - 1 : plane + s);
+  }
+}
+
+struct CCtxDeleter {
+  void operator()(ZSTD_CCtx* c) const { ZSTD_freeCCtx(c); }
+};
+struct DCtxDeleter {
+  void operator()(ZSTD_DCtx* c) const { ZSTD_freeDCtx(c); }
+};
+
+Error fail(const std::string& what) { return Error{"brick payload: " + what}; }
+
+}  // namespace
+
+std::uint16_t quantizeIrradiance(float e) {
+  if (!(e > 0.0f)) return 0;  // negative, zero, NaN
+  if (!std::isfinite(e)) return kMaxIrradianceCode;
+  // Rounding the bit pattern rounds the mantissa to nearest and carries into the exponent.
+  const std::uint32_t bits = std::bit_cast<std::uint32_t>(e);
+  const std::uint32_t rounded = (bits + (1u << (kDroppedBits - 1))) >> kDroppedBits;
+  const std::uint32_t minCode = 1u << kIrradianceMantissaBits;  // 2^-15
+  const std::uint32_t base = kExponentOffset << kIrradianceMantissaBits;
+  if (rounded < base + minCode) {
+    // Below 2^-15: zero or the smallest value, whichever is nearer.
+    return e >= 0.5f * std::ldexp(1.0f, -15) ? std::uint16_t(minCode) : 0;
+  }
+  return std::uint16_t(std::min<std::uint32_t>(rounded - base, kMaxIrradianceCode));
+}
+
+float dequantizeIrradiance(std::uint16_t code) {
+  if (code == 0) return 0.0f;
+  const std::uint32_t c = std::min<std::uint32_t>(code, kMaxIrradianceCode);
+  return std::bit_cast<float>((c + (kExponentOffset << kIrradianceMantissaBits)) << kDroppedBits);
+}
+
+QuantizedBrick quantizeBrick(const Field& field, int cascade, int brick) {
+  const CascadeDesc& c = field.cascade(cascade);
+  const float depthScale = c.maxRayDistance > 0.0f ? 1.0f / c.maxRayDistance : 0.0f;
+  QuantizedBrick q;
+  q.codes.assign(kCodes, 0);
+  std::uint16_t* out = q.codes.data();
+  for (int s = 0; s < kSlots; ++s) {
+    const int slot = brick * kSlots + s;
+    {
+      constexpr int n = PC_IRRADIANCE_TEXELS;
+      const glm::ivec2 o = interiorOrigin(c, slot, n);
+      for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+          const float* t = field.irradiance.at(o.x + x, o.y + y);
+          for (int ch = 0; ch < 3; ++ch) {
+            out[kIrradiance + (std::size_t(ch) * kSlots + s) * kIrrTexels + y * n + x] =
+                quantizeIrradiance(t[ch]);
+          }
+        }
+      }
+    }
+    {
+      constexpr int n = PC_DEPTH_TEXELS;
+      const glm::ivec2 o = interiorOrigin(c, slot, n);
+      for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+          const float* t = field.depth.at(o.x + x, o.y + y);
+          const float mean = t[0];
+          // Standard deviation rather than mean square: the visibility test needs the variance,
+          // which is tiny near walls and would vanish in a 16-bit mean square.
+          const float sigma = std::sqrt(std::max(t[1] - mean * mean, 0.0f));
+          const std::size_t i = std::size_t(s) * kDepthTexels + y * n + x;
+          out[kDepth + i] = unitCode(mean, depthScale, 65535);
+          out[kDepth + std::size_t(kSlots) * kDepthTexels + i] = unitCode(sigma, depthScale, 65535);
+        }
+      }
+    }
+    {
+      constexpr int n = PC_OCCLUSION_TEXELS;
+      const glm::ivec2 o = interiorOrigin(c, slot, n);
+      for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+          out[kOcclusion + std::size_t(s) * kOccTexels + y * n + x] =
+              unitCode(*field.occlusion.at(o.x + x, o.y + y), 1.0f, kMaxOcclusionCode);
+        }
+      }
+    }
+    const ProbeRecord& p = field.probe(cascade, slot);
+    for (int a = 0; a < 3; ++a) out[kOffset + a * kSlots + s] = offsetCode(p.offset[a], c.spacing);
+    out[kState + s] = std::uint16_t(p.state >= 0 && p.state <= kMaxStateCode ? p.state
+                                                                              : PC_PROBE_UNINITIALIZED);
+  }
+  return q;
+}
+
+void applyBrick(Field& field, int cascade, int brick, const QuantizedBrick& q) {
+  const CascadeDesc& c = field.cascade(cascade);
+  const std::uint16_t* in = q.codes.data();
+  const float depthStep = c.maxRayDistance / 65535.0f;
+  for (int s = 0; s < kSlots; ++s) {
+    const int slot = brick * kSlots + s;
+    {
+      constexpr int n = PC_IRRADIANCE_TEXELS;
+      const glm::ivec2 o = interiorOrigin(c, slot, n);
+      for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+          float* t = field.irradiance.at(o.x + x, o.y + y);
+          for (int ch = 0; ch < 3; ++ch) {
+            t[ch] = dequantizeIrradiance(
+                in[kIrradiance + (std::size_t(ch) * kSlots + s) * kIrrTexels + y * n + x]);
+          }
+        }
+      }
+    }
+    {
+      constexpr int n = PC_DEPTH_TEXELS;
+      const glm::ivec2 o = interiorOrigin(c, slot, n);
+      for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+          const std::size_t i = std::size_t(s) * kDepthTexels + y * n + x;
+          const float mean = float(in[kDepth + i]) * depthStep;
+          const float sigma = float(in[kDepth + std::size_t(kSlots) * kDepthTexels + i]) * depthStep;
+          float* t = field.depth.at(o.x + x, o.y + y);
+          t[0] = mean;
+          t[1] = mean * mean + sigma * sigma;
+        }
+      }
+    }
+    {
+      constexpr int n = PC_OCCLUSION_TEXELS;
+      const glm::ivec2 o = interiorOrigin(c, slot, n);
+      for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+          *field.occlusion.at(o.x + x, o.y + y) =
+              float(in[kOcclusion + std::size_t(s) * kOccTexels + y * n + x]) / 255.0f;
+        }
+      }
+    }
+    ProbeRecord& p = field.probe(cascade, slot);
+    for (int a = 0; a < 3; ++a) p.offset[a] = offsetValue(in[kOffset + a * kSlots + s], c.spacing);
+    p.state = int(in[kState + s]);
+    p.updates = 0;
+    field.fixBorders(cascade, slot);
+  }
+}
+
+BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b) {
+  BrickChange ch;
+  for (std::size_t i = kIrradiance; i < kDepth; ++i) {
+    if (a.codes[i] != b.codes[i]) {
+      ch.irradiance = std::max(
+          ch.irradiance, std::abs(dequantizeIrradiance(a.codes[i]) - dequantizeIrradiance(b.codes[i])));
+    }
+  }
+  int depthMax = 0;
+  for (std::size_t i = kDepth; i < kDepth + std::size_t(kSlots) * kDepthTexels; ++i) {
+    depthMax = std::max(depthMax, std::abs(int(a.codes[i]) - int(b.codes[i])));
+  }
+  ch.depth = float(depthMax) / 65535.0f;
+  int occMax = 0;
+  for (std::size_t i = kOcclusion; i < kOffset; ++i) {
+    occMax = std::max(occMax, std::abs(int(a.codes[i]) - int(b.codes[i])));
+  }
+  ch.occlusion = float(occMax) / 255.0f;
+  for (std::size_t i = kOffset; i < kState; ++i) {
+    if (std::abs(int(a.codes[i]) - int(b.codes[i])) > 327) ch.records = true;  // 1% of spacing
+  }
+  for (std::size_t i = kState; i < kCodes; ++i) ch.records |= a.codes[i] != b.codes[i];
+  return ch;
+}
+
+std::size_t maxEncodedBrickBytes() { return kHeaderBytes + ZSTD_compressBound(kRawBytes); }
+
+std::vector<std::uint8_t> encodeBrick(const QuantizedBrick& q, const QuantizedBrick* base,
+                                      int zstdLevel) {
+  // Prediction residuals, zigzagged so small negative and positive values share small codes.
+  std::vector<std::uint16_t> r(kCodes);
+  if (base) {
+    for (std::size_t i = 0; i < kCodes; ++i) r[i] = zigzag(std::uint16_t(q.codes[i] - base->codes[i]));
+  } else {
+    forEachPrediction([&](std::size_t i, std::size_t pred) {
+      r[i] = zigzag(std::uint16_t(q.codes[i] - (pred == i ? 0 : q.codes[pred])));
+    });
+  }
+  // Byte planes: the high bytes are mostly zero and compress to almost nothing together.
+  std::vector<std::uint8_t> raw(kRawBytes);
+  for (std::size_t i = 0; i < kCodes; ++i) {
+    raw[i] = std::uint8_t(r[i] & 0xFF);
+    raw[kCodes + i] = std::uint8_t(r[i] >> 8);
+  }
+  thread_local std::unique_ptr<ZSTD_CCtx, CCtxDeleter> cctx(ZSTD_createCCtx());
+  ZSTD_CCtx_reset(cctx.get(), ZSTD_reset_session_and_parameters);
+  ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_compressionLevel, zstdLevel);
+  ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_checksumFlag, 1);
+  ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_contentSizeFlag, 1);
+  std::vector<std::uint8_t> out(maxEncodedBrickBytes());
+  out[0] = kMagic0;
+  out[1] = kMagic1;
+  out[2] = kFormat;
+  out[3] = base ? kFlagResidual : 0;
+  const std::size_t n = ZSTD_compress2(cctx.get(), out.data() + kHeaderBytes,
+                                       out.size() - kHeaderBytes, raw.data(), raw.size());
+  // Compressing into a buffer of compressBound cannot fail short of memory exhaustion.
+  if (ZSTD_isError(n)) return {};
+  out.resize(kHeaderBytes + n);
+  return out;
+}
+
+Result<QuantizedBrick> decodeBrick(std::span<const std::uint8_t> payload,
+                                   const QuantizedBrick* base) {
+  if (payload.size() < kHeaderBytes + 1) {
+    return fail("truncated (" + std::to_string(payload.size()) + " bytes)");
+  }
+  if (payload.size() > maxEncodedBrickBytes()) {
+    return fail("too large (" + std::to_string(payload.size()) + " bytes)");
+  }
+  if (payload[0] != kMagic0 || payload[1] != kMagic1) return fail("bad magic");
+  if (payload[2] != kFormat) return fail("unknown format " + std::to_string(payload[2]));
+  if ((payload[3] & ~kFlagResidual) != 0) return fail("unknown flags");
+  const bool residual = (payload[3] & kFlagResidual) != 0;
+  if (residual != (base != nullptr)) {
+    return fail(residual ? "residual payload without a base" : "self-contained payload given a base");
+  }
+  if (base && base->codes.size() != kCodes) return fail("base brick has the wrong size");
+
+  const std::span<const std::uint8_t> frame = payload.subspan(kHeaderBytes);
+  const unsigned long long content = ZSTD_getFrameContentSize(frame.data(), frame.size());
+  if (content == ZSTD_CONTENTSIZE_ERROR) return fail("not a zstd frame");
+  if (content != kRawBytes) {
+    return fail("frame announces " +
+                (content == ZSTD_CONTENTSIZE_UNKNOWN ? std::string("no size")
+                                                     : std::to_string(content) + " bytes") +
+                ", a brick holds " + std::to_string(kRawBytes));
+  }
+  const std::size_t frameSize = ZSTD_findFrameCompressedSize(frame.data(), frame.size());
+  if (ZSTD_isError(frameSize)) return fail(std::string("bad zstd frame: ") + ZSTD_getErrorName(frameSize));
+  if (frameSize != frame.size()) return fail("unexpected bytes after the zstd frame");
+
+  thread_local std::unique_ptr<ZSTD_DCtx, DCtxDeleter> dctx(ZSTD_createDCtx());
+  std::vector<std::uint8_t> raw(kRawBytes);
+  const std::size_t n = ZSTD_decompressDCtx(dctx.get(), raw.data(), raw.size(), frame.data(), frame.size());
+  if (ZSTD_isError(n)) return fail(std::string("zstd: ") + ZSTD_getErrorName(n));
+  if (n != kRawBytes) return fail("decoded " + std::to_string(n) + " bytes, expected " + std::to_string(kRawBytes));
+
+  QuantizedBrick q;
+  q.codes.resize(kCodes);
+  for (std::size_t i = 0; i < kCodes; ++i) {
+    const std::uint16_t r = unzigzag(std::uint16_t(raw[i] | (raw[kCodes + i] << 8)));
+    q.codes[i] = r;
+  }
+  if (base) {
+    for (std::size_t i = 0; i < kCodes; ++i) q.codes[i] = std::uint16_t(base->codes[i] + q.codes[i]);
+  } else {
+    // Predictions come before the values they predict in forEachPrediction's order.
+    forEachPrediction([&](std::size_t i, std::size_t pred) {
+      if (pred != i) q.codes[i] = std::uint16_t(q.codes[i] + q.codes[pred]);
+    });
+  }
+  // Codes out of range cannot come from an encoder; refuse them rather than clamp.
+  for (std::size_t i = kIrradiance; i < kDepth; ++i) {
+    if (q.codes[i] > kMaxIrradianceCode) return fail("irradiance code out of range");
+  }
+  for (std::size_t i = kOcclusion; i < kOffset; ++i) {
+    if (q.codes[i] > kMaxOcclusionCode) return fail("occlusion code out of range");
+  }
+  for (std::size_t i = kOffset; i < kState; ++i) {
+    if (q.codes[i] == 0) return fail("probe offset code out of range");
+  }
+  for (std::size_t i = kState; i < kCodes; ++i) {
+    if (q.codes[i] > kMaxStateCode) return fail("probe state out of range");
+  }
+  return q;
+}
+
+}  // namespace pc

@@ -1,0 +1,88 @@
+// The brick codec: one brick's content (the interiors of its 64 probe slots' irradiance, depth
+// and occlusion tiles and its probe records) quantized to 16-bit codes, then coded either
+// self-contained (spatial prediction) or as a residual against a base version's codes, split
+// into byte planes and compressed with zstd. PROTOCOL.md ("Brick codec") specifies the format
+// and states the quantization bounds, which are also the constants below.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "common/field.h"
+#include "common/result.h"
+
+namespace pc {
+
+// Layout of QuantizedBrick::codes: sections one after another, each a sequence of planes.
+namespace brick_layout {
+inline constexpr int kSlots = gpu::PC_PROBES_PER_BRICK;
+inline constexpr int kIrrTexels = gpu::PC_IRRADIANCE_TEXELS * gpu::PC_IRRADIANCE_TEXELS;
+inline constexpr int kDepthTexels = gpu::PC_DEPTH_TEXELS * gpu::PC_DEPTH_TEXELS;
+inline constexpr int kOccTexels = gpu::PC_OCCLUSION_TEXELS * gpu::PC_OCCLUSION_TEXELS;
+// Irradiance: 3 planes (r, g, b), each [slot][texel row-major].
+inline constexpr std::size_t kIrradiance = 0;
+// Depth: 2 planes (mean, standard deviation), each [slot][texel].
+inline constexpr std::size_t kDepth = kIrradiance + std::size_t(3) * kSlots * kIrrTexels;
+// Occlusion: 1 plane [slot][texel].
+inline constexpr std::size_t kOcclusion = kDepth + std::size_t(2) * kSlots * kDepthTexels;
+// Probe offsets: 3 planes (x, y, z), each [slot].
+inline constexpr std::size_t kOffset = kOcclusion + std::size_t(kSlots) * kOccTexels;
+// Probe states: 1 plane [slot].
+inline constexpr std::size_t kState = kOffset + std::size_t(3) * kSlots;
+inline constexpr std::size_t kCodes = kState + kSlots;
+}  // namespace brick_layout
+
+// Quantization bounds (see PROTOCOL.md). Irradiance: the gamma-encoded value e as a 14-bit
+// float (5 exponent bits for e in [2^-15, 2^16), 9 stored mantissa bits, round to nearest).
+inline constexpr int kIrradianceMantissaBits = 9;
+inline constexpr float kIrradianceRelativeBound = 1.0f / 1024.0f;  // |e' - e| <= this * e
+inline constexpr float kIrradianceAbsoluteBound = 1.0f / 32768.0f;  // for e < 2^-15
+// Depth mean and standard deviation: 16 bits over [0, maxRayDistance].
+inline constexpr float kDepthBound = 1.0f / 131070.0f;  // x maxRayDistance
+// Occlusion: 8 bits over [0, 1].
+inline constexpr float kOcclusionBound = 1.0f / 510.0f;
+// Probe offsets: 16 bits over [-spacing, spacing].
+inline constexpr float kOffsetBound = 1.0f / 65534.0f;  // x spacing
+
+// One brick's content as codes (layout above). Shared read-only between the sender's history,
+// its encode cache and every client; the receiver keeps its current one per brick as the base
+// for residuals.
+struct QuantizedBrick {
+  std::vector<std::uint16_t> codes;  // brick_layout::kCodes values
+  bool operator==(const QuantizedBrick&) const = default;
+};
+
+// Reads brick `brick` of cascade `cascade` (all 64 slots, padding slots included).
+QuantizedBrick quantizeBrick(const Field& field, int cascade, int brick);
+// Writes decoded values into the brick's tile interiors, re-derives the tile borders, and sets
+// the probe records' offsets and states (update counts are server bookkeeping and not sent).
+void applyBrick(Field& field, int cascade, int brick, const QuantizedBrick& q);
+
+// Individual code conversions, exposed for tests.
+std::uint16_t quantizeIrradiance(float encoded);
+float dequantizeIrradiance(std::uint16_t code);
+
+// How much a brick's content changed between two versions, for the perceptual skip.
+struct BrickChange {
+  float irradiance = 0;  // max over texels and channels of |delta e| (gamma-encoded)
+  float depth = 0;       // max |delta mean| / maxRayDistance
+  float occlusion = 0;   // max |delta|
+  bool records = false;  // a probe state changed, or an offset by more than 1% of the spacing
+};
+BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b);
+
+// Codec QuantZstd. `base` null: self-contained; otherwise a residual against `base`.
+// zstdLevel: 1 (fast) .. 19 (small).
+std::vector<std::uint8_t> encodeBrick(const QuantizedBrick& q, const QuantizedBrick* base,
+                                      int zstdLevel = 3);
+// Defensive: any byte string yields either a brick whose codes are all in range, or an Error
+// naming the problem. `base` must be given exactly when the update names a base version.
+Result<QuantizedBrick> decodeBrick(std::span<const std::uint8_t> payload,
+                                   const QuantizedBrick* base);
+
+// A payload never exceeds this (zstd's bound for the raw planes plus the header).
+std::size_t maxEncodedBrickBytes();
+
+}  // namespace pc

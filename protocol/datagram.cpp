@@ -1,0 +1,178 @@
+// Datagram encoding and decoding, fragment reassembly.
+#include "datagram.h"
+
+#include <flatbuffers/flatbuffers.h>
+
+#include <algorithm>
+#include <cstring>
+#include <string>
+
+#include "protocol/crc32.h"
+#include "protocol/datagram_generated.h"
+
+namespace pc {
+
+namespace {
+
+namespace fb = flatbuffers;
+
+constexpr std::size_t kCrcBytes = 4;
+
+Error fail(const std::string& what) { return Error{"datagram: " + what}; }
+
+}  // namespace
+
+std::uint16_t fragmentCount(std::uint32_t totalSize) {
+  return std::uint16_t((std::size_t(totalSize) + kFragmentBytes - 1) / kFragmentBytes);
+}
+
+std::vector<std::uint8_t> encodeDatagram(std::uint32_t sessionId, std::uint32_t sequence,
+                                         std::uint64_t fieldVersion,
+                                         std::span<const FragmentRef> fragments) {
+  fb::FlatBufferBuilder fbb(kMaxDatagramBytes);
+  std::vector<fb::Offset<net::BrickFragment>> offs;
+  offs.reserve(fragments.size());
+  for (const FragmentRef& f : fragments) {
+    auto data = fbb.CreateVector(f.data.data(), f.data.size());
+    const UpdateHeader& u = f.update;
+    offs.push_back(net::CreateBrickFragment(fbb, u.updateId, std::uint8_t(u.cascade), u.brick,
+                                            u.version, u.baseVersion, u.codec, u.totalSize,
+                                            f.index, fragmentCount(u.totalSize), data));
+  }
+  auto vec = fbb.CreateVector(offs);
+  auto root = net::CreateDatagram(fbb, sessionId, sequence, fieldVersion, vec);
+  net::FinishDatagramBuffer(fbb, root);
+  std::vector<std::uint8_t> out(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+  const std::uint32_t crc = crc32(out);
+  for (int i = 0; i < 4; ++i) out.push_back(std::uint8_t(crc >> (8 * i)));
+  return out;
+}
+
+Result<Datagram> decodeDatagram(std::span<const std::uint8_t> bytes) {
+  if (bytes.size() > kMaxDatagramBytes) {
+    return fail(std::to_string(bytes.size()) + " bytes, limit " + std::to_string(kMaxDatagramBytes));
+  }
+  if (bytes.size() < 8 + kCrcBytes) return fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
+  const std::span<const std::uint8_t> body = bytes.first(bytes.size() - kCrcBytes);
+  std::uint32_t stored = 0;
+  for (int i = 0; i < 4; ++i) stored |= std::uint32_t(bytes[body.size() + i]) << (8 * i);
+  if (crc32(body) != stored) return fail("checksum mismatch");
+  if (!fb::BufferHasIdentifier(body.data(), net::DatagramIdentifier())) {
+    return fail("not a probecast datagram (wrong identifier)");
+  }
+  // Aligned copy: the Verifier checks alignment against the address.
+  alignas(8) std::uint8_t aligned[kMaxDatagramBytes];
+  std::memcpy(aligned, body.data(), body.size());
+  fb::Verifier::Options opts;
+  opts.max_depth = kMaxMessageDepth;
+  opts.max_tables = kMaxDatagramTables;
+  fb::Verifier v(aligned, body.size(), opts);
+  if (!net::VerifyDatagramBuffer(v)) return fail("corrupt (flatbuffer verification failed)");
+  const net::Datagram* root = net::GetDatagram(aligned);
+
+  Datagram d;
+  d.sessionId = root->session_id();
+  d.sequence = root->sequence();
+  d.fieldVersion = root->field_version();
+  if (root->fragments()) {
+    for (const net::BrickFragment* f : *root->fragments()) {
+      Fragment out;
+      UpdateHeader& u = out.update;
+      u.updateId = f->update_id();
+      u.cascade = f->cascade();
+      u.brick = f->brick();
+      u.version = f->version();
+      u.baseVersion = f->base_version();
+      u.codec = f->codec();
+      u.totalSize = f->total_size();
+      out.index = f->fragment_index();
+      out.count = f->fragment_count();
+      const std::string at = "fragment " + std::to_string(d.fragments.size()) + ": ";
+      if (u.totalSize == 0 || u.totalSize > kMaxUpdatePayloadBytes) {
+        return fail(at + "payload size " + std::to_string(u.totalSize) + " out of range");
+      }
+      if (out.count != fragmentCount(u.totalSize)) {
+        return fail(at + std::to_string(out.count) + " fragments announced for " +
+                    std::to_string(u.totalSize) + " bytes");
+      }
+      if (out.index >= out.count) return fail(at + "index beyond the fragment count");
+      const std::size_t begin = std::size_t(out.index) * kFragmentBytes;
+      const std::size_t expected = std::min<std::size_t>(u.totalSize - begin, kFragmentBytes);
+      const std::size_t got = f->data() ? f->data()->size() : 0;
+      if (got != expected) {
+        return fail(at + std::to_string(got) + " data bytes, expected " + std::to_string(expected));
+      }
+      if (u.version == 0 || u.baseVersion >= u.version) {
+        return fail(at + "version " + std::to_string(u.version) + " on base " +
+                    std::to_string(u.baseVersion));
+      }
+      out.data.assign(f->data()->begin(), f->data()->end());
+      d.fragments.push_back(std::move(out));
+    }
+  }
+  return d;
+}
+
+void Reassembler::erase(std::map<std::uint32_t, Partial>::iterator it) {
+  bytes_ -= it->second.payload.size();
+  partial_.erase(it);
+}
+
+std::optional<CompletedUpdate> Reassembler::add(Fragment&& fragment, double now) {
+  const UpdateHeader& u = fragment.update;
+  if (fragment.count == 1) {
+    // Whole payload in one fragment: nothing to hold.
+    return CompletedUpdate{u, std::move(fragment.data)};
+  }
+  auto it = partial_.find(u.updateId);
+  if (it != partial_.end() && !it->second.update.sameUpdate(u)) {
+    erase(it);
+    ++dropped_;
+    it = partial_.end();
+  }
+  if (it == partial_.end()) {
+    // Make room: drop the oldest partial payloads until both caps hold with this one added.
+    while (!partial_.empty() && (partial_.size() + 1 > options_.maxUpdates ||
+                                 bytes_ + u.totalSize > options_.maxBytes)) {
+      auto oldest = std::min_element(partial_.begin(), partial_.end(), [](auto& a, auto& b) {
+        return a.second.firstSeen < b.second.firstSeen;
+      });
+      erase(oldest);
+      ++dropped_;
+    }
+    if (u.totalSize > options_.maxBytes) return std::nullopt;
+    Partial p;
+    p.update = u;
+    p.payload.assign(u.totalSize, 0);
+    p.have.assign(fragment.count, false);
+    p.firstSeen = now;
+    bytes_ += u.totalSize;
+    it = partial_.emplace(u.updateId, std::move(p)).first;
+  }
+  Partial& p = it->second;
+  if (p.have[fragment.index]) return std::nullopt;  // duplicate
+  std::copy(fragment.data.begin(), fragment.data.end(),
+            p.payload.begin() + std::ptrdiff_t(fragment.index) * std::ptrdiff_t(kFragmentBytes));
+  p.have[fragment.index] = true;
+  if (++p.received < p.have.size()) return std::nullopt;
+  CompletedUpdate done{p.update, std::move(p.payload)};
+  p.payload.clear();
+  bytes_ -= u.totalSize;
+  partial_.erase(it);
+  return done;
+}
+
+void Reassembler::expire(double now) {
+  for (auto it = partial_.begin(); it != partial_.end();) {
+    if (now - it->second.firstSeen > options_.timeout) {
+      auto next = std::next(it);
+      erase(it);
+      ++dropped_;
+      it = next;
+    } else {
+      ++it;
+    }
+  }
+}
+
+}  // namespace pc

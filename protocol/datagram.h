@@ -1,0 +1,110 @@
+// Datagrams of the streaming protocol (datagram.fbs): brick update fragments from the server,
+// at most kMaxDatagramBytes each, a CRC-32 at the end. Also the receiver's reassembly of
+// fragmented payloads, with capped memory and a timeout.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "common/result.h"
+#include "protocol/stream_limits.h"
+
+namespace pc {
+
+// The update a fragment belongs to, repeated in every fragment of it.
+struct UpdateHeader {
+  std::uint32_t updateId = 0;
+  int cascade = 0;
+  std::uint32_t brick = 0;
+  std::uint64_t version = 0;
+  std::uint64_t baseVersion = 0;  // 0: self-contained
+  std::uint8_t codec = 0;
+  std::uint32_t totalSize = 0;  // payload bytes
+  bool sameUpdate(const UpdateHeader& o) const {
+    return updateId == o.updateId && cascade == o.cascade && brick == o.brick &&
+           version == o.version && baseVersion == o.baseVersion && codec == o.codec &&
+           totalSize == o.totalSize;
+  }
+};
+
+// For encoding: a fragment that refers to payload bytes held elsewhere.
+struct FragmentRef {
+  UpdateHeader update;
+  std::uint16_t index = 0;
+  std::span<const std::uint8_t> data;
+};
+
+struct Fragment {
+  UpdateHeader update;
+  std::uint16_t index = 0, count = 0;
+  std::vector<std::uint8_t> data;
+};
+
+struct Datagram {
+  std::uint32_t sessionId = 0;
+  std::uint32_t sequence = 0;
+  std::uint64_t fieldVersion = 0;
+  std::vector<Fragment> fragments;
+};
+
+// Payloads larger than this are refused (the brick codec's worst case, rounded up).
+inline constexpr std::size_t kMaxUpdatePayloadBytes = 128 * 1024;
+
+// Fragments a payload of `totalSize` bytes is split into.
+std::uint16_t fragmentCount(std::uint32_t totalSize);
+// Upper bounds of the encoded size: a datagram's fixed part (header, CRC) and each fragment's
+// part besides its data. A sender packs fragments while the sum stays within kMaxDatagramBytes.
+inline constexpr std::size_t kDatagramOverheadBytes = 64;
+inline constexpr std::size_t kFragmentOverheadBytes = 96;
+
+std::vector<std::uint8_t> encodeDatagram(std::uint32_t sessionId, std::uint32_t sequence,
+                                         std::uint64_t fieldVersion,
+                                         std::span<const FragmentRef> fragments);
+// Size limit, CRC, identifier, Verifier, then each fragment's sizes and indices.
+Result<Datagram> decodeDatagram(std::span<const std::uint8_t> bytes);
+
+struct ReassemblyOptions {
+  double timeout = 1.0;                  // s: a partial payload older than this is dropped
+  std::size_t maxUpdates = 64;           // partial payloads held at once
+  std::size_t maxBytes = 4u << 20;       // their buffers together
+};
+
+struct CompletedUpdate {
+  UpdateHeader update;
+  std::vector<std::uint8_t> payload;
+};
+
+// Puts fragmented payloads back together. Keyed by update id; fragments whose header differs
+// from the partial payload's replace it (a restarted server reuses ids). When the caps are
+// reached the oldest partial payload is dropped: memory stays bounded whatever arrives.
+class Reassembler {
+ public:
+  explicit Reassembler(ReassemblyOptions options = {}) : options_(options) {}
+  // The completed payload when `fragment` completes one.
+  std::optional<CompletedUpdate> add(Fragment&& fragment, double now);
+  void expire(double now);
+  std::size_t pendingUpdates() const { return partial_.size(); }
+  std::size_t pendingBytes() const { return bytes_; }
+  std::uint64_t dropped() const { return dropped_; }
+
+ private:
+  struct Partial {
+    UpdateHeader update;
+    std::vector<std::uint8_t> payload;
+    std::vector<bool> have;
+    std::size_t received = 0;
+    double firstSeen = 0;
+  };
+  void erase(std::map<std::uint32_t, Partial>::iterator it);
+
+  ReassemblyOptions options_;
+  std::map<std::uint32_t, Partial> partial_;
+  std::size_t bytes_ = 0;
+  std::uint64_t dropped_ = 0;
+};
+
+}  // namespace pc

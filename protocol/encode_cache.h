@@ -1,0 +1,55 @@
+// Encoded brick updates, kept so that each (cascade, brick, version, base) is encoded once and
+// its bytes shared by every client. Least recently used entries go first when the byte cap is
+// reached; an entry still held by a sender stays alive through its shared_ptr.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <list>
+#include <map>
+#include <memory>
+#include <tuple>
+#include <vector>
+
+#include "protocol/datagram.h"
+
+namespace pc {
+
+struct EncodedUpdate {
+  UpdateHeader header;  // updateId unique per entry; totalSize = payload.size()
+  std::vector<std::uint8_t> payload;
+};
+
+struct EncodeKey {
+  int cascade = 0;
+  std::uint32_t brick = 0;
+  std::uint64_t version = 0, base = 0;
+  auto operator<=>(const EncodeKey&) const = default;
+};
+
+class EncodeCache {
+ public:
+  explicit EncodeCache(std::size_t maxBytes) : maxBytes_(maxBytes) {}
+  std::shared_ptr<const EncodedUpdate> find(const EncodeKey& key);
+  // Stores `payload` under `key` with a fresh update id and returns the entry.
+  std::shared_ptr<const EncodedUpdate> insert(const EncodeKey& key, std::uint8_t codec,
+                                              std::vector<std::uint8_t> payload);
+  std::size_t bytes() const { return bytes_; }
+  std::size_t entries() const { return map_.size(); }
+  std::uint64_t hits() const { return hits_; }
+  std::uint64_t misses() const { return misses_; }
+
+ private:
+  struct Entry {
+    std::shared_ptr<const EncodedUpdate> update;
+    std::list<EncodeKey>::iterator lru;
+  };
+  std::size_t maxBytes_;
+  std::size_t bytes_ = 0;
+  std::map<EncodeKey, Entry> map_;
+  std::list<EncodeKey> lru_;  // front: most recently used
+  std::uint32_t nextId_ = 1;
+  std::uint64_t hits_ = 0, misses_ = 0;
+};
+
+}  // namespace pc

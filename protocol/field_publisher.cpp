@@ -1,0 +1,86 @@
+#include "field_publisher.h"
+
+#include <string>
+
+namespace pc {
+
+namespace {
+constexpr std::size_t kBrickBytes = brick_layout::kCodes * sizeof(std::uint16_t);
+}
+
+FieldPublisher::FieldPublisher(const Field& layout, PublisherOptions options)
+    : options_(options), info_(sessionInfoFor(layout)), cache_(options.maxCacheBytes) {
+  if (options_.historyVersions < 1) options_.historyVersions = 1;
+  bricks_.resize(layout.cascadeCount());
+  for (int k = 0; k < layout.cascadeCount(); ++k) {
+    bricks_[k].resize(gpu::pcBrickCount(layout.cascade(k)));
+    for (auto& h : bricks_[k]) h.push_back(BrickVersion{});
+  }
+}
+
+Status FieldPublisher::publish(const Field& field, double now) {
+  if (field.cascadeCount() != cascadeCount()) return Error{"publish: field layout changed"};
+  for (int k = 0; k < cascadeCount(); ++k) {
+    if (field.brickVersions[k].size() != bricks_[k].size()) {
+      return Error{"publish: cascade " + std::to_string(k) + " changed its brick count"};
+    }
+  }
+  info_.fieldVersion = field.version;
+  fieldVersion_ = field.version;
+  for (int k = 0; k < cascadeCount(); ++k) {
+    for (std::size_t b = 0; b < bricks_[k].size(); ++b) {
+      const std::uint64_t v = field.brickVersions[k][b];
+      auto& h = bricks_[k][b];
+      if (v == 0 || v == h.back().version) continue;
+      if (h.back().version != 0) historyBytes_ += kBrickBytes;  // the old current joins history
+      else h.pop_back();
+      auto q = std::make_shared<const QuantizedBrick>(quantizeBrick(field, k, int(b)));
+      h.push_back(BrickVersion{v, now, std::move(q)});
+      while (h.size() > std::size_t(options_.historyVersions)) {
+        h.pop_front();
+        historyBytes_ -= kBrickBytes;
+      }
+    }
+  }
+  // Over the byte cap: trim every brick's history to its current version. Rare (the cap is
+  // sized for the version count), and only costs residual opportunities.
+  if (historyBytes_ > options_.maxHistoryBytes) {
+    for (auto& cascade : bricks_) {
+      for (auto& h : cascade) {
+        while (h.size() > 1) {
+          h.pop_front();
+          historyBytes_ -= kBrickBytes;
+        }
+      }
+    }
+  }
+  return Status::success();
+}
+
+std::shared_ptr<const QuantizedBrick> FieldPublisher::find(int cascade, int brick,
+                                                           std::uint64_t version) const {
+  if (version == 0) return nullptr;
+  for (const BrickVersion& v : bricks_[cascade][brick]) {
+    if (v.version == version) return v.content;
+  }
+  return nullptr;
+}
+
+std::shared_ptr<const EncodedUpdate> FieldPublisher::encoded(int cascade, int brick,
+                                                             std::uint64_t version,
+                                                             std::uint64_t base) {
+  const EncodeKey key{cascade, std::uint32_t(brick), version, base};
+  if (auto hit = cache_.find(key)) return hit;
+  auto content = find(cascade, brick, version);
+  if (!content) return nullptr;
+  std::shared_ptr<const QuantizedBrick> baseContent;
+  if (base != 0) {
+    baseContent = find(cascade, brick, base);
+    if (!baseContent) return nullptr;
+  }
+  ++encodes_;
+  return cache_.insert(key, kCodecQuantZstd,
+                       encodeBrick(*content, baseContent.get(), options_.zstdLevel));
+}
+
+}  // namespace pc

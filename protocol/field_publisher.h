@@ -1,0 +1,74 @@
+// The server's side of streaming that every client shares: after each field update, the bricks
+// whose version changed are quantized once and kept in a short per-brick history (the bases a
+// residual may refer to); encoded updates come from one EncodeCache. Each client's StreamSender
+// reads from here. Not thread-safe: call publish and every sender from the same thread, or
+// hold one lock around them.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <vector>
+
+#include "common/field.h"
+#include "common/result.h"
+#include "protocol/brick_codec.h"
+#include "protocol/encode_cache.h"
+#include "protocol/session_messages.h"
+
+namespace pc {
+
+struct PublisherOptions {
+  int historyVersions = 4;                    // quantized versions kept per brick
+  std::size_t maxHistoryBytes = 256u << 20;   // all bricks' histories together (beyond current)
+  std::size_t maxCacheBytes = 64u << 20;      // encoded updates
+  int zstdLevel = 3;
+};
+
+struct BrickVersion {
+  std::uint64_t version = 0;
+  double publishedAt = 0;  // time publish() first saw this version
+  std::shared_ptr<const QuantizedBrick> content;
+};
+
+class FieldPublisher {
+ public:
+  // Takes the field's layout (cascades, brick counts); publish() must get fields of this layout.
+  explicit FieldPublisher(const Field& layout, PublisherOptions options = {});
+
+  // Quantizes every brick whose version differs from the one held (version 0: no data yet).
+  Status publish(const Field& field, double now);
+
+  std::uint64_t fieldVersion() const { return fieldVersion_; }
+  const SessionInfoMsg& sessionInfo() const { return info_; }
+  int cascadeCount() const { return int(bricks_.size()); }
+  int brickCount(int cascade) const { return int(bricks_[cascade].size()); }
+  const gpu::CascadeDesc& cascade(int k) const { return info_.cascades[k]; }
+  // The newest version of a brick (version 0 and no content when never published).
+  const BrickVersion& current(int cascade, int brick) const {
+    return bricks_[cascade][brick].back();
+  }
+  // Content of an older (or the current) version, while it is in the history; else null.
+  std::shared_ptr<const QuantizedBrick> find(int cascade, int brick, std::uint64_t version) const;
+  // Encoded update for `version` on top of `base` (0: self-contained), from the cache or
+  // encoded now. Null when either version is no longer in the history.
+  std::shared_ptr<const EncodedUpdate> encoded(int cascade, int brick, std::uint64_t version,
+                                               std::uint64_t base);
+
+  const EncodeCache& cache() const { return cache_; }
+  std::size_t historyBytes() const { return historyBytes_; }
+  std::uint64_t encodes() const { return encodes_; }
+
+ private:
+  PublisherOptions options_;
+  SessionInfoMsg info_;
+  std::uint64_t fieldVersion_ = 0;
+  // [cascade][brick]: oldest first; back() is the current version (a zero entry at start).
+  std::vector<std::vector<std::deque<BrickVersion>>> bricks_;
+  std::size_t historyBytes_ = 0;
+  EncodeCache cache_;
+  std::uint64_t encodes_ = 0;
+};
+
+}  // namespace pc

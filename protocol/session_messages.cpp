@@ -1,0 +1,436 @@
+// Session messages <-> size-prefixed flatbuffers (session.fbs), with the checks that keep a
+// corrupt or hostile peer from crashing either side.
+#include "session_messages.h"
+
+#include <flatbuffers/flatbuffers.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "protocol/session_generated.h"
+
+namespace pc {
+
+namespace {
+
+using namespace pc::gpu;
+namespace fb = flatbuffers;
+
+net::Vec3 toWire(glm::vec3 v) { return net::Vec3(v.x, v.y, v.z); }
+net::Int3 toWire(glm::ivec3 v) { return net::Int3(v.x, v.y, v.z); }
+glm::vec3 fromWire(const net::Vec3* v) { return v ? glm::vec3(v->x(), v->y(), v->z()) : glm::vec3(0); }
+glm::ivec3 fromWire(const net::Int3* v) { return v ? glm::ivec3(v->x(), v->y(), v->z()) : glm::ivec3(0); }
+
+bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+std::string str(const fb::String* s) { return s ? s->str() : std::string(); }
+
+struct Encoder {
+  fb::FlatBufferBuilder& fbb;
+
+  fb::Offset<void> operator()(const HelloMsg& m) {
+    auto token = fbb.CreateString(m.authToken);
+    auto name = fbb.CreateString(m.clientName);
+    return net::CreateHello(fbb, m.protocolVersion, token, name, m.wantsUdp, m.udpPort).Union();
+  }
+  fb::Offset<void> operator()(const WelcomeMsg& m) {
+    return net::CreateWelcome(fbb, m.protocolVersion, m.sessionId).Union();
+  }
+  fb::Offset<void> operator()(const RejectMsg& m) {
+    auto reason = fbb.CreateString(m.reason);
+    return net::CreateReject(fbb, m.protocolVersion, reason).Union();
+  }
+  fb::Offset<void> operator()(const SessionInfoMsg& m) {
+    std::vector<fb::Offset<net::CascadeInfo>> cascades;
+    for (const CascadeDesc& c : m.cascades) {
+      net::Vec3 origin = toWire(c.origin);
+      net::Int3 counts = toWire(c.counts), scroll = toWire(c.scroll);
+      cascades.push_back(net::CreateCascadeInfo(fbb, &origin, c.spacing, &counts, c.firstProbe,
+                                                &scroll, c.atlasTileRow, c.normalBias, c.viewBias,
+                                                c.maxRayDistance, c.blendMargin));
+    }
+    auto cascadesOff = fbb.CreateVector(cascades);
+    std::vector<net::Codec> codecs;
+    for (std::uint8_t c : m.codecs) codecs.push_back(net::Codec(c));
+    auto codecsOff = fbb.CreateVector(reinterpret_cast<const std::uint8_t*>(codecs.data()), codecs.size());
+    net::SessionInfoBuilder b(fbb);
+    b.add_scene_hash(m.sceneHash);
+    b.add_field_version(m.fieldVersion);
+    b.add_irradiance_texels(m.irradianceTexels);
+    b.add_depth_texels(m.depthTexels);
+    b.add_occlusion_texels(m.occlusionTexels);
+    b.add_brick_size(m.brickSize);
+    b.add_atlas_tiles_per_row(m.atlasTilesPerRow);
+    b.add_hysteresis(m.hysteresis);
+    b.add_distance_exponent(m.distanceExponent);
+    b.add_occlusion_distance(m.occlusionDistance);
+    b.add_cascades(cascadesOff);
+    b.add_codecs(fb::Offset<fb::Vector<net::Codec>>(codecsOff.o));
+    b.add_max_datagram_bytes(m.maxDatagramBytes);
+    return b.Finish().Union();
+  }
+  fb::Offset<void> operator()(const SceneStateMsg& m) {
+    std::vector<fb::Offset<net::LightState>> lights;
+    for (const LightStateMsg& l : m.lights) {
+      net::Vec3 p = toWire(l.position), d = toWire(l.direction), c = toWire(l.color);
+      lights.push_back(net::CreateLightState(fbb, &p, &d, &c, l.intensity));
+    }
+    auto lightsOff = fbb.CreateVector(lights);
+    std::vector<net::Mat4> mats;
+    for (const glm::mat4& t : m.instanceTransforms) {
+      mats.emplace_back(fb::span<const float, 16>(&t[0][0], 16));
+    }
+    auto matsOff = fbb.CreateVectorOfStructs(mats);
+    return net::CreateSceneState(fbb, m.animationTime, lightsOff, matsOff).Union();
+  }
+  fb::Offset<void> operator()(const ViewerPoseMsg& m) {
+    net::Vec3 p = toWire(m.position);
+    net::Quat q(m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w);
+    return net::CreateViewerPose(fbb, &p, &q, m.time).Union();
+  }
+  fb::Offset<void> operator()(const AckMsg& m) {
+    std::vector<net::AckRange> ranges;
+    for (const AckRange& r : m.ranges) {
+      ranges.emplace_back(r.version, r.firstBrick, r.count, std::uint8_t(r.cascade));
+    }
+    auto rangesOff = fbb.CreateVectorOfStructs(ranges);
+    return net::CreateAck(fbb, m.full, m.fieldVersion, rangesOff).Union();
+  }
+  fb::Offset<void> operator()(const RepairRequestMsg& m) {
+    std::vector<net::BrickRef> refs;
+    for (const BrickRefMsg& r : m.bricks) {
+      refs.emplace_back(r.haveVersion, r.brick, std::uint8_t(r.cascade));
+    }
+    auto refsOff = fbb.CreateVectorOfStructs(refs);
+    return net::CreateRepairRequest(fbb, refsOff).Union();
+  }
+};
+
+net::Body bodyType(const SessionMessage& m) {
+  // The variant's alternatives are in the union's order, which starts at 1 (0 is NONE).
+  return net::Body(m.index() + 1);
+}
+
+Error fail(const std::string& what) { return Error{"session message: " + what}; }
+
+Result<SessionMessage> decodeSessionInfo(const net::SessionInfo& w) {
+  SessionInfoMsg m;
+  m.sceneHash = w.scene_hash();
+  m.fieldVersion = w.field_version();
+  m.irradianceTexels = w.irradiance_texels();
+  m.depthTexels = w.depth_texels();
+  m.occlusionTexels = w.occlusion_texels();
+  m.brickSize = w.brick_size();
+  m.atlasTilesPerRow = w.atlas_tiles_per_row();
+  m.hysteresis = w.hysteresis();
+  m.distanceExponent = w.distance_exponent();
+  m.occlusionDistance = w.occlusion_distance();
+  m.maxDatagramBytes = w.max_datagram_bytes();
+  if (w.cascades() && w.cascades()->size() > std::size_t(PC_MAX_CASCADES)) {
+    return fail("session info: " + std::to_string(w.cascades()->size()) + " cascades, at most " +
+                std::to_string(PC_MAX_CASCADES) + " supported");
+  }
+  if (w.cascades()) {
+    for (const net::CascadeInfo* c : *w.cascades()) {
+      CascadeDesc d{};
+      d.origin = fromWire(c->origin());
+      d.spacing = c->spacing();
+      d.counts = fromWire(c->counts());
+      d.firstProbe = c->first_probe();
+      d.scroll = fromWire(c->scroll());
+      d.atlasTileRow = c->atlas_tile_row();
+      d.normalBias = c->normal_bias();
+      d.viewBias = c->view_bias();
+      d.maxRayDistance = c->max_ray_distance();
+      d.blendMargin = c->blend_margin();
+      m.cascades.push_back(d);
+    }
+  }
+  m.codecs.clear();
+  if (w.codecs()) {
+    for (auto c : *w.codecs()) m.codecs.push_back(std::uint8_t(c));
+  }
+  return SessionMessage(std::move(m));
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encodeMessage(const SessionMessage& message) {
+  fb::FlatBufferBuilder fbb(256);
+  auto body = std::visit(Encoder{fbb}, message);
+  auto root = net::CreateSessionMessage(fbb, bodyType(message), body);
+  net::FinishSizePrefixedSessionMessageBuffer(fbb, root);
+  return std::vector<std::uint8_t>(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+}
+
+Result<std::size_t> messageFrameSize(std::span<const std::uint8_t> prefix) {
+  if (prefix.size() < 4) return fail("size prefix needs 4 bytes");
+  std::uint32_t n;
+  std::memcpy(&n, prefix.data(), 4);  // little-endian hosts only, like flatbuffers itself
+  const std::size_t total = std::size_t(n) + 4;
+  if (total > kMaxSessionMessageBytes) {
+    return fail("announces " + std::to_string(total) + " bytes, limit " +
+                std::to_string(kMaxSessionMessageBytes));
+  }
+  if (n < 8) return fail("announces " + std::to_string(n) + " bytes, too short for a message");
+  return total;
+}
+
+Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
+  auto size = messageFrameSize(frame);
+  if (!size) return size.error();
+  if (*size != frame.size()) {
+    return fail("frame of " + std::to_string(frame.size()) + " bytes announces " +
+                std::to_string(*size));
+  }
+  if (!fb::BufferHasIdentifier(frame.data(), net::SessionMessageIdentifier(), true)) {
+    return fail("not a session message (wrong identifier)");
+  }
+  // The Verifier checks alignment against the address; callers may hand in any span.
+  std::vector<std::uint8_t> aligned;
+  const std::uint8_t* data = frame.data();
+  if (reinterpret_cast<std::uintptr_t>(data) % 8 != 0) {
+    aligned.assign(frame.begin(), frame.end());
+    data = aligned.data();
+  }
+  fb::Verifier::Options opts;
+  opts.max_depth = kMaxMessageDepth;
+  opts.max_tables = kMaxMessageTables;
+  fb::Verifier v(data, frame.size(), opts);
+  if (!net::VerifySizePrefixedSessionMessageBuffer(v)) {
+    return fail("corrupt (flatbuffer verification failed)");
+  }
+  const net::SessionMessage* root = net::GetSizePrefixedSessionMessage(data);
+  switch (root->body_type()) {
+    case net::Body::Hello: {
+      const auto* w = root->body_as_Hello();
+      HelloMsg m;
+      m.protocolVersion = w->protocol_version();
+      m.authToken = str(w->auth_token());
+      m.clientName = str(w->client_name());
+      m.wantsUdp = w->wants_udp();
+      m.udpPort = w->udp_port();
+      return SessionMessage(std::move(m));
+    }
+    case net::Body::Welcome: {
+      const auto* w = root->body_as_Welcome();
+      return SessionMessage(WelcomeMsg{w->protocol_version(), w->session_id()});
+    }
+    case net::Body::Reject: {
+      const auto* w = root->body_as_Reject();
+      return SessionMessage(RejectMsg{w->protocol_version(), str(w->reason())});
+    }
+    case net::Body::SessionInfo:
+      return decodeSessionInfo(*root->body_as_SessionInfo());
+    case net::Body::SceneState: {
+      const auto* w = root->body_as_SceneState();
+      SceneStateMsg m;
+      m.animationTime = w->animation_time();
+      if (!std::isfinite(m.animationTime)) return fail("scene state: animation time not finite");
+      if (w->lights()) {
+        for (const net::LightState* l : *w->lights()) {
+          LightStateMsg s{fromWire(l->position()), fromWire(l->direction()), fromWire(l->color()),
+                          l->intensity()};
+          if (!finite(s.position) || !finite(s.direction) || !finite(s.color) ||
+              !std::isfinite(s.intensity)) {
+            return fail("scene state: light values not finite");
+          }
+          m.lights.push_back(s);
+        }
+      }
+      if (w->instance_transforms()) {
+        for (const net::Mat4* t : *w->instance_transforms()) {
+          glm::mat4 mat;
+          for (int i = 0; i < 16; ++i) {
+            const float x = t->m()->Get(i);
+            if (!std::isfinite(x)) return fail("scene state: instance transform not finite");
+            (&mat[0][0])[i] = x;
+          }
+          m.instanceTransforms.push_back(mat);
+        }
+      }
+      return SessionMessage(std::move(m));
+    }
+    case net::Body::ViewerPose: {
+      const auto* w = root->body_as_ViewerPose();
+      ViewerPoseMsg m;
+      m.position = fromWire(w->position());
+      if (w->orientation()) {
+        const auto* q = w->orientation();
+        m.orientation = glm::quat(q->w(), q->x(), q->y(), q->z());
+      }
+      m.time = w->time();
+      if (!finite(m.position) || !std::isfinite(m.time) || !std::isfinite(m.orientation.x) ||
+          !std::isfinite(m.orientation.y) || !std::isfinite(m.orientation.z) ||
+          !std::isfinite(m.orientation.w)) {
+        return fail("viewer pose: values not finite");
+      }
+      return SessionMessage(m);
+    }
+    case net::Body::Ack: {
+      const auto* w = root->body_as_Ack();
+      AckMsg m;
+      m.full = w->full();
+      m.fieldVersion = w->field_version();
+      if (w->ranges()) {
+        m.ranges.reserve(w->ranges()->size());
+        for (const net::AckRange* r : *w->ranges()) {
+          m.ranges.push_back(AckRange{r->cascade(), r->first_brick(), r->count(), r->version()});
+        }
+      }
+      return SessionMessage(std::move(m));
+    }
+    case net::Body::RepairRequest: {
+      const auto* w = root->body_as_RepairRequest();
+      RepairRequestMsg m;
+      if (w->bricks()) {
+        m.bricks.reserve(w->bricks()->size());
+        for (const net::BrickRef* r : *w->bricks()) {
+          m.bricks.push_back(BrickRefMsg{r->cascade(), r->brick(), r->have_version()});
+        }
+      }
+      return SessionMessage(std::move(m));
+    }
+    case net::Body::NONE:
+      break;
+  }
+  return fail("unknown message type " + std::to_string(int(root->body_type())));
+}
+
+std::optional<RejectMsg> checkHello(const HelloMsg& hello, std::string_view expectedToken) {
+  if (hello.protocolVersion < kMinProtocolVersion || hello.protocolVersion > kProtocolVersion) {
+    return RejectMsg{kProtocolVersion,
+                     "protocol version " + std::to_string(hello.protocolVersion) +
+                         " is not supported (this server speaks " +
+                         std::to_string(kMinProtocolVersion) + ".." +
+                         std::to_string(kProtocolVersion) + ")"};
+  }
+  // Constant time over the longer of the two, so timing does not reveal a matching prefix.
+  const std::string& got = hello.authToken;
+  const std::size_t n = std::max(got.size(), expectedToken.size());
+  unsigned diff = got.size() == expectedToken.size() ? 0u : 1u;
+  for (std::size_t i = 0; i < n; ++i) {
+    const unsigned a = i < got.size() ? static_cast<unsigned char>(got[i]) : 0u;
+    const unsigned b = i < expectedToken.size() ? static_cast<unsigned char>(expectedToken[i]) : 0u;
+    diff |= a ^ b;
+  }
+  if (diff != 0) return RejectMsg{kProtocolVersion, "authentication failed"};
+  return std::nullopt;
+}
+
+Status checkServerVersion(std::uint32_t serverVersion) {
+  if (serverVersion < kMinProtocolVersion || serverVersion > kProtocolVersion) {
+    return Error{"server speaks protocol version " + std::to_string(serverVersion) +
+                 ", this client " + std::to_string(kMinProtocolVersion) + ".." +
+                 std::to_string(kProtocolVersion)};
+  }
+  return Status::success();
+}
+
+SessionInfoMsg sessionInfoFor(const Field& field) {
+  SessionInfoMsg m;
+  m.sceneHash = field.sceneHash;
+  m.fieldVersion = field.version;
+  m.hysteresis = field.desc.hysteresis;
+  m.distanceExponent = field.desc.distanceExponent;
+  m.occlusionDistance = field.desc.occlusionDistance;
+  for (int k = 0; k < field.cascadeCount(); ++k) m.cascades.push_back(field.cascade(k));
+  return m;
+}
+
+Result<Field> mirrorField(const SessionInfoMsg& info) {
+  auto bad = [](const std::string& what) { return Error{"session info: " + what}; };
+  if (info.irradianceTexels != PC_IRRADIANCE_TEXELS || info.depthTexels != PC_DEPTH_TEXELS ||
+      info.occlusionTexels != PC_OCCLUSION_TEXELS || info.brickSize != PC_BRICK_SIZE ||
+      info.atlasTilesPerRow != PC_ATLAS_TILES_PER_ROW) {
+    return bad("the server's tile layout (" + std::to_string(info.irradianceTexels) + "/" +
+               std::to_string(info.depthTexels) + "/" + std::to_string(info.occlusionTexels) +
+               " texels, brick " + std::to_string(info.brickSize) + ", " +
+               std::to_string(info.atlasTilesPerRow) + " tiles per row) differs from this build's");
+  }
+  if (info.cascades.empty() || info.cascades.size() > std::size_t(PC_MAX_CASCADES)) {
+    return bad(std::to_string(info.cascades.size()) + " cascades");
+  }
+  bool hasCodec = false;
+  for (std::uint8_t c : info.codecs) hasCodec |= c == kCodecQuantZstd;
+  if (!hasCodec) return bad("the server offers no codec this client decodes");
+  if (info.maxDatagramBytes < 512 || info.maxDatagramBytes > 65507) {
+    return bad("max datagram size " + std::to_string(info.maxDatagramBytes));
+  }
+  if (!std::isfinite(info.hysteresis) || !std::isfinite(info.distanceExponent) ||
+      !(info.occlusionDistance >= 0.0f) || !std::isfinite(info.occlusionDistance)) {
+    return bad("field parameters not finite");
+  }
+  // Lay out with Field::create, then check that the server's running totals agree with ours.
+  std::vector<ProbeVolume> volumes;
+  std::int64_t slots = 0;
+  for (std::size_t k = 0; k < info.cascades.size(); ++k) {
+    const CascadeDesc& c = info.cascades[k];
+    const std::string name = "cascade " + std::to_string(k) + ": ";
+    if (c.counts.x < 1 || c.counts.y < 1 || c.counts.z < 1 || c.counts.x > 1024 ||
+        c.counts.y > 1024 || c.counts.z > 1024) {
+      return bad(name + "probe counts out of range");
+    }
+    slots += std::int64_t(c.counts.x + 3) * (c.counts.y + 3) * (c.counts.z + 3);
+    if (slots > (std::int64_t(1) << 22)) return bad("more than 4M probe slots");
+    if (!(c.spacing > 0.0f) || !std::isfinite(c.spacing) || !finite(c.origin)) {
+      return bad(name + "bad origin or spacing");
+    }
+    if (!(c.maxRayDistance > 0.0f) || !std::isfinite(c.maxRayDistance) || !(c.normalBias >= 0.0f) ||
+        !(c.viewBias >= 0.0f) || !(c.blendMargin >= 0.0f) || !std::isfinite(c.normalBias) ||
+        !std::isfinite(c.viewBias) || !std::isfinite(c.blendMargin)) {
+      return bad(name + "bad distances or biases");
+    }
+    if (c.scroll.x < 0 || c.scroll.y < 0 || c.scroll.z < 0 || c.scroll.x >= c.counts.x ||
+        c.scroll.y >= c.counts.y || c.scroll.z >= c.counts.z) {
+      return bad(name + "scroll out of range");
+    }
+    volumes.push_back(ProbeVolume{c.origin, c.spacing, c.counts});
+  }
+  Field f = Field::create(volumes, FieldSettings{});
+  for (std::size_t k = 0; k < info.cascades.size(); ++k) {
+    const CascadeDesc& c = info.cascades[k];
+    if (c.firstProbe != f.desc.cascades[k].firstProbe ||
+        c.atlasTileRow != f.desc.cascades[k].atlasTileRow) {
+      return bad("cascade " + std::to_string(k) + ": first probe or atlas row disagrees with the layout");
+    }
+    f.desc.cascades[k] = c;
+  }
+  f.desc.hysteresis = info.hysteresis;
+  f.desc.distanceExponent = info.distanceExponent;
+  f.desc.occlusionDistance = info.occlusionDistance;
+  f.sceneHash = info.sceneHash;
+  f.version = 0;
+  return f;
+}
+
+SceneStateMsg sceneStateMessage(const SceneState& state) {
+  SceneStateMsg m;
+  m.animationTime = state.time;
+  for (const Light& l : state.lights) {
+    m.lights.push_back(LightStateMsg{l.position, l.direction, l.color, l.intensity});
+  }
+  m.instanceTransforms = state.instanceTransforms;
+  return m;
+}
+
+Status applySceneState(const SceneStateMsg& message, SceneState& state) {
+  if (message.lights.size() != state.lights.size() ||
+      message.instanceTransforms.size() != state.instanceTransforms.size()) {
+    return Error{"scene state: " + std::to_string(message.lights.size()) + " lights and " +
+                 std::to_string(message.instanceTransforms.size()) + " instances, the scene has " +
+                 std::to_string(state.lights.size()) + " and " +
+                 std::to_string(state.instanceTransforms.size())};
+  }
+  state.time = message.animationTime;
+  for (std::size_t i = 0; i < message.lights.size(); ++i) {
+    state.lights[i].position = message.lights[i].position;
+    state.lights[i].direction = message.lights[i].direction;
+    state.lights[i].color = message.lights[i].color;
+    state.lights[i].intensity = message.lights[i].intensity;
+  }
+  state.instanceTransforms = message.instanceTransforms;
+  return Status::success();
+}
+
+}  // namespace pc

@@ -1,0 +1,129 @@
+// Session messages of the streaming protocol (session.fbs): plain C++ values, and their wire
+// form, a size-prefixed flatbuffer per message on a reliable ordered stream (TCP). Decoding
+// checks the size, the identifier and the flatbuffers Verifier, then every count and value, and
+// returns an Error naming what was wrong.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include "common/field.h"
+#include "common/result.h"
+#include "common/scene.h"
+#include "protocol/stream_limits.h"
+
+namespace pc {
+
+// Codec ids (session.fbs enum Codec).
+inline constexpr std::uint8_t kCodecQuantZstd = 1;
+
+struct HelloMsg {
+  std::uint32_t protocolVersion = kProtocolVersion;
+  std::string authToken;
+  std::string clientName;
+  bool wantsUdp = true;
+  std::uint16_t udpPort = 0;
+};
+
+struct WelcomeMsg {
+  std::uint32_t protocolVersion = kProtocolVersion;
+  std::uint32_t sessionId = 0;
+};
+
+struct RejectMsg {
+  std::uint32_t protocolVersion = kProtocolVersion;
+  std::string reason;
+};
+
+// The field layout a client needs to build its mirror (see mirrorField).
+struct SessionInfoMsg {
+  std::uint64_t sceneHash = 0;
+  std::uint64_t fieldVersion = 0;
+  int irradianceTexels = gpu::PC_IRRADIANCE_TEXELS;
+  int depthTexels = gpu::PC_DEPTH_TEXELS;
+  int occlusionTexels = gpu::PC_OCCLUSION_TEXELS;
+  int brickSize = gpu::PC_BRICK_SIZE;
+  int atlasTilesPerRow = gpu::PC_ATLAS_TILES_PER_ROW;
+  float hysteresis = 0, distanceExponent = 0, occlusionDistance = 0;
+  std::vector<gpu::CascadeDesc> cascades;
+  std::vector<std::uint8_t> codecs{kCodecQuantZstd};
+  std::uint32_t maxDatagramBytes = kMaxDatagramBytes;
+};
+
+struct LightStateMsg {
+  glm::vec3 position{0.0f}, direction{0.0f}, color{0.0f};
+  float intensity = 0;
+};
+
+struct SceneStateMsg {
+  double animationTime = 0;
+  std::vector<LightStateMsg> lights;
+  std::vector<glm::mat4> instanceTransforms;
+};
+
+struct ViewerPoseMsg {
+  glm::vec3 position{0.0f};
+  glm::quat orientation{1.0f, 0.0f, 0.0f, 0.0f};
+  double time = 0;
+};
+
+// A run of `count` consecutive bricks of one cascade held at one version.
+struct AckRange {
+  int cascade = 0;
+  std::uint32_t firstBrick = 0, count = 0;
+  std::uint64_t version = 0;
+};
+
+struct AckMsg {
+  bool full = false;  // every held brick is listed; unlisted bricks hold nothing
+  std::uint64_t fieldVersion = 0;
+  std::vector<AckRange> ranges;
+};
+
+struct BrickRefMsg {
+  int cascade = 0;
+  std::uint32_t brick = 0;
+  std::uint64_t haveVersion = 0;
+};
+
+struct RepairRequestMsg {
+  std::vector<BrickRefMsg> bricks;
+};
+
+using SessionMessage = std::variant<HelloMsg, WelcomeMsg, RejectMsg, SessionInfoMsg, SceneStateMsg,
+                                    ViewerPoseMsg, AckMsg, RepairRequestMsg>;
+
+// Size-prefixed flatbuffer: 4-byte little-endian length, then the message.
+std::vector<std::uint8_t> encodeMessage(const SessionMessage& message);
+// Whole frame, size prefix included.
+Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame);
+// For stream readers: given the first 4 bytes of a frame, the whole frame's size, or an Error
+// when it announces more than kMaxSessionMessageBytes.
+Result<std::size_t> messageFrameSize(std::span<const std::uint8_t> prefix);
+
+// Server side of the handshake: a Reject with a reason, or nothing when the Hello may proceed.
+// The token comparison takes the same time wherever the tokens differ.
+std::optional<RejectMsg> checkHello(const HelloMsg& hello, std::string_view expectedToken);
+// Client side: an Error when the server's protocol version is one this client cannot speak.
+Status checkServerVersion(std::uint32_t serverVersion);
+
+// The layout message for a field, and the empty mirror field a client builds from it (every
+// brick at version 0, every probe uninitialized). mirrorField checks the layout as strictly as
+// a baked file reader does.
+SessionInfoMsg sessionInfoFor(const Field& field);
+Result<Field> mirrorField(const SessionInfoMsg& info);
+
+// Scene state <-> message. applySceneState needs the scene's own lights and instances (types,
+// cones, meshes) and fails when the counts differ.
+SceneStateMsg sceneStateMessage(const SceneState& state);
+Status applySceneState(const SceneStateMsg& message, SceneState& state);
+
+}  // namespace pc

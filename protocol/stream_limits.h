@@ -1,0 +1,29 @@
+// Versions and size limits of the streaming protocol (PROTOCOL.md, "Streaming protocol").
+// Every received buffer is checked against these before anything else reads it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace pc {
+
+// The protocol version this code speaks, and the oldest peer version it still serves. Bump by
+// the rules in PROTOCOL.md ("Versioning of the streaming protocol").
+inline constexpr std::uint32_t kProtocolVersion = 1;
+inline constexpr std::uint32_t kMinProtocolVersion = 1;
+
+// UDP datagrams never exceed this (fits the IPv6 minimum MTU of 1280 with headers).
+inline constexpr std::size_t kMaxDatagramBytes = 1200;
+// Payload bytes per fragment: every fragment but a payload's last holds exactly this many,
+// which leaves room for the datagram and fragment headers within kMaxDatagramBytes.
+inline constexpr std::size_t kFragmentBytes = 1024;
+// A session message (TCP) larger than this is refused before it is read.
+inline constexpr std::size_t kMaxSessionMessageBytes = 4u << 20;
+
+// Verifier limits. Session messages nest 3 tables deep (message, body, cascade); a datagram
+// holds at most a few dozen fragment tables.
+inline constexpr unsigned kMaxMessageDepth = 8;
+inline constexpr unsigned kMaxMessageTables = 1024;
+inline constexpr unsigned kMaxDatagramTables = 64;
+
+}  // namespace pc

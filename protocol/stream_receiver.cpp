@@ -1,0 +1,168 @@
+#include "stream_receiver.h"
+
+#include <algorithm>
+#include <limits>
+
+namespace pc {
+
+Result<StreamReceiver> StreamReceiver::create(const SessionInfoMsg& info, std::uint32_t sessionId,
+                                              ReceiverOptions options) {
+  auto field = mirrorField(info);
+  if (!field) return field.error();
+  return StreamReceiver(std::move(field.value()), sessionId, options);
+}
+
+StreamReceiver::StreamReceiver(Field field, std::uint32_t sessionId, ReceiverOptions options)
+    : field_(std::move(field)),
+      sessionId_(sessionId),
+      options_(options),
+      reassembler_(options.reassembly) {
+  bricks_.resize(field_.cascadeCount());
+  for (int k = 0; k < field_.cascadeCount(); ++k) bricks_[k].resize(field_.brickVersions[k].size());
+}
+
+double StreamReceiver::brickAge(int cascade, int brick, double now) const {
+  const BrickState& b = bricks_[cascade][brick];
+  return b.version == 0 ? std::numeric_limits<double>::infinity() : now - b.appliedAt;
+}
+
+std::vector<std::pair<int, int>> StreamReceiver::takeChangedBricks() {
+  std::vector<std::pair<int, int>> out;
+  for (int k = 0; k < int(bricks_.size()); ++k) {
+    for (int b = 0; b < int(bricks_[k].size()); ++b) {
+      if (bricks_[k][b].changed) {
+        bricks_[k][b].changed = false;
+        out.emplace_back(k, b);
+      }
+    }
+  }
+  return out;
+}
+
+void StreamReceiver::requestRepair(BrickState& b) { b.wantRepair = true; }
+
+Status StreamReceiver::onDatagram(std::span<const std::uint8_t> bytes, double now) {
+  auto d = decodeDatagram(bytes);
+  if (!d) {
+    ++stats_.rejectedDatagrams;
+    stats_.lastError = d.error().message;
+    return d.error();
+  }
+  if (d->sessionId != sessionId_) {
+    ++stats_.rejectedDatagrams;
+    stats_.lastError = "datagram: session " + std::to_string(d->sessionId) + ", expected " +
+                       std::to_string(sessionId_);
+    return Error{stats_.lastError};
+  }
+  ++stats_.datagrams;
+  serverVersion_ = std::max(serverVersion_, d->fieldVersion);
+  Status result;
+  for (Fragment& f : d->fragments) {
+    ++stats_.fragments;
+    const UpdateHeader& u = f.update;
+    if (u.cascade >= int(bricks_.size()) || u.brick >= bricks_[u.cascade].size() ||
+        u.codec != kCodecQuantZstd) {
+      ++stats_.rejectedFragments;
+      stats_.lastError = "datagram: fragment names cascade " + std::to_string(u.cascade) +
+                         ", brick " + std::to_string(u.brick) + ", codec " +
+                         std::to_string(u.codec) + ", not in this session's field";
+      result = Error{stats_.lastError};
+      continue;
+    }
+    if (auto done = reassembler_.add(std::move(f), now)) {
+      if (Status s = apply(*done, now); !s) result = s;
+    }
+  }
+  return result;
+}
+
+Status StreamReceiver::apply(const CompletedUpdate& u, double now) {
+  BrickState& b = bricks_[u.update.cascade][u.update.brick];
+  if (u.update.version <= b.version) {
+    ++stats_.stale;
+    return Status::success();
+  }
+  const QuantizedBrick* base = nullptr;
+  if (u.update.baseVersion != 0) {
+    if (u.update.baseVersion != b.version) {
+      ++stats_.missingBase;
+      requestRepair(b);
+      return Status::success();
+    }
+    base = &b.content;
+  }
+  auto q = decodeBrick(u.payload, base);
+  if (!q) {
+    ++stats_.decodeErrors;
+    stats_.lastError = q.error().message;
+    requestRepair(b);
+    return q.error();
+  }
+  applyBrick(field_, u.update.cascade, int(u.update.brick), *q);
+  b.content = std::move(q.value());
+  b.version = u.update.version;
+  b.appliedAt = now;
+  b.ackDirty = true;
+  b.changed = true;
+  b.wantRepair = false;
+  field_.brickVersions[u.update.cascade][u.update.brick] = b.version;
+  field_.version = std::max(field_.version, b.version);
+  ++stats_.applied;
+  stats_.appliedResidual += base != nullptr;
+  return Status::success();
+}
+
+std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
+  std::vector<std::vector<std::uint8_t>> out;
+  reassembler_.expire(now);
+
+  const bool full = now - lastFullAckAt_ >= options_.fullAckInterval;
+  bool dirty = false;
+  for (const auto& cascade : bricks_) {
+    for (const BrickState& b : cascade) dirty |= b.ackDirty;
+  }
+  if (full || (dirty && now - lastAckAt_ >= options_.ackInterval)) {
+    AckMsg ack;
+    ack.full = full;
+    ack.fieldVersion = serverVersion_;
+    for (int k = 0; k < int(bricks_.size()); ++k) {
+      for (std::uint32_t i = 0; i < bricks_[k].size(); ++i) {
+        BrickState& b = bricks_[k][i];
+        const bool listed = full ? b.version != 0 : b.ackDirty;
+        b.ackDirty = false;
+        if (!listed) continue;
+        // Runs of consecutive bricks at one version: an update bumps all its bricks to the
+        // same version, so runs are long.
+        AckRange* last = ack.ranges.empty() ? nullptr : &ack.ranges.back();
+        if (last && last->cascade == k && last->firstBrick + last->count == i &&
+            last->version == b.version) {
+          ++last->count;
+        } else {
+          ack.ranges.push_back(AckRange{k, i, 1, b.version});
+        }
+      }
+    }
+    out.push_back(encodeMessage(ack));
+    ++stats_.acks;
+    lastAckAt_ = now;
+    if (full) lastFullAckAt_ = now;
+  }
+
+  RepairRequestMsg repair;
+  for (int k = 0; k < int(bricks_.size()); ++k) {
+    for (std::uint32_t i = 0; i < bricks_[k].size(); ++i) {
+      BrickState& b = bricks_[k][i];
+      if (!b.wantRepair || now - b.repairAt < options_.repairInterval) continue;
+      b.wantRepair = false;
+      b.repairAt = now;
+      repair.bricks.push_back(BrickRefMsg{k, i, b.version});
+    }
+  }
+  if (!repair.bricks.empty()) {
+    stats_.repairBricks += repair.bricks.size();
+    out.push_back(encodeMessage(repair));
+  }
+  return out;
+}
+
+}  // namespace pc

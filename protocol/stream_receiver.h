@@ -1,0 +1,95 @@
+// Client side of the stream, without sockets or clocks: fed datagrams and the time, it keeps a
+// mirror of the server's field and says what to send back (acks, repair requests).
+//
+// An update is applied only when it is newer than the brick's version and either
+// self-contained or a residual on exactly the version held; otherwise the brick keeps what it
+// has and a repair request goes out (at most one per brick per repair interval). Duplicated,
+// reordered, stale, corrupt or foreign datagrams therefore change nothing. Acks report the
+// versions held: changes at most every ack interval, the whole state every full-ack interval.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/field.h"
+#include "common/result.h"
+#include "protocol/brick_codec.h"
+#include "protocol/datagram.h"
+#include "protocol/session_messages.h"
+
+namespace pc {
+
+struct ReceiverOptions {
+  double ackInterval = 0.02;      // s: changes are acknowledged at most this often
+  double fullAckInterval = 1.0;   // s: every held version is acknowledged this often
+  double repairInterval = 0.2;    // s: per brick, at most one repair request this often
+  ReassemblyOptions reassembly;
+};
+
+struct ReceiverStats {
+  std::uint64_t datagrams = 0, rejectedDatagrams = 0, fragments = 0, rejectedFragments = 0;
+  std::uint64_t applied = 0, appliedResidual = 0;
+  std::uint64_t stale = 0;         // not newer than what is held (duplicates, reordering)
+  std::uint64_t missingBase = 0;   // residual on a version not held
+  std::uint64_t decodeErrors = 0;
+  std::uint64_t repairBricks = 0;  // bricks named in repair requests
+  std::uint64_t acks = 0;
+  std::string lastError;
+};
+
+class StreamReceiver {
+ public:
+  // Builds the empty mirror from the session info (see mirrorField).
+  static Result<StreamReceiver> create(const SessionInfoMsg& info, std::uint32_t sessionId,
+                                       ReceiverOptions options = {});
+
+  // One datagram (or a TCP-framed datagram in TCP-only mode). An Error says why it or one of
+  // its fragments was rejected; the rest of the state is unchanged and consistent either way.
+  Status onDatagram(std::span<const std::uint8_t> bytes, double now);
+
+  // Session message frames to send to the server now (Ack, RepairRequest).
+  std::vector<std::vector<std::uint8_t>> poll(double now);
+
+  const Field& field() const { return field_; }
+  std::uint64_t brickVersion(int cascade, int brick) const {
+    return bricks_[cascade][brick].version;
+  }
+  // Seconds since the brick last changed here; infinity while it holds nothing.
+  double brickAge(int cascade, int brick, double now) const;
+  // Newest field version the server announced.
+  std::uint64_t serverFieldVersion() const { return serverVersion_; }
+  // (cascade, brick) of every brick changed since the previous call, for tile uploads.
+  std::vector<std::pair<int, int>> takeChangedBricks();
+
+  const ReceiverStats& stats() const { return stats_; }
+  const Reassembler& reassembler() const { return reassembler_; }
+
+ private:
+  struct BrickState {
+    std::uint64_t version = 0;
+    double appliedAt = 0;
+    QuantizedBrick content;  // codes of `version`: the base for residuals
+    double repairAt = -1e30;
+    bool wantRepair = false;
+    bool ackDirty = false;
+    bool changed = false;
+  };
+  StreamReceiver(Field field, std::uint32_t sessionId, ReceiverOptions options);
+  Status apply(const CompletedUpdate& u, double now);
+  void requestRepair(BrickState& b);
+
+  Field field_;
+  std::uint32_t sessionId_;
+  ReceiverOptions options_;
+  std::vector<std::vector<BrickState>> bricks_;
+  Reassembler reassembler_;
+  std::uint64_t serverVersion_ = 0;
+  double lastAckAt_ = -1e30, lastFullAckAt_ = -1e30;
+  ReceiverStats stats_;
+};
+
+}  // namespace pc

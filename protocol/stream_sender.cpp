@@ -1,0 +1,255 @@
+#include "stream_sender.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace pc {
+
+namespace {
+
+// Packs fragments into datagrams in the order given, each within kMaxDatagramBytes.
+class Packer {
+ public:
+  Packer(std::uint32_t sessionId, std::uint32_t& sequence, std::uint64_t fieldVersion,
+         std::vector<std::vector<std::uint8_t>>& out)
+      : sessionId_(sessionId), sequence_(sequence), fieldVersion_(fieldVersion), out_(out) {}
+
+  void add(const FragmentRef& f) {
+    const std::size_t cost = kFragmentOverheadBytes + f.data.size();
+    if (!pending_.empty() && size_ + cost > kMaxDatagramBytes) flush();
+    pending_.push_back(f);
+    size_ += cost;
+  }
+  void flush() {
+    if (pending_.empty()) return;
+    out_.push_back(encodeDatagram(sessionId_, sequence_++, fieldVersion_, pending_));
+    pending_.clear();
+    size_ = kDatagramOverheadBytes;
+  }
+
+ private:
+  std::uint32_t sessionId_;
+  std::uint32_t& sequence_;
+  std::uint64_t fieldVersion_;
+  std::vector<std::vector<std::uint8_t>>& out_;
+  std::vector<FragmentRef> pending_;
+  std::size_t size_ = kDatagramOverheadBytes;
+};
+
+}  // namespace
+
+StreamSender::StreamSender(FieldPublisher& publisher, std::uint32_t sessionId,
+                           SenderOptions options)
+    : publisher_(publisher), sessionId_(sessionId), options_(options) {
+  tracks_.resize(publisher.cascadeCount());
+  for (int k = 0; k < publisher.cascadeCount(); ++k) tracks_[k].resize(publisher.brickCount(k));
+  stats_.srtt = options_.initialRtt;
+}
+
+double StreamSender::resendTimeout() const {
+  return std::max(options_.minResendTimeout, 2.0 * stats_.srtt);
+}
+
+std::size_t StreamSender::pendingBricks() const {
+  std::size_t n = 0;
+  for (int k = 0; k < int(tracks_.size()); ++k) {
+    for (int b = 0; b < int(tracks_[k].size()); ++b) {
+      const std::uint64_t v = publisher_.current(k, b).version;
+      n += v != 0 && tracks_[k][b].acked != v;
+    }
+  }
+  return n;
+}
+
+Status StreamSender::onMessage(std::span<const std::uint8_t> frame, double now) {
+  auto m = decodeMessage(frame);
+  if (!m) {
+    ++stats_.badMessages;
+    return m.error();
+  }
+  return onMessage(*m, now);
+}
+
+Status StreamSender::onMessage(const SessionMessage& message, double now) {
+  Status s;
+  if (const auto* ack = std::get_if<AckMsg>(&message)) {
+    s = onAck(*ack, now);
+  } else if (const auto* repair = std::get_if<RepairRequestMsg>(&message)) {
+    s = onRepair(*repair);
+  } else if (const auto* pose = std::get_if<ViewerPoseMsg>(&message)) {
+    viewer_ = pose->position;
+  } else {
+    s = Error{"stream sender: unexpected message type from the client"};
+  }
+  if (!s) ++stats_.badMessages;
+  return s;
+}
+
+Status StreamSender::onAck(const AckMsg& ack, double now) {
+  // Check every range before changing anything, so a bad ack changes nothing.
+  for (const AckRange& r : ack.ranges) {
+    if (r.cascade < 0 || r.cascade >= int(tracks_.size()) ||
+        std::uint64_t(r.firstBrick) + r.count > tracks_[r.cascade].size()) {
+      return Error{"ack: range (cascade " + std::to_string(r.cascade) + ", bricks " +
+                   std::to_string(r.firstBrick) + "+" + std::to_string(r.count) +
+                   ") outside the field"};
+    }
+  }
+  if (ack.full) {
+    for (auto& cascade : tracks_) {
+      for (Track& t : cascade) t.acked = 0;
+    }
+  }
+  for (const AckRange& r : ack.ranges) {
+    for (std::uint32_t i = 0; i < r.count; ++i) {
+      Track& t = tracks_[r.cascade][r.firstBrick + i];
+      if (r.version == t.sent && t.acked != t.sent && !t.resent) {
+        // Round-trip sample (with the receiver's ack delay, which the timeout must cover too).
+        const double sample = now - t.sentAt;
+        if (sample >= 0 && sample < 10.0) stats_.srtt = 0.875 * stats_.srtt + 0.125 * sample;
+      }
+      t.acked = r.version;
+    }
+  }
+  return Status::success();
+}
+
+Status StreamSender::onRepair(const RepairRequestMsg& repair) {
+  for (const BrickRefMsg& r : repair.bricks) {
+    if (r.cascade < 0 || r.cascade >= int(tracks_.size()) || r.brick >= tracks_[r.cascade].size()) {
+      return Error{"repair request: brick outside the field"};
+    }
+  }
+  for (const BrickRefMsg& r : repair.bricks) {
+    Track& t = tracks_[r.cascade][r.brick];
+    t.acked = r.haveVersion;
+    t.repair = true;
+    t.sent = 0;  // not in flight any more: what was sent did not help
+  }
+  return Status::success();
+}
+
+bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version,
+                                   std::uint64_t ref) {
+  if (t.skipVersion == version && t.skipRef == ref) return t.skipBelow;
+  auto cur = publisher_.find(k, b, version);
+  auto old = publisher_.find(k, b, ref);
+  bool below = false;
+  if (cur && old) {
+    const BrickChange c = brickChange(*cur, *old);
+    below = c.irradiance < options_.irradianceThreshold && c.depth < options_.depthThreshold &&
+            c.occlusion < options_.occlusionThreshold && !c.records;
+  }
+  t.skipVersion = version;
+  t.skipRef = ref;
+  t.skipBelow = below;
+  return below;
+}
+
+double StreamSender::distanceInBricks(int k, int b) const {
+  if (!viewer_) return 0.0;
+  const gpu::CascadeDesc& c = publisher_.cascade(k);
+  const glm::ivec3 bc = gpu::pcBrickCoord(c, b) * gpu::PC_BRICK_SIZE;
+  // The brick's middle probe, in logical (scrolled) grid coordinates.
+  const glm::ivec3 mid = glm::min(bc + glm::ivec3(gpu::PC_BRICK_SIZE / 2), c.counts - 1);
+  const glm::vec3 centre = gpu::pcProbeGridPosition(c, gpu::pcLogicalCoord(c, mid));
+  const float brickSize = c.spacing * float(gpu::PC_BRICK_SIZE);
+  return std::max(0.0, double(glm::length(*viewer_ - centre) / brickSize) - 0.9);
+}
+
+std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
+  std::vector<std::vector<std::uint8_t>> out;
+  if (lastPoll_ < 0) tokens_ = options_.burstBytes;
+  else tokens_ = std::min(options_.burstBytes, tokens_ + options_.bytesPerSecond * std::max(0.0, now - lastPoll_));
+  lastPoll_ = now;
+
+  // Which bricks want sending, most urgent first.
+  std::vector<Candidate> candidates;
+  for (int k = 0; k < int(tracks_.size()); ++k) {
+    for (int b = 0; b < int(tracks_[k].size()); ++b) {
+      Track& t = tracks_[k][b];
+      const BrickVersion& cur = publisher_.current(k, b);
+      if (cur.version == 0 || t.acked == cur.version) {
+        t.pendingSince = -1;
+        t.repair = false;
+        continue;
+      }
+      if (t.pendingSince < 0) t.pendingSince = now;
+      if (t.sent == cur.version && now - t.sentAt < resendTimeout()) continue;  // in flight
+      if (t.sent != cur.version && !t.repair) {
+        // A new version: hold it back while the change is small, still moving, and the client
+        // heard from this brick recently.
+        const std::uint64_t ref = std::max(t.acked, t.sent);
+        if (ref != 0 && now - cur.publishedAt < options_.settleTime &&
+            now - t.sentAt < options_.refreshInterval && belowThresholds(t, k, b, cur.version, ref)) {
+          ++stats_.skipped;
+          continue;
+        }
+      }
+      const double key =
+          distanceInBricks(k, b) - options_.agingBricksPerSecond * (now - t.pendingSince);
+      candidates.push_back(Candidate{k, b, key});
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    return a.key < b.key || (a.key == b.key && (a.cascade < b.cascade ||
+                                                (a.cascade == b.cascade && a.brick < b.brick)));
+  });
+
+  // Encoded updates stay alive (shared_ptr) until their fragments are packed.
+  std::vector<std::shared_ptr<const EncodedUpdate>> chosen;
+  for (const Candidate& c : candidates) {
+    if (tokens_ <= 0) break;
+    Track& t = tracks_[c.cascade][c.brick];
+    const std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
+    std::uint64_t base = 0;
+    if (t.acked != 0 && t.acked < version && now - t.selfContainedAt < options_.refreshInterval) {
+      base = t.acked;
+    }
+    auto update = publisher_.encoded(c.cascade, c.brick, version, base);
+    if (!update && base != 0) {
+      base = 0;  // the acknowledged version left the history
+      update = publisher_.encoded(c.cascade, c.brick, version, 0);
+    }
+    if (!update) continue;
+    const std::size_t fragments = fragmentCount(update->header.totalSize);
+    tokens_ -= double(update->payload.size() + fragments * kFragmentOverheadBytes);
+    if (t.sent == version) {
+      ++stats_.resends;
+      t.resent = true;
+    } else {
+      t.resent = false;
+    }
+    t.sent = version;
+    t.sentAt = now;
+    if (base == 0) t.selfContainedAt = now;
+    t.repair = false;
+    ++stats_.updates;
+    stats_.residualUpdates += base != 0;
+    chosen.push_back(std::move(update));
+    if (chosen.size() * 2 >= options_.maxDatagramsPerPoll) break;
+  }
+
+  Packer packer(sessionId_, sequence_, publisher_.fieldVersion(), out);
+  for (const auto& u : chosen) {
+    const std::uint16_t n = fragmentCount(u->header.totalSize);
+    for (std::uint16_t i = 0; i < n; ++i) {
+      const std::size_t begin = std::size_t(i) * kFragmentBytes;
+      const std::size_t size = std::min(kFragmentBytes, u->payload.size() - begin);
+      packer.add(FragmentRef{u->header, i, std::span(u->payload).subspan(begin, size)});
+      ++stats_.fragments;
+    }
+  }
+  packer.flush();
+  if (out.empty() && now - lastDatagramAt_ >= options_.heartbeatInterval) {
+    // Heartbeat: tells the client the newest field version and that the server is alive.
+    out.push_back(encodeDatagram(sessionId_, sequence_++, publisher_.fieldVersion(), {}));
+  }
+  if (!out.empty()) lastDatagramAt_ = now;
+  stats_.datagrams += out.size();
+  for (const auto& d : out) stats_.bytes += d.size();
+  return out;
+}
+
+}  // namespace pc

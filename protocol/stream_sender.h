@@ -1,0 +1,103 @@
+// Server side of one client's stream, without sockets or clocks: fed the client's session
+// messages (acks, repair requests, viewer poses) and the time, it produces the datagrams to
+// send now. One per client; all of them read one shared FieldPublisher.
+//
+// What it sends, per brick: nothing while the client has acknowledged the brick's current
+// version, or while that version is in flight (sent less than a resend timeout ago). Otherwise
+// the current version, as a residual on the version the client acknowledged (when that is
+// still in the publisher's history) or self-contained, unless the change since the version the
+// client has or is receiving is below the perceptual thresholds, the version is younger than
+// the settle time, and the brick was sent within the refresh interval. There is no queue beyond
+// one entry per brick, always for the newest version: a lagging client gets the newest state,
+// never a backlog. Bricks near the viewer go first, and waiting raises a brick's priority.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "common/result.h"
+#include "protocol/field_publisher.h"
+#include "protocol/session_messages.h"
+
+namespace pc {
+
+struct SenderOptions {
+  double bytesPerSecond = 4e6;      // rate limit (token bucket), datagram bytes
+  double burstBytes = 256 * 1024;   // bucket size
+  double minResendTimeout = 0.05;   // s; the timeout is max(this, 2 x smoothed round trip)
+  double initialRtt = 0.1;          // s, until acks give samples
+  double settleTime = 0.2;          // s: a version this old is sent even below the thresholds
+  double refreshInterval = 1.0;     // s: an unacknowledged brick is sent at least this often,
+                                    // and self-contained at least this often
+  float irradianceThreshold = 0.004f;  // max |delta e| (gamma-encoded irradiance)
+  float depthThreshold = 0.005f;       // max |delta mean depth| / maxRayDistance
+  float occlusionThreshold = 0.02f;
+  double heartbeatInterval = 0.25;  // s: an empty datagram when nothing else was sent
+  double agingBricksPerSecond = 8;  // priority: each second waiting counts as this many bricks nearer
+  std::size_t maxDatagramsPerPoll = 4096;
+};
+
+struct SenderStats {
+  std::uint64_t datagrams = 0, bytes = 0;
+  std::uint64_t updates = 0, residualUpdates = 0, resends = 0, fragments = 0;
+  std::uint64_t skipped = 0;      // brick-polls held back by the perceptual thresholds
+  std::uint64_t badMessages = 0;
+  double srtt = 0;
+};
+
+class StreamSender {
+ public:
+  StreamSender(FieldPublisher& publisher, std::uint32_t sessionId, SenderOptions options = {});
+
+  // A session message frame from the client. Acks, repair requests and viewer poses are used;
+  // anything else, or a frame that fails decoding, is an Error and changes nothing.
+  Status onMessage(std::span<const std::uint8_t> frame, double now);
+  Status onMessage(const SessionMessage& message, double now);
+
+  // Datagrams to send now (each at most kMaxDatagramBytes), within the rate limit.
+  std::vector<std::vector<std::uint8_t>> poll(double now);
+
+  const SenderStats& stats() const { return stats_; }
+  // Bricks whose current version the client has not acknowledged.
+  std::size_t pendingBricks() const;
+  double resendTimeout() const;
+
+ private:
+  struct Track {
+    std::uint64_t acked = 0;  // what the client holds, from acks and repair requests
+    std::uint64_t sent = 0;   // newest version sent
+    double sentAt = -1e30;
+    bool resent = false;      // sent more than once: no round-trip sample (Karn)
+    double selfContainedAt = -1e30;
+    double pendingSince = -1;
+    bool repair = false;      // the client asked: bypass the thresholds
+    // Cached perceptual decision for (current version, reference version).
+    std::uint64_t skipVersion = 0, skipRef = 0;
+    bool skipBelow = false;
+  };
+  struct Candidate {
+    int cascade;
+    int brick;
+    double key;
+  };
+  Status onAck(const AckMsg& ack, double now);
+  Status onRepair(const RepairRequestMsg& repair);
+  bool belowThresholds(Track& t, int k, int b, std::uint64_t version, std::uint64_t ref);
+  double distanceInBricks(int k, int b) const;
+
+  FieldPublisher& publisher_;
+  std::uint32_t sessionId_;
+  SenderOptions options_;
+  std::vector<std::vector<Track>> tracks_;
+  std::optional<glm::vec3> viewer_;
+  double tokens_ = 0, lastPoll_ = -1, lastDatagramAt_ = -1e30;
+  std::uint32_t sequence_ = 0;
+  SenderStats stats_;
+};
+
+}  // namespace pc
