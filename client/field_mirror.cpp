@@ -121,6 +121,17 @@ std::uint64_t FieldMirror::brickVersion(BrickId id) const {
   return bricks_[id.cascade][id.brick].version;
 }
 
+void FieldMirror::markAllPending() {
+  std::lock_guard lock(mutex_);
+  pending_.clear();
+  for (int k = 0; k < int(bricks_.size()); ++k) {
+    for (int b = 0; b < int(bricks_[k].size()); ++b) {
+      bricks_[k][b].pending = true;
+      pending_.push_back({k, b});
+    }
+  }
+}
+
 std::vector<BrickId> FieldMirror::takePending(int maxBricks) {
   std::lock_guard lock(mutex_);
   const std::size_t n = std::min<std::size_t>(pending_.size(), std::size_t(std::max(0, maxBricks)));

@@ -42,6 +42,8 @@ class FieldMirror {
   FieldAge age(double now) const;
   std::uint64_t brickVersion(BrickId id) const;
 
+  // Makes every brick pending again: a new GPU copy of the field needs all of them.
+  void markAllPending();
   // Pending bricks, oldest arrival first, at most `maxBricks`; they stop being pending. The
   // GPU side uploads them and calls this again next frame for more.
   std::vector<BrickId> takePending(int maxBricks);

@@ -210,6 +210,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   r->field_.emplace(std::move(field).value());
   // The field present at start-up (a baked file) goes up before the first frame; later bricks
   // stream in through the frames' upload budget.
+  mirror.markAllPending();
   Status uploaded = r->field_->uploadAll(mirror);
   if (!uploaded) return uploaded.error();
 
