@@ -30,7 +30,6 @@ Benchmark addTrace(CLI::App& app);
 Benchmark addQuality(CLI::App& app);
 Benchmark addLeak(CLI::App& app);
 Benchmark addClient(CLI::App& app);
-Benchmark addClient(CLI::App& app);
 Benchmark addGpuTrace(CLI::App& app);
 
 }  // namespace pc::bench
