@@ -1,0 +1,93 @@
+#include "stream_simulation.h"
+
+#include <algorithm>
+
+namespace pc {
+
+namespace {
+
+bool allVersionsMatch(const Field& server, const StreamReceiver& receiver) {
+  for (int k = 0; k < server.cascadeCount(); ++k) {
+    for (std::size_t b = 0; b < server.brickVersions[k].size(); ++b) {
+      if (receiver.brickVersion(k, int(b)) != server.brickVersions[k][b]) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& advance,
+                                           const StreamSimulationOptions& o) {
+  StreamSimulationResult r;
+  const std::uint32_t sessionId = 0x5e55'0000u + std::uint32_t(o.seed & 0xFFFF);
+  FieldPublisher publisher(server, o.publisher);
+  (void)publisher.publish(server, 0.0);
+  StreamSender sender(publisher, sessionId, o.sender);
+
+  // The client learns the layout through the wire form of SessionInfo, as it would over TCP.
+  auto info = decodeMessage(encodeMessage(publisher.sessionInfo()));
+  auto receiverOr = StreamReceiver::create(std::get<SessionInfoMsg>(info.value()), sessionId,
+                                           o.receiver);
+  if (!receiverOr) return r;
+  StreamReceiver receiver = std::move(receiverOr.value());
+
+  FaultLink link(o.seed);
+  ReliableLink control;
+  if (o.viewer) {
+    ViewerPoseMsg pose;
+    pose.position = *o.viewer;
+    control.send(encodeMessage(pose), 0.0);
+  }
+
+  const double faultStart = o.warmupSeconds, faultEnd = o.warmupSeconds + o.faultSeconds;
+  const double end = faultEnd + o.settleLimitSeconds;
+  double nextTick = o.tickInterval;
+  for (long i = 1;; ++i) {
+    const double t = double(i) * o.step;
+    if (t > end) break;
+    const bool faulty = t >= faultStart && t < faultEnd;
+    link.setProfile(faulty ? o.faults : o.calm);
+    control.setDelay(faulty ? o.controlDelayDuringFaults : o.controlDelay);
+
+    if (t >= nextTick) {
+      nextTick += o.tickInterval;
+      if (!(o.freezeAfterFaults && t >= faultEnd)) {
+        advance(server, t);
+        (void)publisher.publish(server, t);
+        ++r.fieldUpdates;
+      }
+    }
+
+    auto datagrams = sender.poll(t);
+    r.maxDatagramsPerPoll = std::max(r.maxDatagramsPerPoll, datagrams.size());
+    for (auto& d : datagrams) {
+      r.maxDatagramBytes = std::max(r.maxDatagramBytes, d.size());
+      link.send(std::move(d), t);
+    }
+    for (auto& d : link.receive(t)) r.receiverErrors += !receiver.onDatagram(d, t).ok();
+    for (auto& m : receiver.poll(t)) control.send(std::move(m), t);
+    for (auto& m : control.receive(t)) (void)sender.onMessage(m, t);
+
+    r.maxReassemblyBytes = std::max(r.maxReassemblyBytes, receiver.reassembler().pendingBytes());
+    r.maxReassemblyUpdates = std::max(r.maxReassemblyUpdates, receiver.reassembler().pendingUpdates());
+    r.maxLinkInFlight = std::max(r.maxLinkInFlight, link.inFlight());
+    r.maxControlInFlight = std::max(r.maxControlInFlight, control.inFlight());
+    r.maxCacheBytes = std::max(r.maxCacheBytes, publisher.cache().bytes());
+    r.maxHistoryBytes = std::max(r.maxHistoryBytes, publisher.historyBytes());
+    r.seconds = t;
+
+    if (t >= faultEnd && allVersionsMatch(server, receiver)) {
+      r.converged = true;
+      r.convergeSeconds = t - faultEnd;
+      break;
+    }
+  }
+  r.sender = sender.stats();
+  r.receiver = receiver.stats();
+  r.link = link.stats();
+  r.mirror = receiver.field();
+  return r;
+}
+
+}  // namespace pc

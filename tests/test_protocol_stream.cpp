@@ -1,0 +1,217 @@
+// The stream over an in-memory link with faults: loss up to 50% with bursts, duplication,
+// reordering, corruption and delay, while the server's field changes. Once the faults stop the
+// receiver must hold the server's field exactly as the codec quantizes it within 1 s of
+// simulated time, and every queue and buffer must stay within its cap.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <random>
+
+#include "protocol/stream_simulation.h"
+#include "server/bake.h"
+#include "server/tracer.h"
+#include "test_protocol_support.h"
+
+namespace {
+
+using namespace pc;
+
+FaultProfile harsh(double loss) {
+  FaultProfile p;
+  p.loss = loss;
+  p.burstStart = 0.02;
+  p.burstLength = 10;
+  p.duplicate = 0.1;
+  p.reorder = 0.2;
+  p.reorderDelay = 0.06;
+  p.corrupt = 0.05;
+  p.delay = 0.03;
+  p.jitter = 0.02;
+  return p;
+}
+
+StreamSimulationOptions baseOptions(std::uint64_t seed) {
+  StreamSimulationOptions o;
+  o.seed = seed;
+  o.warmupSeconds = 0.5;
+  o.faultSeconds = 3.0;
+  o.settleLimitSeconds = 3.0;
+  o.calm.delay = 0.01;
+  o.viewer = glm::vec3(0.0f, 1.0f, 0.0f);
+  return o;
+}
+
+// Caps: every buffer the protocol holds is bounded by its configuration, whatever arrived.
+void expectBounded(const StreamSimulationResult& r, const StreamSimulationOptions& o) {
+  EXPECT_LE(r.maxDatagramBytes, kMaxDatagramBytes);
+  EXPECT_LE(r.maxReassemblyUpdates, o.receiver.reassembly.maxUpdates);
+  EXPECT_LE(r.maxReassemblyBytes, o.receiver.reassembly.maxBytes);
+  EXPECT_LE(r.maxLinkInFlight, o.faults.queueLimit);
+  EXPECT_LE(r.maxCacheBytes, o.publisher.maxCacheBytes + 2 * maxEncodedBrickBytes());
+  EXPECT_LE(r.maxHistoryBytes, o.publisher.maxHistoryBytes + 32 * brick_layout::kCodes * 2);
+  EXPECT_LE(r.maxDatagramsPerPoll, o.sender.maxDatagramsPerPoll);
+  // Session messages do not pile up: acks are rate-limited.
+  EXPECT_LE(r.maxControlInFlight, 64u);
+}
+
+void report(const char* name, const StreamSimulationResult& r) {
+  std::printf(
+      "%s: converged %d in %.3f s; sent %llu datagrams (%llu updates, %llu residual, %llu "
+      "resends, %llu skipped); link lost %llu dup %llu corrupt %llu; receiver applied %llu, "
+      "stale %llu, no base %llu, rejected %llu datagrams\n",
+      name, int(r.converged), r.convergeSeconds, (unsigned long long)r.sender.datagrams,
+      (unsigned long long)r.sender.updates, (unsigned long long)r.sender.residualUpdates,
+      (unsigned long long)r.sender.resends, (unsigned long long)r.sender.skipped,
+      (unsigned long long)r.link.lost, (unsigned long long)r.link.duplicated,
+      (unsigned long long)r.link.corrupted, (unsigned long long)r.receiver.applied,
+      (unsigned long long)r.receiver.stale, (unsigned long long)r.receiver.missingBase,
+      (unsigned long long)r.receiver.rejectedDatagrams);
+}
+
+FieldAdvance syntheticAdvance(std::uint64_t seed, float share) {
+  auto rng = std::make_shared<std::mt19937>(unsigned(seed));
+  return [rng, share](Field& f, double t) { test::evolveField(f, *rng, share, float(t)); };
+}
+
+TEST(ProtocolStream, CalmLinkDeliversEverythingWithResiduals) {
+  Field server = test::makeSyntheticLayout();
+  StreamSimulationOptions o = baseOptions(1);
+  o.faultSeconds = 1.0;  // "faults" that are none
+  o.faults = o.calm;
+  auto r = runStreamSimulation(server, syntheticAdvance(1, 0.3f), o);
+  report("calm", r);
+  ASSERT_TRUE(r.converged);
+  EXPECT_LE(r.convergeSeconds, 1.0);
+  EXPECT_EQ(test::differingBricks(r.mirror, test::quantizedCopy(server)), 0);
+  EXPECT_GT(r.sender.residualUpdates, 0u);
+  EXPECT_EQ(r.receiver.rejectedDatagrams, 0u);
+  EXPECT_EQ(r.receiver.decodeErrors, 0u);
+  expectBounded(r, o);
+}
+
+class ProtocolFaults : public ::testing::TestWithParam<double> {};
+
+TEST_P(ProtocolFaults, ConvergesWithinOneSecondAfterFaultsStop) {
+  const double loss = GetParam();
+  for (std::uint64_t seed : {11u, 12u, 13u}) {
+    Field server = test::makeSyntheticLayout();
+    StreamSimulationOptions o = baseOptions(seed);
+    o.faults = harsh(loss);
+    auto r = runStreamSimulation(server, syntheticAdvance(seed, 0.3f), o);
+    char name[64];
+    std::snprintf(name, sizeof name, "loss %.0f%% seed %llu", loss * 100, (unsigned long long)seed);
+    report(name, r);
+    ASSERT_TRUE(r.converged) << name;
+    EXPECT_LE(r.convergeSeconds, 1.0) << name;
+    // Exactly what the codec makes of the server's field: within the stated bounds.
+    EXPECT_EQ(test::differingBricks(r.mirror, test::quantizedCopy(server)), 0) << name;
+    EXPECT_EQ(r.receiver.decodeErrors, 0u) << name;  // corruption never gets past the CRC
+    if (loss > 0) {
+      EXPECT_GT(r.link.lost, 0u);
+    }
+    EXPECT_GT(r.link.corrupted, 0u);
+    EXPECT_GT(r.receiver.rejectedDatagrams, 0u);
+    expectBounded(r, o);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Loss, ProtocolFaults, ::testing::Values(0.0, 0.1, 0.3, 0.5));
+
+TEST(ProtocolStream, FieldThatKeepsChangingStaysCloseBehind) {
+  // No freeze: the field changes throughout. After the faults the receiver must catch up to
+  // versions at most a few updates old (a moving target is never matched exactly).
+  Field server = test::makeSyntheticLayout();
+  StreamSimulationOptions o = baseOptions(21);
+  o.faults = harsh(0.3);
+  o.freezeAfterFaults = false;
+  o.settleLimitSeconds = 1.0;
+  auto r = runStreamSimulation(server, syntheticAdvance(21, 0.2f), o);
+  report("moving", r);
+  const Field& m = r.mirror;
+  int behind = 0, bricks = 0;
+  for (int k = 0; k < server.cascadeCount(); ++k) {
+    for (std::size_t b = 0; b < server.brickVersions[k].size(); ++b) {
+      ++bricks;
+      // Within 0.5 s of updates (15 at 30 Hz) of the server's version.
+      behind += m.brickVersions[k][b] + 15 < server.brickVersions[k][b];
+    }
+  }
+  EXPECT_EQ(behind, 0) << "of " << bricks;
+  expectBounded(r, o);
+}
+
+TEST(ProtocolStream, TightRateLimitStillConverges) {
+  // A client on a slow link: a rate limit of about a third of what the changes need. It gets
+  // the newest state, not a backlog, and converges once the field stops changing.
+  Field server = test::makeSyntheticLayout();
+  StreamSimulationOptions o = baseOptions(31);
+  o.faults = harsh(0.1);
+  o.sender.bytesPerSecond = 150e3;
+  o.sender.burstBytes = 32e3;
+  o.settleLimitSeconds = 5.0;
+  auto r = runStreamSimulation(server, syntheticAdvance(31, 0.5f), o);
+  report("slow link", r);
+  ASSERT_TRUE(r.converged);
+  EXPECT_EQ(test::differingBricks(r.mirror, test::quantizedCopy(server)), 0);
+  // The link never held more than about a second of data: nothing queued up behind it.
+  EXPECT_LE(double(r.maxLinkInFlight) * 1000.0, 1.5 * o.sender.bytesPerSecond);
+  expectBounded(r, o);
+}
+
+TEST(ProtocolStream, SmallChangesWaitThenSettle) {
+  // Changes far below the perceptual threshold are held back while the field keeps moving,
+  // then sent once it has been still for the settle time: the receiver still converges.
+  Field server = test::makeSyntheticLayout();
+  StreamSimulationOptions o = baseOptions(51);
+  o.faults = harsh(0.2);
+  o.sender.irradianceThreshold = 0.05f;
+  o.sender.depthThreshold = 0.05f;
+  o.sender.occlusionThreshold = 0.1f;
+  o.sender.refreshInterval = 2.0;
+  auto rng = std::make_shared<std::mt19937>(51u);
+  // Slow drift: a phase step of 0.01 per update changes e by about 0.003.
+  auto advance = [rng](Field& f, double t) { test::evolveField(f, *rng, 0.3f, float(t) * 0.3f); };
+  auto r = runStreamSimulation(server, advance, o);
+  report("small changes", r);
+  EXPECT_GT(r.sender.skipped, 0u);
+  ASSERT_TRUE(r.converged);
+  EXPECT_LE(r.convergeSeconds, 1.0);
+  EXPECT_EQ(test::differingBricks(r.mirror, test::quantizedCopy(server)), 0);
+  expectBounded(r, o);
+}
+
+TEST(ProtocolStream, TracedFieldOfTheBuiltinScene) {
+  // A real field: the built-in room, baked briefly, then updated by the Embree tracer as the
+  // light moves, so changes have the tracer's noise and its brick versioning.
+  Scene scene = builtinScene();
+  FieldSettings settings;
+  settings.raysPerProbe = 32;
+  Field server = Field::create(defaultVolumes(scene, 6), settings);
+  server.sceneHash = scene.hash;
+  auto tracer = makeEmbreeTracer(scene);
+  ASSERT_TRUE(tracer.ok()) << tracer.error().message;
+  BakeOptions bake;
+  bake.updates = 6;
+  bakeField(server, **tracer, bake);
+  std::uint32_t seed = 1000;
+  auto advance = [&](Field& f, double t) {
+    (*tracer)->setState(evaluateScene(scene, t));
+    UpdateRequest req;
+    req.rotationSeed = seed++;
+    req.probes = allProbes(f);
+    req.changeThreshold = 1e-4f;
+    (*tracer)->update(f, req);
+  };
+  StreamSimulationOptions o = baseOptions(41);
+  o.faults = harsh(0.3);
+  o.faultSeconds = 1.5;
+  o.tickInterval = 0.1;  // keep the tracer's share of the test time small
+  auto r = runStreamSimulation(server, advance, o);
+  report("traced", r);
+  ASSERT_TRUE(r.converged);
+  EXPECT_LE(r.convergeSeconds, 1.0);
+  EXPECT_EQ(test::differingBricks(r.mirror, test::quantizedCopy(server)), 0);
+  expectBounded(r, o);
+}
+
+}  // namespace
