@@ -201,6 +201,8 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
     return fail("corrupt (flatbuffer verification failed)");
   }
   const net::SessionMessage* root = net::GetSizePrefixedSessionMessage(data);
+  // The Verifier accepts a union type without its table; nothing below may assume one.
+  if (root->body() == nullptr) return fail("message without a body");
   switch (root->body_type()) {
     case net::Body::Hello: {
       const auto* w = root->body_as_Hello();
