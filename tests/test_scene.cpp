@@ -650,7 +650,8 @@ TEST(SharedScenesDetail, SidecarValuesLandWhereExpected) {
   // Game units scaled by 0.05; missing textures are warnings, not errors.
   EXPECT_NEAR(pandora->boundsMax.x - pandora->boundsMin.x, 73.6f, 0.01f);
   EXPECT_FALSE(pandora->warnings.empty());
-  EXPECT_EQ(pandora->volumes[0].counts, glm::ivec3(32, 16, 32));
+  EXPECT_EQ(pandora->volumes[0].counts, glm::ivec3(44, 14, 25));
+  EXPECT_FLOAT_EQ(pandora->volumes[0].spacing, 1.7f);
   auto cornell = pc::loadScene(root / "rtxgi-cornell/cornell.glb");
   ASSERT_TRUE(cornell.ok()) << cornell.error().message;
   EXPECT_EQ(cornell->lights[0].type, pc::LightType::Directional);
