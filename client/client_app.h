@@ -3,37 +3,36 @@
 // overlay). Both load the scene, the baked fallback field and the Vulkan context the same way.
 #pragma once
 
+#include <glm/glm.hpp>
 #include <optional>
 #include <string>
-
-#include <glm/glm.hpp>
 
 #include "light_pack.h"
 
 namespace pc::client {
 
 struct ClientConfig {
-  std::string scene;            // scene file, or "builtin"
-  std::string sidecar;          // optional scene.json
-  std::string probes;           // baked .probes file; empty: none (ambient)
-  std::string outDir = ".";     // headless output folder
+  std::string scene;             // scene file, or "builtin"
+  std::string sidecar;           // optional scene.json
+  std::string probes;            // baked .probes file; empty: none (ambient)
+  std::string outDir = ".";      // headless output folder
   std::string prefix = "frame";  // headless file names: <prefix>_<frame>[_left|_right].png/.exr
   int width = 640, height = 360;
-  int frames = 1;               // headless: frames written; windowed: 0 runs until closed
-  double startTime = 0.0;       // animation time of the first frame
-  double dt = 1.0 / 30.0;       // seconds per frame; windowed: < 0 follows the wall clock
-  int camera = 0;               // sidecar camera index
+  int frames = 1;          // headless: frames written; windowed: 0 runs until closed
+  double startTime = 0.0;  // animation time of the first frame
+  double dt = 1.0 / 30.0;  // seconds per frame; windowed: < 0 follows the wall clock
+  int camera = 0;          // sidecar camera index
   std::optional<glm::vec3> position, direction, target;  // override the sidecar camera
   std::optional<float> fovDegrees;
   bool stereo = false;
-  float ipd = 0.064f;           // interpupillary distance, scene units
+  float ipd = 0.064f;  // interpupillary distance, scene units
   bool windowed = false;
-  bool validation = false;      // Khronos validation layer; errors make the run fail
+  bool validation = false;  // Khronos validation layer; errors make the run fail
   bool overlay = true;
   int msaa = 4;
   ShadowSettings shadows;
   int sampleFlags = 0;
-  std::string readyFile;        // windowed: written after half the frames (tests take a screenshot)
+  std::string readyFile;  // windowed: written after half the frames (tests take a screenshot)
   std::optional<glm::ivec2> testResize;  // windowed: resize the window to this after 2 frames
   bool writeExr = true;
 };

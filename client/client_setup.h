@@ -20,8 +20,8 @@ Result<Camera> clientCamera(const Scene& scene, const ClientConfig& config);
 // scene's) is logged as an error that says the client falls back to an ambient term; never fatal.
 void loadFallbackField(const Scene& scene, const ClientConfig& config, FieldMirror& mirror);
 // The context, or an error saying what to install when no Vulkan device is usable.
-Result<std::unique_ptr<vk::Context>> createClientContext(const ClientConfig& config,
-                                                         const std::vector<std::string>& instanceExtensions);
+Result<std::unique_ptr<vk::Context>> createClientContext(
+    const ClientConfig& config, const std::vector<std::string>& instanceExtensions);
 
 double secondsNow();
 

@@ -1,7 +1,6 @@
 #include "field_gpu.h"
 
 #include <cstring>
-
 #include <glm/gtc/packing.hpp>
 
 #include "vk_util.h"
@@ -38,7 +37,8 @@ std::size_t stageTiles(const Atlas& atlas, const gpu::CascadeDesc& c, int brick,
     std::uint8_t* out = staging + offset + written;
     for (int y = 0; y < tileSize; ++y) {
       const float* src = atlas.at(run.tileX * tileSize, run.tileY * tileSize + y);
-      for (int x = 0; x < w; ++x) convert(src + std::size_t(x) * atlas.channels, out + std::size_t(y * w + x) * texelBytes);
+      for (int x = 0; x < w; ++x)
+        convert(src + std::size_t(x) * atlas.channels, out + std::size_t(y * w + x) * texelBytes);
     }
     written += std::size_t(w) * tileSize * texelBytes;
   }
@@ -94,13 +94,13 @@ Result<FieldGpu> FieldGpu::create(const vk::Context& ctx, const std::optional<gp
   const std::size_t probeBytes =
       std::max<std::size_t>(1, f.present_ ? std::size_t(f.fieldDesc_.probeCount) : 1) *
       kProbeRecordBytes;
-  auto probes = vk::Buffer::create(ctx, probeBytes,
-                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                   vk::MemoryUsage::DeviceLocal);
+  auto probes = vk::Buffer::create(
+      ctx, probeBytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+      vk::MemoryUsage::DeviceLocal);
   if (!probes) return probes.error();
   f.probes_ = std::move(probes).value();
-  auto descBuffer = vk::Buffer::create(ctx, sizeof(gpu::FieldDesc), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
-                                       vk::MemoryUsage::Upload);
+  auto descBuffer = vk::Buffer::create(ctx, sizeof(gpu::FieldDesc),
+                                       VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::Upload);
   if (!descBuffer) return descBuffer.error();
   f.desc_ = std::move(descBuffer).value();
   f.desc_.write(&f.fieldDesc_, sizeof f.fieldDesc_);
@@ -116,15 +116,16 @@ Result<FieldGpu> FieldGpu::create(const vk::Context& ctx, const std::optional<gp
   // Every probe starts uninitialized (never sampled) and every texel at zero, until its brick
   // arrives.
   Status cleared = ctx.submitAndWait([&](VkCommandBuffer cmd) {
-    imageBarriers(cmd, {{f.irradiance_.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE,
-                         VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT},
-                        {f.depth_.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE,
-                         VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT},
-                        {f.occlusion_.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE,
-                         VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT}});
+    imageBarriers(
+        cmd, {{f.irradiance_.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+               VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE,
+               VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT},
+              {f.depth_.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+               VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE,
+               VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT},
+              {f.occlusion_.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+               VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE,
+               VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT}});
     const VkClearColorValue zero{};
     const VkImageSubresourceRange all{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
     for (VkImage image : {f.irradiance_.get(), f.depth_.get(), f.occlusion_.get()})
@@ -136,9 +137,10 @@ Result<FieldGpu> FieldGpu::create(const vk::Context& ctx, const std::optional<gp
     const VkPipelineStageFlags2 shaders =
         VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
     for (VkImage image : {f.irradiance_.get(), f.depth_.get(), f.occlusion_.get()}) {
-      imageBarriers(cmd, {{image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_2_CLEAR_BIT,
-                           VK_ACCESS_2_TRANSFER_WRITE_BIT, shaders, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT}});
+      imageBarriers(
+          cmd, {{image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                 VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_2_CLEAR_BIT,
+                 VK_ACCESS_2_TRANSFER_WRITE_BIT, shaders, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT}});
     }
     vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, shaders,
                       VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
@@ -197,17 +199,27 @@ FieldUploadStats FieldGpu::recordUploads(VkCommandBuffer cmd, int slot, FieldMir
   const VkPipelineStageFlags2 shaders =
       VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
   auto toTransfer = [&](VkImage image) {
-    return ImageBarrier{image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
-                        VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, shaders, VK_ACCESS_2_NONE,
-                        VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT};
+    return ImageBarrier{image,
+                        VK_IMAGE_ASPECT_COLOR_BIT,
+                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                        VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                        shaders,
+                        VK_ACCESS_2_NONE,
+                        VK_PIPELINE_STAGE_2_COPY_BIT,
+                        VK_ACCESS_2_TRANSFER_WRITE_BIT};
   };
   auto toShader = [&](VkImage image) {
-    return ImageBarrier{image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_2_COPY_BIT,
-                        VK_ACCESS_2_TRANSFER_WRITE_BIT, shaders, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
+    return ImageBarrier{image,
+                        VK_IMAGE_ASPECT_COLOR_BIT,
+                        VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                        VK_PIPELINE_STAGE_2_COPY_BIT,
+                        VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                        shaders,
+                        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
   };
-  imageBarriers(cmd, {toTransfer(irradiance_.get()), toTransfer(depth_.get()),
-                      toTransfer(occlusion_.get())});
+  imageBarriers(
+      cmd, {toTransfer(irradiance_.get()), toTransfer(depth_.get()), toTransfer(occlusion_.get())});
   vk::memoryBarrier(cmd, shaders, VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_COPY_BIT,
                     VK_ACCESS_2_TRANSFER_WRITE_BIT);
   const VkBuffer src = staging_[slot].get();
@@ -218,7 +230,8 @@ FieldUploadStats FieldGpu::recordUploads(VkCommandBuffer cmd, int slot, FieldMir
   vkCmdCopyBufferToImage(cmd, src, occlusion_.get(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                          std::uint32_t(occRegions.size()), occRegions.data());
   vkCmdCopyBuffer(cmd, src, probes_.get(), std::uint32_t(probeRegions.size()), probeRegions.data());
-  imageBarriers(cmd, {toShader(irradiance_.get()), toShader(depth_.get()), toShader(occlusion_.get())});
+  imageBarriers(cmd,
+                {toShader(irradiance_.get()), toShader(depth_.get()), toShader(occlusion_.get())});
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, shaders,
                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
   return stats;

@@ -21,11 +21,11 @@ struct BrickId {
 };
 
 struct FieldAge {
-  bool present = false;     // any field at all
+  bool present = false;      // any field at all
   double newestSeconds = 0;  // age of the most recent brick
   double oldestSeconds = 0;  // age of the stalest brick
   std::uint64_t version = 0;
-  int pendingBricks = 0;     // received, not yet on the GPU
+  int pendingBricks = 0;  // received, not yet on the GPU
 };
 
 class FieldMirror {

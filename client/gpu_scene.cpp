@@ -6,8 +6,9 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene) {
   GpuScene g;
   g.packed_ = packScene(scene);
   if (g.packed_.indices.empty()) return Error{"scene has no triangles to draw"};
-  auto vb = vk::uploadBuffer(ctx, g.packed_.vertices.data(), g.packed_.vertices.size() * sizeof(Vertex),
-                             VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+  auto vb =
+      vk::uploadBuffer(ctx, g.packed_.vertices.data(), g.packed_.vertices.size() * sizeof(Vertex),
+                       VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
   if (!vb) return vb.error();
   g.vertices_ = std::move(vb).value();
   auto ib = vk::uploadBuffer(ctx, g.packed_.indices.data(),
@@ -30,8 +31,8 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene) {
   };
   const std::uint8_t white[4] = {255, 255, 255, 255};
   for (const Texture& t : scene.textures) {
-    const bool valid = t.width > 0 && t.height > 0 &&
-                       t.rgba.size() >= std::size_t(t.width) * t.height * 4;
+    const bool valid =
+        t.width > 0 && t.height > 0 && t.rgba.size() >= std::size_t(t.width) * t.height * 4;
     Status s = valid ? addTexture(t.width, t.height, t.rgba.data()) : addTexture(1, 1, white);
     if (!s) return s.error();
   }

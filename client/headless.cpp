@@ -67,8 +67,8 @@ int runHeadless(const ClientConfig& config) {
       std::snprintf(name, sizeof name, "%s_%04d%s", config.prefix.c_str(), frame, eye);
       const std::filesystem::path base = std::filesystem::path(config.outDir) / name;
       Status png = writePng(base.string() + ".png", images->display[v]);
-      Status exr = config.writeExr ? writeExr(base.string() + ".exr", images->linear[v])
-                                   : Status::success();
+      Status exr =
+          config.writeExr ? writeExr(base.string() + ".exr", images->linear[v]) : Status::success();
       if (!png || !exr) {
         logError((png ? exr : png).error().message);
         status = 1;
@@ -77,8 +77,9 @@ int runHeadless(const ClientConfig& config) {
     const FrameTimings& t = (*renderer)->lastTimings();
     if (t.valid) {
       char line[160];
-      std::snprintf(line, sizeof line, "frame %d: GPU %.2f ms (probe pass %.2f ms, shadows %.2f ms)",
-                    frame, t.frameMs(), t.probeMs, t.shadowMs);
+      std::snprintf(line, sizeof line,
+                    "frame %d: GPU %.2f ms (probe pass %.2f ms, shadows %.2f ms)", frame,
+                    t.frameMs(), t.probeMs, t.shadowMs);
       logInfo(line);
     }
   }

@@ -2,15 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <glm/gtc/matrix_transform.hpp>
 
 namespace pc::client {
 namespace {
 
 // Cube faces in the order the shaders pick them (+x, -x, +y, -y, +z, -z).
-constexpr glm::vec3 kFaceDirs[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
-                                    {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+constexpr glm::vec3 kFaceDirs[6] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
+                                    {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
 constexpr glm::vec3 kFaceUps[6] = {{0, 1, 0}, {0, 1, 0}, {0, 0, 1},
                                    {0, 0, 1}, {0, 1, 0}, {0, 1, 0}};
 // Receivers move along their normal by this many shadow texels before the lookup.
@@ -51,7 +50,8 @@ void addCube(LightSet& set, gpu::GpuLight& light, int array, glm::vec3 position,
   for (int f = 0; f < 6; ++f) {
     const glm::mat4 m = proj * glm::lookAtRH(position, position + kFaceDirs[f], kFaceUps[f]);
     set.matrices.push_back(m);
-    if (!front || glm::dot(kFaceDirs[f], *front) > -0.99f) set.views.push_back({array, layers + f, m});
+    if (!front || glm::dot(kFaceDirs[f], *front) > -0.99f)
+      set.views.push_back({array, layers + f, m});
   }
   layers += 6;
 }
@@ -154,14 +154,15 @@ LightSet buildLights(const Scene& scene, const SceneState& state, const Emissive
       for (int i = 0; i < k; ++i) {
         for (int j = 0; i + j < k; ++j) {
           // Upward sub-triangle (i, j) and, where it exists, the downward one beside it.
-          const glm::vec2 up((float(i) + 1.0f / 3.0f) / float(k), (float(j) + 1.0f / 3.0f) / float(k));
+          const glm::vec2 up((float(i) + 1.0f / 3.0f) / float(k),
+                             (float(j) + 1.0f / 3.0f) / float(k));
           addAreaLight(set, tri.p0 + up.x * tri.e1 + up.y * tri.e2, tri.normal, power, patch,
                        bounds, settings);
           if (i + j < k - 1) {
             const glm::vec2 down((float(i) + 2.0f / 3.0f) / float(k),
                                  (float(j) + 2.0f / 3.0f) / float(k));
-            addAreaLight(set, tri.p0 + down.x * tri.e1 + down.y * tri.e2, tri.normal, power,
-                         patch, bounds, settings);
+            addAreaLight(set, tri.p0 + down.x * tri.e1 + down.y * tri.e2, tri.normal, power, patch,
+                         bounds, settings);
           }
         }
       }

@@ -10,9 +10,8 @@
 // average of these hard (filtered) shadows.
 #pragma once
 
-#include <vector>
-
 #include <glm/glm.hpp>
+#include <vector>
 
 #include "common/scene.h"
 #include "cpu/lighting.h"

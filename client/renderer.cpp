@@ -48,8 +48,8 @@ std::vector<VkPipelineShaderStageCreateInfo> stageInfos(std::initializer_list<Sh
 // The fixed-function state the client's graphics pipelines share, filled per pipeline.
 struct GraphicsDesc {
   std::vector<VkPipelineShaderStageCreateInfo> stages;
-  bool vertexInput = true;     // the packed Vertex layout (else no vertex buffer)
-  bool positionOnly = false;   // only location 0 (shadow maps)
+  bool vertexInput = true;    // the packed Vertex layout (else no vertex buffer)
+  bool positionOnly = false;  // only location 0 (shadow maps)
   std::vector<VkFormat> colorFormats;
   VkFormat depthFormat = VK_FORMAT_UNDEFINED;
   VkCompareOp depthCompare = VK_COMPARE_OP_GREATER;
@@ -105,7 +105,8 @@ Result<vk::UniquePipeline> createGraphicsPipeline(const vk::Context& ctx, VkPipe
     b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
                        VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
   }
-  VkPipelineColorBlendStateCreateInfo blend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  VkPipelineColorBlendStateCreateInfo blend{
+      VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
   blend.attachmentCount = std::uint32_t(blends.size());
   blend.pAttachments = blends.data();
   const VkDynamicState dynamics[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
@@ -216,8 +217,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
 
   // Light and shadow layer counts are fixed by the scene (animation moves lights, never adds).
   const SceneState state0 = evaluateScene(scene, 0.0);
-  const LightSet lights0 = buildLights(scene, state0, EmissiveLights::build(scene, state0),
-                                       options.shadows);
+  const LightSet lights0 =
+      buildLights(scene, state0, EmissiveLights::build(scene, state0), options.shadows);
   r->lightCount_ = int(lights0.lights.size());
   r->matrixCount_ = int(lights0.matrices.size());
   r->largeLayers_ = lights0.largeLayers;
@@ -248,7 +249,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
     if (!view) return view.error();
     arrayView = std::move(view).value();
     for (std::uint32_t l = 0; l < d.layers; ++l) {
-      auto lv = makeView(ctx, image.get(), format, VK_IMAGE_VIEW_TYPE_2D, VK_IMAGE_ASPECT_DEPTH_BIT, l, 1);
+      auto lv = makeView(ctx, image.get(), format, VK_IMAGE_VIEW_TYPE_2D, VK_IMAGE_ASPECT_DEPTH_BIT,
+                         l, 1);
       if (!lv) return lv.error();
       layerViews.push_back(std::move(lv).value());
     }
@@ -270,7 +272,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   s = r->createPipelines();
   if (!s) return s.error();
 
-  const std::size_t drawCount = std::max<std::size_t>(1, r->gpuScene_->packed().drawInstances.size());
+  const std::size_t drawCount =
+      std::max<std::size_t>(1, r->gpuScene_->packed().drawInstances.size());
   for (int i = 0; i < kFrameSlots; ++i) {
     auto slot = std::make_unique<Slot>();
     auto cmd = r->commandPool_->allocate();
@@ -288,11 +291,12 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
       return Status::success();
     };
     const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-    for (Status st : {buffer(sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, slot->frame),
-                      buffer(drawCount * sizeof(gpu::DrawData), storage, slot->draws),
-                      buffer(std::max(1, r->lightCount_) * sizeof(gpu::GpuLight), storage, slot->lights),
-                      buffer(std::max(1, r->matrixCount_) * sizeof(glm::mat4), storage, slot->matrices),
-                      buffer(sizeof(gpu::OverlayText), storage, slot->overlay)}) {
+    for (Status st :
+         {buffer(sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, slot->frame),
+          buffer(drawCount * sizeof(gpu::DrawData), storage, slot->draws),
+          buffer(std::max(1, r->lightCount_) * sizeof(gpu::GpuLight), storage, slot->lights),
+          buffer(std::max(1, r->matrixCount_) * sizeof(glm::mat4), storage, slot->matrices),
+          buffer(sizeof(gpu::OverlayText), storage, slot->overlay)}) {
       if (!st) return st.error();
     }
     auto timer = vk::GpuTimer::create(ctx, 16);
@@ -344,26 +348,29 @@ Status Renderer::createTargets() {
     auto image = vk::Image::create(*ctx_, d);
     if (!image) return image.error();
     t.image = std::move(image).value();
-    auto view = makeView(*ctx_, t.image.get(), format, VK_IMAGE_VIEW_TYPE_2D_ARRAY, aspect, 0, layers);
+    auto view =
+        makeView(*ctx_, t.image.get(), format, VK_IMAGE_VIEW_TYPE_2D_ARRAY, aspect, 0, layers);
     if (!view) return view.error();
     t.arrayView = std::move(view).value();
     return Status::success();
   };
-  const VkImageUsageFlags colorSampled = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  const VkImageUsageFlags colorSampled =
+      VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
   const VkImageAspectFlags color = VK_IMAGE_ASPECT_COLOR_BIT;
-  for (Status s : {make(direct_, kDirectFormat, samples, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT, color),
-                   make(directResolved_, kDirectFormat, VK_SAMPLE_COUNT_1_BIT, colorSampled, color),
-                   make(position_, kPositionFormat, samples, colorSampled, color),
-                   make(normal_, kNormalFormat, samples, colorSampled, color),
-                   make(albedo_, kAlbedoFormat, samples, colorSampled, color),
-                   make(depth_, kDepthFormat, samples, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
-                        VK_IMAGE_ASPECT_DEPTH_BIT),
-                   make(hdr_, kHdrFormat, VK_SAMPLE_COUNT_1_BIT,
-                        VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
-                            VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
-                        color),
-                   make(offscreen_, kOffscreenFormat, VK_SAMPLE_COUNT_1_BIT,
-                        VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, color)}) {
+  for (Status s :
+       {make(direct_, kDirectFormat, samples, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT, color),
+        make(directResolved_, kDirectFormat, VK_SAMPLE_COUNT_1_BIT, colorSampled, color),
+        make(position_, kPositionFormat, samples, colorSampled, color),
+        make(normal_, kNormalFormat, samples, colorSampled, color),
+        make(albedo_, kAlbedoFormat, samples, colorSampled, color),
+        make(depth_, kDepthFormat, samples, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
+             VK_IMAGE_ASPECT_DEPTH_BIT),
+        make(hdr_, kHdrFormat, VK_SAMPLE_COUNT_1_BIT,
+             VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
+                 VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+             color),
+        make(offscreen_, kOffscreenFormat, VK_SAMPLE_COUNT_1_BIT,
+             VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, color)}) {
     if (!s) return s;
   }
   auto rb = vk::Buffer::create(*ctx_, std::size_t(w) * h * layers * (16 + 4),
@@ -406,7 +413,8 @@ Status Renderer::createPipelines() {
     lb.binding = std::uint32_t(b.binding);
     lb.descriptorType = b.type;
     lb.descriptorCount = b.count;
-    lb.stageFlags = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT;
+    lb.stageFlags =
+        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT;
     list.push_back(lb);
   }
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
@@ -484,8 +492,8 @@ Result<VkPipeline> Renderer::tonemapPipeline(VkFormat format) {
   auto frag = vk::loadShader(*ctx_, "client_tonemap.frag.spv");
   if (!frag) return frag.error();
   GraphicsDesc d;
-  d.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, vert->get()},
-                         {VK_SHADER_STAGE_FRAGMENT_BIT, frag->get()}});
+  d.stages = stageInfos(
+      {{VK_SHADER_STAGE_VERTEX_BIT, vert->get()}, {VK_SHADER_STAGE_FRAGMENT_BIT, frag->get()}});
   d.vertexInput = false;
   d.colorFormats = {format};
   d.viewMask = options_.views == 2 ? 0b11u : 0u;
@@ -513,7 +521,8 @@ Status Renderer::writeDescriptors() {
   const VkDescriptorImageInfo gNormal = sampled(normal_, readOnly);
   const VkDescriptorImageInfo gAlbedo = sampled(albedo_, readOnly);
   const VkDescriptorImageInfo direct = sampled(directResolved_, readOnly);
-  const VkDescriptorImageInfo hdrImage{VK_NULL_HANDLE, hdr_.arrayView.get(), VK_IMAGE_LAYOUT_GENERAL};
+  const VkDescriptorImageInfo hdrImage{VK_NULL_HANDLE, hdr_.arrayView.get(),
+                                       VK_IMAGE_LAYOUT_GENERAL};
   const VkDescriptorImageInfo hdrTexture = sampled(hdr_, VK_IMAGE_LAYOUT_GENERAL);
   const VkDescriptorBufferInfo fieldDesc = field_->descBuffer();
   const VkDescriptorBufferInfo probes = field_->probes();
@@ -615,7 +624,8 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   const std::vector<gpu::DrawData> draws = drawData(scene, gpuScene_->packed(), state);
   if (!draws.empty()) slot.draws.write(draws.data(), draws.size() * sizeof(gpu::DrawData));
 
-  LightSet lights = buildLights(scene, state, EmissiveLights::build(scene, state), options_.shadows);
+  LightSet lights =
+      buildLights(scene, state, EmissiveLights::build(scene, state), options_.shadows);
   // Counts are fixed at creation; a scene whose emitters changed count keeps what fits.
   const int lightCount = std::min(int(lights.lights.size()), lightCount_);
   const int matrixCount = std::min(int(lights.matrices.size()), matrixCount_);
@@ -628,7 +638,8 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
 
   gpu::FrameUniforms f{};
   for (int v = 0; v < options_.views; ++v) {
-    const ViewMatrices m = viewMatrices(input.cameras[v], options_.width, options_.height, nearPlane_);
+    const ViewMatrices m =
+        viewMatrices(input.cameras[v], options_.width, options_.height, nearPlane_);
     f.views[v].viewProj = m.viewProj;
     f.views[v].invViewProj = m.invViewProj;
     f.views[v].position = glm::vec4(m.position, 1.0f);
@@ -651,7 +662,8 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   }
 }
 
-void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input, const OutputTarget& target) {
+void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
+                           const OutputTarget& target) {
   Slot& slot = *slots_[current_];
   updateFrameData(slot, input);
   vk::GpuTimer& timer = *slot.timer;
@@ -669,7 +681,8 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input, const O
       vkCmdDrawIndexed(cmd, m.indexCount, 1, m.firstIndex, m.vertexOffset, std::uint32_t(d));
     }
   };
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &slot.set, 0, nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &slot.set, 0,
+                          nullptr);
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &slot.set, 0, nullptr);
 
   timer.reset(cmd);
@@ -681,18 +694,20 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input, const O
   timer.begin(cmd, "shadows");
   const VkPipelineStageFlags2 depthStages =
       VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
-  const VkAccessFlags2 depthAccess =
-      VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  const VkAccessFlags2 depthAccess = VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
+                                     VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
   const VkImageAspectFlags depthAspect = VK_IMAGE_ASPECT_DEPTH_BIT;
-  imageBarriers(cmd, {{largeShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
-                       VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-                       VK_ACCESS_2_NONE, depthStages, depthAccess},
-                      {smallShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
-                       VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-                       VK_ACCESS_2_NONE, depthStages, depthAccess}});
+  imageBarriers(cmd,
+                {{largeShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
+                  VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+                  VK_ACCESS_2_NONE, depthStages, depthAccess},
+                 {smallShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
+                  VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+                  VK_ACCESS_2_NONE, depthStages, depthAccess}});
   for (const ShadowView& v : slot.shadowViews) {
     const bool large = v.array == 0;
-    const std::uint32_t size = std::uint32_t(large ? options_.shadows.largeSize : options_.shadows.smallSize);
+    const std::uint32_t size =
+        std::uint32_t(large ? options_.shadows.largeSize : options_.shadows.smallSize);
     VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     depth.imageView = (large ? largeLayerViews_ : smallLayerViews_)[std::size_t(v.layer)].get();
     depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
@@ -711,12 +726,13 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input, const O
     drawScene();
     vkCmdEndRendering(cmd);
   }
-  imageBarriers(cmd, {{largeShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
-                       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, depthStages, depthAccess,
-                       VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT},
-                      {smallShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
-                       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, depthStages, depthAccess,
-                       VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT}});
+  imageBarriers(cmd,
+                {{largeShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, depthStages, depthAccess,
+                  VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT},
+                 {smallShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, depthStages, depthAccess,
+                  VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT}});
   timer.end(cmd);
 
   // ---- main pass: direct light, emission, G-buffer ----
@@ -725,11 +741,19 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input, const O
   const VkAccessFlags2 colorWrite = VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
   auto toColor = [&](const Target& t) {
     // Contents are discarded: the previous frame's probe pass read them (compute stage).
-    return ImageBarrier{t.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                        VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                        VK_ACCESS_2_NONE, colorStage, colorWrite};
+    return ImageBarrier{t.image.get(),
+                        VK_IMAGE_ASPECT_COLOR_BIT,
+                        VK_IMAGE_LAYOUT_UNDEFINED,
+                        VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                        VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                        VK_ACCESS_2_NONE,
+                        colorStage,
+                        colorWrite};
   };
-  imageBarriers(cmd, {toColor(direct_), toColor(directResolved_), toColor(position_), toColor(normal_),
+  imageBarriers(cmd, {toColor(direct_),
+                      toColor(directResolved_),
+                      toColor(position_),
+                      toColor(normal_),
                       toColor(albedo_),
                       {depth_.image.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
                        VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, depthStages, VK_ACCESS_2_NONE,
@@ -768,11 +792,19 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input, const O
   drawScene();
   vkCmdEndRendering(cmd);
   auto toRead = [&](const Target& t) {
-    return ImageBarrier{t.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, colorStage, colorWrite,
-                        VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
+    return ImageBarrier{t.image.get(),
+                        VK_IMAGE_ASPECT_COLOR_BIT,
+                        VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                        colorStage,
+                        colorWrite,
+                        VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
   };
-  imageBarriers(cmd, {toRead(directResolved_), toRead(position_), toRead(normal_), toRead(albedo_),
+  imageBarriers(cmd, {toRead(directResolved_),
+                      toRead(position_),
+                      toRead(normal_),
+                      toRead(albedo_),
                       {hdr_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                        VK_IMAGE_LAYOUT_GENERAL,
                        VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
@@ -818,10 +850,11 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input, const O
     logError("tone mapping pipeline: " + pipeline.error().message);
   }
   const bool present = target.finalLayout == VK_IMAGE_LAYOUT_PRESENT_SRC_KHR;
-  imageBarriers(cmd, {{target.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-                       target.finalLayout, colorStage, colorWrite,
-                       present ? VK_PIPELINE_STAGE_2_NONE : VK_PIPELINE_STAGE_2_COPY_BIT,
-                       present ? VK_ACCESS_2_NONE : VK_ACCESS_2_TRANSFER_READ_BIT}});
+  imageBarriers(cmd,
+                {{target.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                  target.finalLayout, colorStage, colorWrite,
+                  present ? VK_PIPELINE_STAGE_2_NONE : VK_PIPELINE_STAGE_2_COPY_BIT,
+                  present ? VK_ACCESS_2_NONE : VK_ACCESS_2_TRANSFER_READ_BIT}});
   timer.end(cmd);
 }
 
@@ -860,7 +893,8 @@ Result<Renderer::Readback> Renderer::renderOffscreen(const FrameInput& input) {
   VkBufferImageCopy region{};
   region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, views};
   region.imageExtent = {w, h, 1};
-  vkCmdCopyImageToBuffer(*cmd, hdr_.image.get(), VK_IMAGE_LAYOUT_GENERAL, readback_.get(), 1, &region);
+  vkCmdCopyImageToBuffer(*cmd, hdr_.image.get(), VK_IMAGE_LAYOUT_GENERAL, readback_.get(), 1,
+                         &region);
   region.bufferOffset = hdrBytes;
   vkCmdCopyImageToBuffer(*cmd, offscreen_.image.get(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                          readback_.get(), 1, &region);

@@ -7,14 +7,13 @@
 #pragma once
 
 #include <array>
+#include <glm/glm.hpp>
 #include <map>
 #include <memory>
 #include <optional>
 #include <span>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "common/image.h"
 #include "common/result.h"
@@ -32,18 +31,18 @@ inline constexpr int kFrameSlots = 2;
 
 struct RendererOptions {
   int width = 640, height = 360;
-  int views = 1;     // 2: stereo (multiview)
-  int msaa = 4;      // samples per pixel: 2, 4 or 8
+  int views = 1;  // 2: stereo (multiview)
+  int msaa = 4;   // samples per pixel: 2, 4 or 8
   ShadowSettings shadows;
-  int sampleFlags = 0;        // PC_SAMPLE_* for the field
-  int bricksPerFrame = 32;    // field upload budget per frame
+  int sampleFlags = 0;               // PC_SAMPLE_* for the field
+  int bricksPerFrame = 32;           // field upload budget per frame
   std::optional<glm::vec3> ambient;  // irradiance where no field covers; default from the sky
 };
 
 struct FrameInput {
-  double time = 0.0;                   // animation time (lights and instances move)
-  std::array<Camera, 2> cameras;       // [0] mono or left eye, [1] right eye
-  std::vector<std::string> overlay;    // text lines; empty: no overlay
+  double time = 0.0;                 // animation time (lights and instances move)
+  std::array<Camera, 2> cameras;     // [0] mono or left eye, [1] right eye
+  std::vector<std::string> overlay;  // text lines; empty: no overlay
 };
 
 // Where tone mapping writes: an 8-bit UNORM color image with one layer per view.

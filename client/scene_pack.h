@@ -4,9 +4,8 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/glm.hpp>
+#include <vector>
 
 #include "common/scene.h"
 #include "shaders/interop/client_frame.h"
@@ -28,7 +27,7 @@ struct MeshRange {
 struct PackedScene {
   std::vector<Vertex> vertices;
   std::vector<std::uint32_t> indices;
-  std::vector<MeshRange> meshes;  // per Scene::meshes entry
+  std::vector<MeshRange> meshes;   // per Scene::meshes entry
   std::vector<int> drawInstances;  // instance of each draw (instances with a drawable mesh)
 };
 

@@ -42,7 +42,8 @@ Status Swapchain::create(VkExtent2D fallback, int frameSlots) {
   VkExtent2D extent = caps.currentExtent;
   if (extent.width == UINT32_MAX) {
     extent.width = std::clamp(fallback.width, caps.minImageExtent.width, caps.maxImageExtent.width);
-    extent.height = std::clamp(fallback.height, caps.minImageExtent.height, caps.maxImageExtent.height);
+    extent.height =
+        std::clamp(fallback.height, caps.minImageExtent.height, caps.maxImageExtent.height);
   }
   std::uint32_t images = std::max(caps.minImageCount + 1, 2u);
   if (caps.maxImageCount > 0) images = std::min(images, caps.maxImageCount);
@@ -78,7 +79,8 @@ Status Swapchain::create(VkExtent2D fallback, int frameSlots) {
     return vk::UniqueSemaphore(ctx_->device(), s);
   };
   for (VkImage image : images_) {
-    auto view = makeView(*ctx_, image, format_, VK_IMAGE_VIEW_TYPE_2D, VK_IMAGE_ASPECT_COLOR_BIT, 0, 1);
+    auto view =
+        makeView(*ctx_, image, format_, VK_IMAGE_VIEW_TYPE_2D, VK_IMAGE_ASPECT_COLOR_BIT, 0, 1);
     if (!view) return view.error();
     views_.push_back(std::move(view).value());
     auto s = semaphore();

@@ -62,8 +62,9 @@ int runWindowed(const ClientConfig& config) {
   }
   glfw.initialized = true;
   if (!glfwVulkanSupported()) {
-    logError("no Vulkan loader or driver for windows: install mesa-vulkan-drivers from "
-             "bookworm-backports (lavapipe) or your GPU's Vulkan driver");
+    logError(
+        "no Vulkan loader or driver for windows: install mesa-vulkan-drivers from "
+        "bookworm-backports (lavapipe) or your GPU's Vulkan driver");
     return 2;
   }
   std::uint32_t extCount = 0;
@@ -95,7 +96,8 @@ int runWindowed(const ClientConfig& config) {
   int status = 0;
   {
     Swapchain swapchain(**ctx, surface.surface);
-    Status s = swapchain.create({std::uint32_t(config.width), std::uint32_t(config.height)}, kFrameSlots);
+    Status s =
+        swapchain.create({std::uint32_t(config.width), std::uint32_t(config.height)}, kFrameSlots);
     if (!s) {
       logError("swapchain: " + s.error().message);
       return 1;
@@ -118,7 +120,8 @@ int runWindowed(const ClientConfig& config) {
     double lastX = 0, lastY = 0;
     bool dragging = false, recreate = false;
     double cpuFrameMs = 0;
-    for (int frame = 0; !glfwWindowShouldClose(glfw.window) && (config.frames <= 0 || frame < config.frames);
+    for (int frame = 0;
+         !glfwWindowShouldClose(glfw.window) && (config.frames <= 0 || frame < config.frames);
          ++frame) {
       glfwPollEvents();
       const double now = secondsNow();
@@ -128,7 +131,8 @@ int runWindowed(const ClientConfig& config) {
       animationTime += config.dt >= 0.0 ? config.dt : dt;
 
       // ---- input ----
-      if (glfwGetKey(glfw.window, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(glfw.window, 1);
+      if (glfwGetKey(glfw.window, GLFW_KEY_ESCAPE) == GLFW_PRESS)
+        glfwSetWindowShouldClose(glfw.window, 1);
       double x, y;
       glfwGetCursorPos(glfw.window, &x, &y);
       const bool look = glfwGetMouseButton(glfw.window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
@@ -138,7 +142,8 @@ int runWindowed(const ClientConfig& config) {
       lastY = y;
       auto key = [&](int k) { return glfwGetKey(glfw.window, k) == GLFW_PRESS ? 1.0f : 0.0f; };
       const float step = speed * dt * (key(GLFW_KEY_LEFT_SHIFT) > 0 ? 4.0f : 1.0f);
-      fly.move(step * (key(GLFW_KEY_W) - key(GLFW_KEY_S)), step * (key(GLFW_KEY_D) - key(GLFW_KEY_A)),
+      fly.move(step * (key(GLFW_KEY_W) - key(GLFW_KEY_S)),
+               step * (key(GLFW_KEY_D) - key(GLFW_KEY_A)),
                step * (key(GLFW_KEY_E) - key(GLFW_KEY_Q)));
       if (config.testResize && frame == 2) {
         glfwSetWindowSize(glfw.window, config.testResize->x, config.testResize->y);
@@ -151,7 +156,8 @@ int runWindowed(const ClientConfig& config) {
         glfwWaitEvents();
         continue;
       }
-      if (recreate || VkExtent2D{std::uint32_t(fbw), std::uint32_t(fbh)}.width != swapchain.extent().width ||
+      if (recreate ||
+          VkExtent2D{std::uint32_t(fbw), std::uint32_t(fbh)}.width != swapchain.extent().width ||
           std::uint32_t(fbh) != swapchain.extent().height) {
         (*renderer)->waitIdle();
         s = swapchain.create({std::uint32_t(fbw), std::uint32_t(fbh)}, kFrameSlots);
@@ -179,13 +185,15 @@ int runWindowed(const ClientConfig& config) {
       }
       const int slot = (*renderer)->currentSlot();
       std::uint32_t imageIndex = 0;
-      VkResult acquired = vkAcquireNextImageKHR((*ctx)->device(), swapchain.get(), UINT64_MAX,
-                                                swapchain.acquired(slot), VK_NULL_HANDLE, &imageIndex);
+      VkResult acquired =
+          vkAcquireNextImageKHR((*ctx)->device(), swapchain.get(), UINT64_MAX,
+                                swapchain.acquired(slot), VK_NULL_HANDLE, &imageIndex);
       while (acquired == VK_ERROR_OUT_OF_DATE_KHR) {
         // The begun command buffer is simply re-recorded below once an image is acquired.
         (*renderer)->waitIdle();
         glfwGetFramebufferSize(glfw.window, &fbw, &fbh);
-        s = swapchain.create({std::uint32_t(std::max(fbw, 1)), std::uint32_t(std::max(fbh, 1))}, kFrameSlots);
+        s = swapchain.create({std::uint32_t(std::max(fbw, 1)), std::uint32_t(std::max(fbh, 1))},
+                             kFrameSlots);
         if (!s) break;
         s = (*renderer)->resize(int(swapchain.extent().width), int(swapchain.extent().height));
         if (!s) break;

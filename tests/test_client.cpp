@@ -55,16 +55,18 @@ Golden measure(const std::string& file, int updates, int spp, const std::string&
   writePng(dir / "cpu_probe_lit.png", cpu8);
   writePng(dir / "reference.png", ref8);
   writePng(dir / "diff_cpu.png", differenceImage(client.display[0], cpu8));
-  std::printf("%s: client vs CPU probe-lit %.2f dB, client vs reference %.2f dB, CPU probe-lit "
-              "vs reference %.2f dB (reference noise limit %.1f dB)\n",
-              slug.c_str(), g.vsCpu, g.vsReference, psnr8(cpu8, ref8), reference->noisePsnr);
+  std::printf(
+      "%s: client vs CPU probe-lit %.2f dB, client vs reference %.2f dB, CPU probe-lit "
+      "vs reference %.2f dB (reference noise limit %.1f dB)\n",
+      slug.c_str(), g.vsCpu, g.vsReference, psnr8(cpu8, ref8), reference->noisePsnr);
   return g;
 }
 
 TEST(ClientGolden, McGuireCornellBoxOriginal) {
   if (!std::filesystem::exists(scenePath("mcguire-cornellbox/CornellBox-Original.obj")))
     GTEST_SKIP() << "no shared scenes at " << PC_SCENES_DIR;
-  const Golden g = measure("mcguire-cornellbox/CornellBox-Original.obj", 24, 256, "cornellbox-original");
+  const Golden g =
+      measure("mcguire-cornellbox/CornellBox-Original.obj", 24, 256, "cornellbox-original");
   // Achieved on lavapipe: 36.5 dB vs CPU, 34.1 dB vs reference.
   EXPECT_GE(g.vsCpu, 34.5);
   EXPECT_GE(g.vsReference, 32.5);
@@ -105,7 +107,8 @@ TEST(ClientFallback, NoFieldGivesAnAmbientLitImage) {
   if (!ctx) GTEST_SKIP() << "no Vulkan device";
   auto camera = sceneCamera(scene, 0);
   ASSERT_TRUE(camera.ok());
-  const ClientFrame frame = renderClientFrame(*ctx, scene, nullptr, *camera, nullptr, kWidth, kHeight);
+  const ClientFrame frame =
+      renderClientFrame(*ctx, scene, nullptr, *camera, nullptr, kWidth, kHeight);
   ASSERT_EQ(frame.linear.size(), 1u);
   // Every surface the direct light misses still gets the ambient term: no pixel of geometry
   // is black.

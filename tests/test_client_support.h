@@ -2,12 +2,12 @@
 // one rendered frame. The scenes come from PC_SCENES_DIR; tests skip where it is absent.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "client/camera.h"
 #include "client/field_mirror.h"

@@ -2,6 +2,7 @@
 // image of the same view; a resize mid-run stays free of crashes and validation errors), and
 // a corrupt baked file (clear error, ambient-lit image). Needs Xvfb and xwd (x11-apps) for
 // the window tests; they skip with a message without them.
+#include <gtest/gtest.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,8 +16,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "common/image.h"
 #include "common/scene.h"
@@ -54,7 +53,8 @@ pid_t spawn(const std::vector<std::string>& argv, const std::vector<std::string>
   for (const std::string& e : envStrings) envp.push_back(const_cast<char*>(e.c_str()));
   envp.push_back(nullptr);
   pid_t pid = -1;
-  if (posix_spawnp(&pid, argv[0].c_str(), nullptr, nullptr, args.data(), envp.data()) != 0) return -1;
+  if (posix_spawnp(&pid, argv[0].c_str(), nullptr, nullptr, args.data(), envp.data()) != 0)
+    return -1;
   return pid;
 }
 
@@ -131,9 +131,11 @@ Result<Image8> readXwd(const fs::path& path) {
   for (std::uint32_t y = 0; y < height; ++y) {
     for (std::uint32_t x = 0; x < width; ++x) {
       const unsigned char* p = &bytes[data + std::size_t(y) * bytesPerLine + x * 4];
-      const std::uint32_t v =
-          byteOrder == 0 ? (std::uint32_t(p[3]) << 24 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[1]) << 8 | p[0])
-                         : (std::uint32_t(p[0]) << 24 | std::uint32_t(p[1]) << 16 | std::uint32_t(p[2]) << 8 | p[3]);
+      const std::uint32_t v = byteOrder == 0
+                                  ? (std::uint32_t(p[3]) << 24 | std::uint32_t(p[2]) << 16 |
+                                     std::uint32_t(p[1]) << 8 | p[0])
+                                  : (std::uint32_t(p[0]) << 24 | std::uint32_t(p[1]) << 16 |
+                                     std::uint32_t(p[2]) << 8 | p[3]);
       unsigned char* out = &image.rgb[(std::size_t(y) * width + x) * 3];
       out[0] = static_cast<unsigned char>((v & redMask) >> shiftOf(redMask));
       out[1] = static_cast<unsigned char>((v & greenMask) >> shiftOf(greenMask));
@@ -172,10 +174,11 @@ TEST(ClientWindow, ScreenshotMatchesHeadlessImage) {
   ASSERT_TRUE(x.start()) << "Xvfb did not start";
   const fs::path dir = workDir("screenshot");
   const std::string probes = builtinProbes().string();
-  const std::vector<std::string> common = {"--scene", "builtin", "--probes", probes, "--width",
-                                           "160", "--height", "120", "--dt", "0"};
-  std::vector<std::string> windowed = {kClient, "--window", "--frames", "16", "--no-overlay",
-                                       "--validation", "--ready-file", (dir / "ready").string()};
+  const std::vector<std::string> common = {"--scene", "builtin",  "--probes", probes, "--width",
+                                           "160",     "--height", "120",      "--dt", "0"};
+  std::vector<std::string> windowed = {
+      kClient,        "--window",     "--frames",     "16",
+      "--no-overlay", "--validation", "--ready-file", (dir / "ready").string()};
   windowed.insert(windowed.end(), common.begin(), common.end());
   const pid_t client = spawn(windowed, {"DISPLAY=" + x.display()});
   ASSERT_GT(client, 0);
@@ -183,7 +186,8 @@ TEST(ClientWindow, ScreenshotMatchesHeadlessImage) {
   int shot = -1;
   if (ready) {
     shot = std::system(("xwd -display " + x.display() + " -name probecast -silent -out " +
-                        (dir / "window.xwd").string()).c_str());
+                        (dir / "window.xwd").string())
+                           .c_str());
   }
   EXPECT_EQ(waitExit(client), 0) << "windowed client failed (validation errors exit with 3)";
   ASSERT_TRUE(ready) << "the window never became ready";
@@ -209,10 +213,10 @@ TEST(ClientWindow, ResizeDuringTheRunKeepsValidationQuiet) {
   if (!onPath("Xvfb")) GTEST_SKIP() << "needs Xvfb (xvfb)";
   Xvfb x;
   ASSERT_TRUE(x.start()) << "Xvfb did not start";
-  const pid_t client = spawn({kClient, "--window", "--scene", "builtin", "--probes",
-                              builtinProbes().string(), "--width", "160", "--height", "120",
-                              "--frames", "8", "--validation", "--test-resize", "224x136"},
-                             {"DISPLAY=" + x.display()});
+  const pid_t client = spawn(
+      {kClient, "--window", "--scene", "builtin", "--probes", builtinProbes().string(), "--width",
+       "160", "--height", "120", "--frames", "8", "--validation", "--test-resize", "224x136"},
+      {"DISPLAY=" + x.display()});
   ASSERT_GT(client, 0);
   EXPECT_EQ(waitExit(client), 0) << "crash, error or validation errors (exit 3) around a resize";
 }
@@ -224,9 +228,10 @@ TEST(ClientFallback, CorruptBakedFileGivesAnErrorAndAnAmbientImage) {
     bad << "this is not a probe field";
   }
   const std::string log = (dir / "log.txt").string();
-  const int rc = std::system((kClient + " --scene builtin --width 96 --height 64 --validation --probes " +
-                              (dir / "bad.probes").string() + " --out " + dir.string() + " 2> " + log)
-                                 .c_str());
+  const int rc =
+      std::system((kClient + " --scene builtin --width 96 --height 64 --validation --probes " +
+                   (dir / "bad.probes").string() + " --out " + dir.string() + " 2> " + log)
+                      .c_str());
   EXPECT_EQ(rc, 0);
   std::ifstream in(log);
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -1,9 +1,8 @@
 // probecast-client: renders a scene lit directly and by the probe field it holds (the baked
 // fallback file here; the server's stream later), headless to PNG/EXR files or in a window.
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <string>
-
-#include <CLI/CLI.hpp>
 
 #include "client/client_app.h"
 #include "common/log.h"

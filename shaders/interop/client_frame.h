@@ -10,24 +10,24 @@
 PC_BEGIN
 
 // Descriptor bindings of the client's one descriptor set (set 0).
-PC_CONST int PC_BIND_FRAME = 0;          // uniform FrameUniforms
-PC_CONST int PC_BIND_FIELD_DESC = 1;     // uniform FieldDesc
-PC_CONST int PC_BIND_DRAWS = 2;          // buffer DrawData[]
-PC_CONST int PC_BIND_LIGHTS = 3;         // buffer GpuLight[]
+PC_CONST int PC_BIND_FRAME = 0;            // uniform FrameUniforms
+PC_CONST int PC_BIND_FIELD_DESC = 1;       // uniform FieldDesc
+PC_CONST int PC_BIND_DRAWS = 2;            // buffer DrawData[]
+PC_CONST int PC_BIND_LIGHTS = 3;           // buffer GpuLight[]
 PC_CONST int PC_BIND_SHADOW_MATRICES = 4;  // buffer mat4[] (one per shadow layer)
-PC_CONST int PC_BIND_PROBES = 5;         // buffer vec4[]: relocation offset xyz, state w
-PC_CONST int PC_BIND_IRRADIANCE = 6;     // sampler2D, linear
-PC_CONST int PC_BIND_DEPTH = 7;          // sampler2D, linear
-PC_CONST int PC_BIND_OCCLUSION = 8;      // sampler2D, linear
-PC_CONST int PC_BIND_SHADOW_MAPS = 9;    // sampler2DArrayShadow[2]: large maps, small maps
-PC_CONST int PC_BIND_TEXTURES = 10;      // sampler2D[textureCount]
-PC_CONST int PC_BIND_G_POSITION = 11;    // sampler2DMSArray: world position, w = 1 on geometry
-PC_CONST int PC_BIND_G_NORMAL = 12;      // sampler2DMSArray: shading normal
-PC_CONST int PC_BIND_G_ALBEDO = 13;      // sampler2DMSArray: diffuse albedo
-PC_CONST int PC_BIND_DIRECT = 14;        // sampler2DArray: resolved direct light + emission
-PC_CONST int PC_BIND_HDR_IMAGE = 15;     // image2DArray rgba32f: the final linear frame
-PC_CONST int PC_BIND_HDR_TEXTURE = 16;   // sampler2DArray: the same image, read by tone mapping
-PC_CONST int PC_BIND_OVERLAY = 17;       // buffer OverlayText
+PC_CONST int PC_BIND_PROBES = 5;           // buffer vec4[]: relocation offset xyz, state w
+PC_CONST int PC_BIND_IRRADIANCE = 6;       // sampler2D, linear
+PC_CONST int PC_BIND_DEPTH = 7;            // sampler2D, linear
+PC_CONST int PC_BIND_OCCLUSION = 8;        // sampler2D, linear
+PC_CONST int PC_BIND_SHADOW_MAPS = 9;      // sampler2DArrayShadow[2]: large maps, small maps
+PC_CONST int PC_BIND_TEXTURES = 10;        // sampler2D[textureCount]
+PC_CONST int PC_BIND_G_POSITION = 11;      // sampler2DMSArray: world position, w = 1 on geometry
+PC_CONST int PC_BIND_G_NORMAL = 12;        // sampler2DMSArray: shading normal
+PC_CONST int PC_BIND_G_ALBEDO = 13;        // sampler2DMSArray: diffuse albedo
+PC_CONST int PC_BIND_DIRECT = 14;          // sampler2DArray: resolved direct light + emission
+PC_CONST int PC_BIND_HDR_IMAGE = 15;       // image2DArray rgba32f: the final linear frame
+PC_CONST int PC_BIND_HDR_TEXTURE = 16;     // sampler2DArray: the same image, read by tone mapping
+PC_CONST int PC_BIND_OVERLAY = 17;         // buffer OverlayText
 PC_CONST int PC_BINDING_COUNT = 18;
 
 // Light kinds (GpuLight.type). Area lights are virtual point lights standing for a patch of
@@ -48,12 +48,12 @@ struct ClientView {
 struct FrameUniforms {
   ClientView views[PC_MAX_VIEWS];
   // -- 288
-  vec4 skyZenith;   // rgb radiance, w unused
+  vec4 skyZenith;  // rgb radiance, w unused
   vec4 skyHorizon;
   vec4 skyGround;
-  vec4 ambient;     // rgb: irradiance used where no cascade holds data
+  vec4 ambient;  // rgb: irradiance used where no cascade holds data
   // -- 352
-  vec2 viewport;    // render size in pixels
+  vec2 viewport;  // render size in pixels
   float exposure;
   int lightCount;
   // -- 368
@@ -76,18 +76,18 @@ struct DrawData {
 
 struct GpuLight {
   vec3 position;
-  int type;           // PC_LIGHT_*
+  int type;  // PC_LIGHT_*
   // -- 16
-  vec3 direction;     // where the light travels (spot, directional); area: the emitter normal
-  float range;        // 0: unlimited
+  vec3 direction;  // where the light travels (spot, directional); area: the emitter normal
+  float range;     // 0: unlimited
   // -- 32
-  vec3 power;         // color x intensity: W/sr (point, spot), W/m^2 (directional);
-                      // area: radiance x patch area (W/sr at normal incidence)
+  vec3 power;  // color x intensity: W/sr (point, spot), W/m^2 (directional);
+               // area: radiance x patch area (W/sr at normal incidence)
   float cosOuter;
   // -- 48
   float cosInner;
-  int shadowLayer;    // first layer in its shadow array (6 for cube faces), -1: no shadow
-  int shadowArray;    // 0: large maps (sun, spots, points), 1: small maps (area lights)
+  int shadowLayer;     // first layer in its shadow array (6 for cube faces), -1: no shadow
+  int shadowArray;     // 0: large maps (sun, spots, points), 1: small maps (area lights)
   float normalOffset;  // world units per unit of distance (perspective) or absolute (sun)
   // -- 64
   int shadowMatrix;   // index of its first matrix in the shadow matrix buffer

@@ -40,141 +40,154 @@ Benchmark addClient(CLI::App& app) {
   cmd->add_option("--area-lights", areaLights, "virtual point lights standing in for emitters");
   cmd->add_flag("--validation", validation, "Vulkan validation layer on");
   addRenderOptions(*cmd, setup);
-  return {cmd, [] {
-            namespace fs = std::filesystem;
-            auto scene = loadBenchScene(scenePath, sidecar);
-            if (!scene) {
-              std::printf("client: %s\n", scene.error().message.c_str());
-              return 1;
-            }
-            auto camera = sceneCamera(*scene, setup.camera);
-            if (!camera) {
-              std::printf("client: %s\n", camera.error().message.c_str());
-              return 1;
-            }
-            vk::ContextOptions co;
-            co.validation = validation;
-            co.allowCpuDevice = true;
-            co.multiview = true;
-            auto ctx = vk::Context::create(co);
-            if (!ctx) {
-              std::printf("client: no usable Vulkan device: %s\n", ctx.error().message.c_str());
-              return 2;
-            }
-            double bakeSeconds = 0;
-            auto field = bakeSceneField(*scene, setup.updates, &bakeSeconds);
-            if (!field) {
-              std::printf("client: %s\n", field.error().message.c_str());
-              return 1;
-            }
-            client::FieldMirror mirror;
-            mirror.reset(*field, 0.0);
-            client::RendererOptions ro;
-            ro.shadows.areaLights = areaLights;
+  return {
+      cmd, [] {
+        namespace fs = std::filesystem;
+        auto scene = loadBenchScene(scenePath, sidecar);
+        if (!scene) {
+          std::printf("client: %s\n", scene.error().message.c_str());
+          return 1;
+        }
+        auto camera = sceneCamera(*scene, setup.camera);
+        if (!camera) {
+          std::printf("client: %s\n", camera.error().message.c_str());
+          return 1;
+        }
+        vk::ContextOptions co;
+        co.validation = validation;
+        co.allowCpuDevice = true;
+        co.multiview = true;
+        auto ctx = vk::Context::create(co);
+        if (!ctx) {
+          std::printf("client: no usable Vulkan device: %s\n", ctx.error().message.c_str());
+          return 2;
+        }
+        double bakeSeconds = 0;
+        auto field = bakeSceneField(*scene, setup.updates, &bakeSeconds);
+        if (!field) {
+          std::printf("client: %s\n", field.error().message.c_str());
+          return 1;
+        }
+        client::FieldMirror mirror;
+        mirror.reset(*field, 0.0);
+        client::RendererOptions ro;
+        ro.shadows.areaLights = areaLights;
 
-            // ---- quality ----
-            ro.width = setup.width;
-            ro.height = setup.height;
-            client::FrameInput input;
-            input.cameras[0] = *camera;
-            auto small = client::Renderer::create(**ctx, *scene, mirror, ro);
-            if (!small) {
-              std::printf("client: renderer: %s\n", small.error().message.c_str());
-              return 1;
-            }
-            auto mono = (*small)->renderOffscreen(input);
-            const int areaLightCount = (*small)->areaLightCount();
-            small->reset();
-            ro.views = 2;
-            client::FrameInput stereoInput;
-            const float ipd = 0.064f;
-            stereoInput.cameras[0] = *camera;
-            stereoInput.cameras[1] = client::offsetCamera(*camera, ipd);
-            auto stereoRenderer = client::Renderer::create(**ctx, *scene, mirror, ro);
-            if (!stereoRenderer) {
-              std::printf("client: renderer: %s\n", stereoRenderer.error().message.c_str());
-              return 1;
-            }
-            auto stereo = (*stereoRenderer)->renderOffscreen(stereoInput);
-            stereoRenderer->reset();
-            if (!mono || !stereo) {
-              std::printf("client: frame failed: %s\n", (!mono ? mono : stereo).error().message.c_str());
-              return 1;
-            }
-            ProbeLitOptions lit;
-            lit.width = setup.width;
-            lit.height = setup.height;
-            lit.primarySamples = std::max(setup.primarySamples, 8);
-            lit.emissiveSamples = setup.emissiveSamples;
-            lit.explicitCamera = *camera;
-            auto cpu = renderProbeLit(*scene, *field, lit);
-            auto reference = cachedReference(*scene, *camera, setup);
-            if (!cpu || !reference) {
-              std::printf("client: %s\n", (!cpu ? cpu.error() : reference.error()).message.c_str());
-              return 1;
-            }
-            const Image8 cpu8 = tonemap(*cpu, scene->exposure);
-            const Image8 ref8 = tonemap(reference->image, scene->exposure);
-            const double vsCpu = psnr8(mono->display[0], cpu8);
-            const double vsRef = psnr8(mono->display[0], ref8);
-            const double cpuVsRef = psnr8(cpu8, ref8);
-            const double stereoDb = psnr8(stereo->display[0], mono->display[0]);
-            if (!outDir.empty()) {
-              fs::create_directories(outDir);
-              writePng(fs::path(outDir) / "client.png", mono->display[0]);
-              writePng(fs::path(outDir) / "cpu_probe_lit.png", cpu8);
-              writePng(fs::path(outDir) / "reference.png", ref8);
-              writePng(fs::path(outDir) / "diff_client_cpu.png", differenceImage(mono->display[0], cpu8));
-              writePng(fs::path(outDir) / "stereo_right.png", stereo->display[1]);
-            }
+        // ---- quality ----
+        ro.width = setup.width;
+        ro.height = setup.height;
+        client::FrameInput input;
+        input.cameras[0] = *camera;
+        auto small = client::Renderer::create(**ctx, *scene, mirror, ro);
+        if (!small) {
+          std::printf("client: renderer: %s\n", small.error().message.c_str());
+          return 1;
+        }
+        auto mono = (*small)->renderOffscreen(input);
+        const int areaLightCount = (*small)->areaLightCount();
+        small->reset();
+        ro.views = 2;
+        client::FrameInput stereoInput;
+        const float ipd = 0.064f;
+        stereoInput.cameras[0] = *camera;
+        stereoInput.cameras[1] = client::offsetCamera(*camera, ipd);
+        auto stereoRenderer = client::Renderer::create(**ctx, *scene, mirror, ro);
+        if (!stereoRenderer) {
+          std::printf("client: renderer: %s\n", stereoRenderer.error().message.c_str());
+          return 1;
+        }
+        auto stereo = (*stereoRenderer)->renderOffscreen(stereoInput);
+        stereoRenderer->reset();
+        if (!mono || !stereo) {
+          std::printf("client: frame failed: %s\n",
+                      (!mono ? mono : stereo).error().message.c_str());
+          return 1;
+        }
+        ProbeLitOptions lit;
+        lit.width = setup.width;
+        lit.height = setup.height;
+        lit.primarySamples = std::max(setup.primarySamples, 8);
+        lit.emissiveSamples = setup.emissiveSamples;
+        lit.explicitCamera = *camera;
+        auto cpu = renderProbeLit(*scene, *field, lit);
+        auto reference = cachedReference(*scene, *camera, setup);
+        if (!cpu || !reference) {
+          std::printf("client: %s\n", (!cpu ? cpu.error() : reference.error()).message.c_str());
+          return 1;
+        }
+        const Image8 cpu8 = tonemap(*cpu, scene->exposure);
+        const Image8 ref8 = tonemap(reference->image, scene->exposure);
+        const double vsCpu = psnr8(mono->display[0], cpu8);
+        const double vsRef = psnr8(mono->display[0], ref8);
+        const double cpuVsRef = psnr8(cpu8, ref8);
+        const double stereoDb = psnr8(stereo->display[0], mono->display[0]);
+        if (!outDir.empty()) {
+          fs::create_directories(outDir);
+          writePng(fs::path(outDir) / "client.png", mono->display[0]);
+          writePng(fs::path(outDir) / "cpu_probe_lit.png", cpu8);
+          writePng(fs::path(outDir) / "reference.png", ref8);
+          writePng(fs::path(outDir) / "diff_client_cpu.png",
+                   differenceImage(mono->display[0], cpu8));
+          writePng(fs::path(outDir) / "stereo_right.png", stereo->display[1]);
+        }
 
-            // ---- speed ----
-            ro.views = 1;
-            ro.width = speedWidth;
-            ro.height = speedHeight;
-            auto big = client::Renderer::create(**ctx, *scene, mirror, ro);
-            if (!big) {
-              std::printf("client: renderer: %s\n", big.error().message.c_str());
-              return 1;
-            }
-            std::vector<double> frameMs, probeMs, shadowMs, mainMs;
-            for (int f = 0; f < frames + 2; ++f) {
-              auto r = (*big)->renderOffscreen(input);
-              if (!r) {
-                std::printf("client: frame failed: %s\n", r.error().message.c_str());
-                return 1;
-              }
-              const client::FrameTimings& t = (*big)->lastTimings();
-              if (f < 2 || !t.valid) continue;  // warm-up: pipeline caches, first uploads
-              frameMs.push_back(t.frameMs());
-              probeMs.push_back(t.probeMs);
-              shadowMs.push_back(t.shadowMs);
-              mainMs.push_back(t.mainMs);
-            }
-            big->reset();
+        // ---- speed ----
+        ro.views = 1;
+        ro.width = speedWidth;
+        ro.height = speedHeight;
+        auto big = client::Renderer::create(**ctx, *scene, mirror, ro);
+        if (!big) {
+          std::printf("client: renderer: %s\n", big.error().message.c_str());
+          return 1;
+        }
+        std::vector<double> frameMs, probeMs, shadowMs, mainMs;
+        for (int f = 0; f < frames + 2; ++f) {
+          auto r = (*big)->renderOffscreen(input);
+          if (!r) {
+            std::printf("client: frame failed: %s\n", r.error().message.c_str());
+            return 1;
+          }
+          const client::FrameTimings& t = (*big)->lastTimings();
+          if (f < 2 || !t.valid) continue;  // warm-up: pipeline caches, first uploads
+          frameMs.push_back(t.frameMs());
+          probeMs.push_back(t.probeMs);
+          shadowMs.push_back(t.shadowMs);
+          mainMs.push_back(t.mainMs);
+        }
+        big->reset();
 
-            std::printf("device: %s\nmachine: %s\n", (*ctx)->deviceName().c_str(), machineDescription().c_str());
-            std::printf("scene %s, %d cascade(s), %d probes, %d emitter lights (area-light VPLs)\n",
-                        sceneSlug(*scene).c_str(), field->cascadeCount(), field->probeCount(), areaLightCount);
-            std::printf("%-34s %10s\n", ("quality (" + std::to_string(setup.width) + "x" + std::to_string(setup.height) + ")").c_str(), "PSNR dB");
-            std::printf("%-34s %10.2f\n", "client vs CPU probe-lit", vsCpu);
-            std::printf("%-34s %10.2f\n", "client vs path-traced reference", vsRef);
-            std::printf("%-34s %10.2f\n", "CPU probe-lit vs reference", cpuVsRef);
-            std::printf("%-34s %10.2f\n", "stereo left eye vs mono", stereoDb);
-            std::printf("%-34s %10s\n", ("GPU ms at " + std::to_string(speedWidth) + "x" + std::to_string(speedHeight) + " (median of " + std::to_string(frameMs.size()) + ")").c_str(), "ms");
-            std::printf("%-34s %10.3f\n", "frame", median(frameMs));
-            std::printf("%-34s %10.3f\n", "  shadow maps", median(shadowMs));
-            std::printf("%-34s %10.3f\n", "  main pass (direct + G-buffer)", median(mainMs));
-            std::printf("%-34s %10.3f\n", "  probe-sampling pass", median(probeMs));
-            if ((*ctx)->validationErrorCount() > 0)
-              std::printf("validation errors: %u\n", (*ctx)->validationErrorCount());
-            figure("psnr_client_vs_reference", vsRef, "dB");
-            figure("psnr_client_vs_cpu", vsCpu, "dB");
-            figure("psnr_stereo_left_vs_mono", stereoDb, "dB");
-            figure("frame_ms", median(frameMs), "ms");
-            figure("probe_pass_ms", median(probeMs), "ms");
-            return 0;
-          }};
+        std::printf("device: %s\nmachine: %s\n", (*ctx)->deviceName().c_str(),
+                    machineDescription().c_str());
+        std::printf("scene %s, %d cascade(s), %d probes, %d emitter lights (area-light VPLs)\n",
+                    sceneSlug(*scene).c_str(), field->cascadeCount(), field->probeCount(),
+                    areaLightCount);
+        std::printf(
+            "%-34s %10s\n",
+            ("quality (" + std::to_string(setup.width) + "x" + std::to_string(setup.height) + ")")
+                .c_str(),
+            "PSNR dB");
+        std::printf("%-34s %10.2f\n", "client vs CPU probe-lit", vsCpu);
+        std::printf("%-34s %10.2f\n", "client vs path-traced reference", vsRef);
+        std::printf("%-34s %10.2f\n", "CPU probe-lit vs reference", cpuVsRef);
+        std::printf("%-34s %10.2f\n", "stereo left eye vs mono", stereoDb);
+        std::printf("%-34s %10s\n",
+                    ("GPU ms at " + std::to_string(speedWidth) + "x" + std::to_string(speedHeight) +
+                     " (median of " + std::to_string(frameMs.size()) + ")")
+                        .c_str(),
+                    "ms");
+        std::printf("%-34s %10.3f\n", "frame", median(frameMs));
+        std::printf("%-34s %10.3f\n", "  shadow maps", median(shadowMs));
+        std::printf("%-34s %10.3f\n", "  main pass (direct + G-buffer)", median(mainMs));
+        std::printf("%-34s %10.3f\n", "  probe-sampling pass", median(probeMs));
+        if ((*ctx)->validationErrorCount() > 0)
+          std::printf("validation errors: %u\n", (*ctx)->validationErrorCount());
+        figure("psnr_client_vs_reference", vsRef, "dB");
+        figure("psnr_client_vs_cpu", vsCpu, "dB");
+        figure("psnr_stereo_left_vs_mono", stereoDb, "dB");
+        figure("frame_ms", median(frameMs), "ms");
+        figure("probe_pass_ms", median(probeMs), "ms");
+        return 0;
+      }};
 }
 
 }  // namespace pc::bench
