@@ -35,7 +35,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   std::vector<pc::bench::Benchmark> benches = {
       pc::bench::addEnergy(app), pc::bench::addTrace(app), pc::bench::addQuality(app),
-      pc::bench::addLeak(app), pc::bench::addClient(app), pc::bench::addGpuTrace(app)};
+      pc::bench::addLeak(app), pc::bench::addClient(app), pc::bench::addGpuTrace(app),
+      pc::bench::addFaults(app)};
   CLI11_PARSE(app, argc, argv);
   for (auto& b : benches)
     if (b.command->parsed()) return b.run();

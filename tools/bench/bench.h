@@ -31,5 +31,6 @@ Benchmark addQuality(CLI::App& app);
 Benchmark addLeak(CLI::App& app);
 Benchmark addClient(CLI::App& app);
 Benchmark addGpuTrace(CLI::App& app);
+Benchmark addFaults(CLI::App& app);
 
 }  // namespace pc::bench
