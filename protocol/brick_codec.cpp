@@ -72,10 +72,14 @@ void forEachPrediction(F&& f) {
           for (int x = 0; x < n; ++x) {
             const std::size_t i = tile + std::size_t(y) * n + x;
             std::size_t pred;
-            if (x > 0) pred = i - 1;
-            else if (y > 0) pred = i - n;
-            else if (s > 0) pred = tile - std::size_t(n) * n;
-            else pred = i;  // first of the plane: predicted by 0 (see below)
+            if (x > 0)
+              pred = i - 1;
+            else if (y > 0)
+              pred = i - n;
+            else if (s > 0)
+              pred = tile - std::size_t(n) * n;
+            else
+              pred = i;  // first of the plane: predicted by 0 (see below)
             f(i, pred);
           }
         }
@@ -171,8 +175,8 @@ QuantizedBrick quantizeBrick(const Field& field, int cascade, int brick) {
     }
     const ProbeRecord& p = field.probe(cascade, slot);
     for (int a = 0; a < 3; ++a) out[kOffset + a * kSlots + s] = offsetCode(p.offset[a], c.spacing);
-    out[kState + s] = std::uint16_t(p.state >= 0 && p.state <= kMaxStateCode ? p.state
-                                                                              : PC_PROBE_UNINITIALIZED);
+    out[kState + s] =
+        std::uint16_t(p.state >= 0 && p.state <= kMaxStateCode ? p.state : PC_PROBE_UNINITIALIZED);
   }
   return q;
 }
@@ -203,7 +207,8 @@ void applyBrick(Field& field, int cascade, int brick, const QuantizedBrick& q) {
         for (int x = 0; x < n; ++x) {
           const std::size_t i = std::size_t(s) * kDepthTexels + y * n + x;
           const float mean = float(in[kDepth + i]) * depthStep;
-          const float sigma = float(in[kDepth + std::size_t(kSlots) * kDepthTexels + i]) * depthStep;
+          const float sigma =
+              float(in[kDepth + std::size_t(kSlots) * kDepthTexels + i]) * depthStep;
           float* t = field.depth.at(o.x + x, o.y + y);
           t[0] = mean;
           t[1] = mean * mean + sigma * sigma;
@@ -232,8 +237,8 @@ BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b) {
   BrickChange ch;
   for (std::size_t i = kIrradiance; i < kDepth; ++i) {
     if (a.codes[i] != b.codes[i]) {
-      ch.irradiance = std::max(
-          ch.irradiance, std::abs(dequantizeIrradiance(a.codes[i]) - dequantizeIrradiance(b.codes[i])));
+      ch.irradiance = std::max(ch.irradiance, std::abs(dequantizeIrradiance(a.codes[i]) -
+                                                       dequantizeIrradiance(b.codes[i])));
     }
   }
   int depthMax = 0;
@@ -260,7 +265,8 @@ std::vector<std::uint8_t> encodeBrick(const QuantizedBrick& q, const QuantizedBr
   // Prediction residuals, zigzagged so small negative and positive values share small codes.
   std::vector<std::uint16_t> r(kCodes);
   if (base) {
-    for (std::size_t i = 0; i < kCodes; ++i) r[i] = zigzag(std::uint16_t(q.codes[i] - base->codes[i]));
+    for (std::size_t i = 0; i < kCodes; ++i)
+      r[i] = zigzag(std::uint16_t(q.codes[i] - base->codes[i]));
   } else {
     forEachPrediction([&](std::size_t i, std::size_t pred) {
       r[i] = zigzag(std::uint16_t(q.codes[i] - (pred == i ? 0 : q.codes[pred])));
@@ -303,7 +309,8 @@ Result<QuantizedBrick> decodeBrick(std::span<const std::uint8_t> payload,
   if ((payload[3] & ~kFlagResidual) != 0) return fail("unknown flags");
   const bool residual = (payload[3] & kFlagResidual) != 0;
   if (residual != (base != nullptr)) {
-    return fail(residual ? "residual payload without a base" : "self-contained payload given a base");
+    return fail(residual ? "residual payload without a base"
+                         : "self-contained payload given a base");
   }
   if (base && base->codes.size() != kCodes) return fail("base brick has the wrong size");
 
@@ -317,14 +324,17 @@ Result<QuantizedBrick> decodeBrick(std::span<const std::uint8_t> payload,
                 ", a brick holds " + std::to_string(kRawBytes));
   }
   const std::size_t frameSize = ZSTD_findFrameCompressedSize(frame.data(), frame.size());
-  if (ZSTD_isError(frameSize)) return fail(std::string("bad zstd frame: ") + ZSTD_getErrorName(frameSize));
+  if (ZSTD_isError(frameSize))
+    return fail(std::string("bad zstd frame: ") + ZSTD_getErrorName(frameSize));
   if (frameSize != frame.size()) return fail("unexpected bytes after the zstd frame");
 
   thread_local std::unique_ptr<ZSTD_DCtx, DCtxDeleter> dctx(ZSTD_createDCtx());
   std::vector<std::uint8_t> raw(kRawBytes);
-  const std::size_t n = ZSTD_decompressDCtx(dctx.get(), raw.data(), raw.size(), frame.data(), frame.size());
+  const std::size_t n =
+      ZSTD_decompressDCtx(dctx.get(), raw.data(), raw.size(), frame.data(), frame.size());
   if (ZSTD_isError(n)) return fail(std::string("zstd: ") + ZSTD_getErrorName(n));
-  if (n != kRawBytes) return fail("decoded " + std::to_string(n) + " bytes, expected " + std::to_string(kRawBytes));
+  if (n != kRawBytes)
+    return fail("decoded " + std::to_string(n) + " bytes, expected " + std::to_string(kRawBytes));
 
   QuantizedBrick q;
   q.codes.resize(kCodes);
@@ -333,7 +343,8 @@ Result<QuantizedBrick> decodeBrick(std::span<const std::uint8_t> payload,
     q.codes[i] = r;
   }
   if (base) {
-    for (std::size_t i = 0; i < kCodes; ++i) q.codes[i] = std::uint16_t(base->codes[i] + q.codes[i]);
+    for (std::size_t i = 0; i < kCodes; ++i)
+      q.codes[i] = std::uint16_t(base->codes[i] + q.codes[i]);
   } else {
     // Predictions come before the values they predict in forEachPrediction's order.
     forEachPrediction([&](std::size_t i, std::size_t pred) {

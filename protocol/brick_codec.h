@@ -37,7 +37,7 @@ inline constexpr std::size_t kCodes = kState + kSlots;
 // Quantization bounds (see PROTOCOL.md). Irradiance: the gamma-encoded value e as a 14-bit
 // float (5 exponent bits for e in [2^-15, 2^16), 9 stored mantissa bits, round to nearest).
 inline constexpr int kIrradianceMantissaBits = 9;
-inline constexpr float kIrradianceRelativeBound = 1.0f / 1024.0f;  // |e' - e| <= this * e
+inline constexpr float kIrradianceRelativeBound = 1.0f / 1024.0f;   // |e' - e| <= this * e
 inline constexpr float kIrradianceAbsoluteBound = 1.0f / 32768.0f;  // for e < 2^-15
 // Depth mean and standard deviation: 16 bits over [0, maxRayDistance].
 inline constexpr float kDepthBound = 1.0f / 131070.0f;  // x maxRayDistance

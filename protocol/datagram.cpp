@@ -36,8 +36,8 @@ std::vector<std::uint8_t> encodeDatagram(std::uint32_t sessionId, std::uint32_t 
     auto data = fbb.CreateVector(f.data.data(), f.data.size());
     const UpdateHeader& u = f.update;
     offs.push_back(net::CreateBrickFragment(fbb, u.updateId, std::uint8_t(u.cascade), u.brick,
-                                            u.version, u.baseVersion, u.codec, u.totalSize,
-                                            f.index, fragmentCount(u.totalSize), data));
+                                            u.version, u.baseVersion, u.codec, u.totalSize, f.index,
+                                            fragmentCount(u.totalSize), data));
   }
   auto vec = fbb.CreateVector(offs);
   auto root = net::CreateDatagram(fbb, sessionId, sequence, fieldVersion, vec);
@@ -50,9 +50,11 @@ std::vector<std::uint8_t> encodeDatagram(std::uint32_t sessionId, std::uint32_t 
 
 Result<Datagram> decodeDatagram(std::span<const std::uint8_t> bytes) {
   if (bytes.size() > kMaxDatagramBytes) {
-    return fail(std::to_string(bytes.size()) + " bytes, limit " + std::to_string(kMaxDatagramBytes));
+    return fail(std::to_string(bytes.size()) + " bytes, limit " +
+                std::to_string(kMaxDatagramBytes));
   }
-  if (bytes.size() < 8 + kCrcBytes) return fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
+  if (bytes.size() < 8 + kCrcBytes)
+    return fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
   const std::span<const std::uint8_t> body = bytes.first(bytes.size() - kCrcBytes);
   std::uint32_t stored = 0;
   for (int i = 0; i < 4; ++i) stored |= std::uint32_t(bytes[body.size() + i]) << (8 * i);

@@ -68,9 +68,9 @@ std::vector<std::uint8_t> encodeDatagram(std::uint32_t sessionId, std::uint32_t 
 Result<Datagram> decodeDatagram(std::span<const std::uint8_t> bytes);
 
 struct ReassemblyOptions {
-  double timeout = 1.0;                  // s: a partial payload older than this is dropped
-  std::size_t maxUpdates = 64;           // partial payloads held at once
-  std::size_t maxBytes = 4u << 20;       // their buffers together
+  double timeout = 1.0;             // s: a partial payload older than this is dropped
+  std::size_t maxUpdates = 64;      // partial payloads held at once
+  std::size_t maxBytes = 4u << 20;  // their buffers together
 };
 
 struct CompletedUpdate {

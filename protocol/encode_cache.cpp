@@ -18,8 +18,13 @@ std::shared_ptr<const EncodedUpdate> EncodeCache::insert(const EncodeKey& key, s
   auto u = std::make_shared<EncodedUpdate>();
   // Update id 0 is never used, so a receiver's zeroed state never matches a real update.
   if (nextId_ == 0) nextId_ = 1;
-  u->header = UpdateHeader{nextId_++, key.cascade,          key.brick,
-                           key.version, key.base, codec, std::uint32_t(payload.size())};
+  u->header = UpdateHeader{nextId_++,
+                           key.cascade,
+                           key.brick,
+                           key.version,
+                           key.base,
+                           codec,
+                           std::uint32_t(payload.size())};
   u->payload = std::move(payload);
   if (auto it = map_.find(key); it != map_.end()) {
     bytes_ -= it->second.update->payload.size();

@@ -19,7 +19,8 @@ void FaultLink::send(std::vector<std::uint8_t> bytes, double now) {
   if (burstLeft_ == 0 && profile_.burstStart > 0 && uniform() < profile_.burstStart) {
     // Geometric burst length with the configured mean.
     const double p = 1.0 / std::max(1.0, profile_.burstLength);
-    burstLeft_ = 1 + int(std::floor(std::log(std::max(uniform(), 1e-12)) / std::log(1.0 - p + 1e-12)));
+    burstLeft_ =
+        1 + int(std::floor(std::log(std::max(uniform(), 1e-12)) / std::log(1.0 - p + 1e-12)));
   }
   if (burstLeft_ > 0) {
     --burstLeft_;
@@ -37,7 +38,8 @@ void FaultLink::send(std::vector<std::uint8_t> bytes, double now) {
     } else {
       const int flips = 1 + int(uniform() * 3);
       for (int i = 0; i < flips; ++i) {
-        const std::size_t at = std::min(bytes.size() - 1, std::size_t(uniform() * double(bytes.size())));
+        const std::size_t at =
+            std::min(bytes.size() - 1, std::size_t(uniform() * double(bytes.size())));
         bytes[at] ^= std::uint8_t(1u << int(uniform() * 8));
       }
     }
@@ -56,7 +58,8 @@ void FaultLink::send(std::vector<std::uint8_t> bytes, double now) {
 
 std::vector<std::vector<std::uint8_t>> FaultLink::receive(double now) {
   std::vector<InFlight> due;
-  auto split = std::partition(queue_.begin(), queue_.end(), [&](const InFlight& f) { return f.at > now; });
+  auto split =
+      std::partition(queue_.begin(), queue_.end(), [&](const InFlight& f) { return f.at > now; });
   std::move(split, queue_.end(), std::back_inserter(due));
   queue_.erase(split, queue_.end());
   std::sort(due.begin(), due.end(), [](const InFlight& a, const InFlight& b) {

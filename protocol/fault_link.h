@@ -13,15 +13,15 @@
 namespace pc {
 
 struct FaultProfile {
-  double loss = 0;          // probability a datagram is dropped
-  double burstStart = 0;    // probability a loss burst starts at a datagram
-  double burstLength = 8;   // mean datagrams lost in a burst
-  double duplicate = 0;     // probability a datagram is delivered twice
-  double reorder = 0;       // probability a datagram is held back by reorderDelay more
+  double loss = 0;         // probability a datagram is dropped
+  double burstStart = 0;   // probability a loss burst starts at a datagram
+  double burstLength = 8;  // mean datagrams lost in a burst
+  double duplicate = 0;    // probability a datagram is delivered twice
+  double reorder = 0;      // probability a datagram is held back by reorderDelay more
   double reorderDelay = 0.05;
-  double corrupt = 0;       // probability a datagram has bits flipped or is truncated
-  double delay = 0.01;      // s, one way
-  double jitter = 0;        // s, uniform extra delay
+  double corrupt = 0;             // probability a datagram has bits flipped or is truncated
+  double delay = 0.01;            // s, one way
+  double jitter = 0;              // s, uniform extra delay
   std::size_t queueLimit = 4096;  // datagrams in flight; more are dropped (a full router queue)
 };
 

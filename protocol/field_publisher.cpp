@@ -32,8 +32,10 @@ Status FieldPublisher::publish(const Field& field, double now) {
       const std::uint64_t v = field.brickVersions[k][b];
       auto& h = bricks_[k][b];
       if (v == 0 || v == h.back().version) continue;
-      if (h.back().version != 0) historyBytes_ += kBrickBytes;  // the old current joins history
-      else h.pop_back();
+      if (h.back().version != 0)
+        historyBytes_ += kBrickBytes;  // the old current joins history
+      else
+        h.pop_back();
       auto q = std::make_shared<const QuantizedBrick>(quantizeBrick(field, k, int(b)));
       h.push_back(BrickVersion{v, now, std::move(q)});
       while (h.size() > std::size_t(options_.historyVersions)) {

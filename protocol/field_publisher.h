@@ -20,9 +20,9 @@
 namespace pc {
 
 struct PublisherOptions {
-  int historyVersions = 4;                    // quantized versions kept per brick
-  std::size_t maxHistoryBytes = 256u << 20;   // all bricks' histories together (beyond current)
-  std::size_t maxCacheBytes = 64u << 20;      // encoded updates
+  int historyVersions = 4;                   // quantized versions kept per brick
+  std::size_t maxHistoryBytes = 256u << 20;  // all bricks' histories together (beyond current)
+  std::size_t maxCacheBytes = 64u << 20;     // encoded updates
   int zstdLevel = 3;
 };
 

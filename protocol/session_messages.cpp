@@ -18,8 +18,12 @@ namespace fb = flatbuffers;
 
 net::Vec3 toWire(glm::vec3 v) { return net::Vec3(v.x, v.y, v.z); }
 net::Int3 toWire(glm::ivec3 v) { return net::Int3(v.x, v.y, v.z); }
-glm::vec3 fromWire(const net::Vec3* v) { return v ? glm::vec3(v->x(), v->y(), v->z()) : glm::vec3(0); }
-glm::ivec3 fromWire(const net::Int3* v) { return v ? glm::ivec3(v->x(), v->y(), v->z()) : glm::ivec3(0); }
+glm::vec3 fromWire(const net::Vec3* v) {
+  return v ? glm::vec3(v->x(), v->y(), v->z()) : glm::vec3(0);
+}
+glm::ivec3 fromWire(const net::Int3* v) {
+  return v ? glm::ivec3(v->x(), v->y(), v->z()) : glm::ivec3(0);
+}
 
 bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
@@ -52,7 +56,8 @@ struct Encoder {
     auto cascadesOff = fbb.CreateVector(cascades);
     std::vector<net::Codec> codecs;
     for (std::uint8_t c : m.codecs) codecs.push_back(net::Codec(c));
-    auto codecsOff = fbb.CreateVector(reinterpret_cast<const std::uint8_t*>(codecs.data()), codecs.size());
+    auto codecsOff =
+        fbb.CreateVector(reinterpret_cast<const std::uint8_t*>(codecs.data()), codecs.size());
     net::SessionInfoBuilder b(fbb);
     b.add_scene_hash(m.sceneHash);
     b.add_field_version(m.fieldVersion);
@@ -301,11 +306,10 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
 
 std::optional<RejectMsg> checkHello(const HelloMsg& hello, std::string_view expectedToken) {
   if (hello.protocolVersion < kMinProtocolVersion || hello.protocolVersion > kProtocolVersion) {
-    return RejectMsg{kProtocolVersion,
-                     "protocol version " + std::to_string(hello.protocolVersion) +
-                         " is not supported (this server speaks " +
-                         std::to_string(kMinProtocolVersion) + ".." +
-                         std::to_string(kProtocolVersion) + ")"};
+    return RejectMsg{kProtocolVersion, "protocol version " + std::to_string(hello.protocolVersion) +
+                                           " is not supported (this server speaks " +
+                                           std::to_string(kMinProtocolVersion) + ".." +
+                                           std::to_string(kProtocolVersion) + ")"};
   }
   // Constant time over the longer of the two, so timing does not reveal a matching prefix.
   const std::string& got = hello.authToken;
@@ -394,7 +398,8 @@ Result<Field> mirrorField(const SessionInfoMsg& info) {
     const CascadeDesc& c = info.cascades[k];
     if (c.firstProbe != f.desc.cascades[k].firstProbe ||
         c.atlasTileRow != f.desc.cascades[k].atlasTileRow) {
-      return bad("cascade " + std::to_string(k) + ": first probe or atlas row disagrees with the layout");
+      return bad("cascade " + std::to_string(k) +
+                 ": first probe or atlas row disagrees with the layout");
     }
     f.desc.cascades[k] = c;
   }

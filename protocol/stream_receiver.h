@@ -24,17 +24,17 @@
 namespace pc {
 
 struct ReceiverOptions {
-  double ackInterval = 0.02;      // s: changes are acknowledged at most this often
-  double fullAckInterval = 1.0;   // s: every held version is acknowledged this often
-  double repairInterval = 0.2;    // s: per brick, at most one repair request this often
+  double ackInterval = 0.02;     // s: changes are acknowledged at most this often
+  double fullAckInterval = 1.0;  // s: every held version is acknowledged this often
+  double repairInterval = 0.2;   // s: per brick, at most one repair request this often
   ReassemblyOptions reassembly;
 };
 
 struct ReceiverStats {
   std::uint64_t datagrams = 0, rejectedDatagrams = 0, fragments = 0, rejectedFragments = 0;
   std::uint64_t applied = 0, appliedResidual = 0;
-  std::uint64_t stale = 0;         // not newer than what is held (duplicates, reordering)
-  std::uint64_t missingBase = 0;   // residual on a version not held
+  std::uint64_t stale = 0;        // not newer than what is held (duplicates, reordering)
+  std::uint64_t missingBase = 0;  // residual on a version not held
   std::uint64_t decodeErrors = 0;
   std::uint64_t repairBricks = 0;  // bricks named in repair requests
   std::uint64_t acks = 0;

@@ -160,8 +160,11 @@ double StreamSender::distanceInBricks(int k, int b) const {
 
 std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   std::vector<std::vector<std::uint8_t>> out;
-  if (lastPoll_ < 0) tokens_ = options_.burstBytes;
-  else tokens_ = std::min(options_.burstBytes, tokens_ + options_.bytesPerSecond * std::max(0.0, now - lastPoll_));
+  if (lastPoll_ < 0)
+    tokens_ = options_.burstBytes;
+  else
+    tokens_ = std::min(options_.burstBytes,
+                       tokens_ + options_.bytesPerSecond * std::max(0.0, now - lastPoll_));
   lastPoll_ = now;
 
   // Which bricks want sending, most urgent first.
@@ -182,7 +185,8 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
         // heard from this brick recently.
         const std::uint64_t ref = std::max(t.acked, t.sent);
         if (ref != 0 && now - cur.publishedAt < options_.settleTime &&
-            now - t.sentAt < options_.refreshInterval && belowThresholds(t, k, b, cur.version, ref)) {
+            now - t.sentAt < options_.refreshInterval &&
+            belowThresholds(t, k, b, cur.version, ref)) {
           ++stats_.skipped;
           continue;
         }

@@ -14,11 +14,10 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <optional>
 #include <span>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "common/result.h"
 #include "protocol/field_publisher.h"
@@ -27,25 +26,26 @@
 namespace pc {
 
 struct SenderOptions {
-  double bytesPerSecond = 4e6;      // rate limit (token bucket), datagram bytes
-  double burstBytes = 256 * 1024;   // bucket size
-  double minResendTimeout = 0.05;   // s; the timeout is max(this, 2 x smoothed round trip)
-  double initialRtt = 0.1;          // s, until acks give samples
-  double settleTime = 0.2;          // s: a version this old is sent even below the thresholds
-  double refreshInterval = 1.0;     // s: an unacknowledged brick is sent at least this often,
-                                    // and self-contained at least this often
+  double bytesPerSecond = 4e6;         // rate limit (token bucket), datagram bytes
+  double burstBytes = 256 * 1024;      // bucket size
+  double minResendTimeout = 0.05;      // s; the timeout is max(this, 2 x smoothed round trip)
+  double initialRtt = 0.1;             // s, until acks give samples
+  double settleTime = 0.2;             // s: a version this old is sent even below the thresholds
+  double refreshInterval = 1.0;        // s: an unacknowledged brick is sent at least this often,
+                                       // and self-contained at least this often
   float irradianceThreshold = 0.004f;  // max |delta e| (gamma-encoded irradiance)
   float depthThreshold = 0.005f;       // max |delta mean depth| / maxRayDistance
   float occlusionThreshold = 0.02f;
   double heartbeatInterval = 0.25;  // s: an empty datagram when nothing else was sent
-  double agingBricksPerSecond = 8;  // priority: each second waiting counts as this many bricks nearer
+  double agingBricksPerSecond =
+      8;  // priority: each second waiting counts as this many bricks nearer
   std::size_t maxDatagramsPerPoll = 4096;
 };
 
 struct SenderStats {
   std::uint64_t datagrams = 0, bytes = 0;
   std::uint64_t updates = 0, residualUpdates = 0, resends = 0, fragments = 0;
-  std::uint64_t skipped = 0;      // brick-polls held back by the perceptual thresholds
+  std::uint64_t skipped = 0;  // brick-polls held back by the perceptual thresholds
   std::uint64_t badMessages = 0;
   double srtt = 0;
 };
@@ -72,10 +72,10 @@ class StreamSender {
     std::uint64_t acked = 0;  // what the client holds, from acks and repair requests
     std::uint64_t sent = 0;   // newest version sent
     double sentAt = -1e30;
-    bool resent = false;      // sent more than once: no round-trip sample (Karn)
+    bool resent = false;  // sent more than once: no round-trip sample (Karn)
     double selfContainedAt = -1e30;
     double pendingSince = -1;
-    bool repair = false;      // the client asked: bypass the thresholds
+    bool repair = false;  // the client asked: bypass the thresholds
     // Cached perceptual decision for (current version, reference version).
     std::uint64_t skipVersion = 0, skipRef = 0;
     bool skipBelow = false;

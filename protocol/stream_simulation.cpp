@@ -27,8 +27,8 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
 
   // The client learns the layout through the wire form of SessionInfo, as it would over TCP.
   auto info = decodeMessage(encodeMessage(publisher.sessionInfo()));
-  auto receiverOr = StreamReceiver::create(std::get<SessionInfoMsg>(info.value()), sessionId,
-                                           o.receiver);
+  auto receiverOr =
+      StreamReceiver::create(std::get<SessionInfoMsg>(info.value()), sessionId, o.receiver);
   if (!receiverOr) return r;
   StreamReceiver receiver = std::move(receiverOr.value());
 
@@ -70,7 +70,8 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
     for (auto& m : control.receive(t)) (void)sender.onMessage(m, t);
 
     r.maxReassemblyBytes = std::max(r.maxReassemblyBytes, receiver.reassembler().pendingBytes());
-    r.maxReassemblyUpdates = std::max(r.maxReassemblyUpdates, receiver.reassembler().pendingUpdates());
+    r.maxReassemblyUpdates =
+        std::max(r.maxReassemblyUpdates, receiver.reassembler().pendingUpdates());
     r.maxLinkInFlight = std::max(r.maxLinkInFlight, link.inFlight());
     r.maxControlInFlight = std::max(r.maxControlInFlight, control.inFlight());
     r.maxCacheBytes = std::max(r.maxCacheBytes, publisher.cache().bytes());

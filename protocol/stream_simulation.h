@@ -8,9 +8,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
-#include <optional>
-
 #include <glm/glm.hpp>
+#include <optional>
 
 #include "common/field.h"
 #include "protocol/fault_link.h"
@@ -21,15 +20,15 @@
 namespace pc {
 
 struct StreamSimulationOptions {
-  double step = 0.005;              // s between network events (polls, deliveries)
-  double tickInterval = 1.0 / 30.0; // s between field updates
-  double warmupSeconds = 0.5;       // calm, field changing
-  double faultSeconds = 3.0;        // faults on, field changing
-  double settleLimitSeconds = 5.0;  // calm; give up after this long
-  bool freezeAfterFaults = true;    // the field stops changing when the faults stop
+  double step = 0.005;               // s between network events (polls, deliveries)
+  double tickInterval = 1.0 / 30.0;  // s between field updates
+  double warmupSeconds = 0.5;        // calm, field changing
+  double faultSeconds = 3.0;         // faults on, field changing
+  double settleLimitSeconds = 5.0;   // calm; give up after this long
+  bool freezeAfterFaults = true;     // the field stops changing when the faults stop
   FaultProfile faults;
-  FaultProfile calm;                // after the faults (and during warm-up)
-  double controlDelay = 0.01;       // s, one way, session messages
+  FaultProfile calm;           // after the faults (and during warm-up)
+  double controlDelay = 0.01;  // s, one way, session messages
   double controlDelayDuringFaults = 0.05;
   SenderOptions sender;
   ReceiverOptions receiver;

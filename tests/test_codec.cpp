@@ -48,9 +48,11 @@ TEST(BrickCodec, RoundTripWithinStatedBounds) {
         for (int y = 0; y < n + 2; ++y)  // borders included: they follow the interiors
           for (int x = 0; x < n + 2; ++x) check(a.at(o.x + x, o.y + y), b.at(o.x + x, o.y + y));
       };
-      each(server.irradiance, mirror.irradiance, PC_IRRADIANCE_TEXELS, [&](const float* a, const float* b) {
-        for (int ch = 0; ch < 3; ++ch) ASSERT_LE(std::abs(a[ch] - b[ch]), kIrradianceRelativeBound * a[ch] + 1e-7f);
-      });
+      each(server.irradiance, mirror.irradiance, PC_IRRADIANCE_TEXELS,
+           [&](const float* a, const float* b) {
+             for (int ch = 0; ch < 3; ++ch)
+               ASSERT_LE(std::abs(a[ch] - b[ch]), kIrradianceRelativeBound * a[ch] + 1e-7f);
+           });
       each(server.depth, mirror.depth, PC_DEPTH_TEXELS, [&](const float* a, const float* b) {
         const float bound = kDepthBound * D * 1.001f;
         ASSERT_LE(std::abs(a[0] - b[0]), bound);
@@ -60,12 +62,14 @@ TEST(BrickCodec, RoundTripWithinStatedBounds) {
         ASSERT_LE(std::abs(sa - sb), bound + 1e-3f * sa + 1e-5f * D);
         ASSERT_LE(std::abs(a[1] - b[1]), 4.0f * D * bound + 1e-6f * D * D);
       });
-      each(server.occlusion, mirror.occlusion, PC_OCCLUSION_TEXELS, [&](const float* a, const float* b) {
-        ASSERT_LE(std::abs(a[0] - b[0]), kOcclusionBound + 1e-6f);
-      });
+      each(server.occlusion, mirror.occlusion, PC_OCCLUSION_TEXELS,
+           [&](const float* a, const float* b) {
+             ASSERT_LE(std::abs(a[0] - b[0]), kOcclusionBound + 1e-6f);
+           });
       const ProbeRecord& pa = server.probe(k, slot);
       const ProbeRecord& pb = mirror.probe(k, slot);
-      for (int i = 0; i < 3; ++i) ASSERT_LE(std::abs(pa.offset[i] - pb.offset[i]), kOffsetBound * c.spacing * 1.001f);
+      for (int i = 0; i < 3; ++i)
+        ASSERT_LE(std::abs(pa.offset[i] - pb.offset[i]), kOffsetBound * c.spacing * 1.001f);
       ASSERT_EQ(pa.state, pb.state);
     }
   }
@@ -95,8 +99,7 @@ TEST(BrickCodec, EncodeDecodeSelfContainedAndResidualAgree) {
 
   const double raw = double(brick_layout::kCodes) * 2.0;
   std::printf("brick: %zu bytes self-contained, %zu residual (raw quantized %.0f, float %.0f)\n",
-              self.size(), residual.size(), raw,
-              64.0 * (64 * 3 + 256 * 2 + 64 + 4) * 4.0);
+              self.size(), residual.size(), raw, 64.0 * (64 * 3 + 256 * 2 + 64 + 4) * 4.0);
   EXPECT_LT(self.size(), raw / 2);
 }
 
@@ -156,7 +159,8 @@ TEST(BrickCodec, HostilePayloadsAreRejected) {
     if (r.ok()) ++accepted;
     check(bytes, b);
   }
-  std::printf("bit flips accepted: %d of 400 (a flip in zstd's unchecked bits can decode)\n", accepted);
+  std::printf("bit flips accepted: %d of 400 (a flip in zstd's unchecked bits can decode)\n",
+              accepted);
   // Trailing bytes.
   auto longer = self;
   longer.push_back(0);

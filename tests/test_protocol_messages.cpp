@@ -106,8 +106,7 @@ TEST(ProtocolMessages, HostileFramesAreRejected) {
   Field f = test::makeSyntheticLayout();
   const std::vector<std::vector<std::uint8_t>> valid = {
       encodeMessage(HelloMsg{kProtocolVersion, "secret", "me", true, 1}),
-      encodeMessage(sessionInfoFor(f)),
-      encodeMessage(AckMsg{true, 3, {{0, 0, 4, 3}}}),
+      encodeMessage(sessionInfoFor(f)), encodeMessage(AckMsg{true, 3, {{0, 0, 4, 3}}}),
       encodeMessage(sceneStateMessage(evaluateScene(builtinScene(), 0.5)))};
   for (const auto& frame : valid) {
     for (std::size_t n = 0; n < frame.size(); ++n) {
@@ -117,7 +116,8 @@ TEST(ProtocolMessages, HostileFramesAreRejected) {
     for (int i = 0; i < 2000; ++i) {
       auto bytes = frame;
       const int flips = 1 + int(rng() % 4);
-      for (int j = 0; j < flips; ++j) bytes[rng() % bytes.size()] ^= std::uint8_t(1u << (rng() % 8));
+      for (int j = 0; j < flips; ++j)
+        bytes[rng() % bytes.size()] ^= std::uint8_t(1u << (rng() % 8));
       auto m = decodeMessage(bytes);  // either rejected or a well-formed message
       if (!m.ok()) {
         EXPECT_FALSE(m.error().message.empty());
@@ -296,7 +296,9 @@ TEST(ProtocolSession, ReceiverRefusesWhatDoesNotFit) {
     std::vector<std::vector<std::uint8_t>> ds;
     for (std::uint16_t i = 0; i < fragmentCount(h.totalSize); ++i) {
       const std::size_t b = std::size_t(i) * kFragmentBytes;
-      std::vector<FragmentRef> f{{h, i, std::span(enc->payload).subspan(b, std::min(kFragmentBytes, enc->payload.size() - b))}};
+      std::vector<FragmentRef> f{
+          {h, i,
+           std::span(enc->payload).subspan(b, std::min(kFragmentBytes, enc->payload.size() - b))}};
       ds.push_back(encodeDatagram(session, i, 1, f));
     }
     Status last;

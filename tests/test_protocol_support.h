@@ -56,9 +56,8 @@ inline void paintBrick(Field& f, int k, int brick, float phase) {
       t[0] = mean;
       t[1] = mean * mean + sigma * sigma;
     });
-    tile(f.occlusion, PC_OCCLUSION_TEXELS, [&](float* t, glm::vec3 d) {
-      t[0] = 0.5f + 0.45f * std::sin(pf + d.y + 0.2f * phase);
-    });
+    tile(f.occlusion, PC_OCCLUSION_TEXELS,
+         [&](float* t, glm::vec3 d) { t[0] = 0.5f + 0.45f * std::sin(pf + d.y + 0.2f * phase); });
     ProbeRecord& p = f.probe(k, slot);
     p.offset = glm::vec3(0.05f * std::sin(pf), 0.0f, -0.03f) * c.spacing;
     p.state = (slot % 5 == 0) ? PC_PROBE_SLEEPING : PC_PROBE_ACTIVE;
