@@ -1,6 +1,7 @@
 #include "vulkan_accel.h"
 
 #include <cstring>
+#include <utility>
 
 namespace pc {
 
@@ -28,6 +29,7 @@ Result<AccelerationStructure> AccelerationStructure::create(const vk::Context& c
                                                             VkDeviceSize size) {
   AccelerationStructure as;
   as.ctx_ = &ctx;
+  as.size_ = size;
   auto storage = vk::Buffer::create(ctx, size,
                                     VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_STORAGE_BIT_KHR |
                                         VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
@@ -61,70 +63,161 @@ AccelerationStructure& AccelerationStructure::operator=(AccelerationStructure&& 
   handle_ = std::exchange(o.handle_, VK_NULL_HANDLE);
   storage_ = std::move(o.storage_);
   address_ = o.address_;
+  size_ = o.size_;
   return *this;
 }
 
-Result<SceneAccel> SceneAccel::build(const vk::Context& ctx, const vk::Buffer& vertices,
-                                     std::uint32_t vertexStride, const vk::Buffer& indices,
-                                     const std::vector<MeshRange>& meshes, std::size_t instanceCount) {
-  SceneAccel s;
-  s.ctx_ = &ctx;
-  s.blas_.resize(meshes.size());
+namespace {
 
-  // ---- bottom level: one per mesh, all built in one submission ----
-  std::vector<VkAccelerationStructureGeometryKHR> geometries(meshes.size());
+// One bottom-level structure to build: its triangle ranges (one geometry each).
+struct BottomLevelJob {
+  std::vector<MeshRange> ranges;
+  AccelerationStructure* target = nullptr;
+};
+
+// Builds `jobs` in one submission, then compacts them (a second submission): compaction
+// typically halves a structure built for fast tracing, and a smaller structure caches better.
+Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices, std::uint32_t vertexStride,
+                         const vk::Buffer& indices, std::vector<BottomLevelJob>& jobs) {
+  if (jobs.empty()) return Status::success();
+  std::vector<std::vector<VkAccelerationStructureGeometryKHR>> geometries(jobs.size());
+  std::vector<std::vector<VkAccelerationStructureBuildRangeInfoKHR>> ranges(jobs.size());
   std::vector<VkAccelerationStructureBuildGeometryInfoKHR> builds;
-  std::vector<VkAccelerationStructureBuildRangeInfoKHR> ranges;
+  std::vector<AccelerationStructure> built;
   std::vector<vk::Buffer> scratch;
-  for (std::size_t m = 0; m < meshes.size(); ++m) {
-    const MeshRange& r = meshes[m];
-    if (r.triangleCount == 0) continue;
-    VkAccelerationStructureGeometryKHR& g = geometries[m];
-    g = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
-    g.geometryType = VK_GEOMETRY_TYPE_TRIANGLES_KHR;
-    g.flags = VK_GEOMETRY_OPAQUE_BIT_KHR;  // no any-hit shaders: every triangle occludes
-    auto& t = g.geometry.triangles;
-    t = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_TRIANGLES_DATA_KHR};
-    t.vertexFormat = VK_FORMAT_R32G32B32_SFLOAT;
-    t.vertexData.deviceAddress = vertices.address() + VkDeviceAddress(r.firstVertex) * vertexStride;
-    t.vertexStride = vertexStride;
-    t.maxVertex = r.vertexCount > 0 ? r.vertexCount - 1 : 0;
-    t.indexType = VK_INDEX_TYPE_UINT32;
-    t.indexData.deviceAddress = indices.address() + VkDeviceAddress(r.firstIndex) * 4;
-
+  for (std::size_t j = 0; j < jobs.size(); ++j) {
+    std::vector<std::uint32_t> counts;
+    for (const MeshRange& r : jobs[j].ranges) {
+      VkAccelerationStructureGeometryKHR g{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
+      g.geometryType = VK_GEOMETRY_TYPE_TRIANGLES_KHR;
+      g.flags = VK_GEOMETRY_OPAQUE_BIT_KHR;  // no any-hit shaders: every triangle occludes
+      auto& t = g.geometry.triangles;
+      t = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_TRIANGLES_DATA_KHR};
+      t.vertexFormat = VK_FORMAT_R32G32B32_SFLOAT;
+      t.vertexData.deviceAddress = vertices.address() + VkDeviceAddress(r.firstVertex) * vertexStride;
+      t.vertexStride = vertexStride;
+      t.maxVertex = r.vertexCount > 0 ? r.vertexCount - 1 : 0;
+      t.indexType = VK_INDEX_TYPE_UINT32;
+      t.indexData.deviceAddress = indices.address() + VkDeviceAddress(r.firstIndex) * 4;
+      geometries[j].push_back(g);
+      ranges[j].push_back({r.triangleCount, 0, 0, 0});
+      counts.push_back(r.triangleCount);
+    }
     VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
     info.type = VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR;
-    info.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
+    info.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR |
+                 VK_BUILD_ACCELERATION_STRUCTURE_ALLOW_COMPACTION_BIT_KHR;
     info.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
-    info.geometryCount = 1;
-    info.pGeometries = &g;
+    info.geometryCount = std::uint32_t(geometries[j].size());
+    info.pGeometries = geometries[j].data();
     VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
     ctx.rt().getAccelerationStructureBuildSizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR,
-                                                &info, &r.triangleCount, &sizes);
+                                                &info, counts.data(), &sizes);
     auto as = AccelerationStructure::create(ctx, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
                                             sizes.accelerationStructureSize);
     if (!as) return as.error();
-    s.blas_[m] = std::move(as).value();
+    built.push_back(std::move(as).value());
     VkDeviceAddress scratchAddress = 0;
     auto sb = scratchBuffer(ctx, sizes.buildScratchSize, &scratchAddress);
     if (!sb) return sb.error();
     scratch.push_back(std::move(sb).value());
-    info.dstAccelerationStructure = s.blas_[m].get();
+    info.dstAccelerationStructure = built.back().get();
     info.scratchData.deviceAddress = scratchAddress;
     builds.push_back(info);
-    ranges.push_back({r.triangleCount, 0, 0, 0});
-  }
-  if (!builds.empty()) {
-    std::vector<const VkAccelerationStructureBuildRangeInfoKHR*> rangePtrs;
-    for (const auto& r : ranges) rangePtrs.push_back(&r);
-    Status st = ctx.submitAndWait([&](VkCommandBuffer cmd) {
-      ctx.rt().cmdBuildAccelerationStructures(cmd, std::uint32_t(builds.size()), builds.data(), rangePtrs.data());
-    });
-    if (!st) return st.error();
   }
 
+  // The compaction entry points are not among the context's loaded functions.
+  auto writeProperties = reinterpret_cast<PFN_vkCmdWriteAccelerationStructuresPropertiesKHR>(
+      vkGetDeviceProcAddr(ctx.device(), "vkCmdWriteAccelerationStructuresPropertiesKHR"));
+  auto copyStructure = reinterpret_cast<PFN_vkCmdCopyAccelerationStructureKHR>(
+      vkGetDeviceProcAddr(ctx.device(), "vkCmdCopyAccelerationStructureKHR"));
+  VkQueryPool pool = VK_NULL_HANDLE;
+  if (writeProperties && copyStructure) {
+    VkQueryPoolCreateInfo qci{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    qci.queryType = VK_QUERY_TYPE_ACCELERATION_STRUCTURE_COMPACTED_SIZE_KHR;
+    qci.queryCount = std::uint32_t(jobs.size());
+    PC_VK_TRY(vkCreateQueryPool(ctx.device(), &qci, nullptr, &pool));
+  }
+  struct PoolGuard {
+    VkDevice device;
+    VkQueryPool pool;
+    ~PoolGuard() {
+      if (pool) vkDestroyQueryPool(device, pool, nullptr);
+    }
+  } guard{ctx.device(), pool};
+
+  std::vector<const VkAccelerationStructureBuildRangeInfoKHR*> rangePtrs;
+  for (const auto& r : ranges) rangePtrs.push_back(r.data());
+  std::vector<VkAccelerationStructureKHR> handles;
+  for (const auto& as : built) handles.push_back(as.get());
+  Status st = ctx.submitAndWait([&](VkCommandBuffer cmd) {
+    ctx.rt().cmdBuildAccelerationStructures(cmd, std::uint32_t(builds.size()), builds.data(), rangePtrs.data());
+    if (!pool) return;
+    vkCmdResetQueryPool(cmd, pool, 0, std::uint32_t(handles.size()));
+    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
+                      VK_ACCESS_2_ACCELERATION_STRUCTURE_WRITE_BIT_KHR,
+                      VK_PIPELINE_STAGE_2_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
+                      VK_ACCESS_2_ACCELERATION_STRUCTURE_READ_BIT_KHR);
+    writeProperties(cmd, std::uint32_t(handles.size()), handles.data(),
+                    VK_QUERY_TYPE_ACCELERATION_STRUCTURE_COMPACTED_SIZE_KHR, pool, 0);
+  });
+  if (!st) return st.error();
+  std::vector<VkDeviceSize> compacted(jobs.size(), 0);
+  if (pool) {
+    PC_VK_TRY(vkGetQueryPoolResults(ctx.device(), pool, 0, std::uint32_t(jobs.size()),
+                                    compacted.size() * sizeof(VkDeviceSize), compacted.data(), sizeof(VkDeviceSize),
+                                    VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+  }
+  // Structures that report no size (or no gain) stay as built.
+  std::vector<std::pair<std::size_t, AccelerationStructure>> copies;
+  for (std::size_t j = 0; j < jobs.size(); ++j) {
+    if (compacted[j] == 0 || compacted[j] >= built[j].size()) continue;
+    auto as = AccelerationStructure::create(ctx, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR, compacted[j]);
+    if (!as) return as.error();
+    copies.emplace_back(j, std::move(as).value());
+  }
+  if (!copies.empty()) {
+    st = ctx.submitAndWait([&](VkCommandBuffer cmd) {
+      for (const auto& [j, as] : copies) {
+        VkCopyAccelerationStructureInfoKHR ci{VK_STRUCTURE_TYPE_COPY_ACCELERATION_STRUCTURE_INFO_KHR};
+        ci.src = built[j].get();
+        ci.dst = as.get();
+        ci.mode = VK_COPY_ACCELERATION_STRUCTURE_MODE_COMPACT_KHR;
+        copyStructure(cmd, &ci);
+      }
+    });
+    if (!st) return st.error();
+    for (auto& [j, as] : copies) built[j] = std::move(as);
+  }
+  for (std::size_t j = 0; j < jobs.size(); ++j) *jobs[j].target = std::move(built[j]);
+  return Status::success();
+}
+
+}  // namespace
+
+Result<SceneAccel> SceneAccel::build(const vk::Context& ctx, const vk::Buffer& vertices,
+                                     std::uint32_t vertexStride, const vk::Buffer& indices,
+                                     const std::vector<MeshRange>& staticGeometries,
+                                     const std::vector<MeshRange>& meshes, const std::vector<bool>& meshNeeded,
+                                     std::size_t instanceCapacity) {
+  SceneAccel s;
+  s.ctx_ = &ctx;
+  s.blas_.resize(meshes.size());
+
+  // ---- bottom level: the static structure and the animated meshes' ----
+  std::vector<BottomLevelJob> jobs;
+  // Geometry g of the static structure is the g-th range: callers leave out empty ones.
+  bool anyStatic = false;
+  for (const MeshRange& r : staticGeometries) anyStatic = anyStatic || r.triangleCount > 0;
+  if (anyStatic) jobs.push_back({staticGeometries, &s.static_});
+  for (std::size_t m = 0; m < meshes.size(); ++m) {
+    if (m < meshNeeded.size() && meshNeeded[m] && meshes[m].triangleCount > 0)
+      jobs.push_back({{meshes[m]}, &s.blas_[m]});
+  }
+  if (Status st = buildBottomLevels(ctx, vertices, vertexStride, indices, jobs); !st) return st.error();
+
   // ---- top level: sized for every instance ----
-  s.instanceCapacity_ = std::max<std::size_t>(instanceCount, 1);
+  s.instanceCapacity_ = std::max<std::size_t>(instanceCapacity, 1);
   auto inst = vk::Buffer::create(ctx, s.instanceCapacity_ * sizeof(VkAccelerationStructureInstanceKHR),
                                  VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR |
                                      VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
@@ -155,23 +248,25 @@ Result<SceneAccel> SceneAccel::build(const vk::Context& ctx, const vk::Buffer& v
   return s;
 }
 
-void SceneAccel::setInstances(const std::vector<glm::mat4>& transforms, const std::vector<int>& instanceMesh) {
+void SceneAccel::setInstances(const std::vector<TopLevelInstance>& instances) {
   auto* out = instances_.as<VkAccelerationStructureInstanceKHR>();
   std::uint32_t n = 0;
-  for (std::size_t i = 0; i < transforms.size() && n < instanceCapacity_; ++i) {
-    const int mesh = instanceMesh[i];
-    if (mesh < 0 || std::size_t(mesh) >= blas_.size() || !blas_[mesh].get()) continue;
+  for (std::size_t i = 0; i < instances.size() && n < instanceCapacity_; ++i) {
+    const TopLevelInstance& t = instances[i];
+    const AccelerationStructure* blas =
+        t.mesh < 0 ? &static_ : std::size_t(t.mesh) < blas_.size() ? &blas_[t.mesh] : nullptr;
+    if (!blas || !blas->get()) continue;
     VkAccelerationStructureInstanceKHR inst{};
     // VkTransformMatrixKHR is 3x4 row-major; glm is column-major.
-    const glm::mat4& m = transforms[i];
+    const glm::mat4& m = t.transform;
     for (int row = 0; row < 3; ++row)
       for (int col = 0; col < 4; ++col) inst.transform.matrix[row][col] = m[col][row];
-    inst.instanceCustomIndex = std::uint32_t(i);  // the shaders' index into Scene::instances
+    inst.instanceCustomIndex = t.customIndex;
     inst.mask = 0xFF;
     inst.instanceShaderBindingTableRecordOffset = 0;
     // Probe rays must see backfaces (they mark probes inside geometry), so never cull.
     inst.flags = VK_GEOMETRY_INSTANCE_TRIANGLE_FACING_CULL_DISABLE_BIT_KHR;
-    inst.accelerationStructureReference = blas_[mesh].address();
+    inst.accelerationStructureReference = blas->address();
     out[n++] = inst;
   }
   instanceCount_ = n;

@@ -1,6 +1,9 @@
-// Acceleration structures for the Vulkan tracer: a bottom-level structure per mesh (object
-// space, built once) and a top-level structure over the scene's instances, rebuilt when
-// instances move. RAII: each structure owns its handle and storage buffer.
+// Acceleration structures for the Vulkan tracer. Every static instance goes into ONE bottom-level
+// structure (one geometry per instance, vertices pre-transformed to world space): per-instance
+// structures of a level split by material overlap everywhere, and traversal then descends into
+// many of them per ray. Animated instances keep an object-space structure per mesh and move by
+// their top-level transform. The top level (1 + animated instances) is rebuilt when instances
+// move. RAII: each structure owns its handle and storage buffer.
 #pragma once
 
 #include <cstdint>
@@ -27,6 +30,7 @@ class AccelerationStructure {
                                               VkDeviceSize size);
   VkAccelerationStructureKHR get() const { return handle_; }
   VkDeviceAddress address() const { return address_; }
+  VkDeviceSize size() const { return size_; }
 
  private:
   void release();
@@ -34,6 +38,7 @@ class AccelerationStructure {
   VkAccelerationStructureKHR handle_ = VK_NULL_HANDLE;
   vk::Buffer storage_;
   VkDeviceAddress address_ = 0;
+  VkDeviceSize size_ = 0;
 };
 
 // Where a mesh's triangles live in the shared vertex and index buffers.
@@ -42,17 +47,30 @@ struct MeshRange {
   std::uint32_t firstIndex = 0, triangleCount = 0;
 };
 
+// One record of the top level: the static structure (mesh < 0, identity transform) or the
+// object-space structure of `mesh`. Hits report customIndex + the geometry index within the
+// structure as gl_InstanceCustomIndexEXT + gl_GeometryIndexEXT.
+struct TopLevelInstance {
+  glm::mat4 transform{1.0f};
+  int mesh = -1;
+  std::uint32_t customIndex = 0;
+};
+
 class SceneAccel {
  public:
-  // Builds one BLAS per mesh with triangles. `vertices` holds positions at offset 0 of each
-  // `vertexStride`-byte vertex; indices are 32-bit and mesh-local.
+  // Builds the static structure from `staticGeometries` (world space; geometry g is the g-th
+  // range) and an object-space structure for each mesh m with `meshNeeded[m]`. `vertices` holds
+  // positions at offset 0 of each `vertexStride`-byte vertex; indices are 32-bit and local to
+  // their range. Static structures are compacted after the build.
   static Result<SceneAccel> build(const vk::Context& ctx, const vk::Buffer& vertices,
                                   std::uint32_t vertexStride, const vk::Buffer& indices,
-                                  const std::vector<MeshRange>& meshes, std::size_t instanceCount);
+                                  const std::vector<MeshRange>& staticGeometries,
+                                  const std::vector<MeshRange>& meshes, const std::vector<bool>& meshNeeded,
+                                  std::size_t instanceCapacity);
 
-  // Writes the instance records for `transforms` (one per Scene::instances entry, mesh index in
-  // `instanceMesh`); the next recordTopLevelBuild() uses them.
-  void setInstances(const std::vector<glm::mat4>& transforms, const std::vector<int>& instanceMesh);
+  // Writes the top-level records; the next recordTopLevelBuild() uses them. Records naming a
+  // structure that was not built (no triangles) are skipped.
+  void setInstances(const std::vector<TopLevelInstance>& instances);
   // Records the top-level build (full rebuild: rigid motion of a few instances makes a refit
   // degrade, and a TLAS over instances builds in microseconds on a GPU).
   void recordTopLevelBuild(VkCommandBuffer cmd);
@@ -60,7 +78,8 @@ class SceneAccel {
 
  private:
   const vk::Context* ctx_ = nullptr;
-  std::vector<AccelerationStructure> blas_;  // per mesh; empty handle for meshes without triangles
+  AccelerationStructure static_;             // all static instances; empty handle when none
+  std::vector<AccelerationStructure> blas_;  // per mesh; empty handle where not needed
   AccelerationStructure tlas_;
   vk::Buffer instances_;  // VkAccelerationStructureInstanceKHR[], host-written
   vk::Buffer tlasScratch_;

@@ -9,11 +9,18 @@
 #include "../cpu/lighting.h"
 #include "../shaders/interop/gpu_trace.h"
 #include "embree_tracer.h"
+#include "probe_blend.h"
 #include "vulkan_accel.h"
+
+#include <tbb/parallel_for.h>
 
 namespace pc {
 
 using namespace pc::gpu;
+
+static_assert(PC_MAX_RAYS_PER_PROBE == kMaxRaysPerProbe, "the blend's shared scratch holds every ray");
+// A brick's probes must lie in one atlas tile row for the packed row runs (gpu_trace.h).
+static_assert(PC_ATLAS_TILES_PER_ROW % PC_PROBES_PER_BRICK == 0);
 
 namespace {
 
@@ -104,7 +111,11 @@ struct VulkanTracer::Impl {
 
   // ---- scene ----
   vk::Buffer vertices, indices, meshes, instances, materials, lights, emissive;
-  std::vector<int> instanceMesh;
+  // Shading records (the `instances` buffer, indexed by a hit's custom index + geometry index):
+  // static instances first (world-space mesh copies staticMeshes[r]), then animated ones.
+  std::vector<int> recordInstance;  // record -> Scene::instances index
+  std::vector<int> staticMeshes;    // static record -> its world-space GpuMesh entry
+  int staticCount = 0;
   SceneAccel accel;
   bool tlasDirty = true;
   std::vector<vk::Image> textures;
@@ -121,6 +132,8 @@ struct VulkanTracer::Impl {
 
   // ---- per-update buffers ----
   vk::Buffer params, rayDirs, requests, rays, changes, counters, countersReadback;
+  vk::Buffer tapsUpload, taps;  // blend taps: host-written, copied to device memory per update
+  std::size_t tapBytes = 0;     // of this update's taps
   std::size_t probeCapacity = 0, rayCapacity = 0;
 
   // ---- field on the GPU ----
@@ -141,7 +154,7 @@ struct VulkanTracer::Impl {
   void writeDescriptors();
   void ensureRequestCapacity(std::size_t probes, int rayCount);
   bool ensureFieldBuffers(const Field& field);
-  void writeUpdateInputs(const Field& field, const UpdateRequest& request);
+  void writeUpdateInputs(const Field& field, const UpdateRequest& request, bool blendTaps);
   void begin();
   void submitAndWait();
   void recordFieldSync(const Field& field, std::vector<vk::Buffer>& staging);
@@ -212,6 +225,47 @@ Status VulkanTracer::Impl::uploadScene() {
     gpuMeshes.push_back(gm);
     ranges.push_back(r);
   }
+
+  // Static instances: world-space copies of their meshes' vertices, transformed as the Embree
+  // scene transforms them (cpu/embree_scene.cpp), each a geometry of the one static structure
+  // and a mesh entry past the scene's meshes (indices are shared with the object-space mesh).
+  // Their shading records come first; animated instances' follow.
+  std::vector<MeshRange> staticRanges;
+  std::vector<bool> meshNeeded(s.meshes.size(), false);
+  for (std::size_t i = 0; i < s.instances.size(); ++i) {
+    const Instance& inst = s.instances[i];
+    const int mesh = inst.mesh >= 0 && std::size_t(inst.mesh) < s.meshes.size() ? inst.mesh : -1;
+    if (mesh < 0 || ranges[mesh].triangleCount == 0) continue;  // nothing to hit
+    if (inst.animation >= 0) {
+      meshNeeded[mesh] = true;
+      continue;
+    }
+    const Mesh& m = s.meshes[mesh];
+    const glm::mat3 normalMatrix = glm::transpose(glm::inverse(glm::mat3(inst.transform)));
+    MeshRange r = ranges[mesh];
+    r.firstVertex = std::uint32_t(verts.size());
+    GpuMesh gm = gpuMeshes[mesh];
+    gm.firstVertex = int(verts.size());
+    for (std::size_t v = 0; v < m.positions.size(); ++v) {
+      GpuVertex gv = verts[ranges[mesh].firstVertex + v];
+      gv.position = glm::vec3(inst.transform * glm::vec4(m.positions[v], 1.0f));
+      const glm::vec3 n = normalMatrix * gv.normal;
+      const float len = glm::length(n);
+      gv.normal = len > 0.0f ? n / len : glm::vec3(0.0f);
+      verts.push_back(gv);
+    }
+    staticRanges.push_back(r);
+    staticMeshes.push_back(int(gpuMeshes.size()));
+    gpuMeshes.push_back(gm);
+    recordInstance.push_back(int(i));
+  }
+  staticCount = int(recordInstance.size());
+  for (std::size_t i = 0; i < s.instances.size(); ++i) {
+    const Instance& inst = s.instances[i];
+    const int mesh = inst.mesh >= 0 && std::size_t(inst.mesh) < s.meshes.size() ? inst.mesh : -1;
+    if (mesh >= 0 && ranges[mesh].triangleCount > 0 && inst.animation >= 0) recordInstance.push_back(int(i));
+  }
+
   const VkBufferUsageFlags asInput = VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
   auto vb = vk::uploadBuffer(*ctx, verts.data(), verts.size() * sizeof(GpuVertex), kStorage | asInput);
   if (!vb) return vb.error();
@@ -223,10 +277,9 @@ Status VulkanTracer::Impl::uploadScene() {
   if (!mb) return mb.error();
   meshes = std::move(mb).value();
 
-  for (const Instance& inst : s.instances) {
-    instanceMesh.push_back(inst.mesh >= 0 && std::size_t(inst.mesh) < s.meshes.size() ? inst.mesh : -1);
-  }
-  auto as = SceneAccel::build(*ctx, vertices, sizeof(GpuVertex), indices, ranges, s.instances.size());
+  const std::size_t animated = recordInstance.size() - std::size_t(staticCount);
+  auto as = SceneAccel::build(*ctx, vertices, sizeof(GpuVertex), indices, staticRanges, ranges, meshNeeded,
+                              1 + animated);
   if (!as) return as.error();
   accel = std::move(as).value();
 
@@ -266,7 +319,7 @@ Status VulkanTracer::Impl::uploadScene() {
                                 vk::MemoryUsage::Upload);
   if (!mat) return mat.error();
   materials = std::move(mat).value();
-  auto ins = vk::Buffer::create(*ctx, std::max<std::size_t>(s.instances.size(), 1) * sizeof(GpuInstance), kStorage,
+  auto ins = vk::Buffer::create(*ctx, std::max<std::size_t>(recordInstance.size(), 1) * sizeof(GpuInstance), kStorage,
                                 vk::MemoryUsage::Upload);
   if (!ins) return ins.error();
   instances = std::move(ins).value();
@@ -327,7 +380,7 @@ Status VulkanTracer::Impl::createPipelines() {
   sai.pSetLayouts = &dsl;
   PC_VK_TRY(vkAllocateDescriptorSets(ctx->device(), &sai, &set));
 
-  VkPushConstantRange push{VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(int)};
+  VkPushConstantRange push{VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(TracePush)};
   VkPipelineLayoutCreateInfo plci{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
   plci.setLayoutCount = 1;
   plci.pSetLayouts = &dsl;
@@ -441,6 +494,13 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount)
   countersReadback = orDie(vk::Buffer::create(*ctx, PC_COUNTER_SLOTS * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                               MemoryUsage::Readback),
                            "counter readback");
+  // At most every ray feeds every texel: the bound of the tap table.
+  const std::size_t tapCapacity = (PC_TAP_TEXELS + PC_TAP_TEXELS * rayCapacity) * sizeof(glm::uvec2);
+  tapsUpload = orDie(vk::Buffer::create(*ctx, tapCapacity, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload),
+                     "tap upload");
+  taps = orDie(vk::Buffer::create(*ctx, tapCapacity, kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                  MemoryUsage::DeviceLocal),
+               "taps");
   descriptorsDirty = true;
 }
 
@@ -508,6 +568,7 @@ void VulkanTracer::Impl::writeDescriptors() {
   buffers[PC_BIND_BRICK_LIST] = &brickList;
   buffers[PC_BIND_PACKED] = &packed;
   buffers[PC_BIND_COUNTERS] = &counters;
+  buffers[PC_BIND_TAPS] = &taps;
   std::vector<VkWriteDescriptorSet> writes;
   for (int b = 0; b < PC_BINDING_COUNT; ++b) {
     if (!buffers[b] || !buffers[b]->get()) continue;
@@ -545,7 +606,7 @@ void VulkanTracer::Impl::writeDescriptors() {
   descriptorsDirty = false;
 }
 
-void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateRequest& request) {
+void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateRequest& request, bool blendTaps) {
   const int rayCount = field.settings.raysPerProbe;
   const std::size_t n = request.probes.size();
   ensureRequestCapacity(n, rayCount);
@@ -556,6 +617,29 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
   const std::vector<glm::vec3> dirs = probeRayDirections(rayCount, request.rotationSeed);
   auto* d = rayDirs.as<glm::vec4>();
   for (int i = 0; i < rayCount; ++i) d[i] = glm::vec4(dirs[i], 0.0f);
+  if (blendTaps) {
+    // The CPU's taps for these directions, laid out for the blend shader (gpu_trace.h).
+    const BlendTaps bt = BlendTaps::build(dirs.data(), rayCount, field.settings.distanceExponent);
+    auto* out = tapsUpload.as<glm::uvec2>();
+    std::uint32_t texel = 0, next = PC_TAP_TEXELS;
+    for (const TexelTaps* tt : {&bt.irradiance, &bt.depth, &bt.occlusion}) {
+      const std::uint32_t texels = std::uint32_t(tt->begin.size() - 1);
+      std::uint32_t most = 0;
+      for (std::uint32_t t = 0; t < texels; ++t) most = std::max(most, tt->begin[t + 1] - tt->begin[t]);
+      for (std::uint32_t t = 0; t < texels; ++t) {
+        const std::uint32_t first = tt->begin[t], count = tt->begin[t + 1] - first;
+        out[texel + t] = glm::uvec2(count, next + t);
+        for (std::uint32_t j = 0; j < count; ++j) {
+          std::uint32_t bits = 0;
+          std::memcpy(&bits, &tt->weight[first + j], 4);
+          out[next + t + j * texels] = glm::uvec2(tt->ray[first + j], bits);
+        }
+      }
+      texel += texels;
+      next += most * texels;
+    }
+    tapBytes = std::size_t(next) * sizeof(glm::uvec2);
+  }
   auto* r = requests.as<glm::ivec2>();
   for (std::size_t i = 0; i < n; ++i) r[i] = glm::ivec2(request.probes[i].cascade, request.probes[i].slot);
 
@@ -640,17 +724,22 @@ void VulkanTracer::Impl::recordFieldSync(const Field& field, std::vector<vk::Buf
 void VulkanTracer::Impl::recordTrace(VkPipeline pipeline, const BindingTable& table, int probeCount, int rayCount) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipeline);
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
-  // A launch's height is bounded by the compute limits and its size by the invocation limit.
+  // One-dimensional launches (gpu_trace.h: PC_TRACE_TILE_PROBES), bounded by the compute limits
+  // and the invocation limit; whole tiles per launch but the last.
   const auto& limits = ctx->properties().limits;
-  const std::uint64_t maxHeight = std::min<std::uint64_t>(
-      {std::uint64_t(limits.maxComputeWorkGroupCount[1]) * limits.maxComputeWorkGroupSize[1],
-       ctx->rayTracingProperties().maxRayDispatchInvocationCount / std::uint64_t(std::max(rayCount, 1)), 65535u});
-  for (int base = 0; base < probeCount; base += int(maxHeight)) {
-    const int height = std::min(probeCount - base, int(maxHeight));
+  const std::uint64_t maxWidth =
+      std::min<std::uint64_t>(std::uint64_t(limits.maxComputeWorkGroupCount[0]) * limits.maxComputeWorkGroupSize[0],
+                              ctx->rayTracingProperties().maxRayDispatchInvocationCount);
+  const std::uint64_t rays = std::uint64_t(std::max(rayCount, 1));
+  const int maxProbes =
+      std::max(PC_TRACE_TILE_PROBES, int(std::min<std::uint64_t>(maxWidth / rays, 1u << 30)) / PC_TRACE_TILE_PROBES *
+                                         PC_TRACE_TILE_PROBES);
+  for (int base = 0; base < probeCount; base += maxProbes) {
+    const TracePush push{base, std::min(probeCount - base, maxProbes)};
     vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                       sizeof(int), &base);
-    ctx->rt().cmdTraceRays(cmd, &table.raygen, &table.miss, &table.hit, &table.callable, std::uint32_t(rayCount),
-                           std::uint32_t(height), 1);
+                       sizeof push, &push);
+    ctx->rt().cmdTraceRays(cmd, &table.raygen, &table.miss, &table.hit, &table.callable,
+                           std::uint32_t(std::uint64_t(push.probeCount) * rays), 1, 1);
   }
 }
 
@@ -682,21 +771,27 @@ void VulkanTracer::setState(const SceneState& state) {
   Impl& m = *impl_;
   const Scene& scene = *m.scene;
   m.state = state;
-  // Instances: transforms for shading and the top-level structure.
-  std::vector<glm::mat4> transforms(scene.instances.size());
+  // Shading records and the top level. Static instances stay where they were at time 0, as in
+  // the Embree scene: their vertices are already in world space.
   auto* gi = m.instances.as<GpuInstance>();
-  for (std::size_t i = 0; i < scene.instances.size(); ++i) {
-    const glm::mat4 t = i < state.instanceTransforms.size() ? state.instanceTransforms[i] : scene.instances[i].transform;
-    transforms[i] = t;
+  std::vector<TopLevelInstance> top;
+  if (m.staticCount > 0) top.push_back({glm::mat4(1.0f), -1, 0u});
+  for (std::size_t r = 0; r < m.recordInstance.size(); ++r) {
+    const std::size_t i = std::size_t(m.recordInstance[r]);
+    const bool isStatic = int(r) < m.staticCount;
+    const glm::mat4 t = isStatic                                  ? glm::mat4(1.0f)
+                        : i < state.instanceTransforms.size() ? state.instanceTransforms[i]
+                                                               : scene.instances[i].transform;
     GpuInstance g{};
     g.objectToWorld = t;
     g.normalToWorld = glm::mat4(glm::transpose(glm::inverse(glm::mat3(t))));
-    g.mesh = m.instanceMesh[i];
+    g.mesh = isStatic ? m.staticMeshes[r] : scene.instances[i].mesh;
     // The Embree scene fixes the winding from the time-0 transform; so does this.
     g.side = glm::determinant(glm::mat3(scene.instances[i].transform)) < 0.0f ? -1.0f : 1.0f;
-    gi[i] = g;
+    gi[r] = g;
+    if (!isStatic) top.push_back({t, scene.instances[i].mesh, std::uint32_t(r)});
   }
-  m.accel.setInstances(transforms, m.instanceMesh);
+  m.accel.setInstances(top);
   m.tlasDirty = true;
 
   // Lights, and emissive triangles by the same rule as the CPU (EmissiveLights).
@@ -762,7 +857,7 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   const int rayCount = field.settings.raysPerProbe;
   const int n = int(request.probes.size());
   if (n == 0) return stats;
-  m.writeUpdateInputs(field, request);
+  m.writeUpdateInputs(field, request, true);
   std::vector<vk::Buffer> staging;
 
   m.begin();
@@ -779,6 +874,8 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   const std::uint32_t header[PC_BRICK_LIST_HEADER] = {0, 1, 1};
   vkCmdUpdateBuffer(cmd, m.brickList.get(), 0, sizeof header, header);
   vkCmdFillBuffer(cmd, m.counters.get(), 0, VK_WHOLE_SIZE, 0);
+  const VkBufferCopy tapCopy{0, 0, m.tapBytes};
+  vkCmdCopyBuffer(cmd, m.tapsUpload.get(), m.taps.get(), 1, &tapCopy);
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT | VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
                     kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                     kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
@@ -828,25 +925,30 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   const std::uint32_t changed = list[0];
   const float* packed = m.packed.as<float>();
   const std::uint64_t next = field.version + 1;
+  // Each packed brick is row runs of the atlases (gpu_trace.h): one memcpy per run, bricks in
+  // parallel (they touch disjoint atlas texels).
   const int si = PC_IRRADIANCE_TEXELS + 2, sd = PC_DEPTH_TEXELS + 2, so = PC_OCCLUSION_TEXELS + 2;
-  for (std::uint32_t e = 0; e < changed; ++e) {
+  const std::size_t ri = std::size_t(PC_PROBES_PER_BRICK) * si * 3, rd = std::size_t(PC_PROBES_PER_BRICK) * sd * 2,
+                    ro = std::size_t(PC_PROBES_PER_BRICK) * so;
+  auto unpack = [&](std::uint32_t e) {
     const int brick = int(list[PC_BRICK_LIST_HEADER + e]);
     int k = 0;
     while (k + 1 < field.cascadeCount() && brick >= m.brickOffset[k + 1]) ++k;
     const int localBrick = brick - m.brickOffset[k];
     const CascadeDesc& c = field.cascade(k);
-    for (int q = 0; q < PC_PROBES_PER_BRICK; ++q) {
-      const int slot = localBrick * PC_PROBES_PER_BRICK + q;
-      const float* src = packed + (std::size_t(e) * PC_PROBES_PER_BRICK + q) * PC_PACKED_PROBE_FLOATS;
-      const glm::ivec2 oi = pcAtlasTileOrigin(c, slot, si);
-      for (int y = 0; y < si; ++y, src += si * 3) std::memcpy(field.irradiance.at(oi.x, oi.y + y), src, si * 3 * 4);
-      const glm::ivec2 od = pcAtlasTileOrigin(c, slot, sd);
-      for (int y = 0; y < sd; ++y, src += sd * 2) std::memcpy(field.depth.at(od.x, od.y + y), src, sd * 2 * 4);
-      const glm::ivec2 oo = pcAtlasTileOrigin(c, slot, so);
-      for (int y = 0; y < so; ++y, src += so) std::memcpy(field.occlusion.at(oo.x, oo.y + y), src, so * 4);
-    }
+    const int firstSlot = localBrick * PC_PROBES_PER_BRICK;
+    const float* src = packed + std::size_t(e) * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS;
+    const glm::ivec2 oi = pcAtlasTileOrigin(c, firstSlot, si);
+    for (int y = 0; y < si; ++y, src += ri) std::memcpy(field.irradiance.at(oi.x, oi.y + y), src, ri * 4);
+    const glm::ivec2 od = pcAtlasTileOrigin(c, firstSlot, sd);
+    for (int y = 0; y < sd; ++y, src += rd) std::memcpy(field.depth.at(od.x, od.y + y), src, rd * 4);
+    const glm::ivec2 oo = pcAtlasTileOrigin(c, firstSlot, so);
+    for (int y = 0; y < so; ++y, src += ro) std::memcpy(field.occlusion.at(oo.x, oo.y + y), src, ro * 4);
     field.brickVersions[k][localBrick] = next;
-  }
+  };
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, changed, 4), [&](const auto& range) {
+    for (std::uint32_t e = range.begin(); e < range.end(); ++e) unpack(e);
+  });
   stats.bricksChanged = int(changed);
   if (changed > 0) field.version = next;
   const auto* gpuRecords = m.recordsReadback.as<GpuProbeRecord>();
@@ -882,7 +984,7 @@ double VulkanTracer::traceOnly(Field& field, const UpdateRequest& request) {
   Impl& m = *impl_;
   const int n = int(request.probes.size());
   if (n == 0) return 0.0;
-  m.writeUpdateInputs(field, request);
+  m.writeUpdateInputs(field, request, false);
   std::vector<vk::Buffer> staging;
   m.begin();
   m.recordFieldSync(field, staging);

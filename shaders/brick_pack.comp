@@ -1,8 +1,9 @@
 #version 460
 // Packs the tiles of each changed brick for the host: one workgroup per listed brick (an
-// indirect dispatch sized by brick_changes.comp), its 64 probes' bordered irradiance, depth and
-// occlusion tiles in slot order, PC_PACKED_PROBE_FLOATS floats per probe. Only these bytes
-// cross to the host.
+// indirect dispatch sized by brick_changes.comp). A brick's 64 probes are consecutive slots of
+// one atlas tile row, so its tiles cover whole runs of atlas rows: the brick packs as those
+// runs (gpu_trace.h), PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS floats, and the host copies
+// each run back with one memcpy. Only these bytes cross to the host.
 #extension GL_GOOGLE_include_directive : require
 #define PC_FIELD_READONLY
 #include "field_buffers.glsl"
@@ -21,26 +22,25 @@ void main() {
   CascadeDesc c = field.cascades[k];
   int firstSlot = (brick - params.cascadeBrickOffset[k]) * PC_PROBES_PER_BRICK;
   const int si = PC_IRRADIANCE_TEXELS + 2, sd = PC_DEPTH_TEXELS + 2, so = PC_OCCLUSION_TEXELS + 2;
+  // Floats of one packed row run, and where each channel's runs end.
+  const int ri = PC_PROBES_PER_BRICK * si * 3, rd = PC_PROBES_PER_BRICK * sd * 2, ro = PC_PROBES_PER_BRICK * so;
+  const int endI = si * ri, endD = endI + sd * rd;
   const int total = PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS;
+  ivec2 oi = pcAtlasTileOrigin(c, firstSlot, si);
+  ivec2 od = pcAtlasTileOrigin(c, firstSlot, sd);
+  ivec2 oo = pcAtlasTileOrigin(c, firstSlot, so);
   uint outBase = entry * uint(total);
   for (int e = int(gl_LocalInvocationIndex); e < total; e += 256) {
-    int q = e / PC_PACKED_PROBE_FLOATS;
-    int f = e - q * PC_PACKED_PROBE_FLOATS;
-    int slot = firstSlot + q;
     float value;
-    if (f < PC_PACKED_IRRADIANCE) {
-      int t = f / 3;
-      ivec2 o = pcAtlasTileOrigin(c, slot, si) + ivec2(t % si, t / si);
-      value = irradianceTexels[pcIrradianceIndex(o) + f % 3];
-    } else if (f < PC_PACKED_IRRADIANCE + PC_PACKED_DEPTH) {
-      f -= PC_PACKED_IRRADIANCE;
-      int t = f / 2;
-      ivec2 o = pcAtlasTileOrigin(c, slot, sd) + ivec2(t % sd, t / sd);
-      value = depthTexels[pcDepthIndex(o) + f % 2];
+    if (e < endI) {
+      int y = e / ri;
+      value = irradianceTexels[pcIrradianceIndex(oi + ivec2(0, y)) + (e - y * ri)];
+    } else if (e < endD) {
+      int f = e - endI, y = f / rd;
+      value = depthTexels[pcDepthIndex(od + ivec2(0, y)) + (f - y * rd)];
     } else {
-      int t = f - PC_PACKED_IRRADIANCE - PC_PACKED_DEPTH;
-      ivec2 o = pcAtlasTileOrigin(c, slot, so) + ivec2(t % so, t / so);
-      value = occlusionTexels[pcOcclusionIndex(o)];
+      int f = e - endD, y = f / ro;
+      value = occlusionTexels[pcOcclusionIndex(oo + ivec2(0, y)) + (f - y * ro)];
     }
     packed[outBase + uint(e)] = value;
   }

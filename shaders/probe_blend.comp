@@ -6,6 +6,9 @@
 //      past d_max), blended with hysteresis after a running mean,
 //   3. the tiles' 1-texel borders,
 // and records the largest change of an encoded irradiance texel for change detection.
+// The probe's ray results are read from global memory once, into shared memory; the lobe
+// weights come from the update's tap lists (PC_BIND_TAPS), the CPU's own, so each texel sums
+// the same rays with the same weights in the same order as the CPU.
 #extension GL_GOOGLE_include_directive : require
 #include "field_buffers.glsl"
 #include "interop/probe_update.h"
@@ -17,12 +20,13 @@ layout(std430, set = 0, binding = PC_BIND_REQUESTS) readonly buffer Requests { i
 layout(std430, set = 0, binding = PC_BIND_RAY_DIRS) readonly buffer RayDirs { vec4 rayDirs[]; };
 layout(std430, set = 0, binding = PC_BIND_RAYS) readonly buffer Rays { vec4 rays[]; };
 layout(std430, set = 0, binding = PC_BIND_CHANGES) writeonly buffer Changes { float changes[]; };
+layout(std430, set = 0, binding = PC_BIND_TAPS) readonly buffer Taps { uvec2 taps[]; };
 
 const uint kInfinityBits = 0x7f800000u;
 
-// Rays staged in shared memory, PC_BLEND_THREADS at a time.
-shared vec3 sDir[PC_BLEND_THREADS];
-shared vec4 sRay[PC_BLEND_THREADS];
+// The probe's rays: radiance and signed distance, and the distance the depth moments use.
+shared vec4 sRay[PC_MAX_RAYS_PER_PROBE];
+shared float sDepth[PC_MAX_RAYS_PER_PROBE];
 // Reductions: backface count and the closest back/front hits (distance, then ray index, so
 // ties resolve to the first ray as on the CPU).
 shared uint sBackfaces[PC_BLEND_THREADS];
@@ -52,7 +56,10 @@ void main() {
   float backDist = PC_MISS_DISTANCE, frontDist = PC_MISS_DISTANCE;
   int backRay = rayCount, frontRay = rayCount;
   for (int i = tid; i < rayCount; i += PC_BLEND_THREADS) {
-    float d = rays[rayBase + i].w;
+    vec4 r = rays[rayBase + i];
+    float d = r.w;
+    sRay[i] = r;
+    sDepth[i] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, c.maxRayDistance);
     if (d < 0.0f) {
       ++backfaces;
       if (-d < backDist) backDist = -d, backRay = i;
@@ -116,49 +123,39 @@ void main() {
   const int ni = PC_IRRADIANCE_TEXELS, nd = PC_DEPTH_TEXELS, no = PC_OCCLUSION_TEXELS;
   bool doIrradiance = tid < ni * ni;
   bool doOcclusion = tid >= ni * ni && tid < ni * ni + no * no;
-  vec3 irrDir = doIrradiance ? pcTexelDirection(tid % ni, tid / ni, ni) : vec3(0.0f);
   int ot = tid - ni * ni;
-  vec3 occDir = doOcclusion ? pcTexelDirection(ot % no, ot / no, no) : vec3(0.0f);
-  vec3 depthDir = pcTexelDirection(tid % nd, tid / nd, nd);
-  float exponent = field.distanceExponent;
-  float cutoff = exp(log(1e-4f) / max(exponent, 1.0f));
   float dmax = field.occlusionDistance;
 
   vec3 irrSum = vec3(0.0f);
   float irrWeight = 0.0f, m1 = 0.0f, m2 = 0.0f, depthWeight = 0.0f, open = 0.0f, occWeight = 0.0f;
-  for (int chunk = 0; chunk < rayCount; chunk += PC_BLEND_THREADS) {
-    barrier();  // the previous chunk is consumed
-    if (chunk + tid < rayCount) {
-      sDir[tid] = rayDirs[chunk + tid].xyz;
-      sRay[tid] = rays[rayBase + chunk + tid];
+  if (doIrradiance) {
+    uvec2 h = taps[tid];
+    for (uint j = 0u; j < h.x; ++j) {
+      uvec2 e = taps[h.y + j * uint(ni * ni)];
+      vec4 r = sRay[e.x];
+      if (r.w < 0.0f) continue;  // backface hits carry no light
+      float w = uintBitsToFloat(e.y);
+      irrSum += w * r.xyz;
+      irrWeight += w;
     }
-    barrier();
-    int n = min(PC_BLEND_THREADS, rayCount - chunk);
-    for (int i = 0; i < n; ++i) {
-      vec3 dir = sDir[i];
-      vec4 r = sRay[i];
-      float d = r.w;
-      if (doIrradiance) {
-        float w = dot(dir, irrDir);
-        if (w > 0.0f && d >= 0.0f) {
-          irrSum += w * r.xyz;
-          irrWeight += w;
-        }
-      } else if (doOcclusion) {
-        float w = dot(dir, occDir);
-        if (w > 0.0f) {
-          open += d > dmax ? w : 0.0f;
-          occWeight += w;
-        }
-      }
-      float cd = dot(dir, depthDir);
-      if (cd > cutoff) {
-        float w = pow(cd, exponent);
-        float dist = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, c.maxRayDistance);
-        m1 += w * dist;
-        m2 += w * dist * dist;
-        depthWeight += w;
-      }
+  } else if (doOcclusion) {
+    uvec2 h = taps[ni * ni + nd * nd + ot];
+    for (uint j = 0u; j < h.x; ++j) {
+      uvec2 e = taps[h.y + j * uint(no * no)];
+      float w = uintBitsToFloat(e.y);
+      open += sRay[e.x].w > dmax ? w : 0.0f;
+      occWeight += w;
+    }
+  }
+  {
+    uvec2 h = taps[ni * ni + tid];
+    for (uint j = 0u; j < h.x; ++j) {
+      uvec2 e = taps[h.y + j * uint(nd * nd)];
+      float w = uintBitsToFloat(e.y);
+      float dist = sDepth[e.x];
+      m1 += w * dist;
+      m2 += w * dist * dist;
+      depthWeight += w;
     }
   }
 

@@ -10,6 +10,8 @@ hitAttributeEXT vec2 attribs;
 void main() {
   hit.barycentric = attribs;
   hit.t = gl_HitTEXT;
-  hit.instance = gl_InstanceCustomIndexEXT;
+  // Shading record: the static structure holds one geometry per static instance (custom index
+  // 0); an animated instance's structure holds one geometry (custom index = its record).
+  hit.instance = gl_InstanceCustomIndexEXT + gl_GeometryIndexEXT;
   hit.primitive = gl_PrimitiveID;
 }

@@ -23,28 +23,49 @@ PC_CONST int PC_BIND_RAYS = 9;        // vec4[]: radiance rgb, signed distance; 
 PC_CONST int PC_BIND_VERTICES = 10;   // GpuVertex[]
 PC_CONST int PC_BIND_INDICES = 11;    // uint[], mesh-local
 PC_CONST int PC_BIND_MESHES = 12;     // GpuMesh[]
-PC_CONST int PC_BIND_INSTANCES = 13;  // GpuInstance[]
+PC_CONST int PC_BIND_INSTANCES = 13;  // GpuInstance[]: shading records (custom + geometry index)
 PC_CONST int PC_BIND_MATERIALS = 14;  // GpuMaterial[]
 PC_CONST int PC_BIND_LIGHTS = 15;     // GpuLight[]
 PC_CONST int PC_BIND_EMISSIVE = 16;   // GpuEmissiveTriangle[]
 PC_CONST int PC_BIND_CHANGES = 17;    // float[] per requested probe: largest irradiance change
 PC_CONST int PC_BIND_BRICK_FLAGS = 18;  // uint[] per field-wide brick: changed this update
 PC_CONST int PC_BIND_BRICK_LIST = 19;   // uint[]: dispatch args (x = count, 1, 1), then bricks
-PC_CONST int PC_BIND_PACKED = 20;       // float[]: changed bricks' tiles, for the host
+PC_CONST int PC_BIND_PACKED = 20;       // float[]: changed bricks' tile rows, for the host
 PC_CONST int PC_BIND_COUNTERS = 21;     // uint[PC_COUNTER_SLOTS]: shadow rays traced
-PC_CONST int PC_BIND_TEXTURES = 22;     // sampler2D[]: base colour and emissive textures
-PC_CONST int PC_BINDING_COUNT = 23;
+PC_CONST int PC_BIND_TAPS = 22;         // uvec2[]: this update's blend taps (see below)
+PC_CONST int PC_BIND_TEXTURES = 23;     // sampler2D[]: base colour and emissive textures; the
+                                        // variable-count binding, so it must stay the last
+PC_CONST int PC_BINDING_COUNT = 24;
 
 PC_CONST int PC_COUNTER_SLOTS = 1024;  // shadow-ray counters are spread to avoid contention
 PC_CONST int PC_BRICK_LIST_HEADER = 3;  // uints of dispatch arguments before the brick list
 PC_CONST int PC_BLEND_THREADS = 256;    // probe_blend.comp workgroup: one depth texel each
 PC_CONST int PC_BLEND_ROWS = 32768;     // workgroups per row of a 2D blend dispatch
+PC_CONST int PC_MAX_RAYS_PER_PROBE = 1024;  // kMaxRaysPerProbe (common/field.h): blend scratch
+
+// Blend taps (PC_BIND_TAPS), built on the host from the update's ray directions exactly as the
+// CPU's BlendTaps: which rays feed which texel, with what lobe weight. Texels are numbered
+// irradiance (n_i^2), then depth (n_d^2), then occlusion (n_o^2), each channel row-major. Entry
+// t < PC_TAP_TEXELS is texel t's (tap count, first tap); tap j of a texel of a channel with N
+// texels is at first + j * N (texels' taps interleave, so a warp's loads are contiguous), as
+// (ray index, weight's float bits).
+PC_CONST int PC_TAP_TEXELS = PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS + PC_DEPTH_TEXELS * PC_DEPTH_TEXELS +
+                             PC_OCCLUSION_TEXELS * PC_OCCLUSION_TEXELS;
+
+// Probe-ray launches are one-dimensional: a warp's 32 invocations trace the same ray direction
+// from PC_TRACE_TILE_PROBES neighbouring probes (neighbouring slots of a brick), which keeps
+// traversal, hit shading and field fetches coherent; launch index i covers probe
+// tile * PC_TRACE_TILE_PROBES + (i mod tile's probes) and ray (i / tile's probes) within its tile.
+PC_CONST int PC_TRACE_TILE_PROBES = 32;
 
 // Misses report this distance instead of +infinity: shader compilers may assume finite
 // floats. Above every comparison the update makes.
 PC_CONST float PC_MISS_DISTANCE = 1e30f;
 
-// Floats per probe in the packed readback: bordered irradiance, depth and occlusion tiles.
+// Floats per probe in the packed readback: bordered irradiance, depth and occlusion tiles. A
+// brick's probes are consecutive slots in one atlas tile row, so a brick packs as the atlas
+// rows it covers: irradiance's n_i + 2 texel rows of PC_PROBES_PER_BRICK tiles, then depth's,
+// then occlusion's; the host copies each packed row into the atlas with one memcpy.
 PC_CONST int PC_PACKED_IRRADIANCE = (PC_IRRADIANCE_TEXELS + 2) * (PC_IRRADIANCE_TEXELS + 2) * 3;
 PC_CONST int PC_PACKED_DEPTH = (PC_DEPTH_TEXELS + 2) * (PC_DEPTH_TEXELS + 2) * 2;
 PC_CONST int PC_PACKED_OCCLUSION = (PC_OCCLUSION_TEXELS + 2) * (PC_OCCLUSION_TEXELS + 2);
@@ -132,6 +153,13 @@ struct GpuEmissiveTriangle {
   // -- 80
 };
 
+// Push constants of the probe-ray launches: the launch covers requests
+// [probeBase, probeBase + probeCount).
+struct TracePush {
+  int probeBase;
+  int probeCount;
+};
+
 struct GpuProbeRecord {
   vec3 offset;
   int state;
@@ -177,6 +205,7 @@ static_assert(sizeof(pc::gpu::GpuMaterial) == 48);
 static_assert(sizeof(pc::gpu::GpuLight) == 64);
 static_assert(sizeof(pc::gpu::GpuEmissiveTriangle) == 80);
 static_assert(sizeof(pc::gpu::GpuProbeRecord) == 32);
+static_assert(sizeof(pc::gpu::TracePush) == 8);
 static_assert(sizeof(pc::gpu::UpdateParams) == 96);
 static_assert(pc::gpu::PC_MAX_CASCADES == 4);  // cascadeBrickOffset is an ivec4
 #endif
