@@ -258,6 +258,52 @@ BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b) {
   return ch;
 }
 
+std::size_t holdSmallChanges(QuantizedBrick& q, const QuantizedBrick& previous,
+                             const DeadZone& tolerance) {
+  if (q.codes.size() != kCodes || previous.codes.size() != kCodes) return 0;
+  std::size_t held = 0;
+  if (tolerance.irradiance > 0) {
+    for (std::size_t i = kIrradiance; i < kDepth; ++i) {
+      std::uint16_t& c = q.codes[i];
+      const std::uint16_t p = previous.codes[i];
+      if (c != p &&
+          std::abs(dequantizeIrradiance(c) - dequantizeIrradiance(p)) <= tolerance.irradiance) {
+        c = p;
+        ++held;
+      }
+    }
+  }
+  if (tolerance.depth > 0) {
+    // Relative to the texel's mean distance: the visibility test compares the variance with
+    // squared distances of that size, so a fixed fraction of it is equally harmless near a
+    // wall and far from one.
+    constexpr std::size_t kPlane = std::size_t(kSlots) * kDepthTexels;
+    for (std::size_t i = 0; i < kPlane; ++i) {
+      const float limit = tolerance.depth * float(q.codes[kDepth + i]);
+      for (std::size_t plane : {kDepth, kDepth + kPlane}) {
+        std::uint16_t& c = q.codes[plane + i];
+        const std::uint16_t p = previous.codes[plane + i];
+        if (c != p && float(std::abs(int(c) - int(p))) <= limit) {
+          c = p;
+          ++held;
+        }
+      }
+    }
+  }
+  if (tolerance.occlusion > 0) {
+    const int limit = int(tolerance.occlusion * float(kMaxOcclusionCode));
+    for (std::size_t i = kOcclusion; i < kOffset; ++i) {
+      std::uint16_t& c = q.codes[i];
+      const std::uint16_t p = previous.codes[i];
+      if (c != p && std::abs(int(c) - int(p)) <= limit) {
+        c = p;
+        ++held;
+      }
+    }
+  }
+  return held;
+}
+
 std::size_t maxEncodedBrickBytes() { return kHeaderBytes + ZSTD_compressBound(kRawBytes); }
 
 std::vector<std::uint8_t> encodeBrick(const QuantizedBrick& q, const QuantizedBrick* base,

@@ -73,6 +73,24 @@ struct BrickChange {
 };
 BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b);
 
+// Temporal dead zone, applied by the server when it quantizes a new version of a brick: a code
+// whose value moved by no more than the tolerance since the previous version keeps the
+// previous code. Ray noise then leaves most codes untouched between versions, so residuals
+// are mostly zeros; real changes (a light moved) still pass. Every decoded value stays within
+// the tolerance plus the quantization bound of the value it stands for, because the
+// comparison is always against the newest value, never against earlier kept codes. Zero
+// tolerances change nothing.
+struct DeadZone {
+  float irradiance = 0;  // |delta e| (gamma-encoded irradiance)
+  float depth = 0;       // |delta| of depth mean and standard deviation, x the texel's mean
+  float occlusion = 0;   // |delta|
+  bool active() const { return irradiance > 0 || depth > 0 || occlusion > 0; }
+};
+// Offsets and states are never held back. Returns the number of codes that kept their
+// previous value.
+std::size_t holdSmallChanges(QuantizedBrick& q, const QuantizedBrick& previous,
+                             const DeadZone& tolerance);
+
 // Codec QuantZstd. `base` null: self-contained; otherwise a residual against `base`.
 // zstdLevel: 1 (fast) .. 19 (small).
 std::vector<std::uint8_t> encodeBrick(const QuantizedBrick& q, const QuantizedBrick* base,

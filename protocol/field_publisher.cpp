@@ -32,16 +32,23 @@ Status FieldPublisher::publish(const Field& field, double now) {
       const std::uint64_t v = field.brickVersions[k][b];
       auto& h = bricks_[k][b];
       if (v == 0 || v == h.back().version) continue;
-      if (h.back().version != 0)
+      QuantizedBrick fresh = quantizeBrick(field, k, int(b));
+      quantizedCodes_ += fresh.codes.size();
+      std::shared_ptr<const QuantizedBrick> q;
+      if (h.back().version != 0) {
+        const std::shared_ptr<const QuantizedBrick>& previous = h.back().content;
+        if (options_.deadZone.active()) {
+          heldCodes_ += holdSmallChanges(fresh, *previous, options_.deadZone);
+        }
+        // Unchanged content shares the previous version's codes instead of a copy.
+        if (fresh == *previous) q = previous;
         historyBytes_ += kBrickBytes;  // the old current joins history
-      else
+      } else {
         h.pop_back();
-      auto q = std::make_shared<const QuantizedBrick>(quantizeBrick(field, k, int(b)));
-      h.push_back(BrickVersion{v, now, std::move(q)});
-      while (h.size() > std::size_t(options_.historyVersions)) {
-        h.pop_front();
-        historyBytes_ -= kBrickBytes;
       }
+      if (!q) q = std::make_shared<const QuantizedBrick>(std::move(fresh));
+      h.push_back(BrickVersion{v, now, std::move(q), false});
+      trim(h);
     }
   }
   // Over the byte cap: trim every brick's history to its current version. Rare (the cap is
@@ -59,6 +66,25 @@ Status FieldPublisher::publish(const Field& field, double now) {
   return Status::success();
 }
 
+void FieldPublisher::trim(std::deque<BrickVersion>& h) {
+  // Keep the newest historyVersions versions, and before them the newest sentVersions versions
+  // that were sent; drop the rest.
+  const std::size_t recent = std::size_t(options_.historyVersions);
+  if (h.size() <= recent) return;
+  int sentKept = 0;
+  std::deque<BrickVersion> kept;
+  for (std::size_t i = h.size(); i-- > 0;) {
+    const bool isRecent = h.size() - 1 - i < recent;
+    if (isRecent || (h[i].sent && sentKept < options_.sentVersions)) {
+      sentKept += !isRecent;
+      kept.push_front(std::move(h[i]));
+    } else {
+      historyBytes_ -= kBrickBytes;
+    }
+  }
+  h = std::move(kept);
+}
+
 std::shared_ptr<const QuantizedBrick> FieldPublisher::find(int cascade, int brick,
                                                            std::uint64_t version) const {
   if (version == 0) return nullptr;
@@ -72,6 +98,10 @@ std::shared_ptr<const EncodedUpdate> FieldPublisher::encoded(int cascade, int br
                                                              std::uint64_t version,
                                                              std::uint64_t base) {
   const EncodeKey key{cascade, std::uint32_t(brick), version, base};
+  // A version asked for is about to reach a client, which may later name it as its base.
+  for (BrickVersion& v : bricks_[cascade][brick]) {
+    if (v.version == version) v.sent = true;
+  }
   if (auto hit = cache_.find(key)) return hit;
   auto content = find(cascade, brick, version);
   if (!content) return nullptr;

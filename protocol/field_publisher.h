@@ -20,16 +20,24 @@
 namespace pc {
 
 struct PublisherOptions {
-  int historyVersions = 4;                   // quantized versions kept per brick
+  int historyVersions = 4;  // newest quantized versions kept per brick
+  // Older versions that were sent to a client, kept beyond historyVersions: what clients hold
+  // and acknowledge is a version that was sent, often many versions back when the sender holds
+  // small changes back, and residuals need it as their base.
+  int sentVersions = 2;
   std::size_t maxHistoryBytes = 256u << 20;  // all bricks' histories together (beyond current)
   std::size_t maxCacheBytes = 64u << 20;     // encoded updates
   int zstdLevel = 3;
+  // Codes that moved less than this since the brick's previous version keep their previous
+  // value (see holdSmallChanges); zero (the default) quantizes every version exactly.
+  DeadZone deadZone;
 };
 
 struct BrickVersion {
   std::uint64_t version = 0;
   double publishedAt = 0;  // time publish() first saw this version
   std::shared_ptr<const QuantizedBrick> content;
+  bool sent = false;  // encoded for a client at least once (see PublisherOptions::sentVersions)
 };
 
 class FieldPublisher {
@@ -59,6 +67,9 @@ class FieldPublisher {
   const EncodeCache& cache() const { return cache_; }
   std::size_t historyBytes() const { return historyBytes_; }
   std::uint64_t encodes() const { return encodes_; }
+  // Codes the dead zone held at their previous value, and codes quantized, in all.
+  std::uint64_t heldCodes() const { return heldCodes_; }
+  std::uint64_t quantizedCodes() const { return quantizedCodes_; }
 
  private:
   PublisherOptions options_;
@@ -69,6 +80,9 @@ class FieldPublisher {
   std::size_t historyBytes_ = 0;
   EncodeCache cache_;
   std::uint64_t encodes_ = 0;
+  std::uint64_t heldCodes_ = 0, quantizedCodes_ = 0;
+
+  void trim(std::deque<BrickVersion>& history);
 };
 
 }  // namespace pc

@@ -208,7 +208,8 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     Track& t = tracks_[c.cascade][c.brick];
     const std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
     std::uint64_t base = 0;
-    if (t.acked != 0 && t.acked < version && now - t.selfContainedAt < options_.refreshInterval) {
+    if (t.acked != 0 && t.acked < version &&
+        now - t.selfContainedAt < options_.selfContainedInterval) {
       base = t.acked;
     }
     auto update = publisher_.encoded(c.cascade, c.brick, version, base);

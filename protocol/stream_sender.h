@@ -31,8 +31,14 @@ struct SenderOptions {
   double minResendTimeout = 0.05;      // s; the timeout is max(this, 2 x smoothed round trip)
   double initialRtt = 0.1;             // s, until acks give samples
   double settleTime = 0.2;             // s: a version this old is sent even below the thresholds
-  double refreshInterval = 1.0;        // s: an unacknowledged brick is sent at least this often,
-                                       // and self-contained at least this often
+  double refreshInterval = 1.0;        // s: an unacknowledged brick is sent at least this often
+  // s: a brick is sent self-contained at least this often even while the client acknowledges
+  // versions that residuals could build on. Residuals on an acknowledged version are always
+  // safe (the client applies them only on that exact version and asks for repair otherwise),
+  // so this is a safety net, and a long one: a self-contained brick costs several times a
+  // residual. A brick the client does not hold, or whose acknowledged version the publisher
+  // no longer has, is always sent self-contained.
+  double selfContainedInterval = 30.0;
   float irradianceThreshold = 0.004f;  // max |delta e| (gamma-encoded irradiance)
   float depthThreshold = 0.005f;       // max |delta mean depth| / maxRayDistance
   float occlusionThreshold = 0.02f;

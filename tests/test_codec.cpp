@@ -171,4 +171,47 @@ TEST(BrickCodec, HostilePayloadsAreRejected) {
   EXPECT_FALSE(decodeBrick(residual, &small).ok());
 }
 
+TEST(BrickCodec, DeadZoneHoldsSmallChangesWithinItsTolerance) {
+  Field f = test::makeSyntheticLayout();
+  std::mt19937 rng(6);
+  test::evolveField(f, rng, 1.0f, 0.0f);
+  const QuantizedBrick previous = quantizeBrick(f, 0, 1);
+  test::paintBrick(f, 0, 1, 0.02f);  // small moves everywhere
+  const QuantizedBrick exact = quantizeBrick(f, 0, 1);
+  DeadZone dz;
+  dz.irradiance = 0.01f;
+  dz.depth = 0.02f;
+  dz.occlusion = 0.02f;
+  QuantizedBrick held = exact;
+  const std::size_t kept = holdSmallChanges(held, previous, dz);
+  EXPECT_GT(kept, 0u);
+  using namespace brick_layout;
+  constexpr std::size_t kDepthPlane = std::size_t(kSlots) * kDepthTexels;
+  for (std::size_t i = 0; i < kCodes; ++i) {
+    // Every code is either the fresh one or the previous one within the tolerance.
+    if (held.codes[i] == exact.codes[i]) continue;
+    ASSERT_EQ(held.codes[i], previous.codes[i]) << i;
+    if (i < kDepth) {
+      ASSERT_LE(std::abs(dequantizeIrradiance(held.codes[i]) - dequantizeIrradiance(exact.codes[i])),
+                dz.irradiance);
+    } else if (i < kOcclusion) {
+      const std::size_t mean = kDepth + (i - kDepth) % kDepthPlane;
+      ASSERT_LE(std::abs(int(held.codes[i]) - int(exact.codes[i])),
+                dz.depth * float(exact.codes[mean]));
+    } else {
+      ASSERT_LT(i, kOffset) << "offsets and states are never held";
+      ASSERT_LE(std::abs(int(held.codes[i]) - int(exact.codes[i])), int(dz.occlusion * 255.0f));
+    }
+  }
+  // A large change passes; no tolerance changes nothing.
+  test::paintBrick(f, 0, 1, 2.0f);
+  QuantizedBrick moved = quantizeBrick(f, 0, 1);
+  const QuantizedBrick movedExact = moved;
+  holdSmallChanges(moved, previous, dz);
+  EXPECT_NE(moved, previous);
+  QuantizedBrick untouched = movedExact;
+  EXPECT_EQ(holdSmallChanges(untouched, previous, DeadZone{}), 0u);
+  EXPECT_EQ(untouched, movedExact);
+}
+
 }  // namespace

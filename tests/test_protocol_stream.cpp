@@ -214,4 +214,29 @@ TEST(ProtocolStream, TracedFieldOfTheBuiltinScene) {
   expectBounded(r, o);
 }
 
+TEST(ProtocolStream, PublisherKeepsSentVersionsAsResidualBases) {
+  Field f = test::makeSyntheticLayout();
+  std::mt19937 rng(7);
+  test::evolveField(f, rng, 1.0f, 0.0f);
+  PublisherOptions o;
+  o.historyVersions = 2;
+  o.sentVersions = 1;
+  FieldPublisher publisher(f, o);
+  ASSERT_TRUE(publisher.publish(f, 0.0).ok());
+  const std::uint64_t sent = f.brickVersions[0][0];
+  ASSERT_TRUE(publisher.encoded(0, 0, sent, 0));
+  std::uint64_t unsent = 0;
+  for (int i = 1; i <= 6; ++i) {
+    test::evolveField(f, rng, 1.0f, 0.1f * float(i));
+    ASSERT_TRUE(publisher.publish(f, 0.1 * i).ok());
+    if (i == 1) unsent = f.brickVersions[0][0];
+  }
+  // The version a client was sent (and may acknowledge) stays as a base; others age out.
+  EXPECT_TRUE(publisher.find(0, 0, sent));
+  EXPECT_FALSE(publisher.find(0, 0, unsent));
+  auto residual = publisher.encoded(0, 0, f.brickVersions[0][0], sent);
+  ASSERT_TRUE(residual);
+  EXPECT_EQ(residual->header.baseVersion, sent);
+}
+
 }  // namespace

@@ -1,0 +1,74 @@
+// Session messages (protocol/session_messages.h): decodeMessage on any bytes returns a message
+// or an Error, never crashes. A decoded message survives re-encoding unchanged, and goes
+// through what a peer does with it next (the hello check, the client's mirror field built from
+// the layout message, the scene state applied to the built-in scene).
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <variant>
+
+#include "common/scene.h"
+#include "fuzz_support.h"
+#include "protocol/session_messages.h"
+
+namespace {
+
+using namespace pc;
+
+// mirrorField lays out every slot the message asks for (about 4 KiB of atlases per slot) and
+// accepts up to 4M slots; see docs/FUZZING.md. Larger layouts are not built here so that the
+// fuzzer's memory limit keeps catching allocations the decoders themselves make.
+constexpr std::int64_t kMaxMirrorSlots = std::int64_t(1) << 16;
+
+std::int64_t slotCount(const SessionInfoMsg& info) {
+  std::int64_t slots = 0;
+  for (const gpu::CascadeDesc& c : info.cascades) {
+    const std::int64_t x = c.counts.x, y = c.counts.y, z = c.counts.z;
+    if (x < 1 || y < 1 || z < 1 || x > 1024 || y > 1024 || z > 1024) return 0;  // rejected
+    slots += (x + 3) * (y + 3) * (z + 3);
+  }
+  return slots;
+}
+
+void useMessage(const SessionMessage& m) {
+  if (const auto* hello = std::get_if<HelloMsg>(&m)) {
+    (void)checkHello(*hello, "fuzz-token");
+  } else if (const auto* welcome = std::get_if<WelcomeMsg>(&m)) {
+    (void)checkServerVersion(welcome->protocolVersion);
+  } else if (const auto* info = std::get_if<SessionInfoMsg>(&m)) {
+    if (slotCount(*info) <= kMaxMirrorSlots) {
+      Result<Field> mirror = mirrorField(*info);
+      if (mirror) {
+        // The client's receiver sizes its per-brick state from these.
+        if (mirror->cascadeCount() != int(info->cascades.size())) std::abort();
+      }
+    }
+  } else if (const auto* state = std::get_if<SceneStateMsg>(&m)) {
+    static const Scene scene = builtinScene();
+    SceneState s = evaluateScene(scene, 0.0);
+    (void)applySceneState(*state, s);
+  }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  (void)messageFrameSize(std::span<const std::uint8_t>(data, size < 4 ? size : 4));
+  // As received, then with the length prefix made to fit so that mutations reach the body.
+  const std::vector<std::uint8_t> fitted = fuzz::withFittedPrefix(data, size);
+  for (const std::span<const std::uint8_t> frame :
+       {std::span<const std::uint8_t>(data, size), std::span<const std::uint8_t>(fitted)}) {
+    Result<SessionMessage> m = decodeMessage(frame);
+    if (!m) continue;
+    useMessage(m.value());
+    // Encoding what was decoded gives a frame that decodes to the same encoding.
+    // (Tables shared by reference in the input are written out once each, so the encoding
+    // may outgrow the size limit.)
+    const std::vector<std::uint8_t> once = encodeMessage(m.value());
+    if (once.size() > kMaxSessionMessageBytes) continue;
+    Result<SessionMessage> again = decodeMessage(once);
+    if (!again) std::abort();
+    if (encodeMessage(again.value()) != once) std::abort();
+  }
+  return 0;
+}

@@ -1,0 +1,165 @@
+// Writes the seed corpus of the generated targets: small valid inputs made with the encoders,
+// so the seeds follow the wire formats as they change. Usage: make_seeds <dir>; writes
+// <dir>/<target>/<name> for the messages, datagram, brick and baked targets (the sidecar
+// seeds are checked-in JSON files).
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "common/scene.h"
+#include "fuzz_support.h"
+#include "protocol/baked_file.h"
+#include "protocol/datagram.h"
+#include "protocol/session_messages.h"
+
+namespace {
+
+using namespace pc;
+namespace fs = std::filesystem;
+
+fs::path outDir;
+int written = 0;
+
+void write(const std::string& target, const std::string& name,
+           const std::vector<std::uint8_t>& bytes) {
+  const fs::path dir = outDir / target;
+  fs::create_directories(dir);
+  std::ofstream out(dir / name, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  if (!out) {
+    std::fprintf(stderr, "make_seeds: cannot write %s\n", (dir / name).c_str());
+    std::exit(1);
+  }
+  ++written;
+}
+
+void messages() {
+  const Field field = fuzz::smallField(3);
+  write("messages", "hello",
+        encodeMessage(HelloMsg{kProtocolVersion, "token", "client", true, 4000}));
+  write("messages", "welcome", encodeMessage(WelcomeMsg{kProtocolVersion, 17}));
+  write("messages", "reject", encodeMessage(RejectMsg{kProtocolVersion, "authentication failed"}));
+  write("messages", "session-info", encodeMessage(sessionInfoFor(field)));
+  const Scene scene = builtinScene();
+  write("messages", "scene-state", encodeMessage(sceneStateMessage(evaluateScene(scene, 0.5))));
+  write("messages", "viewer-pose",
+        encodeMessage(ViewerPoseMsg{{0.5f, 1.0f, -2.0f}, {0.9f, 0.1f, 0.3f, 0.2f}, 12.5}));
+  AckMsg ack;
+  ack.full = true;
+  ack.fieldVersion = 9;
+  ack.ranges = {{0, 0, 8, 3}, {1, 2, 1, 5}};
+  write("messages", "ack", encodeMessage(ack));
+  RepairRequestMsg repair;
+  repair.bricks = {{0, 1, 2}, {1, 0, 0}};
+  write("messages", "repair", encodeMessage(repair));
+}
+
+// Datagram seeds hold the body without its CRC: the target appends a valid one.
+void datagrams() {
+  auto body = [](std::vector<std::uint8_t> d) {
+    d.resize(d.size() - 4);
+    return d;
+  };
+  std::vector<std::uint8_t> payload(1500);
+  for (std::size_t i = 0; i < payload.size(); ++i) payload[i] = std::uint8_t(i * 7 + 3);
+  const std::span<const std::uint8_t> all(payload);
+  UpdateHeader big{.updateId = 5,
+                   .cascade = 0,
+                   .brick = 3,
+                   .version = 4,
+                   .baseVersion = 2,
+                   .codec = 1,
+                   .totalSize = 1500};
+  UpdateHeader small{.updateId = 6,
+                     .cascade = 1,
+                     .brick = 0,
+                     .version = 1,
+                     .baseVersion = 0,
+                     .codec = 1,
+                     .totalSize = 40};
+  write("datagram", "empty", body(encodeDatagram(1, 1, 4, {})));
+  const FragmentRef first[] = {{big, 0, all.first(kFragmentBytes)}};
+  write("datagram", "first-fragment", body(encodeDatagram(1, 2, 4, first)));
+  const FragmentRef last[] = {{big, 1, all.subspan(kFragmentBytes)}, {small, 0, all.first(40)}};
+  write("datagram", "last-and-whole", body(encodeDatagram(1, 3, 4, last)));
+}
+
+// Brick seeds: a mode byte (see fuzz_brick.cpp), then the payload or raw planes.
+void bricks() {
+  const Field field = fuzz::smallField(3);
+  auto withMode = [](std::uint8_t mode, const std::vector<std::uint8_t>& rest) {
+    std::vector<std::uint8_t> out{mode};
+    out.insert(out.end(), rest.begin(), rest.end());
+    return out;
+  };
+  const QuantizedBrick fine = quantizeBrick(field, 0, 0), coarse = quantizeBrick(field, 1, 0);
+  write("brick", "self-contained", withMode(0, encodeBrick(fine, nullptr)));
+  write("brick", "residual", withMode(2, encodeBrick(fine, &fuzz::baseBrick())));
+  write("brick", "coarse-self-contained", withMode(4, encodeBrick(coarse, nullptr)));
+  write("brick", "same-as-base", withMode(2, encodeBrick(fuzz::baseBrick(), &fuzz::baseBrick())));
+  // Raw residual planes: zeros are the base itself; a few small differences on top.
+  std::vector<std::uint8_t> planes(256, 0);
+  for (std::size_t i = 0; i < planes.size(); i += 5) planes[i] = 2;  // zigzag 2 = +1
+  write("brick", "raw-residual", withMode(3, planes));
+  write("brick", "raw-residual-coarse", withMode(7, std::vector<std::uint8_t>(16, 0)));
+}
+
+// One small cascade with mostly constant contents: compressed atlases stay a few hundred bytes.
+Field tinyField(bool twoCascades) {
+  std::vector<ProbeVolume> volumes(1);
+  volumes[0].origin = glm::vec3(0.0f);
+  volumes[0].spacing = 1.0f;
+  volumes[0].counts = glm::ivec3(2, 1, 2);
+  if (twoCascades) volumes.push_back(ProbeVolume{glm::vec3(-2.0f), 4.0f, glm::ivec3(1, 1, 1)});
+  Field f = Field::create(volumes, FieldSettings{});
+  for (float& v : f.irradiance.texels) v = 0.5f;
+  for (std::size_t i = 0; i + 1 < f.depth.texels.size(); i += 2) {
+    f.depth.texels[i] = 1.0f;
+    f.depth.texels[i + 1] = 1.25f;
+  }
+  for (float& v : f.occlusion.texels) v = 0.75f;
+  for (std::size_t i = 0; i < f.probes.size(); ++i) {
+    f.probes[i].state = int(i % 4);
+    f.probes[i].offset = glm::vec3(0.01f * float(i % 3));
+  }
+  f.version = 3;
+  f.sceneHash = 0xabcdull;
+  return f;
+}
+
+void baked() {
+  auto encode = [](const Field& f, BakedWriteOptions options) {
+    Result<std::vector<std::uint8_t>> bytes = encodeBakedField(f, options);
+    if (!bytes) {
+      std::fprintf(stderr, "make_seeds: %s\n", bytes.error().message.c_str());
+      std::exit(1);
+    }
+    return bytes.value();
+  };
+  BakedWriteOptions half;
+  half.halfPrecision = true;
+  write("baked", "tiny", encode(tinyField(false), {}));
+  write("baked", "tiny-half", encode(tinyField(false), half));
+  write("baked", "two-cascades", encode(tinyField(true), {}));
+  write("baked", "empty-layout",
+        encode(Field::create({ProbeVolume{glm::vec3(0.0f), 1.0f, glm::ivec3(1)}}, FieldSettings{}),
+               {}));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: make_seeds <dir>\n");
+    return 2;
+  }
+  outDir = argv[1];
+  messages();
+  datagrams();
+  bricks();
+  baked();
+  std::printf("make_seeds: %d seeds under %s\n", written, outDir.c_str());
+  return 0;
+}
