@@ -2,9 +2,11 @@
 // fallback file here; the server's stream later), headless to PNG/EXR files or in a window.
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "client/client_app.h"
+#include "client/net_app.h"
 #include "common/log.h"
 
 namespace {
@@ -54,6 +56,19 @@ int main(int argc, char** argv) {
   app.add_option("--sample-flags", c.sampleFlags, "field sampling flags (1: no visibility)");
   app.add_option("--ready-file", c.readyFile, "windowed: written after half the frames");
   app.add_option("--test-resize", resize, "windowed: resize the window to WxH after 2 frames");
+  // Network mode: the field comes from a server (the baked file stays the fallback).
+  pc::client::NetRunConfig net;
+  std::string connect, token;
+  app.add_option("--connect", connect, "stream the field from a server at HOST:PORT (headless)");
+  app.add_option("--token", token, "--connect: auth token (else $PROBECAST_TOKEN)");
+  app.add_option("--name", net.net.name, "--connect: client name the server logs");
+  app.add_flag("--tcp-only", net.net.tcpOnly, "--connect: datagrams over TCP");
+  app.add_option("--udp-advertise-port", net.net.udpAdvertisePort,
+                 "--connect: UDP port the server sends to (a relay in front of this client)");
+  app.add_option("--duration", net.duration, "--connect: seconds to run (instead of --frames)");
+  app.add_option("--max-fps", net.maxFps, "--connect: frames per second at most");
+  app.add_option("--save-every", net.saveEvery, "--connect: write every Nth frame (0: last only)");
+  app.add_option("--summary", net.summary, "--connect: write a JSON summary here");
   CLI11_PARSE(app, argc, argv);
 
   glm::vec3 v;
@@ -78,5 +93,20 @@ int main(int argc, char** argv) {
   }
   c.overlay = !noOverlay;
   c.writeExr = !noExr;
+  if (!connect.empty()) {
+    const auto colon = connect.rfind(':');
+    int port = 0;
+    if (colon == std::string::npos || std::sscanf(connect.c_str() + colon + 1, "%d", &port) != 1 ||
+        port <= 0 || port > 65535)
+      return pc::logError("--connect: expected HOST:PORT"), 1;
+    net.net.host = connect.substr(0, colon);
+    net.net.port = std::uint16_t(port);
+    if (token.empty()) {
+      if (const char* env = std::getenv("PROBECAST_TOKEN")) token = env;
+    }
+    net.net.token = token;
+    if (c.windowed) return pc::logError("--connect runs headless; drop --window"), 1;
+    return pc::client::runNetHeadless(c, net);
+  }
   return c.windowed ? pc::client::runWindowed(c) : pc::client::runHeadless(c);
 }

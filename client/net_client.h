@@ -1,0 +1,86 @@
+// The client's network side: a TCP session with the server (hello, session info, scene-state
+// sync, acks, repair requests, viewer poses) and a UDP socket for brick datagrams, on its own
+// thread running a Boost.Asio io_context. Received bricks go from the StreamReceiver into the
+// FieldMirror (which is thread-safe); the frame loop only reads the mirror and the synced
+// animation clock, so it never waits for the network. When the server goes away the client
+// keeps its mirror, reconnects with exponential backoff and resyncs in a new session.
+// Asio stays inside net_client.cpp.
+#pragma once
+
+#include <cstdint>
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "field_mirror.h"
+#include "protocol/stream_receiver.h"
+
+namespace pc::client {
+
+struct NetClientOptions {
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 7450;
+  std::string token;
+  std::string name = "probecast-client";
+  bool tcpOnly = false;               // ask for datagrams over TCP
+  std::uint16_t udpAdvertisePort = 0;  // port the server should send datagrams to (a relay in
+                                       // front of this client); 0: this client's own port
+  double backoffInitial = 0.05;       // s before the first reconnect attempt
+  double backoffMax = 0.4;            // s: the cap keeps a returning server found within it
+  double connectTimeout = 2.0;        // s for TCP connect plus the handshake
+  double silenceTimeout = 2.0;        // s without any bytes from the server: it is gone
+  double pollInterval = 0.005;        // s between receiver polls
+  double poseInterval = 0.1;          // s between viewer poses
+  ReceiverOptions receiver;
+};
+
+struct NetClientStats {
+  bool connected = false;  // a session is established (Welcome and SessionInfo received)
+  bool synced = false;     // this session's receiver holds every brick
+  std::uint64_t connectAttempts = 0, sessions = 0, rejects = 0;
+  std::uint64_t tcpBytes = 0, udpBytes = 0;  // received
+  std::uint64_t udpDatagrams = 0, tcpDatagrams = 0, badDatagrams = 0;
+  std::uint64_t bricksApplied = 0;     // handed to the mirror
+  std::uint64_t layoutResets = 0;      // mirror reset to the server's layout
+  std::uint64_t serverFieldVersion = 0;
+  int bricksHeld = 0, bricksTotal = 0;  // this session
+  double lastResyncSeconds = -1;  // connect -> every brick held, for the latest session
+  double lastSyncedAt = -1;       // steady seconds when the latest session became synced
+  std::string lastError;
+  ReceiverStats receiver;
+};
+
+class NetClient {
+ public:
+  NetClient(FieldMirror& mirror, NetClientOptions options);
+  ~NetClient();  // stop()
+  NetClient(const NetClient&) = delete;
+  NetClient& operator=(const NetClient&) = delete;
+
+  void start();
+  void stop();
+
+  // The server's animation clock, extrapolated from the last scene-state messages at the rate
+  // they advanced; nothing before the first one.
+  std::optional<double> animationTime() const;
+  // The viewer for the server's scheduler and sender priorities (sent every poseInterval).
+  void setViewer(glm::vec3 position, glm::quat orientation);
+  NetClientStats stats() const;
+  // Changes whenever the mirror was reset to a new layout: a renderer made for the old one
+  // must be rebuilt.
+  std::uint64_t layoutGeneration() const;
+  // The local UDP port datagrams are received on (0 before start or in TCP-only mode).
+  std::uint16_t udpPort() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Steady-clock seconds, the client's clock for the mirror and the receiver.
+double netClockSeconds();
+
+}  // namespace pc::client

@@ -1,0 +1,80 @@
+// The server's field thread: ticks at a fixed rate on the animation clock, moves the scene
+// (evaluateScene, Tracer::setState), updates the probes the scheduler picks (nearest the
+// clients' viewers first under a budget), and publishes each finished update to the hub.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <mutex>
+
+#include "common/field.h"
+#include "common/scene.h"
+#include "net_hub.h"
+#include "probe_scheduler.h"
+#include "tracer.h"
+
+namespace pc {
+
+struct FieldLoopOptions {
+  double rate = 30.0;       // ticks per second
+  double startTime = 0.0;   // animation time of the first tick
+  double freezeAt = -1.0;   // animation time where the clock and the field stop (< 0: never)
+  std::filesystem::path dumpField;  // at the freeze, the exact field is written here
+  SchedulerOptions scheduler;
+  float changeThreshold = 0.0f;
+};
+
+struct FieldLoopStats {
+  std::uint64_t ticks = 0;
+  std::uint64_t fieldVersion = 0;
+  double animationTime = 0;
+  double lastUpdateMs = 0;
+  int lastBricksChanged = 0;
+  bool frozen = false;
+};
+
+class FieldLoop {
+ public:
+  FieldLoop(const Scene& scene, Tracer& tracer, Field& field, FieldHub& hub,
+            FieldLoopOptions options)
+      : scene_(scene), tracer_(tracer), field_(field), hub_(hub), options_(options),
+        scheduler_(options.scheduler) {}
+
+  // Ticks until `stop` is set. `clock` gives seconds on the server's clock (the one the
+  // senders use). The animation clock follows it, so an overlong tick is caught up, not
+  // drifted from.
+  template <typename Clock>
+  void run(const std::atomic<bool>& stop, Clock clock) {
+    const double start = clock();
+    std::uint64_t tick = 0;
+    while (!stop.load()) {
+      const double now = clock();
+      tickOnce(now - start, now, ++tick);
+      const double next = start + double(tick) / options_.rate;
+      while (!stop.load() && clock() < next) sleepSeconds(std::min(0.005, next - clock()));
+    }
+  }
+
+  FieldLoopStats stats() const {
+    std::lock_guard lock(statsMutex_);
+    return stats_;
+  }
+
+ private:
+  void tickOnce(double elapsed, double now, std::uint64_t tick);
+  static void sleepSeconds(double s);
+
+  const Scene& scene_;
+  Tracer& tracer_;
+  Field& field_;
+  FieldHub& hub_;
+  FieldLoopOptions options_;
+  ProbeScheduler scheduler_;
+  bool frozen_ = false;
+  mutable std::mutex statsMutex_;
+  FieldLoopStats stats_;
+};
+
+}  // namespace pc

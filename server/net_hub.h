@@ -1,0 +1,77 @@
+// What the field thread and the network thread share: the FieldPublisher (with every client's
+// StreamSender reading it), the newest scene state, and the viewers' positions. One mutex
+// guards all of it; the field thread holds it only while publishing a finished update, the
+// network thread while it polls the senders, so neither waits long for the other.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "common/field.h"
+#include "common/result.h"
+#include "protocol/field_publisher.h"
+#include "protocol/session_messages.h"
+
+namespace pc {
+
+// The server's clock: seconds on a monotonic clock. Publishing and every sender use it.
+inline double steadySeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+class FieldHub {
+ public:
+  FieldHub(const Field& layout, PublisherOptions options = {}) : publisher_(layout, options) {}
+
+  // Field thread: a finished update and the scene state it was traced at.
+  Status publish(const Field& field, const SceneStateMsg& state, double now) {
+    auto frame = std::make_shared<const std::vector<std::uint8_t>>(encodeMessage(state));
+    std::lock_guard lock(mutex_);
+    sceneFrame_ = std::move(frame);
+    animationTime_ = state.animationTime;
+    ++sceneSerial_;
+    return publisher_.publish(field, now);
+  }
+
+  // Viewer positions by session, for the probe scheduler.
+  void setViewer(std::uint32_t session, glm::vec3 position) {
+    std::lock_guard lock(mutex_);
+    viewers_[session] = position;
+  }
+  void removeViewer(std::uint32_t session) {
+    std::lock_guard lock(mutex_);
+    viewers_.erase(session);
+  }
+  std::vector<glm::vec3> viewers() const {
+    std::lock_guard lock(mutex_);
+    std::vector<glm::vec3> out;
+    for (const auto& [id, p] : viewers_) out.push_back(p);
+    return out;
+  }
+
+  // Everything below is read under lock() by the network thread.
+  std::unique_lock<std::mutex> lock() const { return std::unique_lock(mutex_); }
+  FieldPublisher& publisher() { return publisher_; }
+  // Encoded SceneState of the newest update (null before the first), and a counter that
+  // changes with it.
+  std::shared_ptr<const std::vector<std::uint8_t>> sceneFrame() const { return sceneFrame_; }
+  std::uint64_t sceneSerial() const { return sceneSerial_; }
+  double animationTime() const { return animationTime_; }
+
+ private:
+  mutable std::mutex mutex_;
+  FieldPublisher publisher_;
+  std::shared_ptr<const std::vector<std::uint8_t>> sceneFrame_;
+  std::uint64_t sceneSerial_ = 0;
+  double animationTime_ = 0;
+  std::map<std::uint32_t, glm::vec3> viewers_;
+};
+
+}  // namespace pc

@@ -1,0 +1,170 @@
+// probecast-server: updates a scene's probe field on the animation clock and streams it to
+// clients (TCP session, UDP brick datagrams). Two threads besides main: the field thread
+// (trace, blend, publish) and the network thread; main waits for SIGINT/SIGTERM (or
+// --duration) and prints statistics.
+#include <pthread.h>
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <string>
+#include <thread>
+
+#include "common/log.h"
+#include "protocol/baked_file.h"
+#include "server/bake.h"
+#include "server/net_field_loop.h"
+#include "server/net_server.h"
+
+namespace {
+
+std::string statsLine(const pc::NetServerStats& now, const pc::NetServerStats& before,
+                      double seconds, const pc::FieldLoopStats& field) {
+  char line[256];
+  const double rate = seconds > 0 ? double(now.bytesSent - before.bytesSent) / seconds : 0.0;
+  std::snprintf(line, sizeof line,
+                "clients %zu | sent %.1f kB/s | field v%llu, t=%.2f s, update %.1f ms, %d bricks "
+                "changed | accepted %llu, rejected %llu",
+                now.clients.size(), rate / 1e3, (unsigned long long)field.fieldVersion,
+                field.animationTime, field.lastUpdateMs, field.lastBricksChanged,
+                (unsigned long long)now.accepted, (unsigned long long)now.rejected);
+  std::string s = line;
+  for (const pc::NetClientInfo& c : now.clients) {
+    std::snprintf(line, sizeof line, "\n  session %u %s (%s, %s): %.1f kB sent, %llu datagrams, %zu bricks pending",
+                  c.sessionId, c.name.c_str(), c.peer.c_str(), c.udp ? "udp" : "tcp",
+                  double(c.bytesSent) / 1e3, (unsigned long long)c.datagrams, c.pendingBricks);
+    s += line;
+  }
+  return s;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"probecast server: traces the probe field and streams it to clients"};
+  std::string scenePath = "builtin", sidecar, probes, backend = "auto", dumpField;
+  pc::NetServerOptions net;
+  pc::FieldLoopOptions loop;
+  int rays = 256, warmup = 32;
+  double duration = 0, statsInterval = 2.0, rateLimit = 0;
+  app.add_option("--scene", scenePath, "glTF/OBJ scene, or 'builtin'");
+  app.add_option("--sidecar", sidecar, "scene.json sidecar");
+  app.add_option("--probes", probes, "start from this baked field (else a short warm-up bake)");
+  app.add_option("--backend", backend, "tracer: auto, embree or vulkan");
+  app.add_option("--rate", loop.rate, "field updates per second");
+  app.add_option("--rays", rays, "rays per probe per update (without --probes)");
+  app.add_option("--warmup", warmup, "warm-up updates without --probes");
+  app.add_option("--budget", loop.scheduler.budget, "most probes per update (0: all due)");
+  app.add_option("--time", loop.startTime, "animation time of the first update");
+  app.add_option("--freeze-at", loop.freezeAt,
+                 "animation time where the clock and the field stop (the field is then exact)");
+  app.add_option("--dump-field", dumpField, "at the freeze, write the exact field here (.probes)");
+  app.add_option("--bind", net.bindAddress, "address to listen on");
+  app.add_option("--port", net.port, "TCP port (0: any free one)");
+  app.add_option("--token", net.token, "shared secret clients must present (else $PROBECAST_TOKEN)");
+  app.add_flag("--tcp-only", net.tcpOnly, "send datagrams over TCP to every client");
+  app.add_option("--rate-limit", rateLimit, "bytes per second per client (0: default)");
+  app.add_option("--duration", duration, "exit after this many seconds (0: run until a signal)");
+  app.add_option("--stats-interval", statsInterval, "seconds between statistics lines");
+  CLI11_PARSE(app, argc, argv);
+
+  if (net.token.empty()) {
+    if (const char* env = std::getenv("PROBECAST_TOKEN")) net.token = env;
+  }
+  if (net.token.empty()) {
+    pc::logError("no auth token: pass --token or set PROBECAST_TOKEN");
+    return 1;
+  }
+  if (loop.rate <= 0 || loop.rate > 240) return pc::logError("--rate: expected 0 < rate <= 240"), 1;
+  if (rateLimit > 0) net.sender.bytesPerSecond = rateLimit;
+  loop.dumpField = dumpField;
+
+  // Signals go to the thread that waits for them (main), never to the worker threads: block
+  // them before any thread starts, and let sigtimedwait take them.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  pc::Result<pc::Scene> scene = scenePath == "builtin" ? pc::Result<pc::Scene>(pc::builtinScene())
+                                                       : pc::loadScene(scenePath, sidecar);
+  if (!scene) return pc::logError(scene.error().message), 1;
+  for (const std::string& w : scene->warnings) pc::logWarn(w);
+
+  auto tracer = pc::makeTracer(*scene, backend);
+  if (!tracer) return pc::logError("tracer: " + tracer.error().message), 1;
+  pc::logInfo("tracer: " + (*tracer)->name());
+
+  pc::Field field;
+  if (!probes.empty()) {
+    auto baked = pc::readBakedField(probes, scene->hash);
+    if (!baked) return pc::logError(baked.error().message), 1;
+    field = std::move(baked).value();
+  } else {
+    pc::FieldSettings settings;
+    settings.raysPerProbe = rays;
+    field = pc::Field::create(scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes,
+                              settings);
+    field.sceneHash = scene->hash;
+    pc::BakeOptions bake;
+    bake.updates = warmup;
+    (*tracer)->setState(pc::evaluateScene(*scene, loop.startTime));
+    pc::bakeField(field, **tracer, bake);
+  }
+  pc::logInfo("field: " + std::to_string(field.desc.probeCount) + " probe slots, " +
+              std::to_string(field.desc.cascadeCount) + " cascades, version " +
+              std::to_string(field.version));
+
+  pc::FieldHub hub(field);
+  auto server = pc::NetServer::create(hub, net);
+  if (!server) return pc::logError(server.error().message), 1;
+  // The first publish happens before any client can connect, so every Welcome carries a field.
+  (void)hub.publish(field, pc::sceneStateMessage(pc::evaluateScene(*scene, loop.startTime)),
+                    pc::steadySeconds());
+  (*server)->start();
+  pc::logInfo("listening on " + net.bindAddress + ":" + std::to_string((*server)->port()) +
+              " (TCP), datagrams from UDP port " + std::to_string((*server)->udpPort()));
+  // A line a script can wait for before starting clients.
+  std::printf("ready port %u\n", unsigned((*server)->port()));
+  std::fflush(stdout);
+
+  pc::FieldLoop fieldLoop(*scene, **tracer, field, hub, loop);
+  std::atomic<bool> stop{false};
+  std::thread fieldThread([&] { fieldLoop.run(stop, pc::steadySeconds); });
+
+  const double start = pc::steadySeconds();
+  double lastStats = start;
+  pc::NetServerStats before = (*server)->stats();
+  while (true) {
+    timespec wait{0, 200'000'000};
+    const int sig = sigtimedwait(&signals, nullptr, &wait);
+    if (sig == SIGINT || sig == SIGTERM) {
+      pc::logInfo(std::string("shutting down (") + (sig == SIGINT ? "SIGINT" : "SIGTERM") + ")");
+      break;
+    }
+    const double now = pc::steadySeconds();
+    if (duration > 0 && now - start >= duration) {
+      pc::logInfo("shutting down (--duration reached)");
+      break;
+    }
+    if (statsInterval > 0 && now - lastStats >= statsInterval) {
+      pc::NetServerStats s = (*server)->stats();
+      pc::logInfo(statsLine(s, before, now - lastStats, fieldLoop.stats()));
+      before = s;
+      lastStats = now;
+    }
+  }
+  stop = true;
+  fieldThread.join();
+  (*server)->stop();
+  const pc::NetServerStats s = (*server)->stats();
+  std::printf("server: %llu clients served, %llu rejected, %.1f kB sent\n",
+              (unsigned long long)s.accepted, (unsigned long long)s.rejected,
+              double(s.bytesSent) / 1e3);
+  return 0;
+}
