@@ -32,5 +32,6 @@ Benchmark addLeak(CLI::App& app);
 Benchmark addClient(CLI::App& app);
 Benchmark addGpuTrace(CLI::App& app);
 Benchmark addFaults(CLI::App& app);
+Benchmark addStream(CLI::App& app);
 
 }  // namespace pc::bench

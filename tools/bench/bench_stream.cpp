@@ -1,0 +1,347 @@
+// stream: what the streaming protocol costs on the wire for one client, and what the client
+// sees. The server traces the scene's probe field with Embree while its lights move (the
+// scene's animation), at --rate updates per simulated second, and publishes every update; one
+// StreamSender + StreamReceiver pair per threshold streams it over an in-memory link. All the
+// pairs see the same field updates, so the rows of the table differ only in the threshold.
+//
+// Per threshold T (max change of gamma-encoded irradiance e): the publisher's dead zone holds
+// codes that moved by <= T (depth by <= --depth-tolerance of its mean, occlusion by <= 0.02),
+// and the sender holds back brick versions whose change is below T until the change
+// accumulates or the refresh interval ends. The client joins at the start (an empty mirror);
+// the bandwidth is measured after it holds every brick once, over --seconds of simulated
+// time: every datagram's bytes plus the session messages going back (acks, repair requests),
+// each with its IPv4 + UDP (28) or IPv4 + TCP (40) header bytes. At the end the CPU probe-lit
+// image of camera 0 is rendered from the client's mirror and from the server's exact field
+// (same camera, time, samples and direct light; only the field differs) and compared.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bench.h"
+#include "bench_common.h"
+#include "cpu/path_tracer.h"
+#include "cpu/probe_lit_render.h"
+#include "protocol/baked_file.h"
+#include "protocol/fault_link.h"
+#include "protocol/field_publisher.h"
+#include "protocol/stream_receiver.h"
+#include "protocol/stream_sender.h"
+#include "server/bake.h"
+#include "server/probe_scheduler.h"
+#include "server/tracer.h"
+
+namespace pc::bench {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kUdpIpHeaderBytes = 28;  // IPv4 (20) + UDP (8)
+constexpr double kTcpIpHeaderBytes = 40;  // IPv4 (20) + TCP (20), one segment per message
+constexpr double kRawBytesPerProbe = 1288;  // RTXGI's atlas formats, borders included
+
+struct StreamSetup {
+  std::string scene = std::string(PC_SCENES_DIR) + "/sauer-pandora/pandora.obj";
+  std::string sidecar;
+  double seconds = 3.0;    // measured, after the join
+  double joinLimit = 8.0;  // simulated seconds the initial transfer may take
+  double rate = 30.0;      // field updates per simulated second
+  int rays = 64;
+  int budget = 4000;  // probes traced per update (the scheduler's budget); 0: all
+  int bakeUpdates = 32;
+  std::vector<double> thresholds = {0.004, 0.002, 0.008, 0.016};
+  float depthTolerance = 0.02f;
+  float occlusionTolerance = 0.02f;
+  double loss = 0;
+  int width = 320, height = 180;
+  int aa = 2;
+  std::string cacheDir = "build/stream-cache";
+  std::string outDir;
+};
+
+// One client and everything between it and the publisher, for one threshold.
+struct Client {
+  double threshold = 0;
+  std::unique_ptr<FieldPublisher> publisher;
+  std::unique_ptr<StreamSender> sender;
+  std::unique_ptr<StreamReceiver> receiver;
+  std::unique_ptr<FaultLink> link;
+  ReliableLink control;
+  double joinedAt = -1;  // simulated time it first held every brick
+  // Bytes with header estimates: datagrams (down) and session messages (up).
+  double downBytes = 0, upBytes = 0, datagrams = 0, messages = 0;
+  double measuredDown = 0, measuredUp = 0;
+  SenderStats senderAtStart;
+};
+
+bool holdsEveryBrick(const Field& server, const StreamReceiver& r) {
+  for (int k = 0; k < server.cascadeCount(); ++k)
+    for (std::size_t b = 0; b < server.brickVersions[k].size(); ++b)
+      if (r.brickVersion(k, int(b)) == 0) return false;
+  return true;
+}
+
+// The converged starting field, cached on disk: baking 15k probes takes minutes on few cores.
+Result<Field> startingField(const Scene& scene, Tracer& tracer, const StreamSetup& s) {
+  char name[128];
+  std::snprintf(name, sizeof name, "%016llx-%drays-%dupdates.probes",
+                (unsigned long long)scene.hash, s.rays, s.bakeUpdates);
+  const fs::path cached = s.cacheDir.empty() ? fs::path() : fs::path(s.cacheDir) / name;
+  if (!cached.empty() && fs::exists(cached)) {
+    if (auto f = readBakedField(cached, scene.hash)) return f;
+  }
+  FieldSettings settings;
+  settings.raysPerProbe = s.rays;
+  Field field = Field::create(scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes,
+                              settings);
+  field.sceneHash = scene.hash;
+  tracer.setState(evaluateScene(scene, 0.0));
+  BakeOptions bake;
+  bake.updates = s.bakeUpdates;
+  Progress progress("bake " + sceneSlug(scene), std::uint64_t(bake.updates));
+  bake.progress = [&](int, int) { progress.advance(); };
+  bakeField(field, tracer, bake);
+  if (!cached.empty()) {
+    std::error_code ec;
+    fs::create_directories(cached.parent_path(), ec);
+    if (Status w = writeBakedField(cached, field); !w)
+      std::fprintf(stderr, "stream: not cached: %s\n", w.error().message.c_str());
+  }
+  return field;
+}
+
+}  // namespace
+
+Benchmark addStream(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "stream", "bandwidth per client and client-vs-server image PSNR on an animated scene");
+  static StreamSetup s;
+  cmd->add_option("--scene", s.scene, "scene file, or 'builtin'");
+  cmd->add_option("--sidecar", s.sidecar, "scene.json sidecar");
+  cmd->add_option("--seconds", s.seconds, "simulated seconds measured after the client joined");
+  cmd->add_option("--join-limit", s.joinLimit, "simulated seconds allowed for the join");
+  cmd->add_option("--rate", s.rate, "field updates per simulated second");
+  cmd->add_option("--rays", s.rays, "rays per probe per update");
+  cmd->add_option("--budget", s.budget, "probes traced per update (0: every probe)");
+  cmd->add_option("--bake-updates", s.bakeUpdates, "updates of the starting field's bake");
+  cmd->add_option("--threshold", s.thresholds,
+                  "irradiance thresholds (max |delta e|), one client each; the first gives the "
+                  "FIGURE lines");
+  cmd->add_option("--depth-tolerance", s.depthTolerance,
+                  "dead zone of depth, as a fraction of the texel's mean distance");
+  cmd->add_option("--occlusion-tolerance", s.occlusionTolerance, "dead zone of occlusion");
+  cmd->add_option("--loss", s.loss, "datagram loss rate of the link (0: lossless)");
+  cmd->add_option("--width", s.width, "probe-lit image width");
+  cmd->add_option("--height", s.height, "probe-lit image height");
+  cmd->add_option("--aa", s.aa, "primary samples per pixel of the probe-lit images");
+  cmd->add_option("--cache", s.cacheDir, "folder for the baked starting field ('' to disable)");
+  cmd->add_option("--out", s.outDir, "write the images here");
+  return {cmd, [] {
+            auto scene = loadBenchScene(s.scene, s.sidecar);
+            if (!scene) {
+              std::fprintf(stderr, "stream: %s\n", scene.error().message.c_str());
+              return 1;
+            }
+            auto tracer = makeEmbreeTracer(*scene);
+            if (!tracer) {
+              std::fprintf(stderr, "stream: %s\n", tracer.error().message.c_str());
+              return 1;
+            }
+            auto start = startingField(*scene, **tracer, s);
+            if (!start) {
+              std::fprintf(stderr, "stream: %s\n", start.error().message.c_str());
+              return 1;
+            }
+            Field server = std::move(start).value();
+            int bricks = 0;
+            for (int k = 0; k < server.cascadeCount(); ++k)
+              bricks += gpu::pcBrickCount(server.cascade(k));
+            const int probes = server.probeCount();
+            bool animated = false;
+            for (const Light& l : scene->lights) animated |= l.animation >= 0;
+
+            std::vector<Client> clients(s.thresholds.size());
+            for (std::size_t i = 0; i < clients.size(); ++i) {
+              Client& c = clients[i];
+              c.threshold = s.thresholds[i];
+              PublisherOptions po;
+              po.deadZone.irradiance = float(c.threshold);
+              po.deadZone.depth = s.depthTolerance;
+              po.deadZone.occlusion = s.occlusionTolerance;
+              c.publisher = std::make_unique<FieldPublisher>(server, po);
+              (void)c.publisher->publish(server, 0.0);
+              SenderOptions so;
+              so.irradianceThreshold = float(c.threshold);
+              const std::uint32_t session = 0x57e4'0000u + std::uint32_t(i);
+              c.sender = std::make_unique<StreamSender>(*c.publisher, session, so);
+              auto info = decodeMessage(encodeMessage(c.publisher->sessionInfo()));
+              auto r = StreamReceiver::create(std::get<SessionInfoMsg>(info.value()), session);
+              if (!r) {
+                std::fprintf(stderr, "stream: %s\n", r.error().message.c_str());
+                return 1;
+              }
+              c.receiver = std::make_unique<StreamReceiver>(std::move(r.value()));
+              c.link = std::make_unique<FaultLink>(1000 + i);
+              FaultProfile profile;
+              profile.delay = 0.01;
+              profile.loss = s.loss;
+              c.link->setProfile(profile);
+              c.control.setDelay(0.01);
+              if (!scene->cameras.empty()) {
+                ViewerPoseMsg pose;
+                pose.position = scene->cameras[0].position;
+                c.control.send(encodeMessage(pose), 0.0);
+              }
+            }
+
+            // Simulated time: network events every 5 ms, field updates at the rate.
+            const double step = 0.005, tick = 1.0 / s.rate;
+            ProbeScheduler scheduler(SchedulerOptions{8, 16, s.budget});
+            std::vector<glm::vec3> viewers;
+            if (!scene->cameras.empty()) viewers.push_back(scene->cameras[0].position);
+            double nextTick = 0.0, traceSeconds = 0.0, measureStart = -1, end = -1;
+            std::uint64_t ticks = 0, probeUpdates = 0, brickChanges = 0;
+            std::uint32_t rotation = 9000;
+            std::printf("stream: %s, %d probes in %d bricks, %d rays, %.0f updates/s, %s\n",
+                        sceneSlug(*scene).c_str(), probes, bricks, s.rays, s.rate,
+                        s.budget > 0 ? (std::to_string(s.budget) + " probes per update").c_str()
+                                     : "every probe every update");
+            std::fflush(stdout);
+            for (long i = 0;; ++i) {
+              const double t = double(i) * step;
+              if (end >= 0 && t > end) break;
+              if (t >= nextTick) {
+                nextTick += tick;
+                const auto t0 = Clock::now();
+                (*tracer)->setState(evaluateScene(*scene, t));
+                UpdateRequest req;
+                req.rotationSeed = rotation++;
+                req.probes = scheduler.plan(server, ticks + 1, viewers);
+                const UpdateStats us = (*tracer)->update(server, req);
+                traceSeconds += std::chrono::duration<double>(Clock::now() - t0).count();
+                probeUpdates += std::uint64_t(us.probesUpdated);
+                brickChanges += std::uint64_t(us.bricksChanged);
+                ++ticks;
+                for (Client& c : clients) (void)c.publisher->publish(server, t);
+              }
+              bool allJoined = true;
+              for (Client& c : clients) {
+                for (auto& d : c.sender->poll(t)) {
+                  const double bytes = double(d.size()) + kUdpIpHeaderBytes;
+                  c.downBytes += bytes;
+                  c.datagrams += 1;
+                  if (measureStart >= 0) c.measuredDown += bytes;
+                  c.link->send(std::move(d), t);
+                }
+                for (auto& d : c.link->receive(t)) (void)c.receiver->onDatagram(d, t);
+                for (auto& m : c.receiver->poll(t)) {
+                  const double bytes = double(m.size()) + kTcpIpHeaderBytes;
+                  c.upBytes += bytes;
+                  c.messages += 1;
+                  if (measureStart >= 0) c.measuredUp += bytes;
+                  c.control.send(std::move(m), t);
+                }
+                for (auto& m : c.control.receive(t)) (void)c.sender->onMessage(m, t);
+                if (c.joinedAt < 0 && holdsEveryBrick(server, *c.receiver)) c.joinedAt = t;
+                allJoined &= c.joinedAt >= 0;
+              }
+              // Measure once every client holds the whole field (or the join limit passed).
+              if (measureStart < 0 && (allJoined || t >= s.joinLimit)) {
+                measureStart = t;
+                end = t + s.seconds;
+                for (Client& c : clients) c.senderAtStart = c.sender->stats();
+              }
+            }
+            const double measured = end - measureStart;
+
+            // Images: the same camera, animation time and samples; only the field differs.
+            auto camera = sceneCamera(*scene, 0);
+            if (!camera) {
+              std::fprintf(stderr, "stream: %s\n", camera.error().message.c_str());
+              return 1;
+            }
+            ProbeLitOptions lit;
+            lit.width = s.width;
+            lit.height = s.height;
+            lit.primarySamples = s.aa;
+            lit.explicitCamera = *camera;
+            lit.time = end;
+            auto exact = renderProbeLit(*scene, server, lit);
+            if (!exact) {
+              std::fprintf(stderr, "stream: %s\n", exact.error().message.c_str());
+              return 1;
+            }
+            const Image8 exact8 = tonemap(*exact, scene->exposure);
+            if (!s.outDir.empty()) {
+              fs::create_directories(s.outDir);
+              writePng(fs::path(s.outDir) / "server_field.png", exact8);
+            }
+
+            const double raw = kRawBytesPerProbe * double(probes) * s.rate * 8.0 / 1e6;
+            std::printf("machine: %s\n", machineDescription().c_str());
+            std::printf(
+                "simulated: %.2f s in all (%llu field updates, %.1f s of tracing), join then "
+                "%.2f s measured; light animation: %s; link loss %.0f%%\n",
+                end, (unsigned long long)ticks, traceSeconds, measured,
+                animated ? "yes" : "none (static lights)", s.loss * 100);
+            std::printf(
+                "probe updates per second %.0f (%.1f per probe), brick versions per update "
+                "%.1f of %d\n",
+                double(probeUpdates) / end, double(probeUpdates) / end / probes,
+                double(brickChanges) / double(std::max<std::uint64_t>(ticks, 1)), bricks);
+            std::printf("raw baseline: %d probes x 1288 B x %.0f/s = %.1f Mbit/s\n\n", probes,
+                        s.rate, raw);
+            std::printf("%9s %8s %9s %10s %9s %8s %8s %9s %9s %8s %9s\n", "threshold", "join_s",
+                        "join_MB", "Mbit/s", "down", "up", "ratio", "updates/s", "residual",
+                        "held%", "PSNR_dB");
+            double figMbit = 0, figRatio = 0, figPsnr = 0;
+            for (std::size_t i = 0; i < clients.size(); ++i) {
+              Client& c = clients[i];
+              auto image = renderProbeLit(*scene, c.receiver->field(), lit);
+              if (!image) {
+                std::fprintf(stderr, "stream: %s\n", image.error().message.c_str());
+                return 1;
+              }
+              const Image8 client8 = tonemap(*image, scene->exposure);
+              const double psnr = psnr8(client8, exact8);
+              if (!s.outDir.empty()) {
+                char name[64];
+                std::snprintf(name, sizeof name, "client_t%.4f.png", c.threshold);
+                writePng(fs::path(s.outDir) / name, client8);
+              }
+              const double down = c.measuredDown * 8.0 / measured / 1e6;
+              const double up = c.measuredUp * 8.0 / measured / 1e6;
+              const double mbit = down + up;
+              const SenderStats& st = c.sender->stats();
+              const double updates = double(st.updates - c.senderAtStart.updates);
+              const double residual =
+                  double(st.residualUpdates - c.senderAtStart.residualUpdates);
+              const double held = 100.0 * double(c.publisher->heldCodes()) /
+                                  double(std::max<std::uint64_t>(c.publisher->quantizedCodes(), 1));
+              const double joinMb = (c.downBytes + c.upBytes - c.measuredDown - c.measuredUp) / 1e6;
+              std::printf("%9.4f %8.2f %9.2f %10.3f %9.3f %8.3f %8.0f %9.1f %8.0f%% %7.1f%% %9.2f%s\n",
+                          c.threshold, c.joinedAt, joinMb, mbit, down, up, raw / mbit,
+                          updates / measured, updates > 0 ? 100.0 * residual / updates : 0.0,
+                          held, psnr, c.joinedAt < 0 ? "  (did not join)" : "");
+              if (i == 0) {
+                figMbit = mbit;
+                figRatio = raw / mbit;
+                figPsnr = psnr;
+              }
+            }
+            std::printf(
+                "\nMbit/s: measured window, datagrams + acks with IP/UDP/TCP headers; down/up "
+                "split; ratio: raw baseline / Mbit/s; held%%: codes the dead zone kept\n");
+            figure("mbit_per_client", figMbit, "Mbit/s");
+            figure("raw_ratio", figRatio, "x");
+            figure("psnr_client_vs_server_field", figPsnr, "dB");
+            return 0;
+          }};
+}
+
+}  // namespace pc::bench
