@@ -130,7 +130,7 @@ TEST(Net, BadTokenGetsOnlyAReject) {
   EXPECT_EQ(s.udpDatagrams, 0u);
   EXPECT_EQ(s.bricksApplied, 0u);
   EXPECT_FALSE(mirror.present());
-  EXPECT_GE(server.net().stats().rejected, 3u);
+  EXPECT_TRUE(waitFor([&] { return server.net().stats().rejected >= 3; }, 2.0));
 }
 
 TEST(Net, MisbehavingClientsAreDisconnectedWhileAnotherKeepsReceiving) {
@@ -193,6 +193,7 @@ TEST(Net, MisbehavingClientsAreDisconnectedWhileAnotherKeepsReceiving) {
   const NetServerStats ss = server.net().stats();
   EXPECT_EQ(ss.clients.size(), 1u);
   EXPECT_GE(ss.disconnected, 5u);
+  (void)ss;
 }
 
 TEST(Net, ClientThatNeverReadsIsDisconnected) {
