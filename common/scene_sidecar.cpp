@@ -404,7 +404,8 @@ Status applySidecar(Scene& scene, const fs::path& sidecar) {
   json root;
   try {
     root = json::parse(text.str(), nullptr, true, /*ignore_comments=*/true);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // parse_error, or out_of_range for a number beyond double's range ("1e400").
     // Drop nlohmann's "[json.exception.parse_error.101] " tag; keep line and column.
     std::string what = e.what();
     if (auto p = what.find("] "); what.rfind("[json.exception", 0) == 0 && p != std::string::npos)
