@@ -560,7 +560,14 @@ Result<Field> decodeBakedField(std::span<const std::uint8_t> bytes, std::uint64_
                   std::to_string(bricks ? bricks->size() : 0) + " brick versions, layout gives " +
                   std::to_string(brickCount));
     }
-    f.brickVersions[k].assign(bricks->begin(), bricks->end());
+    // The Verifier checks the vector's length field alignment, not its 8-byte elements': copy
+    // each one out rather than reading it in place.
+    f.brickVersions[k].resize(brickCount);
+    for (std::size_t i = 0; i < brickCount; ++i) {
+      std::uint64_t v;
+      std::memcpy(&v, bricks->Data() + i * sizeof v, sizeof v);
+      f.brickVersions[k][i] = flatbuffers::EndianScalar(v);
+    }
   }
   f.desc.probeCount = root->probe_count();
   f.desc.atlasTileRows = root->atlas_tile_rows();

@@ -281,7 +281,12 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
       m.fieldVersion = w->field_version();
       if (w->ranges()) {
         m.ranges.reserve(w->ranges()->size());
-        for (const net::AckRange* r : *w->ranges()) {
+        for (const net::AckRange* p : *w->ranges()) {
+          // Structs of 8-byte fields may sit at 4-byte boundaries (the Verifier checks only the
+          // vector's length field): copy each out before reading it.
+          net::AckRange copy;
+          std::memcpy(&copy, p, sizeof copy);
+          const net::AckRange* r = &copy;
           m.ranges.push_back(AckRange{r->cascade(), r->first_brick(), r->count(), r->version()});
         }
       }
@@ -292,7 +297,10 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
       RepairRequestMsg m;
       if (w->bricks()) {
         m.bricks.reserve(w->bricks()->size());
-        for (const net::BrickRef* r : *w->bricks()) {
+        for (const net::BrickRef* p : *w->bricks()) {
+          net::BrickRef copy;  // possibly misaligned in the buffer, as above
+          std::memcpy(&copy, p, sizeof copy);
+          const net::BrickRef* r = &copy;
           m.bricks.push_back(BrickRefMsg{r->cascade(), r->brick(), r->have_version()});
         }
       }
