@@ -235,12 +235,15 @@ void applyBrick(Field& field, int cascade, int brick, const QuantizedBrick& q) {
 
 BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b) {
   BrickChange ch;
+  double sum = 0;
   for (std::size_t i = kIrradiance; i < kDepth; ++i) {
     if (a.codes[i] != b.codes[i]) {
-      ch.irradiance = std::max(ch.irradiance, std::abs(dequantizeIrradiance(a.codes[i]) -
-                                                       dequantizeIrradiance(b.codes[i])));
+      const float d = std::abs(dequantizeIrradiance(a.codes[i]) - dequantizeIrradiance(b.codes[i]));
+      ch.irradiance = std::max(ch.irradiance, d);
+      sum += d;
     }
   }
+  ch.irradianceMean = float(sum / double(kDepth - kIrradiance));
   int depthMax = 0;
   for (std::size_t i = kDepth; i < kDepth + std::size_t(kSlots) * kDepthTexels; ++i) {
     depthMax = std::max(depthMax, std::abs(int(a.codes[i]) - int(b.codes[i])));
@@ -296,6 +299,28 @@ std::size_t holdSmallChanges(QuantizedBrick& q, const QuantizedBrick& previous,
       std::uint16_t& c = q.codes[i];
       const std::uint16_t p = previous.codes[i];
       if (c != p && std::abs(int(c) - int(p)) <= limit) {
+        c = p;
+        ++held;
+      }
+    }
+  }
+  if (tolerance.offset > 0) {
+    const int limit = int(tolerance.offset * 32767.0f);
+    for (std::size_t i = kOffset; i < kState; ++i) {
+      std::uint16_t& c = q.codes[i];
+      const std::uint16_t p = previous.codes[i];
+      if (c != p && std::abs(int(c) - int(p)) <= limit) {
+        c = p;
+        ++held;
+      }
+    }
+  }
+  if (tolerance.sleepingAsActive) {
+    auto sampled = [](std::uint16_t s) { return s == PC_PROBE_ACTIVE || s == PC_PROBE_SLEEPING; };
+    for (std::size_t i = kState; i < kCodes; ++i) {
+      std::uint16_t& c = q.codes[i];
+      const std::uint16_t p = previous.codes[i];
+      if (c != p && sampled(c) && sampled(p)) {
         c = p;
         ++held;
       }

@@ -67,6 +67,9 @@ float dequantizeIrradiance(std::uint16_t code);
 // How much a brick's content changed between two versions, for the perceptual skip.
 struct BrickChange {
   float irradiance = 0;  // max over texels and channels of |delta e| (gamma-encoded)
+  // Mean |delta e| over all the brick's irradiance codes, unchanged ones included: ray noise
+  // moves a few texels a lot, a moving light moves many texels together.
+  float irradianceMean = 0;
   float depth = 0;       // max |delta mean| / maxRayDistance
   float occlusion = 0;   // max |delta|
   bool records = false;  // a probe state changed, or an offset by more than 1% of the spacing
@@ -84,10 +87,16 @@ struct DeadZone {
   float irradiance = 0;  // |delta e| (gamma-encoded irradiance)
   float depth = 0;       // |delta| of depth mean and standard deviation, x the texel's mean
   float occlusion = 0;   // |delta|
-  bool active() const { return irradiance > 0 || depth > 0 || occlusion > 0; }
+  float offset = 0;      // |delta| of a relocation offset component, x the spacing
+  // A flip between active and sleeping keeps the previous state: both are sampled alike, and
+  // the classification flips with ray noise for probes near its distance limit.
+  bool sleepingAsActive = false;
+  bool active() const {
+    return irradiance > 0 || depth > 0 || occlusion > 0 || offset > 0 || sleepingAsActive;
+  }
 };
-// Offsets and states are never held back. Returns the number of codes that kept their
-// previous value.
+// Other state changes are never held. Returns the number of codes that kept their previous
+// value.
 std::size_t holdSmallChanges(QuantizedBrick& q, const QuantizedBrick& previous,
                              const DeadZone& tolerance);
 

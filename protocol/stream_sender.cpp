@@ -138,7 +138,10 @@ bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version
   bool below = false;
   if (cur && old) {
     const BrickChange c = brickChange(*cur, *old);
-    below = c.irradiance < options_.irradianceThreshold && c.depth < options_.depthThreshold &&
+    below = c.irradiance < options_.irradianceThreshold &&
+            (options_.irradianceMeanThreshold <= 0 ||
+             c.irradianceMean < options_.irradianceMeanThreshold) &&
+            c.depth < options_.depthThreshold &&
             c.occlusion < options_.occlusionThreshold && !c.records;
   }
   t.skipVersion = version;

@@ -40,6 +40,10 @@ struct SenderOptions {
   // no longer has, is always sent self-contained.
   double selfContainedInterval = 30.0;
   float irradianceThreshold = 0.004f;  // max |delta e| (gamma-encoded irradiance)
+  // When > 0, a version also counts as below the thresholds only while the mean |delta e| over
+  // the brick's irradiance is below this. Set irradianceThreshold well above it: with ray
+  // noise some texel always moves past a small maximum, while a moving light moves the mean.
+  float irradianceMeanThreshold = 0.0f;
   float depthThreshold = 0.005f;       // max |delta mean depth| / maxRayDistance
   float occlusionThreshold = 0.02f;
   double heartbeatInterval = 0.25;  // s: an empty datagram when nothing else was sent
