@@ -1,4 +1,5 @@
 #include "path_tracer.h"
+#include "render_setup.h"
 
 #include <algorithm>
 #include <chrono>
@@ -150,21 +151,31 @@ Result<Camera> sceneCamera(const Scene& scene, int index) {
 
 Result<PathTraceResult> renderReference(const Scene& scene, const PathTraceOptions& options,
                                         Progress* progress) {
-  if (options.width <= 0 || options.height <= 0) return Error{"image size must be positive"};
-  Camera camera;
-  if (options.explicitCamera) {
-    camera = *options.explicitCamera;
+  auto setup = prepareCpuRender(scene, options.width, options.height, options.explicitCamera,
+                                options.camera, options.time);
+  if (!setup) return setup.error();
+  return pathTrace(*setup->embree, setup->state, setup->emissive, setup->camera, options, progress);
+}
+
+Result<CpuRenderSetup> prepareCpuRender(const Scene& scene, int width, int height,
+                                        const std::optional<Camera>& explicitCamera,
+                                        int cameraIndex, double time) {
+  if (width <= 0 || height <= 0) return Error{"image size must be positive"};
+  CpuRenderSetup setup;
+  if (explicitCamera) {
+    setup.camera = *explicitCamera;
   } else {
-    Result<Camera> chosen = sceneCamera(scene, options.camera);
+    Result<Camera> chosen = sceneCamera(scene, cameraIndex);
     if (!chosen) return chosen.error();
-    camera = chosen.value();
+    setup.camera = chosen.value();
   }
   auto embree = EmbreeScene::create(scene);
   if (!embree) return embree.error();
-  const SceneState state = evaluateScene(scene, options.time);
-  (*embree)->update(state);
-  const EmissiveLights emissive = EmissiveLights::build(scene, state);
-  return pathTrace(**embree, state, emissive, camera, options, progress);
+  setup.embree = std::move(embree).value();
+  setup.state = evaluateScene(scene, time);
+  setup.embree->update(setup.state);
+  setup.emissive = EmissiveLights::build(scene, setup.state);
+  return setup;
 }
 
 }  // namespace pc

@@ -1,4 +1,5 @@
 #include "probe_lit_render.h"
+#include "render_setup.h"
 
 #include <algorithm>
 #include <cmath>
@@ -63,21 +64,11 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
 
 Result<Image> renderProbeLit(const Scene& scene, const Field& field, const ProbeLitOptions& options,
                              Progress* progress) {
-  if (options.width <= 0 || options.height <= 0) return Error{"image size must be positive"};
-  Camera camera;
-  if (options.explicitCamera) {
-    camera = *options.explicitCamera;
-  } else {
-    Result<Camera> chosen = sceneCamera(scene, options.camera);
-    if (!chosen) return chosen.error();
-    camera = chosen.value();
-  }
-  auto embree = EmbreeScene::create(scene);
-  if (!embree) return embree.error();
-  const SceneState state = evaluateScene(scene, options.time);
-  (*embree)->update(state);
-  const EmissiveLights emissive = EmissiveLights::build(scene, state);
-  return renderProbeLit(**embree, state, emissive, field, camera, options, progress);
+  auto setup = prepareCpuRender(scene, options.width, options.height, options.explicitCamera,
+                                options.camera, options.time);
+  if (!setup) return setup.error();
+  return renderProbeLit(*setup->embree, setup->state, setup->emissive, field, setup->camera,
+                        options, progress);
 }
 
 }  // namespace pc
