@@ -86,7 +86,9 @@ struct Encoder {
       mats.emplace_back(fb::span<const float, 16>(&t[0][0], 16));
     }
     auto matsOff = fbb.CreateVectorOfStructs(mats);
-    return net::CreateSceneState(fbb, m.animationTime, lightsOff, matsOff).Union();
+    return net::CreateSceneState(fbb, m.animationTime, lightsOff, matsOff, m.fieldVersion,
+                                 m.publishTime)
+        .Union();
   }
   fb::Offset<void> operator()(const ViewerPoseMsg& m) {
     net::Vec3 p = toWire(m.position);
@@ -234,6 +236,9 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
       SceneStateMsg m;
       m.animationTime = w->animation_time();
       if (!std::isfinite(m.animationTime)) return fail("scene state: animation time not finite");
+      m.fieldVersion = w->field_version();
+      m.publishTime = w->publish_time();
+      if (!std::isfinite(m.publishTime)) return fail("scene state: publish time not finite");
       if (w->lights()) {
         for (const net::LightState* l : *w->lights()) {
           LightStateMsg s{fromWire(l->position()), fromWire(l->direction()), fromWire(l->color()),

@@ -66,6 +66,11 @@ struct SceneStateMsg {
   double animationTime = 0;
   std::vector<LightStateMsg> lights;
   std::vector<glm::mat4> instanceTransforms;
+  // The field version published with this state (0: not stated) and when, in seconds on the
+  // server's monotonic clock (steadySeconds()). Bricks carry the field version they changed
+  // at, so a client knows when each brick version was published.
+  std::uint64_t fieldVersion = 0;
+  double publishTime = 0;
 };
 
 struct ViewerPoseMsg {

@@ -30,9 +30,14 @@ class FieldHub {
  public:
   FieldHub(const Field& layout, PublisherOptions options = {}) : publisher_(layout, options) {}
 
-  // Field thread: a finished update and the scene state it was traced at.
+  // Field thread: a finished update and the scene state it was traced at. The state goes out
+  // stamped with the field version and the moment it became visible to the senders (`now` is
+  // the tick's start, before tracing), so clients can measure latency from publish to apply.
   Status publish(const Field& field, const SceneStateMsg& state, double now) {
-    auto frame = std::make_shared<const std::vector<std::uint8_t>>(encodeMessage(state));
+    SceneStateMsg stamped = state;
+    stamped.fieldVersion = field.version;
+    stamped.publishTime = steadySeconds();
+    auto frame = std::make_shared<const std::vector<std::uint8_t>>(encodeMessage(stamped));
     std::lock_guard lock(mutex_);
     sceneFrame_ = std::move(frame);
     animationTime_ = state.animationTime;
