@@ -53,6 +53,8 @@ struct GraphicsDesc {
   std::vector<VkFormat> colorFormats;
   VkFormat depthFormat = VK_FORMAT_UNDEFINED;
   VkCompareOp depthCompare = VK_COMPARE_OP_GREATER;
+  bool depthWrite = true;
+  bool colorWrites = true;  // false: depth only, the color attachments untouched
   bool depthBias = false;
   VkSampleCountFlagBits samples = VK_SAMPLE_COUNT_1_BIT;
   std::uint32_t viewMask = 0;
@@ -97,13 +99,15 @@ Result<vk::UniquePipeline> createGraphicsPipeline(const vk::Context& ctx, VkPipe
   VkPipelineDepthStencilStateCreateInfo depth{
       VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
   depth.depthTestEnable = d.depthFormat != VK_FORMAT_UNDEFINED;
-  depth.depthWriteEnable = depth.depthTestEnable;
+  depth.depthWriteEnable = depth.depthTestEnable && d.depthWrite;
   depth.depthCompareOp = d.depthCompare;
   std::vector<VkPipelineColorBlendAttachmentState> blends(d.colorFormats.size());
   for (auto& b : blends) {
     b = {};
-    b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
-                       VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+    if (d.colorWrites) {
+      b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
+                         VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+    }
   }
   VkPipelineColorBlendStateCreateInfo blend{
       VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
@@ -165,7 +169,8 @@ struct Renderer::Slot {
   vk::Buffer frame, draws, lights, matrices, overlay;
   VkDescriptorSet set = VK_NULL_HANDLE;
   std::optional<vk::GpuTimer> timer;
-  std::vector<ShadowView> shadowViews;
+  std::vector<ShadowView> shadowViews;  // the layers this frame redraws
+  bool shadowsFresh = false;            // the arrays have never been drawn: undefined layout
   bool submitted = false;
 };
 
@@ -224,6 +229,22 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   r->largeLayers_ = lights0.largeLayers;
   r->smallLayers_ = lights0.smallLayers;
   r->areaLights_ = lights0.areaLightCount;
+  r->shadowCache_.reset(r->largeLayers_, r->smallLayers_);
+  // Object-space bounds of every draw's mesh: which shadow layers a moving instance can touch.
+  {
+    const PackedScene& packed = r->gpuScene_->packed();
+    for (int instance : packed.drawInstances) {
+      const MeshRange& m = packed.meshes[scene.instances[std::size_t(instance)].mesh];
+      LocalBounds b{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+      for (std::uint32_t i = m.firstIndex; i < m.firstIndex + m.indexCount; ++i) {
+        const glm::vec3 p =
+            packed.vertices[std::size_t(packed.indices[i] + m.vertexOffset)].position;
+        b.lo = glm::min(b.lo, p);
+        b.hi = glm::max(b.hi, p);
+      }
+      r->drawBounds_.push_back(b);
+    }
+  }
 
   auto linear = createSampler(ctx, VK_FILTER_LINEAR, false);
   if (!linear) return linear.error();
@@ -455,6 +476,17 @@ Status Renderer::createPipelines() {
   scene.depthCompare = VK_COMPARE_OP_GREATER;  // reversed depth: nearer is larger
   scene.samples = static_cast<VkSampleCountFlagBits>(options_.msaa);
   scene.viewMask = viewMask;
+  if (options_.depthPrepass) {
+    // Same vertex shader (invariant position), no fragment shader, no color writes.
+    GraphicsDesc prepass = scene;
+    prepass.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, sceneVert->get()}});
+    prepass.colorWrites = false;
+    auto p = createGraphicsPipeline(*ctx_, pipelineLayout, prepass);
+    if (!p) return p.error();
+    prepassPipeline_ = std::move(p).value();
+    scene.depthCompare = VK_COMPARE_OP_EQUAL;  // only the nearest surface of each sample
+    scene.depthWrite = false;
+  }
   auto scenePipeline = createGraphicsPipeline(*ctx_, pipelineLayout, scene);
   if (!scenePipeline) return scenePipeline.error();
   scenePipeline_ = std::move(scenePipeline).value();
@@ -631,10 +663,19 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   const int matrixCount = std::min(int(lights.matrices.size()), matrixCount_);
   if (lightCount > 0) slot.lights.write(lights.lights.data(), lightCount * sizeof(gpu::GpuLight));
   if (matrixCount > 0) slot.matrices.write(lights.matrices.data(), matrixCount * sizeof(glm::mat4));
-  slot.shadowViews.clear();
+  std::vector<ShadowView> views;
   for (const ShadowView& v : lights.views) {
-    if (v.layer < (v.array == 0 ? largeLayers_ : smallLayers_)) slot.shadowViews.push_back(v);
+    if (v.layer < (v.array == 0 ? largeLayers_ : smallLayers_)) views.push_back(v);
   }
+  std::vector<glm::mat4> models(draws.size());
+  for (std::size_t d = 0; d < draws.size(); ++d) models[d] = draws[d].model;
+  slot.shadowsFresh = shadowCache_.fresh();
+  slot.shadowViews = shadowCache_.select(views, models, drawBounds_);
+  stats_ = {};
+  stats_.lights = lightCount;
+  stats_.shadowViews = int(views.size());
+  stats_.shadowViewsDrawn = int(slot.shadowViews.size());
+  stats_.msaa = options_.msaa;
 
   gpu::FrameUniforms f{};
   for (int v = 0; v < options_.views; ++v) {
@@ -679,6 +720,8 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
       const MeshRange& m = packed.meshes[scene_->instances[packed.drawInstances[d]].mesh];
       // firstInstance carries the draw's index: the shaders read draws[gl_InstanceIndex].
       vkCmdDrawIndexed(cmd, m.indexCount, 1, m.firstIndex, m.vertexOffset, std::uint32_t(d));
+      ++stats_.drawCalls;
+      stats_.triangles += m.indexCount / 3;
     }
   };
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &slot.set, 0,
@@ -690,20 +733,54 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   field_->recordUploads(cmd, current_, *mirror_);
   timer.end(cmd);
 
-  // ---- shadow maps (redrawn every frame: lights and instances move) ----
+  // ---- shadow maps (only the layers whose light or casters changed: ShadowCache) ----
   timer.begin(cmd, "shadows");
   const VkPipelineStageFlags2 depthStages =
       VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
   const VkAccessFlags2 depthAccess = VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
                                      VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
   const VkImageAspectFlags depthAspect = VK_IMAGE_ASPECT_DEPTH_BIT;
-  imageBarriers(cmd,
-                {{largeShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
-                  VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-                  VK_ACCESS_2_NONE, depthStages, depthAccess},
-                 {smallShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
-                  VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-                  VK_ACCESS_2_NONE, depthStages, depthAccess}});
+  // Layout changes of the layers drawn this frame (all layers the first time, when the arrays
+  // are undefined); the others keep their depth and stay readable.
+  auto shadowBarriers = [&](bool toAttachment) {
+    std::vector<VkImageMemoryBarrier2> barriers;
+    auto add = [&](VkImage image, std::uint32_t layer, std::uint32_t count) {
+      VkImageMemoryBarrier2 b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER_2};
+      if (toAttachment) {
+        b.srcStageMask = VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
+        b.srcAccessMask = VK_ACCESS_2_NONE;  // earlier reads only: an execution dependency
+        b.dstStageMask = depthStages;
+        b.dstAccessMask = depthAccess;
+        b.oldLayout = slot.shadowsFresh ? VK_IMAGE_LAYOUT_UNDEFINED
+                                        : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+        b.newLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+      } else {
+        b.srcStageMask = depthStages;
+        b.srcAccessMask = depthAccess;
+        b.dstStageMask = VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
+        b.dstAccessMask = VK_ACCESS_2_SHADER_SAMPLED_READ_BIT;
+        b.oldLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+        b.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+      }
+      b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+      b.image = image;
+      b.subresourceRange = {depthAspect, 0, 1, layer, count};
+      barriers.push_back(b);
+    };
+    if (slot.shadowsFresh) {
+      add(largeShadows_.get(), 0, VK_REMAINING_ARRAY_LAYERS);
+      add(smallShadows_.get(), 0, VK_REMAINING_ARRAY_LAYERS);
+    } else {
+      for (const ShadowView& v : slot.shadowViews)
+        add(v.array == 0 ? largeShadows_.get() : smallShadows_.get(), std::uint32_t(v.layer), 1);
+    }
+    if (barriers.empty()) return;
+    VkDependencyInfo di{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+    di.imageMemoryBarrierCount = std::uint32_t(barriers.size());
+    di.pImageMemoryBarriers = barriers.data();
+    vkCmdPipelineBarrier2(cmd, &di);
+  };
+  shadowBarriers(true);
   for (const ShadowView& v : slot.shadowViews) {
     const bool large = v.array == 0;
     const std::uint32_t size =
@@ -726,13 +803,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
     drawScene();
     vkCmdEndRendering(cmd);
   }
-  imageBarriers(cmd,
-                {{largeShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
-                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, depthStages, depthAccess,
-                  VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT},
-                 {smallShadows_.get(), depthAspect, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
-                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, depthStages, depthAccess,
-                  VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT}});
+  shadowBarriers(false);
   timer.end(cmd);
 
   // ---- main pass: direct light, emission, G-buffer ----
@@ -787,8 +858,12 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   ri.pColorAttachments = colors;
   ri.pDepthAttachment = &depth;
   vkCmdBeginRendering(cmd, &ri);
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scenePipeline_.get());
   setViewport(cmd, w, h);
+  if (prepassPipeline_) {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, prepassPipeline_.get());
+    drawScene();
+  }
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scenePipeline_.get());
   drawScene();
   vkCmdEndRendering(cmd);
   auto toRead = [&](const Target& t) {

@@ -24,6 +24,7 @@
 #include "field_mirror.h"
 #include "gpu_scene.h"
 #include "light_pack.h"
+#include "renderer_shadow_cache.h"
 
 namespace pc::client {
 
@@ -37,6 +38,9 @@ struct RendererOptions {
   int sampleFlags = 0;               // PC_SAMPLE_* for the field
   int bricksPerFrame = 32;           // field upload budget per frame
   std::optional<glm::vec3> ambient;  // irradiance where no field covers; default from the sky
+  // Depth-only pass first, then shading with an EQUAL depth test: each sample is shaded once,
+  // whatever the draw order (the shadow lookups dominate a fragment's cost).
+  bool depthPrepass = true;
 };
 
 struct FrameInput {
@@ -58,6 +62,16 @@ struct FrameTimings {
   bool valid = false;
   double uploadMs = 0, shadowMs = 0, mainMs = 0, probeMs = 0, tonemapMs = 0;
   double frameMs() const { return uploadMs + shadowMs + mainMs + probeMs + tonemapMs; }
+};
+
+// What the last recorded frame drew (for benchmarks and tests).
+struct FrameStats {
+  int drawCalls = 0;            // all passes
+  std::uint64_t triangles = 0;  // all passes, per view
+  int lights = 0;               // lights every main-pass fragment loops over
+  int shadowViews = 0;          // shadow map layers the lights use
+  int shadowViewsDrawn = 0;     // of those, redrawn this frame (the rest kept from before)
+  int msaa = 0;                 // samples per pixel of the main pass
 };
 
 class Renderer {
@@ -84,6 +98,8 @@ class Renderer {
   Status endFrame(VkSemaphore wait = VK_NULL_HANDLE, VkSemaphore signal = VK_NULL_HANDLE);
   // Timings of the most recently completed frame.
   const FrameTimings& lastTimings() const { return timings_; }
+  // Counts of the most recently recorded frame.
+  const FrameStats& lastStats() const { return stats_; }
   // The frame slot beginFrame chose (for per-slot objects of the caller, like semaphores).
   int currentSlot() const { return current_; }
   void waitIdle() const;
@@ -132,13 +148,17 @@ class Renderer {
   vk::UniqueDescriptorSetLayout setLayout_;
   vk::UniquePipelineLayout pipelineLayout_;
   vk::UniqueDescriptorPool descriptorPool_;
-  vk::UniquePipeline scenePipeline_, largeShadowPipeline_, smallShadowPipeline_, indirectPipeline_;
+  vk::UniquePipeline scenePipeline_, prepassPipeline_, largeShadowPipeline_, smallShadowPipeline_,
+      indirectPipeline_;
   std::map<VkFormat, vk::UniquePipeline> tonemapPipelines_;
 
   std::optional<vk::CommandPool> commandPool_;
   std::vector<std::unique_ptr<Slot>> slots_;
   int current_ = -1;
   FrameTimings timings_;
+  FrameStats stats_;
+  ShadowCache shadowCache_;
+  std::vector<LocalBounds> drawBounds_;  // per draw, object space
   vk::Buffer readback_;
 };
 

@@ -1,6 +1,7 @@
 // Client renderer on lavapipe with validation: golden images against the CPU probe-lit render
 // of the same field and camera and against the path-traced reference, stereo against mono.
 #include <cstdio>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "cpu/probe_lit_render.h"
 #include "test_client_support.h"
@@ -115,6 +116,90 @@ TEST(ClientFallback, NoFieldGivesAnAmbientLitImage) {
   double sum = 0;
   for (const glm::vec3& p : frame.linear[0].pixels) sum += p.x + p.y + p.z;
   EXPECT_GT(sum, 0.0);
+}
+
+// Renders frames at the given times with one renderer; returns the last frame's images and
+// the number of shadow layers each frame redrew.
+struct CachedRun {
+  std::vector<int> drawn;
+  int layers = 0;
+  Renderer::Readback last;
+};
+CachedRun renderAt(vk::Context& ctx, const Scene& scene, const Camera& camera,
+                   std::initializer_list<double> times) {
+  FieldMirror mirror;
+  RendererOptions ro;
+  ro.width = 96;
+  ro.height = 72;
+  auto renderer = Renderer::create(ctx, scene, mirror, ro);
+  EXPECT_TRUE(renderer.ok()) << (renderer ? "" : renderer.error().message);
+  CachedRun run;
+  if (!renderer) return run;
+  for (double t : times) {
+    FrameInput input;
+    input.time = t;
+    input.cameras[0] = camera;
+    auto frame = (*renderer)->renderOffscreen(input);
+    EXPECT_TRUE(frame.ok());
+    if (!frame) return run;
+    run.drawn.push_back((*renderer)->lastStats().shadowViewsDrawn);
+    run.layers = (*renderer)->lastStats().shadowViews;
+    run.last = std::move(frame).value();
+  }
+  return run;
+}
+
+TEST(ClientShadowCache, StillFramesReuseShadowMaps) {
+  const Scene scene = builtinScene();
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  auto camera = sceneCamera(scene, 0);
+  ASSERT_TRUE(camera.ok());
+  // The same moment three times, a moved light, then still again.
+  const CachedRun run = renderAt(*ctx, scene, *camera, {0.0, 0.0, 0.0, 1.0, 1.0});
+  ASSERT_EQ(run.drawn.size(), 5u);
+  EXPECT_GT(run.layers, 0);
+  EXPECT_EQ(run.drawn[0], run.layers);
+  EXPECT_EQ(run.drawn[1], 0);
+  EXPECT_EQ(run.drawn[2], 0);
+  EXPECT_EQ(run.drawn[3], run.layers);  // the ceiling light moved: its whole cube
+  EXPECT_EQ(run.drawn[4], 0);
+  // Kept shadow maps give the image a fresh renderer draws at that moment.
+  const CachedRun fresh = renderAt(*ctx, scene, *camera, {1.0});
+  ASSERT_EQ(run.last.display.size(), 1u);
+  ASSERT_EQ(fresh.last.display.size(), 1u);
+  EXPECT_EQ(run.last.display[0].rgb, fresh.last.display[0].rgb);
+  EXPECT_EQ(ctx->validationErrorCount(), 0u);
+}
+
+TEST(ClientShadowCache, MovingCasterRedrawsOnlyTheFacesItTouches) {
+  Scene scene = builtinScene();
+  for (Light& l : scene.lights) l.animation = -1;  // only the short block turns
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  auto camera = sceneCamera(scene, 0);
+  ASSERT_TRUE(camera.ok());
+  const CachedRun run = renderAt(*ctx, scene, *camera, {0.0, 1.0, 2.0});
+  ASSERT_EQ(run.drawn.size(), 3u);
+  EXPECT_EQ(run.drawn[0], run.layers);
+  // The block sits low beside the light: some cube faces see it, not all six.
+  EXPECT_GT(run.drawn[1], 0);
+  EXPECT_LT(run.drawn[1], run.layers);
+  const CachedRun fresh = renderAt(*ctx, scene, *camera, {2.0});
+  ASSERT_EQ(run.last.display.size(), 1u);
+  ASSERT_EQ(fresh.last.display.size(), 1u);
+  EXPECT_EQ(run.last.display[0].rgb, fresh.last.display[0].rgb);
+  EXPECT_EQ(ctx->validationErrorCount(), 0u);
+}
+
+TEST(ClientShadowCache, BoxFrustumTest) {
+  // An orthographic light looking down -z over x, y in [-1, 1], depth 0..10.
+  const glm::mat4 m = glm::orthoRH_ZO(-1.0f, 1.0f, -1.0f, 1.0f, 0.0f, 10.0f);
+  EXPECT_TRUE(boxTouchesFrustum(m, {-0.5f, -0.5f, -2.0f}, {0.5f, 0.5f, -1.0f}));
+  EXPECT_TRUE(boxTouchesFrustum(m, {0.9f, 0.9f, -2.0f}, {3.0f, 3.0f, -1.0f}));  // partly in
+  EXPECT_FALSE(boxTouchesFrustum(m, {1.5f, -0.5f, -2.0f}, {2.0f, 0.5f, -1.0f}));
+  EXPECT_FALSE(boxTouchesFrustum(m, {-0.5f, -0.5f, 1.0f}, {0.5f, 0.5f, 2.0f}));  // behind
+  EXPECT_FALSE(boxTouchesFrustum(m, {-0.5f, -0.5f, -20.0f}, {0.5f, 0.5f, -12.0f}));  // past far
 }
 
 }  // namespace

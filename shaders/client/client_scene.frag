@@ -55,8 +55,11 @@ int cubeFace(vec3 v) {
 }
 
 // Share of the light that reaches P, from the light's shadow map with 3x3 percentage-closer
-// filtering (each tap a bilinear 2x2 comparison). The receiver moves along its normal by a
-// texel's footprint so surfaces do not shadow themselves.
+// filtering: the mean of nine bilinear 2x2 comparisons one texel apart. Those nine taps cover
+// a 4x4 block of texels with per-axis weights (1 - f, 1, 1, f) (f: the bilinear fraction),
+// so four gathered comparisons of that block, weighted here, give the same filter with four
+// fetches instead of nine. The receiver moves along its normal by a texel's footprint so
+// surfaces do not shadow themselves.
 float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
   if (l.shadowLayer < 0) return 1.0;
   bool perspective = l.type != PC_LIGHT_DIRECTIONAL;
@@ -74,13 +77,21 @@ float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
   vec2 uv = ndc.xy * 0.5 + 0.5;
   if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0))) || ndc.z >= 1.0) return 1.0;
   float ref = ndc.z - l.depthBias;
-  float sum = 0.0;
-  for (int dy = -1; dy <= 1; ++dy) {
-    for (int dx = -1; dx <= 1; ++dx) {
-      vec2 tap = uv + vec2(float(dx), float(dy)) * l.shadowTexel;
-      sum += texture(shadowMaps[l.shadowArray], vec4(tap, float(layer), ref));
-    }
-  }
+  vec3 coord = vec3(uv, float(layer));
+  // Gather components: x (low u, high v), y (high u, high v), z (high u, low v), w (low, low).
+  vec4 a = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(-1, -1));
+  vec4 b = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(1, -1));
+  vec4 c = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(-1, 1));
+  vec4 d = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(1, 1));
+  vec4 all4 = a + b + c + d;
+  float total = all4.x + all4.y + all4.z + all4.w;
+  if (total == 0.0 || total == 16.0) return total / 16.0;  // fully shadowed or fully lit
+  vec2 f = fract(uv / l.shadowTexel - 0.5);
+  vec2 lo = 1.0 - f;  // weight of the lowest texel row/column; the middle two weigh 1
+  float sum = dot(a, vec4(lo.x, 1.0, 1.0, lo.x) * vec4(1.0, 1.0, lo.y, lo.y)) +
+              dot(b, vec4(1.0, f.x, f.x, 1.0) * vec4(1.0, 1.0, lo.y, lo.y)) +
+              dot(c, vec4(lo.x, 1.0, 1.0, lo.x) * vec4(f.y, f.y, 1.0, 1.0)) +
+              dot(d, vec4(1.0, f.x, f.x, 1.0) * vec4(f.y, f.y, 1.0, 1.0));
   return sum / 9.0;
 }
 

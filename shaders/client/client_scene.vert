@@ -12,6 +12,9 @@ layout(location = 0) out vec3 outWorld;
 layout(location = 1) out vec3 outNormal;
 layout(location = 2) out vec2 outUv;
 layout(location = 3) flat out int outDraw;
+// The depth pre-pass and the shading pass run this shader in two pipelines; their depths must
+// match bit for bit for the shading pass's EQUAL test.
+invariant gl_Position;
 
 void main() {
   DrawData d = draws[gl_InstanceIndex];

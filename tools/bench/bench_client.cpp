@@ -30,7 +30,9 @@ Benchmark addClient(CLI::App& app) {
   static std::string scenePath = "builtin", sidecar, outDir;
   static RenderSetup setup;
   static int speedWidth = 1920, speedHeight = 1080, frames = 5, areaLights = 16;
-  static bool validation = false;
+  static bool validation = false, speedOnly = false, noPrepass = false;
+  static double dt = 0.0;
+  static int msaa = 4;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
   cmd->add_option("--out", outDir, "write the images here");
@@ -39,6 +41,11 @@ Benchmark addClient(CLI::App& app) {
   cmd->add_option("--frames", frames, "timed frames (after 2 warm-up frames)");
   cmd->add_option("--area-lights", areaLights, "virtual point lights standing in for emitters");
   cmd->add_flag("--validation", validation, "Vulkan validation layer on");
+  cmd->add_flag("--speed-only", speedOnly, "skip the quality comparisons (no CPU renders)");
+  cmd->add_option("--dt", dt,
+                  "animation seconds between timed frames (0: a still scene, shadow maps cached)");
+  cmd->add_flag("--no-prepass", noPrepass, "main pass without the depth pre-pass");
+  cmd->add_option("--msaa", msaa, "main pass samples per pixel (2, 4, 8)");
   addRenderOptions(*cmd, setup);
   return {
       cmd, [] {
@@ -72,64 +79,69 @@ Benchmark addClient(CLI::App& app) {
         mirror.reset(*field, 0.0);
         client::RendererOptions ro;
         ro.shadows.areaLights = areaLights;
-
-        // ---- quality ----
-        ro.width = setup.width;
-        ro.height = setup.height;
+        ro.msaa = msaa;
+        ro.depthPrepass = !noPrepass;
+        double vsCpu = 0, vsRef = 0, cpuVsRef = 0, stereoDb = 0;
+        int areaLightCount = 0;
         client::FrameInput input;
         input.cameras[0] = *camera;
-        auto small = client::Renderer::create(**ctx, *scene, mirror, ro);
-        if (!small) {
-          std::printf("client: renderer: %s\n", small.error().message.c_str());
-          return 1;
-        }
-        auto mono = (*small)->renderOffscreen(input);
-        const int areaLightCount = (*small)->areaLightCount();
-        small->reset();
-        ro.views = 2;
-        client::FrameInput stereoInput;
-        const float ipd = 0.064f;
-        stereoInput.cameras[0] = *camera;
-        stereoInput.cameras[1] = client::offsetCamera(*camera, ipd);
-        auto stereoRenderer = client::Renderer::create(**ctx, *scene, mirror, ro);
-        if (!stereoRenderer) {
-          std::printf("client: renderer: %s\n", stereoRenderer.error().message.c_str());
-          return 1;
-        }
-        auto stereo = (*stereoRenderer)->renderOffscreen(stereoInput);
-        stereoRenderer->reset();
-        if (!mono || !stereo) {
-          std::printf("client: frame failed: %s\n",
-                      (!mono ? mono : stereo).error().message.c_str());
-          return 1;
-        }
-        ProbeLitOptions lit;
-        lit.width = setup.width;
-        lit.height = setup.height;
-        lit.primarySamples = std::max(setup.primarySamples, 8);
-        lit.emissiveSamples = setup.emissiveSamples;
-        lit.explicitCamera = *camera;
-        auto cpu = renderProbeLit(*scene, *field, lit);
-        auto reference = cachedReference(*scene, *camera, setup);
-        if (!cpu || !reference) {
-          std::printf("client: %s\n", (!cpu ? cpu.error() : reference.error()).message.c_str());
-          return 1;
-        }
-        const Image8 cpu8 = tonemap(*cpu, scene->exposure);
-        const Image8 ref8 = tonemap(reference->image, scene->exposure);
-        const double vsCpu = psnr8(mono->display[0], cpu8);
-        const double vsRef = psnr8(mono->display[0], ref8);
-        const double cpuVsRef = psnr8(cpu8, ref8);
-        const double stereoDb = psnr8(stereo->display[0], mono->display[0]);
-        if (!outDir.empty()) {
-          fs::create_directories(outDir);
-          writePng(fs::path(outDir) / "client.png", mono->display[0]);
-          writePng(fs::path(outDir) / "cpu_probe_lit.png", cpu8);
-          writePng(fs::path(outDir) / "reference.png", ref8);
-          writePng(fs::path(outDir) / "diff_client_cpu.png",
-                   differenceImage(mono->display[0], cpu8));
-          writePng(fs::path(outDir) / "stereo_right.png", stereo->display[1]);
-        }
+        if (!speedOnly) {
+          // ---- quality ----
+          ro.width = setup.width;
+          ro.height = setup.height;
+          auto small = client::Renderer::create(**ctx, *scene, mirror, ro);
+          if (!small) {
+            std::printf("client: renderer: %s\n", small.error().message.c_str());
+            return 1;
+          }
+          auto mono = (*small)->renderOffscreen(input);
+          areaLightCount = (*small)->areaLightCount();
+          small->reset();
+          ro.views = 2;
+          client::FrameInput stereoInput;
+          const float ipd = 0.064f;
+          stereoInput.cameras[0] = *camera;
+          stereoInput.cameras[1] = client::offsetCamera(*camera, ipd);
+          auto stereoRenderer = client::Renderer::create(**ctx, *scene, mirror, ro);
+          if (!stereoRenderer) {
+            std::printf("client: renderer: %s\n", stereoRenderer.error().message.c_str());
+            return 1;
+          }
+          auto stereo = (*stereoRenderer)->renderOffscreen(stereoInput);
+          stereoRenderer->reset();
+          if (!mono || !stereo) {
+            std::printf("client: frame failed: %s\n",
+                        (!mono ? mono : stereo).error().message.c_str());
+            return 1;
+          }
+          ProbeLitOptions lit;
+          lit.width = setup.width;
+          lit.height = setup.height;
+          lit.primarySamples = std::max(setup.primarySamples, 8);
+          lit.emissiveSamples = setup.emissiveSamples;
+          lit.explicitCamera = *camera;
+          auto cpu = renderProbeLit(*scene, *field, lit);
+          auto reference = cachedReference(*scene, *camera, setup);
+          if (!cpu || !reference) {
+            std::printf("client: %s\n", (!cpu ? cpu.error() : reference.error()).message.c_str());
+            return 1;
+          }
+          const Image8 cpu8 = tonemap(*cpu, scene->exposure);
+          const Image8 ref8 = tonemap(reference->image, scene->exposure);
+          vsCpu = psnr8(mono->display[0], cpu8);
+          vsRef = psnr8(mono->display[0], ref8);
+          cpuVsRef = psnr8(cpu8, ref8);
+          stereoDb = psnr8(stereo->display[0], mono->display[0]);
+          if (!outDir.empty()) {
+            fs::create_directories(outDir);
+            writePng(fs::path(outDir) / "client.png", mono->display[0]);
+            writePng(fs::path(outDir) / "cpu_probe_lit.png", cpu8);
+            writePng(fs::path(outDir) / "reference.png", ref8);
+            writePng(fs::path(outDir) / "diff_client_cpu.png",
+                     differenceImage(mono->display[0], cpu8));
+            writePng(fs::path(outDir) / "stereo_right.png", stereo->display[1]);
+          }
+        }  // quality
 
         // ---- speed ----
         ro.views = 1;
@@ -140,9 +152,13 @@ Benchmark addClient(CLI::App& app) {
           std::printf("client: renderer: %s\n", big.error().message.c_str());
           return 1;
         }
-        std::vector<double> frameMs, probeMs, shadowMs, mainMs;
+        areaLightCount = (*big)->areaLightCount();
+        std::vector<double> frameMs, probeMs, shadowMs, mainMs, uploadMs, tonemapMs, redrawn;
+        client::FrameStats stats;
         for (int f = 0; f < frames + 2; ++f) {
+          input.time = f * dt;
           auto r = (*big)->renderOffscreen(input);
+          stats = (*big)->lastStats();
           if (!r) {
             std::printf("client: frame failed: %s\n", r.error().message.c_str());
             return 1;
@@ -153,6 +169,9 @@ Benchmark addClient(CLI::App& app) {
           probeMs.push_back(t.probeMs);
           shadowMs.push_back(t.shadowMs);
           mainMs.push_back(t.mainMs);
+          uploadMs.push_back(t.uploadMs);
+          tonemapMs.push_back(t.tonemapMs);
+          redrawn.push_back(stats.shadowViewsDrawn);
         }
         big->reset();
 
@@ -161,15 +180,17 @@ Benchmark addClient(CLI::App& app) {
         std::printf("scene %s, %d cascade(s), %d probes, %d emitter lights (area-light VPLs)\n",
                     sceneSlug(*scene).c_str(), field->cascadeCount(), field->probeCount(),
                     areaLightCount);
-        std::printf(
-            "%-34s %10s\n",
-            ("quality (" + std::to_string(setup.width) + "x" + std::to_string(setup.height) + ")")
-                .c_str(),
-            "PSNR dB");
-        std::printf("%-34s %10.2f\n", "client vs CPU probe-lit", vsCpu);
-        std::printf("%-34s %10.2f\n", "client vs path-traced reference", vsRef);
-        std::printf("%-34s %10.2f\n", "CPU probe-lit vs reference", cpuVsRef);
-        std::printf("%-34s %10.2f\n", "stereo left eye vs mono", stereoDb);
+        if (!speedOnly) {
+          std::printf(
+              "%-34s %10s\n",
+              ("quality (" + std::to_string(setup.width) + "x" + std::to_string(setup.height) + ")")
+                  .c_str(),
+              "PSNR dB");
+          std::printf("%-34s %10.2f\n", "client vs CPU probe-lit", vsCpu);
+          std::printf("%-34s %10.2f\n", "client vs path-traced reference", vsRef);
+          std::printf("%-34s %10.2f\n", "CPU probe-lit vs reference", cpuVsRef);
+          std::printf("%-34s %10.2f\n", "stereo left eye vs mono", stereoDb);
+        }
         std::printf("%-34s %10s\n",
                     ("GPU ms at " + std::to_string(speedWidth) + "x" + std::to_string(speedHeight) +
                      " (median of " + std::to_string(frameMs.size()) + ")")
@@ -179,11 +200,20 @@ Benchmark addClient(CLI::App& app) {
         std::printf("%-34s %10.3f\n", "  shadow maps", median(shadowMs));
         std::printf("%-34s %10.3f\n", "  main pass (direct + G-buffer)", median(mainMs));
         std::printf("%-34s %10.3f\n", "  probe-sampling pass", median(probeMs));
+        std::printf("%-34s %10.3f\n", "  field uploads", median(uploadMs));
+        std::printf("%-34s %10.3f\n", "  tone mapping", median(tonemapMs));
+        std::printf(
+            "per frame (%s): %d draw calls, %llu triangles (all passes), %d lights per "
+            "fragment, %d shadow layers (%g redrawn, median), %dx MSAA\n",
+            dt > 0 ? "animated" : "still", stats.drawCalls, (unsigned long long)stats.triangles,
+            stats.lights, stats.shadowViews, median(redrawn), stats.msaa);
         if ((*ctx)->validationErrorCount() > 0)
           std::printf("validation errors: %u\n", (*ctx)->validationErrorCount());
-        figure("psnr_client_vs_reference", vsRef, "dB");
-        figure("psnr_client_vs_cpu", vsCpu, "dB");
-        figure("psnr_stereo_left_vs_mono", stereoDb, "dB");
+        if (!speedOnly) {
+          figure("psnr_client_vs_reference", vsRef, "dB");
+          figure("psnr_client_vs_cpu", vsCpu, "dB");
+          figure("psnr_stereo_left_vs_mono", stereoDb, "dB");
+        }
         figure("frame_ms", median(frameMs), "ms");
         figure("probe_pass_ms", median(probeMs), "ms");
         return 0;
