@@ -1,6 +1,7 @@
 #include "renderer.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 
@@ -211,7 +212,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   if (!gpuScene) return gpuScene.error();
   r->gpuScene_.emplace(std::move(gpuScene).value());
 
-  auto field = FieldGpu::create(ctx, mirror.desc(), kFrameSlots, options.bricksPerFrame);
+  auto field = FieldGpu::create(ctx, mirror.desc(), kFrameSlots, options.bricksPerFrame,
+                                options.fieldFadeSeconds);
   if (!field) return field.error();
   r->field_.emplace(std::move(field).value());
   // The field present at start-up (a baked file) goes up before the first frame; later bricks
@@ -726,11 +728,17 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   };
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &slot.set, 0,
                           nullptr);
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &slot.set, 0, nullptr);
 
   timer.reset(cmd);
   timer.begin(cmd, "upload");
-  field_->recordUploads(cmd, current_, *mirror_);
+  const double clock =
+      input.clock
+          ? *input.clock
+          : std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+                .count();
+  const FieldUploadStats uploads = field_->recordUploads(cmd, current_, *mirror_, clock);
+  stats_.bricksUploaded = uploads.bricks;
+  stats_.bricksFading = uploads.fading;
   timer.end(cmd);
 
   // ---- shadow maps (only the layers whose light or casters changed: ShadowCache) ----
@@ -889,6 +897,8 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
 
   // ---- probe-sampling pass ----
   timer.begin(cmd, "probe");
+  // Bound here: the field's write pass binds its own compute set during the uploads.
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &slot.set, 0, nullptr);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, indirectPipeline_.get());
   vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, std::uint32_t(options_.views));
   timer.end(cmd);

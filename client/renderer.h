@@ -37,6 +37,7 @@ struct RendererOptions {
   ShadowSettings shadows;
   int sampleFlags = 0;               // PC_SAMPLE_* for the field
   int bricksPerFrame = 32;           // field upload budget per frame
+  double fieldFadeSeconds = 0.15;    // a changed brick fades in over this long (0: at once)
   std::optional<glm::vec3> ambient;  // irradiance where no field covers; default from the sky
   // Depth-only pass first, then shading with an EQUAL depth test: each sample is shaded once,
   // whatever the draw order (the shadow lookups dominate a fragment's cost).
@@ -47,6 +48,8 @@ struct FrameInput {
   double time = 0.0;                 // animation time (lights and instances move)
   std::array<Camera, 2> cameras;     // [0] mono or left eye, [1] right eye
   std::vector<std::string> overlay;  // text lines; empty: no overlay
+  // Seconds on the clock that paces field fades; unset: a steady clock (wall time).
+  std::optional<double> clock;
 };
 
 // Where tone mapping writes: an 8-bit UNORM color image with one layer per view.
@@ -66,6 +69,8 @@ struct FrameTimings {
 
 // What the last recorded frame drew (for benchmarks and tests).
 struct FrameStats {
+  int bricksUploaded = 0;       // field bricks staged this frame
+  int bricksFading = 0;         // field bricks still fading in
   int drawCalls = 0;            // all passes
   std::uint64_t triangles = 0;  // all passes, per view
   int lights = 0;               // lights every main-pass fragment loops over
@@ -98,6 +103,8 @@ class Renderer {
   Status endFrame(VkSemaphore wait = VK_NULL_HANDLE, VkSemaphore signal = VK_NULL_HANDLE);
   // Timings of the most recently completed frame.
   const FrameTimings& lastTimings() const { return timings_; }
+  // The field's GPU copy (tests read its atlases back).
+  const FieldGpu& fieldGpu() const { return *field_; }
   // Counts of the most recently recorded frame.
   const FrameStats& lastStats() const { return stats_; }
   // The frame slot beginFrame chose (for per-slot objects of the caller, like semaphores).

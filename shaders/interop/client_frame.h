@@ -97,6 +97,30 @@ struct GpuLight {
   // -- 80
 };
 
+// The field-write pass (client_field_write.comp, its own descriptor set): writes whole
+// bordered tiles of the listed bricks from their interiors (borders derived on the GPU), each
+// texel moved `weight` of the way from what the atlas holds toward the brick's new value.
+PC_CONST int PC_FW_BIND_FIELD_DESC = 0;        // uniform FieldDesc
+PC_CONST int PC_FW_BIND_WRITES = 1;            // buffer FieldWrite[]
+PC_CONST int PC_FW_BIND_IRRADIANCE_NEW = 2;    // buffer vec4[]: per probe slot n*n interior texels
+PC_CONST int PC_FW_BIND_DEPTH_NEW = 3;         // buffer vec2[]
+PC_CONST int PC_FW_BIND_OCCLUSION_NEW = 4;     // buffer float[]
+PC_CONST int PC_FW_BIND_IRRADIANCE_HELD = 5;   // sampler2D: the atlases as they are
+PC_CONST int PC_FW_BIND_DEPTH_HELD = 6;
+PC_CONST int PC_FW_BIND_OCCLUSION_HELD = 7;
+PC_CONST int PC_FW_BIND_IRRADIANCE_OUT = 8;    // image2D (written without a format)
+PC_CONST int PC_FW_BIND_DEPTH_OUT = 9;
+PC_CONST int PC_FW_BIND_OCCLUSION_OUT = 10;
+PC_CONST int PC_FW_BINDING_COUNT = 11;
+PC_CONST int PC_FW_GROUP_SIZE = 64;  // threads per probe tile set
+
+struct FieldWrite {
+  int cascade;
+  int brick;
+  float weight;  // 1: the new value exactly; below 1: part of the way (fading in)
+  int pad0;
+};
+
 // Overlay text: `lines` x `columns` character codes (ASCII), one per uint, drawn with the
 // 5x7 font in `glyphs` (7 rows of 5 bits per glyph, glyphs for codes 32..127).
 PC_CONST int PC_OVERLAY_COLUMNS = 48;
@@ -118,6 +142,7 @@ static_assert(sizeof(pc::gpu::ClientView) == 144);
 static_assert(sizeof(pc::gpu::FrameUniforms) == 384);
 static_assert(sizeof(pc::gpu::DrawData) == 176);
 static_assert(sizeof(pc::gpu::GpuLight) == 80);
+static_assert(sizeof(pc::gpu::FieldWrite) == 16);
 static_assert(sizeof(pc::gpu::OverlayText) ==
               4 * (pc::gpu::PC_FONT_GLYPHS * pc::gpu::PC_FONT_ROWS +
                    pc::gpu::PC_OVERLAY_MAX_LINES * pc::gpu::PC_OVERLAY_COLUMNS));
