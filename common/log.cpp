@@ -21,6 +21,7 @@ std::mutex& outputMutex() {
   return m;
 }
 std::atomic<LogLevel> gLevel{LogLevel::Info};
+std::atomic<LogFormat> gFormat{LogFormat::Text};
 // True while a terminal progress bar occupies the current line (guarded by outputMutex).
 bool gBarOnLine = false;
 
@@ -38,18 +39,70 @@ const char* levelName(LogLevel level) {
   return "?";
 }
 
-// Local wall-clock time with milliseconds: "2024-05-01 12:34:56.789".
-std::string timestamp() {
+// Text: local wall-clock time with milliseconds, "2024-05-01 12:34:56.789". JSON: UTC in
+// RFC 3339, "2024-05-01T10:34:56.789Z", which collectors parse without knowing the zone.
+std::string timestamp(LogFormat format) {
   using namespace std::chrono;
   auto now = system_clock::now();
   std::time_t t = system_clock::to_time_t(now);
   int ms = int(duration_cast<milliseconds>(now.time_since_epoch()).count() % 1000);
   std::tm tm{};
-  localtime_r(&t, &tm);
   char buf[40];
-  std::size_t n = std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
-  std::snprintf(buf + n, sizeof buf - n, ".%03d", ms);
+  std::size_t n = 0;
+  if (format == LogFormat::Json) {
+    gmtime_r(&t, &tm);
+    n = std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
+    std::snprintf(buf + n, sizeof buf - n, ".%03dZ", ms);
+  } else {
+    localtime_r(&t, &tm);
+    n = std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
+    std::snprintf(buf + n, sizeof buf - n, ".%03d", ms);
+  }
   return buf;
+}
+
+void appendJsonString(std::string& out, std::string_view s) {
+  out.push_back('"');
+  for (const char c : s) {
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          char esc[8];
+          std::snprintf(esc, sizeof esc, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
+          out += esc;
+        } else {
+          out.push_back(c);
+        }
+    }
+  }
+  out.push_back('"');
+}
+
+// logfmt: a value with spaces, quotes, '=' or control characters is quoted and escaped.
+void appendTextValue(std::string& out, std::string_view v) {
+  const bool plain = !v.empty() && std::all_of(v.begin(), v.end(), [](char c) {
+    return static_cast<unsigned char>(c) > 0x20 && c != '"' && c != '=' && c != '\\';
+  });
+  if (plain) {
+    out.append(v);
+  } else {
+    appendJsonString(out, v);
+  }
 }
 
 // "42s", "3m07s", "2h05m".
@@ -77,11 +130,66 @@ void clearBarLocked() {
 }  // namespace
 
 void setLogLevel(LogLevel level) { gLevel.store(level, std::memory_order_relaxed); }
+void setLogFormat(LogFormat format) { gFormat.store(format, std::memory_order_relaxed); }
 
-void log(LogLevel level, std::string_view message) {
-  if (level < gLevel.load(std::memory_order_relaxed)) return;
-  std::string line = "[" + timestamp() + "] [" + levelName(level) + "] ";
+std::optional<LogLevel> parseLogLevel(std::string_view name) {
+  for (LogLevel l : {LogLevel::Debug, LogLevel::Info, LogLevel::Warn, LogLevel::Error}) {
+    if (name == levelName(l)) return l;
+  }
+  return std::nullopt;
+}
+
+std::optional<LogFormat> parseLogFormat(std::string_view name) {
+  if (name == "text") return LogFormat::Text;
+  if (name == "json") return LogFormat::Json;
+  return std::nullopt;
+}
+
+std::string formatLogLine(LogFormat format, std::string_view time, LogLevel level,
+                          std::string_view message, std::initializer_list<LogField> fields) {
+  std::string line;
+  line.reserve(64 + message.size());
+  if (format == LogFormat::Json) {
+    line.append("{\"ts\":");
+    appendJsonString(line, time);
+    line += ",\"level\":\"";
+    line += levelName(level);
+    line += "\",\"msg\":";
+    appendJsonString(line, message);
+    for (const LogField& f : fields) {
+      line.push_back(',');
+      appendJsonString(line, f.key);
+      line.push_back(':');
+      if (f.number) {
+        line += f.value;
+      } else {
+        appendJsonString(line, f.value);
+      }
+    }
+    line.push_back('}');
+    return line;
+  }
+  line.push_back('[');
+  line.append(time);
+  line += "] [";
+  line += levelName(level);
+  line += "] ";
   line.append(message);
+  for (const LogField& f : fields) {
+    line.push_back(' ');
+    line.append(f.key);
+    line.push_back('=');
+    appendTextValue(line, f.value);
+  }
+  return line;
+}
+
+void log(LogLevel level, std::string_view message) { logEvent(level, message, {}); }
+
+void logEvent(LogLevel level, std::string_view message, std::initializer_list<LogField> fields) {
+  if (level < gLevel.load(std::memory_order_relaxed)) return;
+  const LogFormat format = gFormat.load(std::memory_order_relaxed);
+  std::string line = formatLogLine(format, timestamp(format), level, message, fields);
   line.push_back('\n');
   std::lock_guard lock(outputMutex());
   clearBarLocked();  // the bar is redrawn by the next advance()
@@ -138,7 +246,10 @@ void Progress::print(bool final) {
     gBarOnLine = !final;
     if (final) std::fputc('\n', stderr);
   } else {
-    std::fprintf(stderr, "[%s] [info] %s: %s\n", timestamp().c_str(), label_.c_str(), stats);
+    const LogFormat format = gFormat.load(std::memory_order_relaxed);
+    const std::string line =
+        formatLogLine(format, timestamp(format), LogLevel::Info, label_ + ": " + stats, {});
+    std::fprintf(stderr, "%s\n", line.c_str());
   }
   std::fflush(stderr);
 }
