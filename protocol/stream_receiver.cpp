@@ -19,6 +19,12 @@ StreamReceiver::StreamReceiver(Field field, std::uint32_t sessionId, ReceiverOpt
       reassembler_(options.reassembly) {
   bricks_.resize(field_.cascadeCount());
   for (int k = 0; k < field_.cascadeCount(); ++k) bricks_[k].resize(field_.brickVersions[k].size());
+  if (!options_.keepField) {
+    for (Atlas* a : {&field_.irradiance, &field_.depth, &field_.occlusion}) {
+      a->texels.clear();
+      a->texels.shrink_to_fit();
+    }
+  }
 }
 
 double StreamReceiver::brickAge(int cascade, int brick, double now) const {
@@ -82,23 +88,30 @@ Status StreamReceiver::apply(const CompletedUpdate& u, double now) {
     ++stats_.stale;
     return Status::success();
   }
-  const QuantizedBrick* base = nullptr;
+  std::shared_ptr<const QuantizedBrick> base;
   if (u.update.baseVersion != 0) {
     if (u.update.baseVersion != b.version) {
       ++stats_.missingBase;
       requestRepair(b);
       return Status::success();
     }
-    base = &b.content;
+    base = b.content;
   }
-  auto q = decodeBrick(u.payload, base);
+  Result<std::shared_ptr<const QuantizedBrick>> q = Error{};
+  if (options_.decoder) {
+    q = options_.decoder->decode(u.update, u.payload, base);
+  } else if (auto decoded = decodeBrick(u.payload, base.get())) {
+    q = std::make_shared<const QuantizedBrick>(std::move(decoded).value());
+  } else {
+    q = decoded.error();
+  }
   if (!q) {
     ++stats_.decodeErrors;
     stats_.lastError = q.error().message;
     requestRepair(b);
     return q.error();
   }
-  applyBrick(field_, u.update.cascade, int(u.update.brick), *q);
+  if (options_.keepField) applyBrick(field_, u.update.cascade, int(u.update.brick), **q);
   b.content = std::move(q.value());
   b.version = u.update.version;
   b.appliedAt = now;

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <utility>
@@ -23,11 +24,28 @@
 
 namespace pc {
 
+// Turns an update's payload into the brick's codes. The default decodes every payload; a
+// process holding many receivers (probecast-loadgen) may share decoded codes between them,
+// since the same payload on the same base always decodes to the same codes.
+class BrickDecoder {
+ public:
+  virtual ~BrickDecoder() = default;
+  // `base` is null for a self-contained payload, else the codes of the version held.
+  virtual Result<std::shared_ptr<const QuantizedBrick>> decode(
+      const UpdateHeader& update, std::span<const std::uint8_t> payload,
+      const std::shared_ptr<const QuantizedBrick>& base) = 0;
+};
+
 struct ReceiverOptions {
   double ackInterval = 0.02;     // s: changes are acknowledged at most this often
   double fullAckInterval = 1.0;  // s: every held version is acknowledged this often
   double repairInterval = 0.2;   // s: per brick, at most one repair request this often
   ReassemblyOptions reassembly;
+  // False: only each brick's codes (the residual bases) are kept, not the decoded field: the
+  // atlases are released and field() holds the layout, probe records and brick versions only.
+  // For clients that never render (probecast-loadgen): a decoded field costs megabytes.
+  bool keepField = true;
+  BrickDecoder* decoder = nullptr;  // null: decodeBrick for every payload; must outlive this
 };
 
 struct ReceiverStats {
@@ -72,7 +90,7 @@ class StreamReceiver {
   struct BrickState {
     std::uint64_t version = 0;
     double appliedAt = 0;
-    QuantizedBrick content;  // codes of `version`: the base for residuals
+    std::shared_ptr<const QuantizedBrick> content;  // codes of `version`: residuals' base
     double repairAt = -1e30;
     bool wantRepair = false;
     bool ackDirty = false;

@@ -1,0 +1,789 @@
+#include "load_generator.h"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <boost/asio.hpp>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <fstream>
+#include <functional>
+#include <future>
+#include <mutex>
+#include <optional>
+#include <random>
+#include <thread>
+
+#include "protocol/net_framing.h"
+#include "protocol/session_messages.h"
+#include "protocol/stream_receiver.h"
+#include "shared_decoder.h"
+
+namespace pc::load {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using asio::ip::udp;
+using Bytes = std::vector<std::uint8_t>;
+
+namespace {
+
+double nowSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+// A client sends only small messages; more than this queued means the server is not reading.
+constexpr std::size_t kMaxWriteQueueBytes = 1u << 20;
+// UDP datagrams that arrive before SessionInfo (the server sends them as soon as the Hello is
+// in, while Welcome and SessionInfo are still on their way over TCP) are kept this many.
+constexpr std::size_t kMaxEarlyDatagrams = 64;
+// Publish times of this many recent field versions are kept per client.
+constexpr std::size_t kMaxVersions = 1024;
+// Applied updates whose publish time has not arrived yet wait this long, then count as
+// unmatched.
+constexpr double kPendingSeconds = 2.0;
+constexpr double kStalenessSampleInterval = 0.1;
+constexpr double kErrorRetryDelay = 0.5;
+
+double residentMb() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  }
+  return 0;
+}
+
+}  // namespace
+
+class Client;
+
+struct Worker {
+  asio::io_context io;
+  asio::steady_timer timer{io};
+  std::vector<std::unique_ptr<Client>> clients;
+  std::thread thread;
+  bool stopping = false;
+};
+
+struct LoadGenerator::Impl {
+  explicit Impl(LoadOptions o) : options(std::move(o)) {}
+
+  void noteError(const std::string& message) {
+    ++errors;
+    std::lock_guard lock(mutex);
+    if (errorSamples.size() < 10 &&
+        std::find(errorSamples.begin(), errorSamples.end(), message) == errorSamples.end())
+      errorSamples.push_back(message);
+  }
+  void scheduleTick(Worker& w);
+  // Runs fn(worker) on every worker's own thread (or here once the threads are gone) and
+  // waits, so reports and windows never race the clients' handlers.
+  void onEveryWorker(const std::function<void(Worker&)>& fn);
+
+  LoadOptions options;
+  tcp::endpoint endpoint;
+  std::unique_ptr<SharedBrickDecoder> decoder;
+  std::vector<std::unique_ptr<Worker>> workers;
+  bool running = false;
+  double windowStart = 0;
+
+  std::atomic<std::uint64_t> sessionsStarted{0}, sessionsEnded{0}, errors{0};
+  std::atomic<int> inSession{0}, synced{0};
+  std::mutex mutex;  // errorSamples and the layout figures
+  std::vector<std::string> errorSamples;
+  double decodedFieldMb = 0, brickCodesMb = 0;
+  bool layoutMeasured = false;
+};
+
+// One simulated client: a sequence of sessions. Lives on its worker's thread only; handlers
+// carry the connection number they were started for and do nothing once it has changed.
+class Client {
+ public:
+  Client(LoadGenerator::Impl& gen, Worker& worker, int index, double firstConnectAt)
+      : gen_(gen), o_(gen.options), worker_(worker), index_(index), tcp_(worker.io),
+        udp_(worker.io), rng_(gen.options.seed * 7919 + std::uint64_t(index)),
+        nextConnectAt_(firstConnectAt) {
+    std::uniform_real_distribution<double> phase(0.0, 6.283185307179586);
+    posePhase_ = phase(rng_);
+  }
+
+  void tick(double now);
+  void shutdown();
+  void beginWindow(double now);
+  ClientReport report(double now, std::vector<float>& latency, std::vector<float>& staleness,
+                      std::uint64_t& unmatched);
+
+ private:
+  enum class State { Idle, Connecting, Session, Done };
+
+  struct Window {
+    double start = 0;
+    std::uint64_t sessions = 0, bytesDown = 0, bytesUp = 0, datagrams = 0, applied = 0,
+                  repairs = 0, stale = 0, errors = 0, unmatched = 0;
+    double sessionSeconds = 0, maxGap = 0, maxStaleness = 0;
+    std::vector<float> latencyMs, stalenessMs;
+    std::string lastError;
+  };
+
+  void connect(double now);
+  void endSession(double now, const std::string& error);
+  void readPrefix();
+  void onFrame(double now);
+  void handle(const SessionMessage& message, double now);
+  void onSessionInfo(const SessionInfoMsg& info, double now);
+  void onSceneState(const SceneStateMsg& state, double now);
+  void onDatagram(std::span<const std::uint8_t> bytes, double now);
+  void receiveUdp();
+  void send(Bytes frame);
+  void writeNext();
+  void sendPose(double now);
+  void sampleStaleness(double now);
+  // Publish time of a field version on this client's clock; nullopt when unknown.
+  std::optional<double> publishTime(std::uint64_t version) const;
+  void recordLatency(std::uint64_t version, double appliedAt);
+  void resolvePending(double now);
+  bool inWindow(double t) const { return t >= window_.start; }
+
+  LoadGenerator::Impl& gen_;
+  const LoadOptions& o_;
+  Worker& worker_;
+  int index_;
+  tcp::socket tcp_;
+  udp::socket udp_;
+  std::mt19937_64 rng_;
+  double posePhase_ = 0;
+
+  State state_ = State::Idle;
+  std::uint64_t connection_ = 0;
+  double nextConnectAt_ = 0, connectStartedAt_ = 0, sessionStartedAt_ = 0, sessionEndsAt_ = 0;
+  double lastHeard_ = 0, lastDatagramAt_ = 0, lastPoseAt_ = -1e30, lastStaleSampleAt_ = -1e30;
+  std::uint32_t sessionId_ = 0;
+  std::optional<StreamReceiver> receiver_;
+  std::uint64_t infoVersion_ = 0;  // field version at join: bricks up to it are the initial sync
+  std::vector<std::vector<bool>> held_;
+  int bricksTotal_ = 0, bricksHeld_ = 0;
+  bool synced_ = false;
+  double syncSeconds_ = -1;
+  std::uint64_t maxHeld_ = 0, lastApplied_ = 0, lastRepairs_ = 0, lastStale_ = 0;
+  std::deque<std::pair<std::uint64_t, double>> versions_;  // (field version, publish time)
+  std::deque<std::pair<std::uint64_t, double>> pending_;   // (version, applied at)
+  std::optional<double> clockOffset_;  // client clock - server clock
+  double animationTime_ = 0;
+  std::deque<Bytes> early_;
+
+  std::array<std::uint8_t, kFramePrefixBytes> prefix_{};
+  Bytes frame_;
+  std::array<std::uint8_t, 2048> udpBuffer_{};
+  std::deque<Bytes> writes_;
+  std::size_t queuedBytes_ = 0;
+  bool writing_ = false;
+
+  Window window_;
+};
+
+void Client::tick(double now) {
+  switch (state_) {
+    case State::Done:
+      return;
+    case State::Idle:
+      if (now >= nextConnectAt_) connect(now);
+      return;
+    case State::Connecting:
+      if (now - connectStartedAt_ > o_.connectTimeout)
+        endSession(now, "no session within " + std::to_string(o_.connectTimeout) + " s");
+      return;
+    case State::Session:
+      break;
+  }
+  if (now - lastHeard_ > o_.silenceTimeout)
+    return endSession(now, "server silent for " + std::to_string(o_.silenceTimeout) + " s");
+  for (Bytes& f : receiver_->poll(now)) send(std::move(f));
+  if (state_ != State::Session) return;  // a send may have failed
+  const ReceiverStats& rs = receiver_->stats();
+  window_.repairs += rs.repairBricks - lastRepairs_;
+  window_.stale += rs.stale - lastStale_;
+  lastRepairs_ = rs.repairBricks;
+  lastStale_ = rs.stale;
+  if (now - lastPoseAt_ >= o_.poseInterval) sendPose(now);
+  if (now - lastStaleSampleAt_ >= kStalenessSampleInterval) sampleStaleness(now);
+  resolvePending(now);
+  if (sessionEndsAt_ > 0 && now >= sessionEndsAt_) endSession(now, "");
+}
+
+void Client::connect(double now) {
+  // Claims a session number; past maxSessions the client is done.
+  std::uint64_t n = gen_.sessionsStarted.load();
+  do {
+    if (o_.maxSessions > 0 && n >= o_.maxSessions) {
+      state_ = State::Done;
+      return;
+    }
+  } while (!gen_.sessionsStarted.compare_exchange_weak(n, n + 1));
+  ++window_.sessions;
+  const std::uint64_t id = ++connection_;
+  state_ = State::Connecting;
+  connectStartedAt_ = now;
+  sessionId_ = 0;
+  early_.clear();
+
+  // A fresh UDP socket (and port) per session: datagrams still in flight for the previous
+  // session never reach this one.
+  std::uint16_t udpPort = 0;
+  if (!o_.tcpOnly) {
+    boost::system::error_code ec;
+    udp_.open(gen_.endpoint.protocol() == tcp::v4() ? udp::v4() : udp::v6(), ec);
+    if (!ec) udp_.bind(udp::endpoint(udp_.local_endpoint(ec).protocol(), 0), ec);
+    if (!ec) udpPort = udp_.local_endpoint(ec).port();
+    if (ec) return endSession(now, "UDP socket: " + ec.message());
+    receiveUdp();
+  }
+  tcp_.async_connect(gen_.endpoint, [this, id, udpPort](boost::system::error_code ec) {
+    if (id != connection_ || worker_.stopping) return;
+    const double t = nowSeconds();
+    if (ec) return endSession(t, "connect: " + ec.message());
+    lastHeard_ = t;
+    boost::system::error_code ignored;
+    tcp_.set_option(tcp::no_delay(true), ignored);
+    HelloMsg hello;
+    hello.authToken = o_.token;
+    hello.clientName = "loadgen-" + std::to_string(index_);
+    hello.wantsUdp = !o_.tcpOnly;
+    hello.udpPort = udpPort;
+    send(encodeMessage(hello));
+    readPrefix();
+  });
+}
+
+// Ends the current session: voluntarily (churn, shutdown) with an empty `error`.
+void Client::endSession(double now, const std::string& error) {
+  ++connection_;
+  boost::system::error_code ec;
+  tcp_.shutdown(tcp::socket::shutdown_both, ec);
+  tcp_.close(ec);
+  udp_.close(ec);
+  if (state_ == State::Session) {
+    --gen_.inSession;
+    window_.sessionSeconds += now - std::max(sessionStartedAt_, window_.start);
+  }
+  if (synced_) --gen_.synced;
+  if (state_ == State::Session || state_ == State::Connecting) ++gen_.sessionsEnded;
+  synced_ = false;
+  receiver_.reset();
+  writes_.clear();
+  queuedBytes_ = 0;
+  writing_ = false;
+  pending_.clear();
+  early_.clear();
+  if (!error.empty()) {
+    ++window_.errors;
+    window_.lastError = error;
+    gen_.noteError(error);
+  }
+  if (state_ == State::Done) return;
+  state_ = worker_.stopping ? State::Done : State::Idle;
+  nextConnectAt_ = now + (error.empty() ? o_.rejoinDelay : kErrorRetryDelay);
+}
+
+void Client::shutdown() {
+  const double now = nowSeconds();
+  if (state_ == State::Session || state_ == State::Connecting) endSession(now, "");
+  state_ = State::Done;
+}
+
+void Client::readPrefix() {
+  const std::uint64_t id = connection_;
+  asio::async_read(tcp_, asio::buffer(prefix_), [this, id](boost::system::error_code ec, std::size_t) {
+    if (id != connection_ || worker_.stopping) return;
+    const double now = nowSeconds();
+    if (ec) {
+      return endSession(now, ec == asio::error::eof ? "connection closed by the server"
+                                                    : "read: " + ec.message());
+    }
+    auto size = frameSize(prefix_, kMaxSessionMessageBytes);
+    if (!size) return endSession(now, "bad frame from the server: " + size.error().message);
+    frame_.assign(prefix_.begin(), prefix_.end());
+    frame_.resize(*size);
+    asio::async_read(tcp_, asio::buffer(frame_.data() + kFramePrefixBytes, *size - kFramePrefixBytes),
+                     [this, id](boost::system::error_code ec2, std::size_t) {
+                       if (id != connection_ || worker_.stopping) return;
+                       const double t = nowSeconds();
+                       if (ec2) return endSession(t, "read: " + ec2.message());
+                       onFrame(t);
+                     });
+  });
+}
+
+void Client::onFrame(double now) {
+  const std::uint64_t id = connection_;
+  lastHeard_ = now;
+  window_.bytesDown += frame_.size();
+  switch (classifyFrame(frame_)) {
+    case FrameKind::Datagram:
+      onDatagram(datagramOfFrame(frame_), now);
+      break;
+    case FrameKind::SessionMessage: {
+      auto message = decodeMessage(frame_);
+      if (!message) return endSession(now, "bad message from the server: " + message.error().message);
+      handle(*message, now);
+      break;
+    }
+    case FrameKind::Unknown:
+      return endSession(now, "unknown frame from the server");
+  }
+  if (id == connection_) readPrefix();
+}
+
+void Client::handle(const SessionMessage& message, double now) {
+  if (const auto* welcome = std::get_if<WelcomeMsg>(&message)) {
+    Status version = checkServerVersion(welcome->protocolVersion);
+    if (!version) return endSession(now, version.error().message);
+    sessionId_ = welcome->sessionId;
+  } else if (const auto* reject = std::get_if<RejectMsg>(&message)) {
+    endSession(now, "rejected: " + reject->reason);
+  } else if (const auto* info = std::get_if<SessionInfoMsg>(&message)) {
+    onSessionInfo(*info, now);
+  } else if (const auto* state = std::get_if<SceneStateMsg>(&message)) {
+    onSceneState(*state, now);
+  } else {
+    endSession(now, "unexpected message from the server");
+  }
+}
+
+void Client::onSessionInfo(const SessionInfoMsg& info, double now) {
+  if (state_ != State::Connecting) return endSession(now, "a second SessionInfo");
+  ReceiverOptions ro;
+  ro.keepField = o_.keepField;
+  ro.decoder = o_.shareDecoding ? gen_.decoder.get() : nullptr;
+  auto created = StreamReceiver::create(info, sessionId_, ro);
+  if (!created) return endSession(now, "session info: " + created.error().message);
+  receiver_.emplace(std::move(created).value());
+  {
+    // What keeping a decoded field would cost, once per run (it allocates one).
+    std::lock_guard lock(gen_.mutex);
+    if (!gen_.layoutMeasured) {
+      gen_.layoutMeasured = true;
+      if (auto full = mirrorField(info)) {
+        const double atlasFloats = double(full->irradiance.texels.size() + full->depth.texels.size() +
+                                          full->occlusion.texels.size());
+        gen_.decodedFieldMb = atlasFloats * sizeof(float) / 1e6;
+        std::size_t bricks = 0;
+        for (const auto& c : full->brickVersions) bricks += c.size();
+        gen_.brickCodesMb = double(bricks) * double(quantizeBrick(*full, 0, 0).codes.size()) *
+                            sizeof(std::uint16_t) / 1e6;
+      }
+    }
+  }
+  const Field& layout = receiver_->field();
+  held_.assign(layout.cascadeCount(), {});
+  bricksTotal_ = bricksHeld_ = 0;
+  for (int k = 0; k < layout.cascadeCount(); ++k) {
+    held_[k].assign(layout.brickVersions[k].size(), false);
+    bricksTotal_ += int(layout.brickVersions[k].size());
+  }
+  state_ = State::Session;
+  ++gen_.inSession;
+  sessionStartedAt_ = now;
+  lastDatagramAt_ = now;
+  lastPoseAt_ = -1e30;
+  synced_ = false;
+  syncSeconds_ = -1;
+  infoVersion_ = info.fieldVersion;
+  maxHeld_ = lastApplied_ = lastRepairs_ = lastStale_ = 0;
+  versions_.clear();
+  pending_.clear();
+  clockOffset_.reset();
+  if (o_.sessionSeconds > 0) {
+    std::uniform_real_distribution<double> jitter(-o_.sessionJitter, o_.sessionJitter);
+    sessionEndsAt_ = now + o_.sessionSeconds * (1.0 + jitter(rng_));
+  } else {
+    sessionEndsAt_ = 0;
+  }
+  std::deque<Bytes> early = std::move(early_);
+  early_.clear();
+  for (const Bytes& d : early) {
+    if (state_ != State::Session) break;
+    onDatagram(d, now);
+  }
+}
+
+void Client::onSceneState(const SceneStateMsg& state, double now) {
+  animationTime_ = state.animationTime;
+  if (state.fieldVersion == 0) return;  // a server without publish times
+  if (!o_.sameClock) {
+    const double offset = now - state.publishTime;
+    if (!clockOffset_ || offset < *clockOffset_) clockOffset_ = offset;
+  }
+  if (versions_.empty() || state.fieldVersion > versions_.back().first) {
+    versions_.emplace_back(state.fieldVersion, state.publishTime);
+    if (versions_.size() > kMaxVersions) versions_.pop_front();
+  }
+  resolvePending(now);
+}
+
+std::optional<double> Client::publishTime(std::uint64_t version) const {
+  auto it = std::lower_bound(versions_.begin(), versions_.end(), version,
+                             [](const auto& e, std::uint64_t v) { return e.first < v; });
+  if (it == versions_.end() || it->first != version) return std::nullopt;
+  return it->second + (o_.sameClock ? 0.0 : clockOffset_.value_or(0.0));
+}
+
+void Client::recordLatency(std::uint64_t version, double appliedAt) {
+  if (auto published = publishTime(version)) {
+    if (inWindow(appliedAt))
+      window_.latencyMs.push_back(float(std::max(0.0, appliedAt - *published) * 1e3));
+  } else if (pending_.size() < 4096) {
+    pending_.emplace_back(version, appliedAt);
+  }
+}
+
+void Client::resolvePending(double now) {
+  std::erase_if(pending_, [&](const std::pair<std::uint64_t, double>& p) {
+    if (auto published = publishTime(p.first)) {
+      if (inWindow(p.second))
+        window_.latencyMs.push_back(float(std::max(0.0, p.second - *published) * 1e3));
+      return true;
+    }
+    if (now - p.second > kPendingSeconds) {
+      if (inWindow(p.second)) ++window_.unmatched;
+      return true;
+    }
+    return false;
+  });
+}
+
+void Client::onDatagram(std::span<const std::uint8_t> bytes, double now) {
+  if (!receiver_) {
+    // Before SessionInfo: kept for when the receiver exists.
+    if (state_ == State::Connecting && early_.size() < kMaxEarlyDatagrams)
+      early_.emplace_back(bytes.begin(), bytes.end());
+    return;
+  }
+  if (inWindow(now)) window_.maxGap = std::max(window_.maxGap, now - lastDatagramAt_);
+  lastDatagramAt_ = now;
+  ++window_.datagrams;
+  Status status = receiver_->onDatagram(bytes, now);
+  if (!status) {
+    ++window_.errors;
+    window_.lastError = status.error().message;
+    gen_.noteError(status.error().message);
+  }
+  const std::uint64_t applied = receiver_->stats().applied;
+  if (applied == lastApplied_) return;
+  window_.applied += applied - lastApplied_;
+  lastApplied_ = applied;
+  for (auto [k, b] : receiver_->takeChangedBricks()) {
+    const std::uint64_t version = receiver_->brickVersion(k, b);
+    maxHeld_ = std::max(maxHeld_, version);
+    if (!held_[k][b]) {
+      held_[k][b] = true;
+      ++bricksHeld_;
+    }
+    // Versions up to the one at join were published before the session: initial sync.
+    if (version > infoVersion_) recordLatency(version, now);
+  }
+  if (!synced_ && bricksHeld_ == bricksTotal_) {
+    synced_ = true;
+    ++gen_.synced;
+    syncSeconds_ = now - connectStartedAt_;
+  }
+}
+
+// How long the client has been behind: since the publish of the oldest announced field
+// version newer than every brick it holds (0 when it holds the newest). Sampled once synced.
+void Client::sampleStaleness(double now) {
+  lastStaleSampleAt_ = now;
+  if (!synced_ || !inWindow(now)) return;
+  auto it = std::upper_bound(versions_.begin(), versions_.end(), maxHeld_,
+                             [](std::uint64_t v, const auto& e) { return v < e.first; });
+  double staleness = 0;
+  if (it != versions_.end()) {
+    const double offset = o_.sameClock ? 0.0 : clockOffset_.value_or(0.0);
+    staleness = std::max(0.0, now - (it->second + offset));
+  }
+  window_.stalenessMs.push_back(float(staleness * 1e3));
+  window_.maxStaleness = std::max(window_.maxStaleness, staleness);
+}
+
+void Client::receiveUdp() {
+  const std::uint64_t id = connection_;
+  udp_.async_receive(asio::buffer(udpBuffer_), [this, id](boost::system::error_code ec, std::size_t n) {
+    if (id != connection_ || worker_.stopping) return;
+    // Errors on a UDP socket are per datagram (an ICMP error, a truncated read): keep going.
+    if (!ec && n <= kMaxDatagramBytes) {
+      const double now = nowSeconds();
+      lastHeard_ = now;
+      window_.bytesDown += n;
+      onDatagram(std::span(udpBuffer_.data(), n), now);
+    }
+    if (id == connection_) receiveUdp();
+  });
+}
+
+void Client::sendPose(double now) {
+  // A slow loop through the first cascade's volume, each client at its own phase.
+  lastPoseAt_ = now;
+  const gpu::CascadeDesc& c = receiver_->field().desc.cascades[0];
+  const glm::vec3 lo = c.origin;
+  const glm::vec3 size = c.spacing * glm::vec3(c.counts - 1);
+  const double a = posePhase_ + 6.283185307179586 * now / o_.posePeriod;
+  const glm::vec3 unit(0.5f + 0.35f * float(std::cos(a)), 0.5f + 0.15f * float(std::sin(2 * a)),
+                       0.5f + 0.35f * float(std::sin(a)));
+  ViewerPoseMsg pose;
+  pose.position = lo + unit * size;
+  pose.orientation = glm::angleAxis(float(-a), glm::vec3(0, 1, 0));
+  pose.time = animationTime_;
+  send(encodeMessage(pose));
+}
+
+void Client::send(Bytes f) {
+  if (state_ != State::Connecting && state_ != State::Session) return;
+  if (queuedBytes_ + f.size() > kMaxWriteQueueBytes) return endSession(nowSeconds(), "server not reading");
+  queuedBytes_ += f.size();
+  window_.bytesUp += f.size();
+  writes_.push_back(std::move(f));
+  if (!writing_) writeNext();
+}
+
+void Client::writeNext() {
+  writing_ = true;
+  const std::uint64_t id = connection_;
+  asio::async_write(tcp_, asio::buffer(writes_.front()), [this, id](boost::system::error_code ec, std::size_t) {
+    if (id != connection_ || worker_.stopping) return;
+    if (ec) return endSession(nowSeconds(), "write: " + ec.message());
+    queuedBytes_ -= writes_.front().size();
+    writes_.pop_front();
+    if (writes_.empty()) {
+      writing_ = false;
+    } else {
+      writeNext();
+    }
+  });
+}
+
+void Client::beginWindow(double now) {
+  window_ = Window{};
+  window_.start = now;
+}
+
+ClientReport Client::report(double now, std::vector<float>& latency, std::vector<float>& staleness,
+                            std::uint64_t& unmatched) {
+  ClientReport r;
+  r.index = index_;
+  const double seconds = std::max(1e-9, now - window_.start);
+  r.sessions = window_.sessions;
+  r.sessionSeconds = window_.sessionSeconds;
+  double gap = window_.maxGap;
+  if (state_ == State::Session) {
+    r.sessionSeconds += now - std::max(sessionStartedAt_, window_.start);
+    gap = std::max(gap, now - std::max(lastDatagramAt_, window_.start));
+  }
+  r.bytesDown = window_.bytesDown;
+  r.bytesUp = window_.bytesUp;
+  r.kbitDown = double(window_.bytesDown) * 8 / 1e3 / seconds;
+  r.kbitUp = double(window_.bytesUp) * 8 / 1e3 / seconds;
+  r.datagrams = window_.datagrams;
+  r.bricksApplied = window_.applied;
+  r.repairBricks = window_.repairs;
+  r.staleUpdates = window_.stale;
+  r.errors = window_.errors;
+  r.maxDatagramGap = gap;
+  r.maxStaleness = window_.maxStaleness;
+  r.syncSeconds = syncSeconds_;
+  r.lastError = window_.lastError;
+  if (gap > o_.starveSeconds) {
+    r.starved = true;
+    r.starvedWhy = "no datagram for " + std::to_string(gap) + " s";
+  } else if (window_.maxStaleness > o_.starveSeconds) {
+    r.starved = true;
+    r.starvedWhy = "behind the newest field version for " + std::to_string(window_.maxStaleness) + " s";
+  } else if (state_ == State::Session && !synced_ &&
+             now - sessionStartedAt_ > o_.starveSeconds + o_.syncLimit) {
+    r.starved = true;
+    r.starvedWhy = "not every brick held " + std::to_string(now - sessionStartedAt_) +
+                   " s into the session";
+  }
+  std::vector<float> own = window_.latencyMs;
+  r.latencyMs = percentiles(own);
+  latency.insert(latency.end(), window_.latencyMs.begin(), window_.latencyMs.end());
+  staleness.insert(staleness.end(), window_.stalenessMs.begin(), window_.stalenessMs.end());
+  unmatched += window_.unmatched;
+  return r;
+}
+
+void LoadGenerator::Impl::scheduleTick(Worker& w) {
+  w.timer.expires_after(std::chrono::duration_cast<asio::steady_timer::duration>(
+      std::chrono::duration<double>(options.pollInterval)));
+  w.timer.async_wait([this, &w](boost::system::error_code ec) {
+    if (ec || w.stopping) return;
+    const double now = nowSeconds();
+    for (auto& c : w.clients) c->tick(now);
+    scheduleTick(w);
+  });
+}
+
+void LoadGenerator::Impl::onEveryWorker(const std::function<void(Worker&)>& fn) {
+  if (!running) {
+    for (auto& w : workers) fn(*w);
+    return;
+  }
+  std::vector<std::future<void>> done;
+  for (auto& w : workers) {
+    auto task = std::make_shared<std::packaged_task<void()>>([&fn, &w] { fn(*w); });
+    done.push_back(task->get_future());
+    asio::post(w->io, [task] { (*task)(); });
+  }
+  for (auto& f : done) f.get();
+}
+
+Percentiles percentiles(std::vector<float>& samples) {
+  Percentiles p;
+  p.count = samples.size();
+  if (samples.empty()) return p;
+  auto at = [&](double q) {
+    const std::size_t i = std::min(samples.size() - 1, std::size_t(q * double(samples.size())));
+    std::nth_element(samples.begin(), samples.begin() + std::ptrdiff_t(i), samples.end());
+    return double(samples[i]);
+  };
+  p.p50 = at(0.50);
+  p.p95 = at(0.95);
+  p.p99 = at(0.99);
+  p.max = *std::max_element(samples.begin(), samples.end());
+  double sum = 0;
+  for (float s : samples) sum += s;
+  p.mean = sum / double(samples.size());
+  return p;
+}
+
+LoadGenerator::LoadGenerator(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+LoadGenerator::~LoadGenerator() { stop(); }
+
+Result<std::unique_ptr<LoadGenerator>> LoadGenerator::create(LoadOptions options) {
+  if (options.clients < 1) return Error{"clients: at least 1"};
+  if (options.threads < 1) return Error{"threads: at least 1"};
+  if (options.pollInterval <= 0 || options.poseInterval <= 0 || options.posePeriod <= 0)
+    return Error{"poll interval, pose interval and pose period must be positive"};
+  auto impl = std::make_unique<Impl>(std::move(options));
+  Impl& g = *impl;
+  // Resolved once: a thousand clients never ask the resolver a thousand times.
+  asio::io_context io;
+  tcp::resolver resolver(io);
+  boost::system::error_code ec;
+  auto results = resolver.resolve(g.options.host, std::to_string(g.options.port), ec);
+  if (ec || results.empty()) return Error{"resolve " + g.options.host + ": " + ec.message()};
+  g.endpoint = *results.begin();
+  if (g.options.shareDecoding) g.decoder = std::make_unique<SharedBrickDecoder>();
+  for (int t = 0; t < g.options.threads; ++t) g.workers.push_back(std::make_unique<Worker>());
+  return std::unique_ptr<LoadGenerator>(new LoadGenerator(std::move(impl)));
+}
+
+void LoadGenerator::start() {
+  Impl& g = *impl_;
+  if (g.running) return;
+  const double now = nowSeconds();
+  g.windowStart = now;
+  for (int i = 0; i < g.options.clients; ++i) {
+    Worker& w = *g.workers[std::size_t(i) % g.workers.size()];
+    const double at = now + g.options.rampSeconds * double(i) / double(g.options.clients);
+    w.clients.push_back(std::make_unique<Client>(g, w, i, at));
+    w.clients.back()->beginWindow(now);
+  }
+  for (auto& w : g.workers) {
+    g.scheduleTick(*w);
+    w->thread = std::thread([&w = *w] { w.io.run(); });
+  }
+  g.running = true;
+}
+
+void LoadGenerator::stop() {
+  Impl& g = *impl_;
+  if (!g.running) return;
+  for (auto& w : g.workers) {
+    asio::post(w->io, [&w = *w] {
+      for (auto& c : w.clients) c->shutdown();
+      w.stopping = true;
+      w.timer.cancel();
+    });
+  }
+  for (auto& w : g.workers) w->thread.join();
+  g.running = false;
+}
+
+void LoadGenerator::beginWindow() {
+  Impl& g = *impl_;
+  const double now = nowSeconds();
+  g.windowStart = now;
+  g.onEveryWorker([now](Worker& w) {
+    for (auto& c : w.clients) c->beginWindow(now);
+  });
+}
+
+LoadReport LoadGenerator::report() {
+  Impl& g = *impl_;
+  const double now = nowSeconds();
+  LoadReport r;
+  r.options = g.options;
+  r.seconds = now - g.windowStart;
+  r.clients = g.options.clients;
+  std::vector<float> latency, staleness;
+  std::uint64_t unmatched = 0;
+  std::mutex merge;
+  g.onEveryWorker([&](Worker& w) {
+    std::vector<float> lat, stale;
+    std::vector<ClientReport> reports;
+    std::uint64_t um = 0;
+    for (auto& c : w.clients) reports.push_back(c->report(now, lat, stale, um));
+    std::lock_guard lock(merge);
+    latency.insert(latency.end(), lat.begin(), lat.end());
+    staleness.insert(staleness.end(), stale.begin(), stale.end());
+    unmatched += um;
+    for (ClientReport& c : reports) r.perClient.push_back(std::move(c));
+  });
+  std::sort(r.perClient.begin(), r.perClient.end(),
+            [](const ClientReport& a, const ClientReport& b) { return a.index < b.index; });
+  r.latencyMs = percentiles(latency);
+  r.stalenessMs = percentiles(staleness);
+  r.unmatchedUpdates = unmatched;
+  std::vector<float> kbit;
+  for (const ClientReport& c : r.perClient) {
+    kbit.push_back(float(c.kbitDown));
+    r.bricksApplied += c.bricksApplied;
+    r.repairBricks += c.repairBricks;
+    r.datagrams += c.datagrams;
+    r.errors += c.errors;
+    r.sessionsStarted += c.sessions;
+    r.starvedClients += c.starved;
+  }
+  r.kbitPerClient = percentiles(kbit);
+  r.sessionsEnded = g.sessionsEnded.load();
+  if (g.decoder) {
+    const SharedBrickDecoder::Stats d = g.decoder->stats();
+    r.decodedPayloads = d.decoded;
+    r.sharedDecodes = d.shared;
+    r.contentMismatches = d.mismatches;
+    r.errors += d.mismatches;
+  }
+  r.residentMb = residentMb();
+  std::lock_guard lock(g.mutex);
+  r.decodedFieldMb = g.decodedFieldMb;
+  r.brickCodesMb = g.brickCodesMb;
+  r.errorSamples = g.errorSamples;
+  return r;
+}
+
+LoadSnapshot LoadGenerator::snapshot() const {
+  const Impl& g = *impl_;
+  LoadSnapshot s;
+  s.clients = g.options.clients;
+  s.inSession = g.inSession.load();
+  s.synced = g.synced.load();
+  s.sessionsStarted = g.sessionsStarted.load();
+  s.sessionsEnded = g.sessionsEnded.load();
+  s.errors = g.errors.load();
+  return s;
+}
+
+}  // namespace pc::load

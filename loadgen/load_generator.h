@@ -1,0 +1,135 @@
+// probecast-loadgen's engine: many protocol-only clients in one process, without rendering.
+// Each client is a real session (TCP hello with the token, session info, scene states, acks,
+// repair requests, moving viewer poses, brick datagrams over UDP or TCP, a StreamReceiver of
+// its own), and all of them share a few network threads (one Boost.Asio io_context each), not
+// a thread per client. Clients join over a ramp and, with churn, leave and rejoin. Asio stays
+// inside the .cpp files.
+//
+// Update latency is measured from the server's publish to the client's apply: SceneState
+// carries each field version's publish time, and a brick update names the field version it
+// changed at. On one host both sides read the same monotonic clock (sameClock); across hosts
+// the offset is estimated as the smallest (arrival - publish) seen, which leaves the minimum
+// one-way delay out of the latencies.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/result.h"
+
+namespace pc::load {
+
+struct LoadOptions {
+  std::string host = "127.0.0.1";  // an IPv4/IPv6 address or a host name (resolved once)
+  std::uint16_t port = 7450;
+  std::string token;
+  int clients = 10;
+  int threads = 1;  // network threads shared by all clients
+  bool tcpOnly = false;
+  double rampSeconds = 1.0;  // first connects spread evenly over this
+  // Churn: > 0 ends each session after about this long (+- sessionJitter of it), and the
+  // client connects again after rejoinDelay.
+  double sessionSeconds = 0;
+  double sessionJitter = 0.5;
+  double rejoinDelay = 0.05;
+  std::uint64_t maxSessions = 0;  // > 0: no new session once this many were started
+  double connectTimeout = 5.0;    // s from connect to SessionInfo
+  double silenceTimeout = 3.0;    // s without bytes from the server ends a session as an error
+  double pollInterval = 0.01;     // s between each thread's pass over its clients
+  double poseInterval = 0.1;      // s between viewer poses
+  double posePeriod = 10.0;       // s per loop of the simulated viewer path
+  // A client starves when, in the measured window, it received no datagram for longer than
+  // this, or stayed behind the newest announced field version for longer than this, or a
+  // session of it older than this plus the sync limit never held every brick.
+  double starveSeconds = 2.0;
+  double syncLimit = 10.0;
+  bool sameClock = true;
+  // Receivers keep only the codes of each brick (no decoded field) and share decoded codes
+  // between clients (same payload on the same base, same codes); false decodes per client.
+  bool keepField = false;
+  bool shareDecoding = true;
+  std::uint64_t seed = 1;
+};
+
+// Counters for progress lines, readable while the clients run.
+struct LoadSnapshot {
+  int clients = 0;
+  int inSession = 0;  // welcomed, with a receiver
+  int synced = 0;     // in a session and holding every brick
+  std::uint64_t sessionsStarted = 0, sessionsEnded = 0;
+  std::uint64_t errors = 0;
+};
+
+struct Percentiles {
+  std::uint64_t count = 0;
+  double p50 = 0, p95 = 0, p99 = 0, max = 0, mean = 0;
+};
+// Of `samples` (reordered); zeros when empty.
+Percentiles percentiles(std::vector<float>& samples);
+
+struct ClientReport {
+  int index = 0;
+  std::uint64_t sessions = 0;       // started in the window
+  double sessionSeconds = 0;        // in a session during the window
+  std::uint64_t bytesDown = 0, bytesUp = 0;
+  double kbitDown = 0, kbitUp = 0;  // per second of the window
+  std::uint64_t datagrams = 0, bricksApplied = 0, repairBricks = 0, staleUpdates = 0;
+  std::uint64_t errors = 0;
+  double maxDatagramGap = 0;  // s
+  double maxStaleness = 0;    // s
+  double syncSeconds = -1;    // connect -> every brick held, latest session
+  Percentiles latencyMs;
+  bool starved = false;
+  std::string starvedWhy, lastError;
+};
+
+struct LoadReport {
+  LoadOptions options;
+  double seconds = 0;  // of the measured window
+  int clients = 0;
+  std::uint64_t sessionsStarted = 0, sessionsEnded = 0;
+  Percentiles latencyMs;    // every brick update applied in the window (publish -> apply)
+  Percentiles stalenessMs;  // per-client samples every 100 ms (0 while up to date)
+  Percentiles kbitPerClient;  // down, over clients
+  std::uint64_t unmatchedUpdates = 0;  // applied versions whose publish time never arrived
+  std::uint64_t bricksApplied = 0, repairBricks = 0, datagrams = 0, errors = 0;
+  int starvedClients = 0;
+  std::uint64_t decodedPayloads = 0, sharedDecodes = 0, contentMismatches = 0;
+  double residentMb = 0;        // this process, at the report
+  double decodedFieldMb = 0;    // one decoded field of the server's layout (keepField's cost)
+  double brickCodesMb = 0;      // one client's brick codes if not shared
+  std::vector<std::string> errorSamples;  // a few distinct error messages
+  std::vector<ClientReport> perClient;
+};
+
+class LoadGenerator {
+ public:
+  static Result<std::unique_ptr<LoadGenerator>> create(LoadOptions options);
+  ~LoadGenerator();  // stop()
+  LoadGenerator(const LoadGenerator&) = delete;
+  LoadGenerator& operator=(const LoadGenerator&) = delete;
+
+  // Starts the network threads; clients connect over the ramp.
+  void start();
+  // Closes every session and joins the threads. Idempotent.
+  void stop();
+  // Starts the measured window: every figure of report() counts from here (start() begins one).
+  void beginWindow();
+  // Figures of the window so far. Safe while running and after stop().
+  LoadReport report();
+  LoadSnapshot snapshot() const;
+
+  struct Impl;
+
+ private:
+  explicit LoadGenerator(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// The report as JSON (options, summary, per client) and as a readable table.
+std::string reportJson(const LoadReport& report);
+std::string reportTable(const LoadReport& report);
+
+}  // namespace pc::load

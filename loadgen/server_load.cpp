@@ -1,0 +1,131 @@
+#include "server_load.h"
+
+#include <sys/resource.h>
+#include <sys/time.h>
+
+#include <chrono>
+#include <thread>
+
+#include "proc_stats.h"
+#include "server_process.h"
+
+namespace pc::load {
+
+namespace {
+
+double nowSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+void sleepSeconds(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
+
+double selfCpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         double(u.ru_utime.tv_usec + u.ru_stime.tv_usec) * 1e-6;
+}
+
+}  // namespace
+
+void raiseFileLimit() {
+  rlimit r{};
+  if (getrlimit(RLIMIT_NOFILE, &r) == 0 && r.rlim_cur < r.rlim_max) {
+    r.rlim_cur = r.rlim_max;
+    setrlimit(RLIMIT_NOFILE, &r);
+  }
+}
+
+Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
+                                       const std::function<void(const std::string&)>& progress) {
+  auto say = [&](const std::string& line) {
+    if (progress) progress(line);
+  };
+  raiseFileLimit();
+  ServerProcessOptions sp;
+  sp.executable = options.serverExecutable;
+  sp.logPath = options.serverLog;
+  const std::string token = options.load.token.empty() ? "loadgen" : options.load.token;
+  sp.args = {"--scene", "builtin", "--bind", "127.0.0.1", "--port", "0", "--token", token};
+  sp.args.insert(sp.args.end(), options.serverArgs.begin(), options.serverArgs.end());
+  auto server = ServerProcess::start(sp);
+  if (!server) return server.error();
+  const pid_t pid = (*server)->pid();
+
+  ServerLoadResult result;
+  // Idle: the field thread alone.
+  auto idle0 = readProcStats(pid);
+  if (!idle0) return idle0.error();
+  const double idleStart = nowSeconds();
+  sleepSeconds(options.idleSeconds);
+  auto idle1 = readProcStats(pid);
+  if (!idle1) return idle1.error();
+  result.serverIdleCpuMsPerS = (idle1->cpuSeconds - idle0->cpuSeconds) * 1e3 /
+                               (nowSeconds() - idleStart);
+  say("server idle: " + std::to_string(int(result.serverIdleCpuMsPerS)) + " ms CPU per s");
+
+  LoadOptions lo = options.load;
+  lo.host = "127.0.0.1";
+  lo.port = (*server)->port();
+  lo.token = token;
+  auto generator = LoadGenerator::create(lo);
+  if (!generator) return generator.error();
+  LoadGenerator& gen = **generator;
+  const double start = nowSeconds();
+  gen.start();
+  double lastSay = start;
+  while (true) {
+    const LoadSnapshot s = gen.snapshot();
+    const double now = nowSeconds();
+    if (s.synced == lo.clients) {
+      result.allSynced = true;
+      break;
+    }
+    if (now - start > lo.rampSeconds + options.joinLimit) break;
+    if (now - lastSay >= 2.0) {
+      lastSay = now;
+      say("joining: " + std::to_string(s.inSession) + "/" + std::to_string(lo.clients) +
+          " in session, " + std::to_string(s.synced) + " synced, " + std::to_string(s.errors) +
+          " errors");
+    }
+    sleepSeconds(0.05);
+  }
+  result.joinSeconds = nowSeconds() - start;
+  say(std::string(result.allSynced ? "all synced" : "NOT all synced") + " after " +
+      std::to_string(result.joinSeconds) + " s; warming up");
+  sleepSeconds(options.warmupSeconds);
+
+  auto warm = readProcStats(pid);
+  if (!warm) return warm.error();
+  result.rssWarmMb = warm->rssMb;
+  result.fdsWarm = warm->openFds;
+  const double selfCpu0 = selfCpuSeconds();
+  gen.beginWindow();
+  const double windowStart = nowSeconds();
+  for (double t = 0; t < options.seconds;) {
+    const double step = std::min(5.0, options.seconds - t);
+    sleepSeconds(step);
+    t += step;
+    const LoadSnapshot s = gen.snapshot();
+    say("measuring: " + std::to_string(int(t)) + " s, " + std::to_string(s.synced) + "/" +
+        std::to_string(lo.clients) + " synced, " + std::to_string(s.errors) + " errors");
+  }
+  auto end = readProcStats(pid);
+  const double window = nowSeconds() - windowStart;
+  const double selfCpu1 = selfCpuSeconds();
+  result.report = gen.report();
+  if (!end) return end.error();
+  result.rssEndMb = end->rssMb;
+  result.fdsEnd = end->openFds;
+  result.serverCpuMsPerS = (end->cpuSeconds - warm->cpuSeconds) * 1e3 / window;
+  result.cpuMsPerClientS =
+      (result.serverCpuMsPerS - result.serverIdleCpuMsPerS) / double(lo.clients);
+  result.loadgenCpuMsPerS = (selfCpu1 - selfCpu0) * 1e3 / window;
+  gen.stop();
+  Status exit = (*server)->stop();
+  if (!exit) result.serverExit = exit.error().message;
+  return result;
+}
+
+}  // namespace pc::load

@@ -1,0 +1,48 @@
+// One load measurement against a probecast-server process on this host: start the server,
+// measure its idle CPU (the field thread alone), let the clients join and warm up, then
+// measure a window. Server CPU, resident memory and open descriptors come from /proc/<pid>.
+// Used by `probecast-bench load` and the load tests.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "load_generator.h"
+
+namespace pc::load {
+
+struct ServerLoadOptions {
+  std::string serverExecutable;        // probecast-server
+  std::vector<std::string> serverArgs;  // besides --scene builtin, --bind, --port, --token
+  std::string serverLog = "/dev/null";
+  LoadOptions load;            // host, port and token are filled in
+  double idleSeconds = 2.0;    // server CPU without clients, measured before they join
+  double joinLimit = 60.0;     // s after the ramp for every client to hold every brick
+  double warmupSeconds = 2.0;  // after every client is synced
+  double seconds = 10.0;       // the measured window
+};
+
+struct ServerLoadResult {
+  LoadReport report;
+  bool allSynced = false;    // every client held every brick before the window
+  double joinSeconds = 0;    // from start to all synced
+  double serverIdleCpuMsPerS = 0;  // field thread, no clients
+  double serverCpuMsPerS = 0;      // during the window
+  // (window - idle) / clients: what serving one client costs the server per second.
+  double cpuMsPerClientS = 0;
+  double loadgenCpuMsPerS = 0;  // this process during the window
+  double rssWarmMb = 0, rssEndMb = 0;  // server, after the warm-up and at the window's end
+  int fdsWarm = 0, fdsEnd = 0;
+  std::string serverExit;  // empty when it exited cleanly on SIGTERM
+};
+
+// `progress` gets a line now and then (may be null).
+Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
+                                       const std::function<void(const std::string&)>& progress);
+
+// Raises the soft open-file limit to the hard one (children inherit it): each client holds a
+// TCP and a UDP socket, and the server one TCP socket per client.
+void raiseFileLimit();
+
+}  // namespace pc::load

@@ -1,0 +1,85 @@
+// probecast-loadgen: N protocol-only clients in one process against a probecast-server (no
+// rendering, no Vulkan). Prints progress while clients join, then the report as a table, and
+// with --json writes it as JSON (summary and per client). See loadgen/load_generator.h.
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <thread>
+
+#include "common/log.h"
+#include "loadgen/load_generator.h"
+#include "loadgen/server_load.h"
+
+namespace {
+
+void sleepSeconds(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"probecast load generator: many protocol-only clients against one server"};
+  pc::load::LoadOptions o;
+  double seconds = 10, warmup = 2;
+  std::string jsonPath;
+  bool decodeEach = false;
+  app.add_option("--host", o.host, "server address");
+  app.add_option("--port", o.port, "server TCP port");
+  app.add_option("--token", o.token, "shared secret (else $PROBECAST_TOKEN)");
+  app.add_option("--clients", o.clients, "number of clients");
+  app.add_option("--threads", o.threads, "network threads shared by all clients");
+  app.add_flag("--tcp-only", o.tcpOnly, "ask for datagrams over TCP");
+  app.add_option("--ramp", o.rampSeconds, "s over which clients first connect");
+  app.add_option("--session-seconds", o.sessionSeconds,
+                 "churn: end each session after about this long and reconnect (0: never)");
+  app.add_option("--session-jitter", o.sessionJitter, "fraction of --session-seconds randomised");
+  app.add_option("--max-sessions", o.maxSessions, "no new session after this many (0: no limit)");
+  app.add_option("--starve-seconds", o.starveSeconds, "gap that makes a client starved");
+  app.add_option("--pose-interval", o.poseInterval, "s between viewer poses");
+  app.add_flag("--other-host", [&](std::int64_t) { o.sameClock = false; },
+               "server on another host: estimate the clock offset instead of sharing the clock");
+  app.add_flag("--keep-field", o.keepField, "each receiver keeps a decoded field (as a renderer)");
+  app.add_flag("--decode-each", decodeEach, "every client decodes every payload itself");
+  app.add_option("--warmup", warmup, "s after the ramp before the measured window starts");
+  app.add_option("--seconds", seconds, "measured window, s");
+  app.add_option("--json", jsonPath, "write the report as JSON here");
+  app.add_option("--seed", o.seed, "random seed (pose phases, session jitter)");
+  CLI11_PARSE(app, argc, argv);
+  o.shareDecoding = !decodeEach;
+  if (o.token.empty()) {
+    if (const char* env = std::getenv("PROBECAST_TOKEN")) o.token = env;
+  }
+  if (o.token.empty()) return pc::logError("no auth token: pass --token or set PROBECAST_TOKEN"), 1;
+  pc::load::raiseFileLimit();
+
+  auto generator = pc::load::LoadGenerator::create(o);
+  if (!generator) return pc::logError(generator.error().message), 1;
+  pc::load::LoadGenerator& gen = **generator;
+  gen.start();
+  auto progress = [&](const char* phase) {
+    const pc::load::LoadSnapshot s = gen.snapshot();
+    std::printf("%s: %d/%d in session, %d synced, %llu sessions started, %llu errors\n", phase,
+                s.inSession, s.clients, s.synced, (unsigned long long)s.sessionsStarted,
+                (unsigned long long)s.errors);
+    std::fflush(stdout);
+  };
+  for (double t = 0; t < o.rampSeconds + warmup; t += 1.0) {
+    sleepSeconds(1.0);
+    progress("joining");
+  }
+  gen.beginWindow();
+  for (double t = 0; t < seconds; t += 1.0) {
+    sleepSeconds(std::min(1.0, seconds - t));
+    if (int(t) % 5 == 4) progress("measuring");
+  }
+  const pc::load::LoadReport report = gen.report();
+  gen.stop();
+  std::printf("%s", pc::load::reportTable(report).c_str());
+  if (!jsonPath.empty()) {
+    std::ofstream out(jsonPath);
+    out << pc::load::reportJson(report);
+    if (!out) return pc::logError("cannot write " + jsonPath), 1;
+  }
+  return report.errors == 0 && report.starvedClients == 0 ? 0 : 2;
+}
