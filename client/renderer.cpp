@@ -172,6 +172,8 @@ struct Renderer::Slot {
   std::optional<vk::GpuTimer> timer;
   std::vector<ShadowView> shadowViews;  // the layers this frame redraws
   bool shadowsFresh = false;            // the arrays have never been drawn: undefined layout
+  std::vector<glm::vec3> boxLo, boxHi;  // world bounds of every draw this frame (culling)
+  glm::mat4 cameraViews[2];             // the eyes' view-projections (mono: both the same)
   bool submitted = false;
 };
 
@@ -670,7 +672,12 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
     if (v.layer < (v.array == 0 ? largeLayers_ : smallLayers_)) views.push_back(v);
   }
   std::vector<glm::mat4> models(draws.size());
-  for (std::size_t d = 0; d < draws.size(); ++d) models[d] = draws[d].model;
+  slot.boxLo.resize(draws.size());
+  slot.boxHi.resize(draws.size());
+  for (std::size_t d = 0; d < draws.size(); ++d) {
+    models[d] = draws[d].model;
+    worldBox(models[d], drawBounds_[d], slot.boxLo[d], slot.boxHi[d]);
+  }
   slot.shadowsFresh = shadowCache_.fresh();
   slot.shadowViews = shadowCache_.select(views, models, drawBounds_);
   stats_ = {};
@@ -686,7 +693,9 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
     f.views[v].viewProj = m.viewProj;
     f.views[v].invViewProj = m.invViewProj;
     f.views[v].position = glm::vec4(m.position, 1.0f);
+    slot.cameraViews[v] = m.viewProj;
   }
+  if (options_.views == 1) slot.cameraViews[1] = slot.cameraViews[0];
   f.skyZenith = glm::vec4(scene.sky.zenith, 0.0f);
   f.skyHorizon = glm::vec4(scene.sky.horizon, 0.0f);
   f.skyGround = glm::vec4(scene.sky.ground, 0.0f);
@@ -713,12 +722,19 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
   const VkPipelineLayout layout = pipelineLayout_.get();
   const PackedScene& packed = gpuScene_->packed();
-  auto drawScene = [&] {
+  // Draws every draw whose world bounds touch one of the views' frusta (a cube face sees about
+  // a sixth of a scene, a camera often less).
+  auto drawScene = [&](std::initializer_list<glm::mat4> views) {
     const VkDeviceSize zero = 0;
     const VkBuffer vb = gpuScene_->vertices();
     vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &zero);
     vkCmdBindIndexBuffer(cmd, gpuScene_->indices(), 0, VK_INDEX_TYPE_UINT32);
     for (std::size_t d = 0; d < packed.drawInstances.size(); ++d) {
+      if (d < slot.boxLo.size() &&
+          std::none_of(views.begin(), views.end(), [&](const glm::mat4& v) {
+            return boxTouchesFrustum(v, slot.boxLo[d], slot.boxHi[d]);
+          }))
+        continue;
       const MeshRange& m = packed.meshes[scene_->instances[packed.drawInstances[d]].mesh];
       // firstInstance carries the draw's index: the shaders read draws[gl_InstanceIndex].
       vkCmdDrawIndexed(cmd, m.indexCount, 1, m.firstIndex, m.vertexOffset, std::uint32_t(d));
@@ -808,7 +824,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                       large ? largeShadowPipeline_.get() : smallShadowPipeline_.get());
     setViewport(cmd, size, size);
     vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &v.viewProj);
-    drawScene();
+    drawScene({v.viewProj});
     vkCmdEndRendering(cmd);
   }
   shadowBarriers(false);
@@ -869,10 +885,10 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   setViewport(cmd, w, h);
   if (prepassPipeline_) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, prepassPipeline_.get());
-    drawScene();
+    drawScene({slot.cameraViews[0], slot.cameraViews[1]});
   }
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scenePipeline_.get());
-  drawScene();
+  drawScene({slot.cameraViews[0], slot.cameraViews[1]});
   vkCmdEndRendering(cmd);
   auto toRead = [&](const Target& t) {
     return ImageBarrier{t.image.get(),

@@ -21,9 +21,6 @@ bool boxTouchesFrustum(const glm::mat4& viewProj, glm::vec3 lo, glm::vec3 hi) {
   return std::none_of(outside, outside + 6, [](int n) { return n == 8; });
 }
 
-namespace {
-
-// World bounds of an object-space box under `m`.
 void worldBox(const glm::mat4& m, const LocalBounds& b, glm::vec3& lo, glm::vec3& hi) {
   lo = glm::vec3(INFINITY);
   hi = glm::vec3(-INFINITY);
@@ -34,8 +31,6 @@ void worldBox(const glm::mat4& m, const LocalBounds& b, glm::vec3& lo, glm::vec3
     hi = glm::max(hi, w);
   }
 }
-
-}  // namespace
 
 void ShadowCache::reset(int largeLayers, int smallLayers) {
   layers_[0].assign(std::size_t(std::max(0, largeLayers)), Layer{});

@@ -21,6 +21,9 @@ struct LocalBounds {
 // 0..1). Conservative: false only when all corners lie outside one clip plane.
 bool boxTouchesFrustum(const glm::mat4& viewProj, glm::vec3 lo, glm::vec3 hi);
 
+// World bounds of an object-space box under `m`.
+void worldBox(const glm::mat4& m, const LocalBounds& b, glm::vec3& lo, glm::vec3& hi);
+
 class ShadowCache {
  public:
   // Forgets everything: the next frame draws every layer.

@@ -72,7 +72,9 @@ class Xvfb {
       if (fs::exists("/tmp/.X11-unix/X" + std::to_string(d)) ||
           fs::exists("/tmp/.X" + std::to_string(d) + "-lock"))
         continue;
-      display_ = ":" + std::to_string(d);
+      // Appended, not ":" + string: GCC 12 warns (-Wrestrict, a false positive) on that form.
+      display_ = ":";
+      display_ += std::to_string(d);
       pid_ = spawn({"Xvfb", display_, "-screen", "0", "640x480x24", "-nolisten", "tcp"});
       if (pid_ < 0) return false;
       for (int i = 0; i < 100; ++i) {
