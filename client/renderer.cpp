@@ -362,19 +362,19 @@ Status Renderer::createTargets() {
   const std::uint32_t layers = std::uint32_t(options_.views);
   const auto samples = static_cast<VkSampleCountFlagBits>(options_.msaa);
   auto make = [&](Target& t, VkFormat format, VkSampleCountFlagBits count, VkImageUsageFlags usage,
-                  VkImageAspectFlags aspect) -> Status {
+                  VkImageAspectFlags aspect, bool sideBySide = false) -> Status {
     vk::ImageDesc d;
     d.format = format;
-    d.width = w;
+    d.width = sideBySide ? 2 * w : w;
     d.height = h;
-    d.layers = layers;
+    d.layers = sideBySide ? 1 : layers;
     d.samples = count;
     d.usage = usage;
     auto image = vk::Image::create(*ctx_, d);
     if (!image) return image.error();
     t.image = std::move(image).value();
     auto view =
-        makeView(*ctx_, t.image.get(), format, VK_IMAGE_VIEW_TYPE_2D_ARRAY, aspect, 0, layers);
+        makeView(*ctx_, t.image.get(), format, VK_IMAGE_VIEW_TYPE_2D_ARRAY, aspect, 0, d.layers);
     if (!view) return view.error();
     t.arrayView = std::move(view).value();
     return Status::success();
@@ -395,7 +395,8 @@ Status Renderer::createTargets() {
                  VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
              color),
         make(offscreen_, kOffscreenFormat, VK_SAMPLE_COUNT_1_BIT,
-             VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, color)}) {
+             VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, color,
+             sideBySide())}) {
     if (!s) return s;
   }
   auto rb = vk::Buffer::create(*ctx_, std::size_t(w) * h * layers * (16 + 4),
@@ -527,12 +528,16 @@ Result<VkPipeline> Renderer::tonemapPipeline(VkFormat format) {
   if (!vert) return vert.error();
   auto frag = vk::loadShader(*ctx_, "client_tonemap.frag.spv");
   if (!frag) return frag.error();
+  const VkBool32 sideBySideSpec = sideBySide() ? VK_TRUE : VK_FALSE;
+  const VkSpecializationMapEntry entry{0, 0, sizeof(VkBool32)};
+  const VkSpecializationInfo spec{1, &entry, sizeof sideBySideSpec, &sideBySideSpec};
   GraphicsDesc d;
-  d.stages = stageInfos(
-      {{VK_SHADER_STAGE_VERTEX_BIT, vert->get()}, {VK_SHADER_STAGE_FRAGMENT_BIT, frag->get()}});
+  d.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, vert->get()},
+                         {VK_SHADER_STAGE_FRAGMENT_BIT, frag->get(), &spec}});
   d.vertexInput = false;
   d.colorFormats = {format};
-  d.viewMask = options_.views == 2 ? 0b11u : 0u;
+  // Side by side: one plain pass over the double-width target, eyes picked by column.
+  d.viewMask = options_.views == 2 && !sideBySide() ? 0b11u : 0u;
   auto p = createGraphicsPipeline(*ctx_, pipelineLayout_.get(), d);
   if (!p) return p.error();
   VkPipeline handle = p->get();
@@ -935,16 +940,17 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   out.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
   out.loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;  // every pixel is written
   out.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  const std::uint32_t outWidth = sideBySide() ? 2 * w : w;
   VkRenderingInfo ti{VK_STRUCTURE_TYPE_RENDERING_INFO};
-  ti.renderArea = {{0, 0}, {w, h}};
+  ti.renderArea = {{0, 0}, {outWidth, h}};
   ti.layerCount = 1;
-  ti.viewMask = options_.views == 2 ? 0b11u : 0u;
+  ti.viewMask = options_.views == 2 && !sideBySide() ? 0b11u : 0u;
   ti.colorAttachmentCount = 1;
   ti.pColorAttachments = &out;
   if (pipeline) {
     vkCmdBeginRendering(cmd, &ti);
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, *pipeline);
-    setViewport(cmd, w, h);
+    setViewport(cmd, outWidth, h);
     vkCmdDraw(cmd, 3, 1, 0, 0);
     vkCmdEndRendering(cmd);
   } else {
@@ -997,6 +1003,10 @@ Result<Renderer::Readback> Renderer::renderOffscreen(const FrameInput& input) {
   vkCmdCopyImageToBuffer(*cmd, hdr_.image.get(), VK_IMAGE_LAYOUT_GENERAL, readback_.get(), 1,
                          &region);
   region.bufferOffset = hdrBytes;
+  if (sideBySide()) {
+    region.imageSubresource.layerCount = 1;
+    region.imageExtent.width = 2 * w;
+  }
   vkCmdCopyImageToBuffer(*cmd, offscreen_.image.get(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                          readback_.get(), 1, &region);
   vk::memoryBarrier(*cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
@@ -1022,7 +1032,9 @@ Result<Renderer::Readback> Renderer::renderOffscreen(const FrameInput& input) {
     for (std::size_t i = 0; i < std::size_t(w) * h; ++i) {
       const float* p = hdr + (base + i) * 4;
       linear.pixels[i] = glm::vec3(p[0], p[1], p[2]);
-      const std::uint8_t* q = ldr + (base + i) * 4;
+      // Side by side: one image of 2w columns, the left eye in the first w.
+      const std::size_t at = sideBySide() ? (i / w) * 2 * w + v * w + i % w : base + i;
+      const std::uint8_t* q = ldr + at * 4;
       std::memcpy(&display.rgb[i * 3], q, 3);
     }
     out.linear.push_back(std::move(linear));

@@ -33,7 +33,10 @@ inline constexpr int kFrameSlots = 2;
 struct RendererOptions {
   int width = 640, height = 360;
   int views = 1;  // 2: stereo (multiview)
-  int msaa = 4;   // samples per pixel: 2, 4 or 8
+  // Stereo only: tone mapping writes both eyes side by side into one 2*width x height image
+  // (a window), instead of one layer per eye.
+  bool sideBySide = false;
+  int msaa = 4;  // samples per pixel: 2, 4 or 8
   ShadowSettings shadows;
   int sampleFlags = 0;               // PC_SAMPLE_* for the field
   int bricksPerFrame = 32;           // field upload budget per frame
@@ -52,7 +55,8 @@ struct FrameInput {
   std::optional<double> clock;
 };
 
-// Where tone mapping writes: an 8-bit UNORM color image with one layer per view.
+// Where tone mapping writes: an 8-bit UNORM color image with one layer per view (side by
+// side: one layer twice the render width).
 struct OutputTarget {
   VkImage image = VK_NULL_HANDLE;
   VkImageView view = VK_NULL_HANDLE;  // 2D_ARRAY view for multiview targets, else 2D
@@ -121,6 +125,7 @@ class Renderer {
 
  private:
   Renderer() = default;
+  bool sideBySide() const { return options_.views == 2 && options_.sideBySide; }
   struct Slot;
   Status createTargets();
   Status createPipelines();

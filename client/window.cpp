@@ -1,5 +1,6 @@
 // Windowed front end: GLFW window, swapchain (recreated on resize), fly camera (right mouse
 // button drag to look, WASD/QE to move, shift for speed), overlay with frame time and field age.
+// Stereo shows both eyes side by side, each half the window's width.
 #define GLFW_INCLUDE_VULKAN
 #include <GLFW/glfw3.h>
 
@@ -102,8 +103,12 @@ int runWindowed(const ClientConfig& config) {
       logError("swapchain: " + s.error().message);
       return 1;
     }
+    // Stereo: both eyes side by side, each half the window's width.
+    const int eyes = config.stereo ? 2 : 1;
     RendererOptions ro;
-    ro.width = int(swapchain.extent().width);
+    ro.views = eyes;
+    ro.sideBySide = config.stereo;
+    ro.width = std::max(1, int(swapchain.extent().width) / eyes);
     ro.height = int(swapchain.extent().height);
     ro.msaa = config.msaa;
     ro.shadows = config.shadows;
@@ -166,7 +171,8 @@ int runWindowed(const ClientConfig& config) {
           status = 1;
           break;
         }
-        s = (*renderer)->resize(int(swapchain.extent().width), int(swapchain.extent().height));
+        s = (*renderer)->resize(std::max(1, int(swapchain.extent().width) / eyes),
+                                int(swapchain.extent().height));
         if (!s) {
           logError("resize: " + s.error().message);
           status = 1;
@@ -195,7 +201,8 @@ int runWindowed(const ClientConfig& config) {
         s = swapchain.create({std::uint32_t(std::max(fbw, 1)), std::uint32_t(std::max(fbh, 1))},
                              kFrameSlots);
         if (!s) break;
-        s = (*renderer)->resize(int(swapchain.extent().width), int(swapchain.extent().height));
+        s = (*renderer)->resize(std::max(1, int(swapchain.extent().width) / eyes),
+                                int(swapchain.extent().height));
         if (!s) break;
         acquired = vkAcquireNextImageKHR((*ctx)->device(), swapchain.get(), UINT64_MAX,
                                          swapchain.acquired(slot), VK_NULL_HANDLE, &imageIndex);
@@ -208,7 +215,12 @@ int runWindowed(const ClientConfig& config) {
 
       FrameInput input;
       input.time = animationTime;
-      input.cameras[0] = fly.camera();
+      if (config.stereo) {
+        input.cameras[0] = offsetCamera(fly.camera(), -0.5f * config.ipd);
+        input.cameras[1] = offsetCamera(fly.camera(), 0.5f * config.ipd);
+      } else {
+        input.cameras[0] = fly.camera();
+      }
       if (config.overlay) {
         const FrameTimings& t = (*renderer)->lastTimings();
         const FieldAge age = mirror.age(secondsNow());
@@ -222,8 +234,8 @@ int runWindowed(const ClientConfig& config) {
           std::snprintf(lineBuffer(), 128, "NO FIELD: AMBIENT");
         }
         input.overlay.push_back(lineBuffer());
-        std::snprintf(lineBuffer(), 128, "%ux%u  MSAA %dx", swapchain.extent().width,
-                      swapchain.extent().height, config.msaa);
+        std::snprintf(lineBuffer(), 128, "%ux%u  MSAA %dx%s", swapchain.extent().width,
+                      swapchain.extent().height, config.msaa, config.stereo ? "  STEREO" : "");
         input.overlay.push_back(lineBuffer());
       }
       const OutputTarget target{swapchain.image(imageIndex), swapchain.view(imageIndex),

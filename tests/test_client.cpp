@@ -102,6 +102,38 @@ TEST(ClientStereo, LeftEyeEqualsMonoRenderOfTheSamePose) {
   EXPECT_LT(rightVsMono, leftVsMono);
 }
 
+TEST(ClientStereo, SideBySideHoldsBothEyesOfTheLayeredRender) {
+  const Scene scene = builtinScene();
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  auto camera = sceneCamera(scene, 0);
+  ASSERT_TRUE(camera.ok());
+  FieldMirror mirror;
+  FrameInput input;
+  input.cameras[0] = offsetCamera(*camera, -0.032f);
+  input.cameras[1] = offsetCamera(*camera, 0.032f);
+  auto render = [&](bool sideBySide) {
+    RendererOptions ro;
+    ro.width = 80;
+    ro.height = 60;
+    ro.views = 2;
+    ro.sideBySide = sideBySide;
+    auto renderer = Renderer::create(*ctx, scene, mirror, ro);
+    EXPECT_TRUE(renderer.ok()) << (renderer ? "" : renderer.error().message);
+    if (!renderer) return Renderer::Readback{};
+    auto frame = (*renderer)->renderOffscreen(input);
+    EXPECT_TRUE(frame.ok());
+    return frame ? std::move(frame).value() : Renderer::Readback{};
+  };
+  const Renderer::Readback layered = render(false), sideBySide = render(true);
+  ASSERT_EQ(layered.display.size(), 2u);
+  ASSERT_EQ(sideBySide.display.size(), 2u);
+  EXPECT_EQ(sideBySide.display[0].rgb, layered.display[0].rgb);
+  EXPECT_EQ(sideBySide.display[1].rgb, layered.display[1].rgb);
+  EXPECT_NE(sideBySide.display[0].rgb, sideBySide.display[1].rgb);
+  EXPECT_EQ(ctx->validationErrorCount(), 0u);
+}
+
 TEST(ClientFallback, NoFieldGivesAnAmbientLitImage) {
   const Scene scene = builtinScene();
   auto ctx = validatingContext();
@@ -198,7 +230,7 @@ TEST(ClientShadowCache, BoxFrustumTest) {
   EXPECT_TRUE(boxTouchesFrustum(m, {-0.5f, -0.5f, -2.0f}, {0.5f, 0.5f, -1.0f}));
   EXPECT_TRUE(boxTouchesFrustum(m, {0.9f, 0.9f, -2.0f}, {3.0f, 3.0f, -1.0f}));  // partly in
   EXPECT_FALSE(boxTouchesFrustum(m, {1.5f, -0.5f, -2.0f}, {2.0f, 0.5f, -1.0f}));
-  EXPECT_FALSE(boxTouchesFrustum(m, {-0.5f, -0.5f, 1.0f}, {0.5f, 0.5f, 2.0f}));  // behind
+  EXPECT_FALSE(boxTouchesFrustum(m, {-0.5f, -0.5f, 1.0f}, {0.5f, 0.5f, 2.0f}));      // behind
   EXPECT_FALSE(boxTouchesFrustum(m, {-0.5f, -0.5f, -20.0f}, {0.5f, 0.5f, -12.0f}));  // past far
 }
 

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -170,17 +171,37 @@ bool waitForFile(const fs::path& p, pid_t pid, int seconds) {
   return false;
 }
 
-TEST(ClientWindow, ScreenshotMatchesHeadlessImage) {
+// Columns [x0, x0 + width) of `image`.
+Image8 columns(const Image8& image, int x0, int width) {
+  Image8 out;
+  out.width = width;
+  out.height = image.height;
+  out.rgb.resize(std::size_t(width) * image.height * 3);
+  for (int y = 0; y < image.height; ++y) {
+    std::memcpy(&out.rgb[std::size_t(y) * width * 3],
+                &image.rgb[(std::size_t(y) * image.width + x0) * 3], std::size_t(width) * 3);
+  }
+  return out;
+}
+
+// A screenshot of the window against the headless image of the same view; stereo windows
+// show both eyes side by side, each half the window's width.
+void screenshotMatchesHeadless(bool stereo) {
   if (!onPath("Xvfb") || !onPath("xwd")) GTEST_SKIP() << "needs Xvfb and xwd (xvfb, x11-apps)";
   Xvfb x;
   ASSERT_TRUE(x.start()) << "Xvfb did not start";
-  const fs::path dir = workDir("screenshot");
+  const fs::path dir = workDir(stereo ? "screenshot-stereo" : "screenshot");
   const std::string probes = builtinProbes().string();
-  const std::vector<std::string> common = {"--scene", "builtin",  "--probes", probes, "--width",
-                                           "160",     "--height", "120",      "--dt", "0"};
+  const int eyeWidth = 160;
+  std::vector<std::string> common = {"--scene",  "builtin", "--probes", probes,
+                                     "--height", "120",     "--dt",     "0"};
+  if (stereo) common.push_back("--stereo");
   std::vector<std::string> windowed = {
-      kClient,        "--window",     "--frames",     "16",
-      "--no-overlay", "--validation", "--ready-file", (dir / "ready").string()};
+      kClient,        "--window",
+      "--frames",     "16",
+      "--no-overlay", "--validation",
+      "--ready-file", (dir / "ready").string(),
+      "--width",      std::to_string(stereo ? 2 * eyeWidth : eyeWidth)};
   windowed.insert(windowed.end(), common.begin(), common.end());
   const pid_t client = spawn(windowed, {"DISPLAY=" + x.display()});
   ASSERT_GT(client, 0);
@@ -195,21 +216,31 @@ TEST(ClientWindow, ScreenshotMatchesHeadlessImage) {
   ASSERT_TRUE(ready) << "the window never became ready";
   ASSERT_EQ(shot, 0) << "xwd failed";
 
-  std::vector<std::string> headless = {kClient, "--out", dir.string(), "--no-exr"};
+  std::vector<std::string> headless = {kClient,    "--out",   dir.string(),
+                                       "--no-exr", "--width", std::to_string(eyeWidth)};
   headless.insert(headless.end(), common.begin(), common.end());
   const pid_t h = spawn(headless);
   ASSERT_EQ(waitExit(h), 0);
 
   auto window = readXwd(dir / "window.xwd");
   ASSERT_TRUE(window.ok()) << window.error().message;
-  auto offscreen = readPng(dir / "frame_0000.png");
-  ASSERT_TRUE(offscreen.ok()) << offscreen.error().message;
-  ASSERT_EQ(window->width, offscreen->width);
-  ASSERT_EQ(window->height, offscreen->height);
-  const double db = psnr8(*window, *offscreen);
-  std::printf("window screenshot vs headless image: %.2f dB\n", db);
-  EXPECT_GE(db, 40.0);
+  const int eyes = stereo ? 2 : 1;
+  ASSERT_EQ(window->width, eyes * eyeWidth);
+  for (int eye = 0; eye < eyes; ++eye) {
+    const char* suffix = stereo ? (eye == 0 ? "_left" : "_right") : "";
+    auto offscreen = readPng(dir / (std::string("frame_0000") + suffix + ".png"));
+    ASSERT_TRUE(offscreen.ok()) << offscreen.error().message;
+    ASSERT_EQ(offscreen->width, eyeWidth);
+    ASSERT_EQ(window->height, offscreen->height);
+    const double db = psnr8(columns(*window, eye * eyeWidth, eyeWidth), *offscreen);
+    std::printf("window screenshot%s vs headless image: %.2f dB\n", suffix, db);
+    EXPECT_GE(db, 40.0);
+  }
 }
+
+TEST(ClientWindow, ScreenshotMatchesHeadlessImage) { screenshotMatchesHeadless(false); }
+
+TEST(ClientWindow, StereoScreenshotShowsBothEyesSideBySide) { screenshotMatchesHeadless(true); }
 
 TEST(ClientWindow, ResizeDuringTheRunKeepsValidationQuiet) {
   if (!onPath("Xvfb")) GTEST_SKIP() << "needs Xvfb (xvfb)";

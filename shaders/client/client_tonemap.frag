@@ -11,6 +11,8 @@ layout(set = 0, binding = PC_BIND_HDR_TEXTURE) uniform sampler2DArray hdrTexture
 layout(set = 0, binding = PC_BIND_OVERLAY, std430) readonly buffer OverlayBlock { OverlayText overlay; };
 
 layout(location = 0) out vec4 outColor;
+// Stereo into one image twice the render width: the left eye in the left half.
+layout(constant_id = 0) const bool SIDE_BY_SIDE = false;
 
 const int kScale = 2;    // screen pixels per font pixel
 const int kMargin = 6;   // pixels from the top-left corner
@@ -36,7 +38,13 @@ float overlayText(ivec2 p) {
 
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
-  vec3 hdr = texelFetch(hdrTexture, ivec3(p, gl_ViewIndex), 0).rgb;
+  int eye = gl_ViewIndex;
+  if (SIDE_BY_SIDE) {
+    int width = int(frame.viewport.x);
+    eye = min(p.x / width, 1);
+    p.x -= eye * width;
+  }
+  vec3 hdr = texelFetch(hdrTexture, ivec3(p, eye), 0).rgb;
   vec3 color = pcTonemap(hdr, frame.exposure);
   float text = overlayText(p);
   if (text >= 0.0) color = mix(color * 0.35, vec3(1.0), text);
