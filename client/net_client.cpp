@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "common/log.h"
+#include "protocol/brick_codec.h"
 #include "protocol/net_framing.h"
 #include "protocol/session_messages.h"
 
@@ -23,6 +24,24 @@ using Bytes = std::vector<std::uint8_t>;
 double netClockSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
       .count();
+}
+
+std::uint64_t mirrorMemoryBytes(const SessionInfoMsg& info) {
+  using namespace gpu;
+  constexpr std::uint64_t kTileFloats =
+      std::uint64_t(PC_IRRADIANCE_TEXELS + 2) * (PC_IRRADIANCE_TEXELS + 2) * 3 +
+      std::uint64_t(PC_DEPTH_TEXELS + 2) * (PC_DEPTH_TEXELS + 2) * 2 +
+      std::uint64_t(PC_OCCLUSION_TEXELS + 2) * (PC_OCCLUSION_TEXELS + 2);
+  constexpr std::uint64_t kSlotBytes = kTileFloats * sizeof(float) + sizeof(ProbeRecord);
+  constexpr std::uint64_t kBrickCodeBytes = brick_layout::kCodes * sizeof(std::uint16_t);
+  std::uint64_t bricks = 0;
+  for (const CascadeDesc& c : info.cascades) {
+    const auto perAxis = [](int n) { return std::uint64_t(std::clamp(n, 1, 1024) + 3) / 4; };
+    bricks += perAxis(c.counts.x) * perAxis(c.counts.y) * perAxis(c.counts.z);
+  }
+  const std::uint64_t slots = bricks * PC_PROBES_PER_BRICK;
+  // Two fields (the receiver's and the mirror's) and one set of codes.
+  return 2 * slots * kSlotBytes + bricks * kBrickCodeBytes;
 }
 
 namespace {
@@ -246,6 +265,15 @@ void NetClient::Impl::handle(const SessionMessage& message) {
 }
 
 void NetClient::Impl::onSessionInfo(const SessionInfoMsg& info) {
+  // Checked before anything is laid out: a hostile or broken server could otherwise make this
+  // client allocate tens of GiB (mirrorField accepts up to 4M probe slots).
+  const std::uint64_t needed = mirrorMemoryBytes(info);
+  if (needed > options.maxMirrorBytes) {
+    const auto mib = [](std::uint64_t b) { return std::to_string((b + (1u << 20) - 1) >> 20); };
+    return fail("session info: the server's field layout (" + std::to_string(info.cascades.size()) +
+                " cascades) needs about " + mib(needed) + " MiB of mirror memory, over this "
+                "client's cap of " + mib(options.maxMirrorBytes) + " MiB (maxMirrorBytes)");
+  }
   auto created = StreamReceiver::create(info, sessionId, options.receiver);
   if (!created) return fail("session info: " + created.error().message);
   receiver.emplace(std::move(created).value());

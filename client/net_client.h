@@ -33,6 +33,10 @@ struct NetClientOptions {
   double silenceTimeout = 2.0;        // s without any bytes from the server: it is gone
   double pollInterval = 0.005;        // s between receiver polls
   double poseInterval = 0.1;          // s between viewer poses
+  // The most memory a server's field layout (SessionInfo) may make this client allocate for
+  // its copies of the field (mirrorMemoryBytes); a larger layout ends the session with an
+  // error naming both sizes. The shared scenes need under 200 MiB.
+  std::uint64_t maxMirrorBytes = std::uint64_t(1) << 30;
   ReceiverOptions receiver;
 };
 
@@ -82,5 +86,10 @@ class NetClient {
 
 // Steady-clock seconds, the client's clock for the mirror and the receiver.
 double netClockSeconds();
+
+// What a session with this layout makes the client hold on the CPU: the receiver's field and
+// the mirror's copy (atlases with borders, probe records) and the receiver's quantized codes
+// per brick. Counts per axis are clamped to 1..1024 (mirrorField refuses anything else).
+std::uint64_t mirrorMemoryBytes(const SessionInfoMsg& info);
 
 }  // namespace pc::client
