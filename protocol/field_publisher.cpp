@@ -1,5 +1,6 @@
 #include "field_publisher.h"
 
+#include <chrono>
 #include <string>
 
 namespace pc {
@@ -111,8 +112,10 @@ std::shared_ptr<const EncodedUpdate> FieldPublisher::encoded(int cascade, int br
     if (!baseContent) return nullptr;
   }
   ++encodes_;
-  return cache_.insert(key, kCodecQuantZstd,
-                       encodeBrick(*content, baseContent.get(), options_.zstdLevel));
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<std::uint8_t> payload = encodeBrick(*content, baseContent.get(), options_.zstdLevel);
+  encodeSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return cache_.insert(key, kCodecQuantZstd, std::move(payload));
 }
 
 }  // namespace pc

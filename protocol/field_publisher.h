@@ -67,6 +67,8 @@ class FieldPublisher {
   const EncodeCache& cache() const { return cache_; }
   std::size_t historyBytes() const { return historyBytes_; }
   std::uint64_t encodes() const { return encodes_; }
+  // Seconds spent encoding those updates (cache misses), for the server's metrics.
+  double encodeSeconds() const { return encodeSeconds_; }
   // Codes the dead zone held at their previous value, and codes quantized, in all.
   std::uint64_t heldCodes() const { return heldCodes_; }
   std::uint64_t quantizedCodes() const { return quantizedCodes_; }
@@ -80,6 +82,7 @@ class FieldPublisher {
   std::size_t historyBytes_ = 0;
   EncodeCache cache_;
   std::uint64_t encodes_ = 0;
+  double encodeSeconds_ = 0;
   std::uint64_t heldCodes_ = 0, quantizedCodes_ = 0;
 
   void trim(std::deque<BrickVersion>& history);

@@ -28,7 +28,11 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
     us = tracer_.update(field_, request);
   }
   // Published every tick, frozen or not: the scene state doubles as the clients' clock.
+  const auto publishStart = std::chrono::steady_clock::now();
   Status published = hub_.publish(field_, sceneStateMessage(state), now);
+  const double publishMs =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - publishStart)
+          .count();
   if (!published) logError("publish: " + published.error().message);
 
   if (freezing && !frozen_) {
@@ -49,6 +53,43 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   if (us.totalMs > 0) stats_.lastUpdateMs = us.totalMs;
   stats_.lastBricksChanged = us.bricksChanged;
   stats_.frozen = frozen_;
+  if (us.totalMs > 0) {
+    stats_.lastUpdate = us;
+    ++stats_.updates;
+    stats_.updateSeconds += us.totalMs / 1e3;
+  }
+  stats_.lastPublishMs = publishMs;
+  stats_.publishSeconds += publishMs / 1e3;
+}
+
+void appendFieldLoopMetrics(MetricsText& m, const FieldLoopStats& s) {
+  m.counter("probecast_field_ticks_total", "Field thread ticks (each publishes).",
+            double(s.ticks));
+  m.counter("probecast_field_updates_total", "Field updates traced.", double(s.updates));
+  m.counter("probecast_field_update_seconds_total", "Time spent tracing and blending updates.",
+            s.updateSeconds);
+  m.counter("probecast_field_publish_seconds_total",
+            "Time spent publishing updates (quantizing changed bricks).", s.publishSeconds);
+  m.gauge("probecast_field_animation_time_seconds", "Animation time of the latest tick.",
+          s.animationTime);
+  m.gauge("probecast_field_frozen", "1 once the animation clock and the field stopped.",
+          s.frozen ? 1.0 : 0.0);
+  m.gauge("probecast_field_last_bricks_changed", "Bricks changed by the latest update.",
+          double(s.lastUpdate.bricksChanged));
+  m.gauge("probecast_field_last_probes_updated", "Probes traced by the latest update.",
+          double(s.lastUpdate.probesUpdated));
+  // Per pass, the latest update. The CPU tracer fuses trace and shade (shade reads 0); a GPU
+  // tracer adds its timestamped passes.
+  const std::string help = "Duration of each pass of the latest field update.";
+  const UpdateStats& u = s.lastUpdate;
+  m.gauge("probecast_field_last_pass_seconds", help, u.traceMs / 1e3, {{"pass", "trace"}});
+  m.gauge("probecast_field_last_pass_seconds", help, u.shadeMs / 1e3, {{"pass", "shade"}});
+  m.gauge("probecast_field_last_pass_seconds", help, u.blendMs / 1e3, {{"pass", "blend"}});
+  m.gauge("probecast_field_last_pass_seconds", help, u.totalMs / 1e3, {{"pass", "total"}});
+  m.gauge("probecast_field_last_pass_seconds", help, s.lastPublishMs / 1e3, {{"pass", "publish"}});
+  for (const auto& [name, ms] : u.gpuPasses) {
+    m.gauge("probecast_field_last_pass_seconds", help, ms / 1e3, {{"pass", "gpu_" + name}});
+  }
 }
 
 }  // namespace pc

@@ -12,6 +12,7 @@
 #include "common/field.h"
 #include "common/scene.h"
 #include "net_hub.h"
+#include "net_metrics.h"
 #include "probe_scheduler.h"
 #include "tracer.h"
 
@@ -33,7 +34,14 @@ struct FieldLoopStats {
   double lastUpdateMs = 0;
   int lastBricksChanged = 0;
   bool frozen = false;
+  UpdateStats lastUpdate;     // the tracer's figures of the latest update (per-pass times)
+  double lastPublishMs = 0;   // quantizing the changed bricks for the senders
+  std::uint64_t updates = 0;  // ticks that traced (not frozen)
+  double updateSeconds = 0, publishSeconds = 0;  // totals
 };
+
+// The field thread's metrics (probecast_field_*) for the server's /metrics endpoint.
+void appendFieldLoopMetrics(MetricsText& out, const FieldLoopStats& stats);
 
 class FieldLoop {
  public:

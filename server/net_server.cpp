@@ -1,5 +1,6 @@
 #include "net_server.h"
 
+#include <algorithm>
 #include <array>
 #include <boost/asio.hpp>
 #include <deque>
@@ -8,6 +9,7 @@
 #include <optional>
 #include <random>
 #include <thread>
+#include <variant>
 
 #include "common/log.h"
 #include "protocol/net_framing.h"
@@ -21,13 +23,105 @@ using asio::ip::udp;
 using Bytes = std::vector<std::uint8_t>;
 using SharedBytes = std::shared_ptr<const Bytes>;
 
+const char* causeName(DisconnectCause cause) {
+  switch (cause) {
+    case DisconnectCause::ClientClosed:
+      return "client_closed";
+    case DisconnectCause::HelloTimeout:
+      return "hello_timeout";
+    case DisconnectCause::Silent:
+      return "silent";
+    case DisconnectCause::NotReading:
+      return "not_reading";
+    case DisconnectCause::Malformed:
+      return "malformed";
+    case DisconnectCause::Oversized:
+      return "oversized";
+    case DisconnectCause::WrongDirection:
+      return "wrong_direction";
+    case DisconnectCause::Protocol:
+      return "protocol";
+    case DisconnectCause::Invalid:
+      return "invalid";
+    case DisconnectCause::Flood:
+      return "flood";
+    case DisconnectCause::Rejected:
+      return "rejected";
+    case DisconnectCause::TooManyPending:
+      return "too_many_pending";
+    case DisconnectCause::Shutdown:
+      return "shutdown";
+  }
+  return "?";
+}
+
+const char* causeName(RejectCause cause) {
+  switch (cause) {
+    case RejectCause::Auth:
+      return "auth";
+    case RejectCause::Version:
+      return "version";
+    case RejectCause::ServerFull:
+      return "server_full";
+  }
+  return "?";
+}
+
 namespace {
 
 // Before a client has shown a valid token it may send one small Hello, nothing bigger: an
 // unauthenticated peer never makes the server allocate the full message limit.
 constexpr std::size_t kMaxHelloFrameBytes = 4096;
+// A receive buffer grown past this by one large message (a full ack) is given back after it.
+constexpr std::size_t kKeptFrameCapacity = 64u << 10;
 
 SharedBytes share(Bytes bytes) { return std::make_shared<const Bytes>(std::move(bytes)); }
+
+std::uint32_t readLittleEndian32(const std::array<std::uint8_t, kFramePrefixBytes>& b) {
+  return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 |
+         std::uint32_t(b[3]) << 24;
+}
+
+// Causes that a client brings on itself: logged as warnings.
+bool misbehaviour(DisconnectCause c) {
+  switch (c) {
+    case DisconnectCause::ClientClosed:
+    case DisconnectCause::Rejected:
+    case DisconnectCause::Shutdown:
+      return false;
+    default:
+      return true;
+  }
+}
+
+// The causes that refuse a message (Session::refuse), as opposed to timeouts and closes.
+constexpr DisconnectCause kMessageCauses[] = {
+    DisconnectCause::Malformed, DisconnectCause::Oversized, DisconnectCause::WrongDirection,
+    DisconnectCause::Protocol,  DisconnectCause::Invalid,   DisconnectCause::Flood};
+
+const char* messageName(const SessionMessage& m) {
+  constexpr const char* kNames[] = {"Hello",      "Welcome",    "Reject", "SessionInfo",
+                                    "SceneState", "ViewerPose", "Ack",    "RepairRequest"};
+  static_assert(std::size(kNames) == std::variant_size_v<SessionMessage>);
+  return kNames[m.index()];
+}
+
+// A token bucket: `rate` per second, holding at most `burst`.
+struct Bucket {
+  double tokens = 0, rate = 0, burst = 0, at = 0;
+  void init(double r, double b, double now) {
+    rate = r;
+    burst = tokens = b;
+    at = now;
+  }
+  // False when taking `n` would leave the bucket in debt.
+  bool take(double n, double now) {
+    tokens = std::min(burst, tokens + (now - at) * rate);
+    at = now;
+    tokens -= n;
+    return tokens >= 0;
+  }
+};
 
 }  // namespace
 
@@ -40,8 +134,9 @@ struct NetServer::Impl {
   void acceptNext();
   void schedulePoll();
   void poll();
-  void remove(std::uint32_t id, const std::string& cause);
-  void publishStats();
+  void remove(std::uint32_t id, DisconnectCause cause);
+  void publishStats(double pollSeconds = 0);
+  std::string renderMetrics() const;
 
   FieldHub& hub;
   NetServerOptions options;
@@ -52,13 +147,23 @@ struct NetServer::Impl {
   std::thread thread;
   bool stopped = false;
   std::map<std::uint32_t, std::shared_ptr<Session>> sessions;
+  std::size_t established = 0;  // sessions past the handshake
   std::uint32_t nextSessionId = 0;
   std::uint16_t tcpPort = 0, udpPortNumber = 0;
+  // Limits derived from the options and the field (create()).
+  std::size_t maxMessageBytes = 0;
+  double maxReceiveBytesPerSecond = 0;
+  std::size_t fieldBricks = 0;
 
   // Totals of sessions that have ended, plus a snapshot for stats() from other threads.
   NetServerStats totals;
   mutable std::mutex statsMutex;
   NetServerStats snapshot;
+
+  // Metrics: the endpoint (its own thread) renders from the snapshot and the extra callback.
+  std::unique_ptr<MetricsHttpServer> metrics;
+  mutable std::mutex extraMutex;
+  std::function<void(MetricsText&)> extraMetrics;
 };
 
 // One client's connection: reads frames, answers the handshake, feeds its StreamSender, and
@@ -73,25 +178,42 @@ class Session : public std::enable_shared_from_this<Session> {
     peer_ = ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
     acceptedAt_ = lastHeard_ = steadySeconds();
     socket_.set_option(tcp::no_delay(true), ec);
+    // Flood limits; before the Hello the prefix check allows one small frame anyway.
+    messageBucket_.init(server_.options.maxMessagesPerSecond, server_.options.maxMessagesPerSecond,
+                        acceptedAt_);
+    byteBucket_.init(server_.maxReceiveBytesPerSecond, server_.maxReceiveBytesPerSecond, acceptedAt_);
   }
 
   void start() { readPrefix(); }
+  bool welcomed() const { return sender_ != nullptr; }
 
   // Ends the session now: the socket closes, pending operations complete with errors and
-  // find the session closed. The cause is logged once.
-  void close(const std::string& cause) {
+  // find the session closed. The cause is logged (one structured event) and counted once.
+  void close(DisconnectCause cause, const std::string& detail) {
     if (closed_) return;
     closed_ = true;
-    logInfo("client " + describe() + " disconnected: " + cause);
+    logEvent(misbehaviour(cause) ? LogLevel::Warn : LogLevel::Info, "client disconnected",
+             {{"session", id_},
+              {"peer", peer_},
+              {"name", name_},
+              {"cause", causeName(cause)},
+              {"detail", detail},
+              {"seconds", steadySeconds() - acceptedAt_}});
     boost::system::error_code ec;
     socket_.shutdown(tcp::socket::shutdown_both, ec);
     socket_.close(ec);
-    {
-      auto lock = server_.hub.lock();
-      sender_.reset();
-    }
     server_.hub.removeViewer(id_);
     server_.remove(id_, cause);
+    // After remove(): it counts this session as established while sender_ is set.
+    auto lock = server_.hub.lock();
+    sender_.reset();
+  }
+
+  // A message this client must not have sent: counted by cause, then the session ends.
+  void refuse(DisconnectCause cause, const std::string& detail) {
+    if (closed_) return;
+    ++server_.totals.rejectedMessages[std::size_t(cause)];
+    close(cause, detail);
   }
 
   // Called by the server's poll with the hub locked: datagrams and scene state to send.
@@ -104,7 +226,10 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     // Over TCP the sender is polled only while the queue is short: what it holds back stays
     // one entry per brick (the newest version), never a growing backlog here.
-    if (!udpTarget_ && queuedBytes_ >= server_.options.tcpDatagramQueueBytes) return;
+    if (!udpTarget_ && queuedBytes_ >= server_.options.tcpDatagramQueueBytes) {
+      ++tcpQueueFullPolls_;
+      return;
+    }
     datagrams = sender_->poll(now);
     pendingBricks_ = sender_->pendingBricks();
   }
@@ -134,13 +259,15 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void checkTimeouts(double now) {
     if (closed_) return;
-    if (!sender_ && now - acceptedAt_ > server_.options.helloTimeout) {
-      close("no Hello within " + std::to_string(server_.options.helloTimeout) + " s");
+    if (!sender_ && !closeAfterFlush_ && now - acceptedAt_ > server_.options.helloTimeout) {
+      close(DisconnectCause::HelloTimeout,
+            "no Hello within " + std::to_string(server_.options.helloTimeout) + " s");
     } else if (writing_ && now - writeStartedAt_ > server_.options.writeStallSeconds) {
-      close("not reading: no write progress for " +
-            std::to_string(server_.options.writeStallSeconds) + " s");
+      close(DisconnectCause::NotReading, "no write progress for " +
+                                             std::to_string(server_.options.writeStallSeconds) + " s");
     } else if (sender_ && now - lastHeard_ > server_.options.silenceTimeout) {
-      close("silent for " + std::to_string(server_.options.silenceTimeout) + " s");
+      close(DisconnectCause::Silent,
+            "no message for " + std::to_string(server_.options.silenceTimeout) + " s");
     }
   }
 
@@ -154,15 +281,14 @@ class Session : public std::enable_shared_from_this<Session> {
     c.bytesSent = bytesSent_;
     c.datagrams = datagrams_;
     c.udpDropped = udpDropped_;
+    c.bytesReceived = bytesReceived_;
+    c.messagesReceived = messagesReceived_;
     c.pendingBricks = pendingBricks_;
     return c;
   }
-  std::uint64_t bytesReceived() const { return bytesReceived_; }
+  std::uint64_t tcpQueueFullPolls() const { return tcpQueueFullPolls_; }
 
  private:
-  std::string describe() const {
-    return std::to_string(id_) + " (" + peer_ + (name_.empty() ? "" : ", " + name_) + ")";
-  }
 
   void readPrefix() {
     auto self = shared_from_this();
@@ -172,11 +298,32 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void onPrefix(boost::system::error_code ec) {
     if (closed_) return;
-    if (ec) return close(ec == asio::error::eof ? "connection closed by the client"
-                                                : "read failed: " + ec.message());
-    const std::size_t limit = sender_ ? kMaxSessionMessageBytes : kMaxHelloFrameBytes;
+    if (ec) {
+      return close(DisconnectCause::ClientClosed, ec == asio::error::eof
+                                                      ? "connection closed by the client"
+                                                      : "read failed: " + ec.message());
+    }
+    // Every check on the prefix alone, before the frame's buffer is allocated.
+    const std::size_t limit = sender_ ? server_.maxMessageBytes : kMaxHelloFrameBytes;
+    const std::size_t announced = readLittleEndian32(prefix_) + kFramePrefixBytes;
+    if (announced > limit) {
+      return refuse(DisconnectCause::Oversized,
+                    "frame of " + std::to_string(announced) + " bytes announced, the cap is " +
+                        std::to_string(limit) + (sender_ ? "" : " before a Hello"));
+    }
     auto size = frameSize(prefix_, limit);
-    if (!size) return close("bad frame: " + size.error().message);
+    if (!size) return refuse(DisconnectCause::Malformed, "bad frame: " + size.error().message);
+    const double now = steadySeconds();
+    if (!messageBucket_.take(1, now)) {
+      return refuse(DisconnectCause::Flood,
+                    "more than " + std::to_string(server_.options.maxMessagesPerSecond) +
+                        " messages per second");
+    }
+    if (!byteBucket_.take(double(*size), now)) {
+      return refuse(DisconnectCause::Flood, "more than " +
+                                                std::to_string(server_.maxReceiveBytesPerSecond) +
+                                                " bytes per second");
+    }
     frame_.assign(prefix_.begin(), prefix_.end());
     frame_.resize(*size);
     auto self = shared_from_this();
@@ -186,29 +333,51 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void onFrame(boost::system::error_code ec) {
     if (closed_) return;
-    if (ec) return close("read failed: " + ec.message());
+    if (ec) return close(DisconnectCause::ClientClosed, "read failed: " + ec.message());
     bytesReceived_ += frame_.size();
+    ++messagesReceived_;
     lastHeard_ = steadySeconds();
-    if (classifyFrame(frame_) != FrameKind::SessionMessage)
-      return close("malformed frame: not a session message");
+    switch (classifyFrame(frame_)) {
+      case FrameKind::SessionMessage:
+        break;
+      case FrameKind::Datagram:
+        return refuse(DisconnectCause::WrongDirection,
+                      "a datagram frame: only the server sends datagrams");
+      case FrameKind::Unknown:
+        return refuse(DisconnectCause::Malformed, "not a session message frame");
+    }
     auto message = decodeMessage(frame_);
-    if (!message) return close("malformed message: " + message.error().message);
+    if (!message) return refuse(DisconnectCause::Malformed, message.error().message);
+    if (frame_.capacity() > kKeptFrameCapacity) Bytes().swap(frame_);
     if (!handle(*message)) return;
     readPrefix();
   }
 
-  // False when the session ended.
+  // False when the session ended. A client changes nothing but its own pose and acks: the
+  // session is the connection, so nothing it sends can name another session.
   bool handle(const SessionMessage& message) {
     if (!sender_) {
       const HelloMsg* hello = std::get_if<HelloMsg>(&message);
       if (!hello) {
-        close("expected Hello as the first message");
+        refuse(DisconnectCause::Protocol,
+               std::string("expected Hello as the first message, got ") + messageName(message));
         return false;
       }
       return onHello(*hello);
     }
     if (std::holds_alternative<HelloMsg>(message)) {
-      close("a second Hello");
+      refuse(DisconnectCause::Protocol, "a second Hello");
+      return false;
+    }
+    if (std::holds_alternative<WelcomeMsg>(message) || std::holds_alternative<RejectMsg>(message) ||
+        std::holds_alternative<SessionInfoMsg>(message) ||
+        std::holds_alternative<SceneStateMsg>(message)) {
+      refuse(DisconnectCause::WrongDirection,
+             std::string(messageName(message)) + " from a client: only the server sends it");
+      return false;
+    }
+    if (auto invalid = checkSize(message)) {
+      refuse(DisconnectCause::Invalid, *invalid);
       return false;
     }
     if (const auto* pose = std::get_if<ViewerPoseMsg>(&message))
@@ -219,17 +388,56 @@ class Session : public std::enable_shared_from_this<Session> {
       status = sender_->onMessage(message, steadySeconds());
     }
     if (!status) {
-      close("bad message: " + status.error().message);
+      refuse(DisconnectCause::Invalid, status.error().message);
       return false;
     }
     return true;
   }
 
+  // What an ack or repair request may make the sender do is bounded by the field: a valid ack
+  // lists each brick at most once, a repair request need not name one twice. Beyond that it is
+  // work (and log lines) a client could multiply at will.
+  std::optional<std::string> checkSize(const SessionMessage& message) const {
+    const std::uint64_t bricks = server_.fieldBricks;
+    if (const auto* ack = std::get_if<AckMsg>(&message)) {
+      std::uint64_t covered = 0;
+      for (const AckRange& r : ack->ranges) covered += r.count;
+      if (ack->ranges.size() > bricks || covered > bricks) {
+        return "ack with " + std::to_string(ack->ranges.size()) + " ranges covering " +
+               std::to_string(covered) + " bricks; the field has " + std::to_string(bricks);
+      }
+    } else if (const auto* repair = std::get_if<RepairRequestMsg>(&message)) {
+      if (repair->bricks.size() > bricks) {
+        return "repair request naming " + std::to_string(repair->bricks.size()) +
+               " bricks; the field has " + std::to_string(bricks);
+      }
+    }
+    return std::nullopt;
+  }
+
   bool onHello(const HelloMsg& hello) {
     name_ = hello.clientName.substr(0, 64);
-    if (auto reject = checkHello(hello, server_.options.token)) {
-      logWarn("client " + describe() + " rejected: " + reject->reason);
+    std::optional<RejectMsg> reject = checkHello(hello, server_.options.token);
+    RejectCause cause = RejectCause::Auth;
+    if (reject) {
+      const bool versionOk = hello.protocolVersion >= kMinProtocolVersion &&
+                             hello.protocolVersion <= kProtocolVersion;
+      cause = versionOk ? RejectCause::Auth : RejectCause::Version;
+    } else if (server_.established >= server_.options.maxClients) {
+      reject = RejectMsg{kProtocolVersion, "server full: " + std::to_string(server_.established) +
+                                               " clients connected, the cap is " +
+                                               std::to_string(server_.options.maxClients)};
+      cause = RejectCause::ServerFull;
+    }
+    if (reject) {
+      logEvent(LogLevel::Warn, "client rejected",
+               {{"session", id_},
+                {"peer", peer_},
+                {"name", name_},
+                {"cause", causeName(cause)},
+                {"reason", reject->reason}});
       ++server_.totals.rejected;
+      ++server_.totals.rejects[std::size_t(cause)];
       // Nothing but the Reject goes out; the connection closes once it is written.
       closeAfterFlush_ = true;
       enqueue(share(encodeMessage(*reject)));
@@ -238,9 +446,11 @@ class Session : public std::enable_shared_from_this<Session> {
     const bool useUdp = !server_.options.tcpOnly && hello.wantsUdp && hello.udpPort != 0;
     if (useUdp) {
       boost::system::error_code ec;
+      // Datagrams go only to the address the session came from: a client cannot aim the
+      // server at a third party.
       udpTarget_ = udp::endpoint(socket_.remote_endpoint(ec).address(), hello.udpPort);
       if (ec) {
-        close("no remote address: " + ec.message());
+        close(DisconnectCause::ClientClosed, "no remote address: " + ec.message());
         return false;
       }
     }
@@ -253,9 +463,14 @@ class Session : public std::enable_shared_from_this<Session> {
       scene = server_.hub.sceneFrame();
       sceneSerialSent_ = server_.hub.sceneSerial();
     }
-    logInfo("client " + describe() + " joined, session " + std::to_string(id_) +
-            (useUdp ? ", datagrams over UDP to port " + std::to_string(hello.udpPort)
-                 : ", datagrams over TCP"));
+    ++server_.established;
+    ++server_.totals.sessions;
+    logEvent(LogLevel::Info, "client joined",
+             {{"session", id_},
+              {"peer", peer_},
+              {"name", name_},
+              {"transport", useUdp ? "udp" : "tcp"},
+              {"udp_port", useUdp ? int(hello.udpPort) : 0}});
     enqueue(share(encodeMessage(WelcomeMsg{kProtocolVersion, id_})));
     enqueue(share(encodeMessage(info)));
     if (scene) enqueue(scene);
@@ -265,8 +480,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void enqueue(SharedBytes bytes) {
     if (closed_) return;
     if (queuedBytes_ + bytes->size() > server_.options.maxWriteQueueBytes) {
-      return close("not reading: write queue over " +
-                   std::to_string(server_.options.maxWriteQueueBytes) + " bytes");
+      return close(DisconnectCause::NotReading,
+                   "write queue over " + std::to_string(server_.options.maxWriteQueueBytes) +
+                       " bytes");
     }
     queuedBytes_ += bytes->size();
     writes_.push_back(std::move(bytes));
@@ -283,13 +499,13 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void onWritten(boost::system::error_code ec, std::size_t n) {
     if (closed_) return;
-    if (ec) return close("write failed: " + ec.message());
+    if (ec) return close(DisconnectCause::ClientClosed, "write failed: " + ec.message());
     bytesSent_ += n;
     queuedBytes_ -= writes_.front()->size();
     writes_.pop_front();
     if (!writes_.empty()) return writeNext();
     writing_ = false;
-    if (closeAfterFlush_) close("rejected");
+    if (closeAfterFlush_) close(DisconnectCause::Rejected, "Reject written");
   }
 
   NetServer::Impl& server_;
@@ -307,7 +523,9 @@ class Session : public std::enable_shared_from_this<Session> {
   std::unique_ptr<StreamSender> sender_;  // created and used with the hub locked
   std::uint64_t sceneSerialSent_ = 0;
   std::uint64_t bytesSent_ = 0, bytesReceived_ = 0, datagrams_ = 0, udpDropped_ = 0;
+  std::uint64_t messagesReceived_ = 0, tcpQueueFullPolls_ = 0;
   std::size_t pendingBricks_ = 0;
+  Bucket messageBucket_, byteBucket_;
 };
 
 void NetServer::Impl::acceptNext() {
@@ -315,8 +533,20 @@ void NetServer::Impl::acceptNext() {
     if (stopped) return;
     if (ec) {
       logWarn("accept: " + ec.message());
-    } else if (sessions.size() >= options.maxClients) {
-      logWarn("refusing a connection: " + std::to_string(options.maxClients) + " clients already");
+    } else if (sessions.size() - established >= options.maxPendingConnections) {
+      // Too many connections still before their Hello: this one is not read at all (a full
+      // server answers a Hello with a Reject, but only this many Hellos are awaited at once).
+      boost::system::error_code ignored;
+      const auto remote = socket.remote_endpoint(ignored);
+      ++totals.accepted;
+      ++totals.disconnected;
+      ++totals.disconnects[std::size_t(DisconnectCause::TooManyPending)];
+      logEvent(LogLevel::Warn, "client disconnected",
+               {{"peer", remote.address().to_string() + ":" + std::to_string(remote.port())},
+                {"cause", causeName(DisconnectCause::TooManyPending)},
+                {"detail", std::to_string(options.maxPendingConnections) +
+                               " connections already awaiting their Hello"}});
+      socket.close(ignored);
     } else {
       const std::uint32_t id = nextSessionId++;
       auto session = std::make_shared<Session>(*this, std::move(socket), id);
@@ -345,40 +575,120 @@ void NetServer::Impl::poll() {
   for (auto& [id, s] : sessions) list.push_back(s);
   std::vector<std::vector<Bytes>> datagrams(list.size());
   std::vector<SharedBytes> scenes(list.size());
+  double pollSeconds = 0;
   {
     auto lock = hub.lock();
     const std::uint64_t serial = hub.sceneSerial();
     const SharedBytes frame = hub.sceneFrame();
     for (std::size_t i = 0; i < list.size(); ++i)
       list[i]->pollLocked(now, serial, frame, datagrams[i], scenes[i]);
+    pollSeconds = steadySeconds() - now;
+    // The publisher's figures for the metrics, while its lock is held anyway.
+    totals.fieldVersion = hub.publisher().fieldVersion();
+    totals.encodes = hub.publisher().encodes();
+    totals.encodeSeconds = hub.publisher().encodeSeconds();
+    totals.encodeCacheBytes = hub.publisher().cache().bytes();
   }
   for (std::size_t i = 0; i < list.size(); ++i)
     list[i]->send(now, std::move(datagrams[i]), scenes[i]);
-  publishStats();
+  publishStats(pollSeconds);
 }
 
-void NetServer::Impl::remove(std::uint32_t id, const std::string&) {
+void NetServer::Impl::remove(std::uint32_t id, DisconnectCause cause) {
   auto it = sessions.find(id);
   if (it == sessions.end()) return;
   const NetClientInfo info = it->second->info(steadySeconds());
   totals.bytesSent += info.bytesSent;
-  totals.bytesReceived += it->second->bytesReceived();
+  totals.bytesReceived += info.bytesReceived;
+  totals.messagesReceived += info.messagesReceived;
+  totals.datagrams += info.datagrams;
+  totals.udpDropped += info.udpDropped;
+  totals.tcpQueueFullPolls += it->second->tcpQueueFullPolls();
   ++totals.disconnected;
+  ++totals.disconnects[std::size_t(cause)];
+  if (it->second->welcomed()) --established;
   // The map's reference goes after this call returns: the session is still running code.
   asio::post(io, [s = it->second] {});
   sessions.erase(it);
 }
 
-void NetServer::Impl::publishStats() {
+void NetServer::Impl::publishStats(double pollSeconds) {
   const double now = steadySeconds();
+  totals.senderPollSeconds += pollSeconds;
   NetServerStats s = totals;
+  s.connections = sessions.size();
   for (auto& [id, session] : sessions) {
-    s.clients.push_back(session->info(now));
-    s.bytesSent += s.clients.back().bytesSent;
-    s.bytesReceived += session->bytesReceived();
+    const NetClientInfo c = session->info(now);
+    s.bytesSent += c.bytesSent;
+    s.bytesReceived += c.bytesReceived;
+    s.messagesReceived += c.messagesReceived;
+    s.datagrams += c.datagrams;
+    s.udpDropped += c.udpDropped;
+    s.tcpQueueFullPolls += session->tcpQueueFullPolls();
+    if (session->welcomed()) s.clients.push_back(c);
   }
   std::lock_guard lock(statsMutex);
   snapshot = std::move(s);
+}
+
+std::string NetServer::Impl::renderMetrics() const {
+  NetServerStats s;
+  {
+    std::lock_guard lock(statsMutex);
+    s = snapshot;
+  }
+  MetricsText text;
+  appendServerMetrics(text, s);
+  std::lock_guard lock(extraMutex);
+  if (extraMetrics) extraMetrics(text);
+  return text.str();
+}
+
+void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
+  m.gauge("probecast_clients", "Clients past the handshake.", double(s.clients.size()));
+  m.gauge("probecast_connections", "Open client connections, in the handshake or past it.",
+          double(s.connections));
+  m.counter("probecast_connections_accepted_total", "TCP connections accepted.",
+            double(s.accepted));
+  m.counter("probecast_sessions_total", "Handshakes completed (Welcome sent).",
+            double(s.sessions));
+  for (std::size_t c = 0; c < kRejectCauses; ++c) {
+    m.counter("probecast_sessions_rejected_total", "Hellos answered with a Reject, by cause.",
+              double(s.rejects[c]), {{"cause", causeName(RejectCause(c))}});
+  }
+  for (std::size_t c = 0; c < kDisconnectCauses; ++c) {
+    m.counter("probecast_disconnects_total", "Connections ended, by cause.",
+              double(s.disconnects[c]), {{"cause", causeName(DisconnectCause(c))}});
+  }
+  for (DisconnectCause c : kMessageCauses) {
+    m.counter("probecast_rejected_messages_total",
+              "Client messages refused (each ends its session), by cause.",
+              double(s.rejectedMessages[std::size_t(c)]), {{"cause", causeName(c)}});
+  }
+  m.counter("probecast_sent_bytes_total", "Bytes sent to clients (TCP writes and UDP datagrams).",
+            double(s.bytesSent));
+  m.counter("probecast_received_bytes_total", "Bytes of messages received from clients.",
+            double(s.bytesReceived));
+  m.counter("probecast_received_messages_total", "Messages received from clients.",
+            double(s.messagesReceived));
+  m.counter("probecast_datagrams_sent_total", "Brick datagrams sent (over UDP or framed over TCP).",
+            double(s.datagrams));
+  m.counter("probecast_udp_send_drops_total",
+            "Datagrams dropped because the UDP socket's send buffer was full.",
+            double(s.udpDropped));
+  m.counter("probecast_tcp_queue_full_polls_total",
+            "Sender polls skipped because a TCP-only client's write queue was full.",
+            double(s.tcpQueueFullPolls));
+  m.counter("probecast_sender_poll_seconds_total",
+            "Network thread time in the client senders (choosing and encoding bricks).",
+            s.senderPollSeconds);
+  m.gauge("probecast_field_version", "Newest field version published.", double(s.fieldVersion));
+  m.counter("probecast_encodes_total", "Brick updates encoded (encode cache misses).",
+            double(s.encodes));
+  m.counter("probecast_encode_seconds_total", "Time spent encoding brick updates.",
+            s.encodeSeconds);
+  m.gauge("probecast_encode_cache_bytes", "Bytes held by the encode cache.",
+          double(s.encodeCacheBytes));
 }
 
 NetServer::NetServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -414,6 +724,34 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
   // a client's stale datagrams from before the restart are refused.
   std::random_device rd;
   s.nextSessionId = (std::uint32_t(rd()) & 0x7FFF'FFFFu) | 1u;
+
+  {
+    auto lock = hub.lock();
+    for (int k = 0; k < hub.publisher().cascadeCount(); ++k)
+      s.fieldBricks += std::size_t(hub.publisher().brickCount(k));
+  }
+  s.maxMessageBytes = s.options.maxMessageBytes != 0
+                          ? s.options.maxMessageBytes
+                          : std::clamp<std::size_t>(32 * s.fieldBricks + 4096, 64u << 10,
+                                                    kMaxSessionMessageBytes);
+  s.maxMessageBytes = std::min(s.maxMessageBytes, kMaxSessionMessageBytes);
+  s.maxReceiveBytesPerSecond = s.options.maxReceiveBytesPerSecond > 0
+                                   ? s.options.maxReceiveBytesPerSecond
+                                   : std::max(double(1u << 20), 4.0 * double(s.maxMessageBytes));
+  if (s.options.maxMessagesPerSecond < 1 || s.maxReceiveBytesPerSecond < double(s.maxMessageBytes)) {
+    return Error{"flood limits: at least 1 message and one largest message (" +
+                 std::to_string(s.maxMessageBytes) + " bytes) per second"};
+  }
+
+  if (s.options.metricsPort) {
+    MetricsHttpOptions mo;
+    mo.bindAddress =
+        s.options.metricsBindAddress.empty() ? s.options.bindAddress : s.options.metricsBindAddress;
+    mo.port = *s.options.metricsPort;
+    auto metrics = MetricsHttpServer::create(mo, [&s] { return s.renderMetrics(); });
+    if (!metrics) return metrics.error();
+    s.metrics = std::move(metrics).value();
+  }
   return std::unique_ptr<NetServer>(new NetServer(std::move(impl)));
 }
 
@@ -434,15 +772,26 @@ void NetServer::stop() {
     s.pollTimer.cancel();
     std::vector<std::shared_ptr<Session>> list;
     for (auto& [id, session] : s.sessions) list.push_back(session);
-    for (auto& session : list) session->close("server shutting down");
+    for (auto& session : list) session->close(DisconnectCause::Shutdown, "server stopping");
     s.udpSocket.close(ec);
     s.publishStats();
   });
   s.thread.join();
+  // The endpoint goes last, so a scrape during shutdown still sees the final counts.
+  s.metrics.reset();
 }
 
 std::uint16_t NetServer::port() const { return impl_->tcpPort; }
 std::uint16_t NetServer::udpPort() const { return impl_->udpPortNumber; }
+
+std::uint16_t NetServer::metricsPort() const {
+  return impl_->metrics ? impl_->metrics->port() : 0;
+}
+
+void NetServer::setExtraMetrics(std::function<void(MetricsText&)> extra) {
+  std::lock_guard lock(impl_->extraMutex);
+  impl_->extraMetrics = std::move(extra);
+}
 
 NetServerStats NetServer::stats() const {
   std::lock_guard lock(impl_->statsMutex);

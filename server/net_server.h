@@ -2,28 +2,76 @@
 // session info, scene-state sync, acks, repair requests and viewer poses from clients) and one
 // UDP socket for brick datagrams, all on one network thread running a Boost.Asio io_context.
 // Every client has its own StreamSender (reading the hub's shared publisher) and a bounded TCP
-// write queue; a client that sends anything malformed, or stops reading, is disconnected with
-// the cause logged, and no other client notices. Asio stays inside net_server.cpp.
+// write queue. Every client is held to limits (NetServerOptions): a client that sends anything
+// malformed, oversized, in the wrong direction or out of order, floods, or stops reading, is
+// disconnected with its cause logged and counted (NetServerStats), and no other client
+// notices. Optionally Prometheus metrics over HTTP (net_metrics.h). Asio stays inside
+// net_server.cpp and net_metrics.cpp.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "common/result.h"
 #include "net_hub.h"
+#include "net_metrics.h"
 #include "protocol/stream_sender.h"
 
 namespace pc {
+
+// Why a connection ended: the label of probecast_disconnects_total and the `cause` field of
+// the "client disconnected" log event (causeName).
+enum class DisconnectCause {
+  ClientClosed,    // the client closed the connection, or it broke (read or write error)
+  HelloTimeout,    // no Hello within helloTimeout
+  Silent,          // no message within silenceTimeout
+  NotReading,      // write queue over maxWriteQueueBytes, or no write progress for writeStallSeconds
+  Malformed,       // a frame or message that does not decode
+  Oversized,       // a frame announcing more than the cap (refused before it is read)
+  WrongDirection,  // a message only the server sends (Welcome, Reject, SessionInfo,
+                   // SceneState), or a datagram frame
+  Protocol,        // out of order: something else before the Hello, or a second Hello
+  Invalid,         // decodes, but names bricks outside the field or more bricks than it holds
+  Flood,           // more messages or bytes per second than the caps allow
+  Rejected,        // the handshake was refused (see RejectCause); the Reject was written
+  TooManyPending,  // accepted over maxPendingConnections: closed at once
+  Shutdown,        // the server stopped
+};
+inline constexpr std::size_t kDisconnectCauses = std::size_t(DisconnectCause::Shutdown) + 1;
+const char* causeName(DisconnectCause cause);
+
+// Why a Hello was answered with a Reject: the label of probecast_sessions_rejected_total.
+enum class RejectCause { Auth, Version, ServerFull };
+inline constexpr std::size_t kRejectCauses = std::size_t(RejectCause::ServerFull) + 1;
+const char* causeName(RejectCause cause);
 
 struct NetServerOptions {
   std::string bindAddress = "0.0.0.0";
   std::uint16_t port = 7450;  // TCP; 0 picks a free one (see NetServer::port)
   std::string token;          // shared secret every Hello must carry
   bool tcpOnly = false;       // datagrams framed over TCP for every client
+  // Per-client send rate: sender.bytesPerSecond (token bucket, datagram bytes).
   SenderOptions sender;
+  // Sessions past the handshake; a Hello beyond this gets a Reject ("server full").
   std::size_t maxClients = 64;
+  // Connections still before their Hello; one more is closed as soon as it is accepted, so
+  // unauthenticated peers never hold more than this many sockets and 4 KiB buffers.
+  std::size_t maxPendingConnections = 16;
+  // Largest frame an authenticated client may send, checked on the 4-byte prefix before
+  // anything is allocated. 0: derived from the field, room for a full ack or repair request
+  // naming every brick (32 bytes a brick + 4 KiB, at least 64 KiB, at most the protocol's
+  // 4 MiB). Before the Hello the cap is 4 KiB.
+  std::size_t maxMessageBytes = 0;
+  // Flood: a client may send this many messages, and bytes, per second, with a burst of one
+  // second's worth. A well-behaved client sends about 60 messages a second (acks every 20 ms,
+  // poses every 100 ms, a full ack every second) plus repair requests under loss.
+  double maxMessagesPerSecond = 1000;
+  double maxReceiveBytesPerSecond = 0;  // 0: max(1 MiB, 4 x the message cap)
   // A client's queued TCP bytes beyond this, or a write that makes no progress for this long,
   // means it is not reading: it is disconnected rather than buffered for.
   std::size_t maxWriteQueueBytes = 4u << 20;
@@ -34,6 +82,10 @@ struct NetServerOptions {
   double helloTimeout = 5.0;    // s from accept to a Hello
   double silenceTimeout = 10.0;  // s without any message from a client (full acks come every 1 s)
   double pollInterval = 0.005;  // s between sender polls
+  // Prometheus metrics (GET /metrics over HTTP) on this port; nothing: no endpoint; 0: any
+  // free port (NetServer::metricsPort). Bound on metricsBindAddress, else bindAddress.
+  std::optional<std::uint16_t> metricsPort;
+  std::string metricsBindAddress;
 };
 
 struct NetClientInfo {
@@ -42,14 +94,39 @@ struct NetClientInfo {
   bool udp = false;
   double connectedSeconds = 0;
   std::uint64_t bytesSent = 0, datagrams = 0, udpDropped = 0;
+  std::uint64_t bytesReceived = 0, messagesReceived = 0;
   std::size_t pendingBricks = 0;
 };
 
 struct NetServerStats {
-  std::uint64_t accepted = 0, rejected = 0, disconnected = 0;
-  std::uint64_t bytesSent = 0, bytesReceived = 0;
-  std::vector<NetClientInfo> clients;
+  std::uint64_t accepted = 0;   // TCP connections accepted
+  std::uint64_t sessions = 0;   // handshakes completed (Welcome sent)
+  std::uint64_t rejected = 0;   // Hellos answered with a Reject (sum of rejects)
+  std::uint64_t disconnected = 0;  // connections ended (sum of disconnects)
+  std::array<std::uint64_t, kRejectCauses> rejects{};
+  std::array<std::uint64_t, kDisconnectCauses> disconnects{};
+  // Messages refused (each ends its session), by the cause it was disconnected with.
+  std::array<std::uint64_t, kDisconnectCauses> rejectedMessages{};
+  std::uint64_t bytesSent = 0, bytesReceived = 0, messagesReceived = 0;
+  std::uint64_t datagrams = 0, udpDropped = 0;
+  // Sender polls skipped because a TCP-only client's write queue was full (the client gets
+  // the newest state later instead of a backlog).
+  std::uint64_t tcpQueueFullPolls = 0;
+  double senderPollSeconds = 0;  // network thread time in the senders (picking, encoding)
+  std::size_t connections = 0;   // open, handshake or not
+  // From the publisher, read while polling: newest field version, encoded updates and the
+  // time spent on them, encode cache size.
+  std::uint64_t fieldVersion = 0, encodes = 0;
+  double encodeSeconds = 0;
+  std::size_t encodeCacheBytes = 0;
+  std::vector<NetClientInfo> clients;  // sessions past the handshake
+
+  std::uint64_t disconnectsBy(DisconnectCause c) const { return disconnects[std::size_t(c)]; }
+  std::uint64_t rejectsBy(RejectCause c) const { return rejects[std::size_t(c)]; }
 };
+
+// Appends the server's metrics (probecast_*) to `out`.
+void appendServerMetrics(MetricsText& out, const NetServerStats& stats);
 
 class NetServer {
  public:
@@ -65,7 +142,11 @@ class NetServer {
   void stop();
   std::uint16_t port() const;
   std::uint16_t udpPort() const;
+  // The metrics endpoint's port; 0 without one.
+  std::uint16_t metricsPort() const;
   NetServerStats stats() const;
+  // More metrics for every scrape (the field thread's, say): called on the metrics thread.
+  void setExtraMetrics(std::function<void(MetricsText&)> extra);
 
   struct Impl;
 

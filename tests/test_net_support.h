@@ -86,6 +86,7 @@ class TestServer {
   std::uint16_t port() const { return server_->port(); }
   NetServer& net() { return *server_; }
   bool frozen() const { return loop_->stats().frozen; }
+  const FieldLoop& loop() const { return *loop_; }
   // Only once frozen() (the field thread no longer writes it).
   const Field& field() const { return field_; }
 

@@ -70,7 +70,30 @@ int main(int argc, char** argv) {
   app.add_option("--rate-limit", rateLimit, "bytes per second per client (0: default)");
   app.add_option("--duration", duration, "exit after this many seconds (0: run until a signal)");
   app.add_option("--stats-interval", statsInterval, "seconds between statistics lines");
+  int metricsPort = 0;
+  std::string logFormat = "text", logLevel = "info";
+  app.add_option("--metrics-port", metricsPort,
+                 "serve Prometheus metrics at http://BIND:PORT/metrics (0: off)")
+      ->check(CLI::Range(0, 65535));
+  app.add_option("--log-format", logFormat, "log lines: text, or json (one object per line)");
+  app.add_option("--log-level", logLevel, "least severe level logged: debug, info, warn, error");
+  app.add_option("--max-clients", net.maxClients, "clients past the handshake; more get a Reject");
+  app.add_option("--max-message-bytes", net.maxMessageBytes,
+                 "largest message a client may send (0: derived from the field's brick count)");
+  app.add_option("--max-messages-per-second", net.maxMessagesPerSecond,
+                 "messages a client may send per second before it is disconnected as a flood");
+  app.add_option("--max-write-queue", net.maxWriteQueueBytes,
+                 "bytes queued to a client before it counts as not reading");
   CLI11_PARSE(app, argc, argv);
+  const auto format = pc::parseLogFormat(logFormat);
+  const auto level = pc::parseLogLevel(logLevel);
+  if (!format) return pc::logError("--log-format: expected text or json, got '" + logFormat + "'"), 1;
+  if (!level) {
+    return pc::logError("--log-level: expected debug, info, warn or error, got '" + logLevel + "'"), 1;
+  }
+  pc::setLogFormat(*format);
+  pc::setLogLevel(*level);
+  if (metricsPort != 0) net.metricsPort = std::uint16_t(metricsPort);
 
   if (net.token.empty()) {
     if (const char* env = std::getenv("PROBECAST_TOKEN")) net.token = env;
@@ -129,11 +152,17 @@ int main(int argc, char** argv) {
   (*server)->start();
   pc::logInfo("listening on " + net.bindAddress + ":" + std::to_string((*server)->port()) +
               " (TCP), datagrams from UDP port " + std::to_string((*server)->udpPort()));
+  if ((*server)->metricsPort() != 0) {
+    pc::logInfo("metrics at http://" + net.bindAddress + ":" +
+                std::to_string((*server)->metricsPort()) + "/metrics");
+  }
   // A line a script can wait for before starting clients.
   std::printf("ready port %u\n", unsigned((*server)->port()));
   std::fflush(stdout);
 
   pc::FieldLoop fieldLoop(*scene, **tracer, field, hub, loop);
+  (*server)->setExtraMetrics(
+      [&fieldLoop](pc::MetricsText& m) { pc::appendFieldLoopMetrics(m, fieldLoop.stats()); });
   std::atomic<bool> stop{false};
   std::thread fieldThread([&] { fieldLoop.run(stop, pc::steadySeconds); });
 

@@ -1,0 +1,227 @@
+#include "net_metrics.h"
+
+#include <atomic>
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+#include <thread>
+
+#include "common/log.h"
+
+namespace pc {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+using asio::ip::tcp;
+
+namespace {
+
+// Label values escape backslash, quote and newline (the exposition format's rule).
+std::string escapeLabel(const std::string& v) {
+  std::string out;
+  for (const char c : v) {
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '"') {
+      out += "\\\"";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else {
+      out.push_back(c);
+    }
+  }
+  return out;
+}
+
+std::string formatValue(double v) {
+  if (std::isnan(v)) return "NaN";
+  if (std::isinf(v)) return v > 0 ? "+Inf" : "-Inf";
+  // Integral values (counters of bytes, versions) print exactly, up to 2^53.
+  if (v == std::floor(v) && std::fabs(v) < 9.007199254740992e15) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0f", v);
+    return buf;
+  }
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.9g", v);
+  return buf;
+}
+
+}  // namespace
+
+void MetricsText::counter(const std::string& name, const std::string& help, double value,
+                          Labels labels) {
+  add(name, help, "counter", value, std::move(labels));
+}
+
+void MetricsText::gauge(const std::string& name, const std::string& help, double value,
+                        Labels labels) {
+  add(name, help, "gauge", value, std::move(labels));
+}
+
+void MetricsText::add(const std::string& name, const std::string& help, const char* type,
+                      double value, Labels labels) {
+  for (Family& f : families_) {
+    if (f.name == name) {
+      f.samples.emplace_back(std::move(labels), value);
+      return;
+    }
+  }
+  families_.push_back(Family{name, help, type, {}});
+  families_.back().samples.emplace_back(std::move(labels), value);
+}
+
+std::string MetricsText::str() const {
+  std::string out;
+  for (const Family& f : families_) {
+    out += "# HELP " + f.name + " " + f.help + "\n";
+    out += "# TYPE " + f.name + " " + f.type + "\n";
+    for (const auto& [labels, value] : f.samples) {
+      out += f.name;
+      if (!labels.empty()) {
+        out.push_back('{');
+        for (std::size_t i = 0; i < labels.size(); ++i) {
+          if (i > 0) out.push_back(',');
+          out += labels[i].first + "=\"" + escapeLabel(labels[i].second) + "\"";
+        }
+        out.push_back('}');
+      }
+      out += " " + formatValue(value) + "\n";
+    }
+  }
+  return out;
+}
+
+struct MetricsHttpServer::Impl {
+  Impl(MetricsHttpOptions o, std::function<std::string()> r)
+      : options(std::move(o)), render(std::move(r)), acceptor(io) {}
+  void acceptNext();
+
+  MetricsHttpOptions options;
+  std::function<std::string()> render;
+  // Declared before io: connections still pending when io is destroyed count themselves out.
+  std::size_t connections = 0;  // io thread only
+  std::atomic<std::uint64_t> scrapes{0};
+  std::uint16_t port = 0;
+  asio::io_context io;
+  tcp::acceptor acceptor;
+  std::thread thread;
+};
+
+namespace {
+
+// One scrape: read a request, answer it, close. Keep-alive is not offered, so a connection
+// holds nothing between scrapes.
+class MetricsConnection : public std::enable_shared_from_this<MetricsConnection> {
+ public:
+  MetricsConnection(MetricsHttpServer::Impl& server, tcp::socket socket)
+      : server_(server), stream_(std::move(socket)) {
+    ++server_.connections;
+  }
+  ~MetricsConnection() { --server_.connections; }
+
+  void start() {
+    parser_.emplace();
+    parser_->header_limit(8 * 1024);
+    parser_->body_limit(0);
+    stream_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(server_.options.requestTimeout)));
+    auto self = shared_from_this();
+    http::async_read(stream_, buffer_, *parser_,
+                     [self](beast::error_code ec, std::size_t) { self->onRead(ec); });
+  }
+
+ private:
+  void onRead(beast::error_code ec) {
+    if (ec) return;  // timeout, oversized or malformed request, or the peer went away
+    const auto& request = parser_->get();
+    response_.version(request.version());
+    response_.keep_alive(false);
+    response_.set(http::field::server, "probecast");
+    if (request.target() != "/metrics") {
+      response_.result(http::status::not_found);
+      response_.set(http::field::content_type, "text/plain; charset=utf-8");
+      response_.body() = "not found: only /metrics is served\n";
+    } else if (request.method() != http::verb::get && request.method() != http::verb::head) {
+      response_.result(http::status::method_not_allowed);
+      response_.set(http::field::allow, "GET, HEAD");
+      response_.set(http::field::content_type, "text/plain; charset=utf-8");
+      response_.body() = "method not allowed\n";
+    } else {
+      response_.result(http::status::ok);
+      response_.set(http::field::content_type, "text/plain; version=0.0.4; charset=utf-8");
+      response_.body() = server_.render();
+      ++server_.scrapes;
+    }
+    response_.prepare_payload();
+    if (request.method() == http::verb::head) response_.body().clear();
+    auto self = shared_from_this();
+    http::async_write(stream_, response_, [self](beast::error_code, std::size_t) {
+      beast::error_code ignored;
+      self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+    });
+  }
+
+  MetricsHttpServer::Impl& server_;
+  beast::tcp_stream stream_;
+  beast::flat_buffer buffer_{16 * 1024};
+  std::optional<http::request_parser<http::empty_body>> parser_;
+  http::response<http::string_body> response_;
+};
+
+}  // namespace
+
+void MetricsHttpServer::Impl::acceptNext() {
+  acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
+    if (ec == asio::error::operation_aborted) return;
+    if (!ec) {
+      if (connections >= options.maxConnections) {
+        beast::error_code ignored;
+        socket.close(ignored);  // a scraper that retries gets in once the others are done
+      } else {
+        std::make_shared<MetricsConnection>(*this, std::move(socket))->start();
+      }
+    }
+    acceptNext();
+  });
+}
+
+MetricsHttpServer::MetricsHttpServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+MetricsHttpServer::~MetricsHttpServer() {
+  // Pending scrapes are dropped with the io_context: their handlers (and sockets) are
+  // destroyed without running.
+  impl_->io.stop();
+  if (impl_->thread.joinable()) impl_->thread.join();
+}
+
+Result<std::unique_ptr<MetricsHttpServer>> MetricsHttpServer::create(
+    MetricsHttpOptions options, std::function<std::string()> render) {
+  auto impl = std::make_unique<Impl>(std::move(options), std::move(render));
+  Impl& s = *impl;
+  beast::error_code ec;
+  const auto address = asio::ip::make_address(s.options.bindAddress, ec);
+  if (ec) return Error{"metrics: bad bind address '" + s.options.bindAddress + "': " + ec.message()};
+  const tcp::endpoint endpoint(address, s.options.port);
+  s.acceptor.open(endpoint.protocol(), ec);
+  if (!ec) s.acceptor.set_option(tcp::acceptor::reuse_address(true), ec);
+  if (!ec) s.acceptor.bind(endpoint, ec);
+  if (!ec) s.acceptor.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec) {
+    return Error{"metrics: cannot listen on " + s.options.bindAddress + ":" +
+                 std::to_string(s.options.port) + ": " + ec.message()};
+  }
+  s.port = s.acceptor.local_endpoint().port();
+  s.acceptNext();
+  s.thread = std::thread([&s] { s.io.run(); });
+  return std::unique_ptr<MetricsHttpServer>(new MetricsHttpServer(std::move(impl)));
+}
+
+std::uint16_t MetricsHttpServer::port() const { return impl_->port; }
+std::uint64_t MetricsHttpServer::scrapes() const { return impl_->scrapes.load(); }
+
+}  // namespace pc

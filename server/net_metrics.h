@@ -1,0 +1,67 @@
+// Server metrics in the Prometheus text exposition format (version 0.0.4), and a small HTTP
+// endpoint that serves them: GET /metrics on its own thread (Boost.Beast, which stays inside
+// net_metrics.cpp). The endpoint renders through a callback on every scrape, so it holds no
+// copy of the server's state and needs no lock of its own.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/result.h"
+
+namespace pc {
+
+// Collects samples by family (one metric name with its HELP and TYPE lines) and writes them
+// grouped, each family once, in the order first seen.
+class MetricsText {
+ public:
+  using Labels = std::vector<std::pair<std::string, std::string>>;
+  // Counters only go up (names end in _total); gauges go both ways.
+  void counter(const std::string& name, const std::string& help, double value,
+               Labels labels = {});
+  void gauge(const std::string& name, const std::string& help, double value, Labels labels = {});
+  std::string str() const;
+
+ private:
+  struct Family {
+    std::string name, help, type;
+    std::vector<std::pair<Labels, double>> samples;
+  };
+  void add(const std::string& name, const std::string& help, const char* type, double value,
+           Labels labels);
+  std::vector<Family> families_;
+};
+
+struct MetricsHttpOptions {
+  std::string bindAddress = "127.0.0.1";
+  std::uint16_t port = 0;  // 0: any free port (see MetricsHttpServer::port)
+  // A scraper gets this long to send its request and read the answer; more than this many
+  // connections at once are closed on accept. Requests are small (GET): headers are capped at
+  // 8 KiB and bodies at 0.
+  double requestTimeout = 5.0;
+  std::size_t maxConnections = 8;
+};
+
+class MetricsHttpServer {
+ public:
+  // Binds the port and starts the thread. `render` runs on that thread for every GET /metrics.
+  static Result<std::unique_ptr<MetricsHttpServer>> create(MetricsHttpOptions options,
+                                                           std::function<std::string()> render);
+  ~MetricsHttpServer();  // stops the thread, closes every connection
+  MetricsHttpServer(const MetricsHttpServer&) = delete;
+  MetricsHttpServer& operator=(const MetricsHttpServer&) = delete;
+  std::uint16_t port() const;
+  std::uint64_t scrapes() const;
+
+  struct Impl;
+
+ private:
+  explicit MetricsHttpServer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace pc

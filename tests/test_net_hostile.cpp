@@ -1,0 +1,382 @@
+// Hostile clients against a real server on loopback, one test per abuse: each asserts that the
+// abuser is disconnected, that the disconnect is counted under its cause (and only that
+// cause), and that a well-behaved NetClient connected throughout keeps receiving in its first
+// session. Plus the client's side: a hostile server's SessionInfo cannot make it allocate more
+// than its cap. (A wrong token is covered by test_net's BadTokenGetsOnlyAReject.)
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "test_net_support.h"
+
+namespace pc::nettest {
+namespace {
+
+client::NetClientOptions goodOptions(std::uint16_t port) {
+  client::NetClientOptions o;
+  o.host = "127.0.0.1";
+  o.port = port;
+  o.token = kToken;
+  o.name = "good";
+  return o;
+}
+
+// A server whose field never freezes (updates keep flowing) with one well-behaved client,
+// synced before the abuse starts.
+class HostileFixture {
+ public:
+  explicit HostileFixture(NetServerOptions options = {})
+      : server_(-1.0, options), good_(mirror_, goodOptions(server_.port())) {
+    good_.start();
+    EXPECT_TRUE(waitFor([&] { return good_.stats().synced; }, 20.0)) << "the good client never synced";
+  }
+
+  TestServer& server() { return server_; }
+  NetServerStats stats() { return server_.net().stats(); }
+  std::uint16_t port() { return server_.port(); }
+
+  // Waits until `cause` has been counted `n` times; then no other cause may have been counted
+  // (every connection of the test but the good client's is an abuser's).
+  void expectOnlyCause(DisconnectCause cause, std::uint64_t n) {
+    EXPECT_TRUE(waitFor([&] { return stats().disconnectsBy(cause) >= n; }, 10.0))
+        << "cause " << causeName(cause) << " counted " << stats().disconnectsBy(cause)
+        << " times, expected " << n;
+    const NetServerStats s = stats();
+    for (std::size_t c = 0; c < kDisconnectCauses; ++c) {
+      const std::uint64_t expected = DisconnectCause(c) == cause ? n : 0;
+      EXPECT_EQ(s.disconnects[c], expected) << "cause " << causeName(DisconnectCause(c));
+    }
+  }
+
+  // The good client noticed nothing: still its first session, synced, and receiving.
+  void expectGoodClientUnaffected() {
+    const std::uint64_t before = good_.stats().udpDatagrams;
+    EXPECT_TRUE(waitFor([&] { return good_.stats().udpDatagrams > before + 5; }, 5.0))
+        << "the good client stopped receiving";
+    const client::NetClientStats s = good_.stats();
+    EXPECT_TRUE(s.connected);
+    EXPECT_TRUE(s.synced);
+    EXPECT_EQ(s.sessions, 1u);
+    const NetServerStats ss = stats();
+    ASSERT_EQ(ss.clients.size(), 1u);
+    EXPECT_EQ(ss.clients[0].name, "good");
+  }
+
+ private:
+  TestServer server_;
+  client::FieldMirror mirror_;
+  client::NetClient good_;
+};
+
+// A raw peer past the handshake (datagrams over TCP, which it need not read).
+std::unique_ptr<RawPeer> joinedPeer(std::uint16_t port, int receiveBuffer = 0) {
+  auto peer = std::make_unique<RawPeer>(port, receiveBuffer);
+  peer->send(helloFrame(kToken));
+  auto welcome = peer->readFrame();
+  EXPECT_TRUE(welcome.has_value());
+  if (welcome) {
+    auto m = decodeMessage(*welcome);
+    EXPECT_TRUE(m.ok() && std::holds_alternative<WelcomeMsg>(*m));
+  }
+  return peer;
+}
+
+std::vector<std::uint8_t> concat(const std::vector<std::uint8_t>& frame, int times) {
+  std::vector<std::uint8_t> out;
+  out.reserve(frame.size() * std::size_t(times));
+  for (int i = 0; i < times; ++i) out.insert(out.end(), frame.begin(), frame.end());
+  return out;
+}
+
+SessionInfoMsg builtinInfo() {
+  const Scene scene = builtinScene();
+  // The layout TestServer serves.
+  const Field field = Field::create(scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes,
+                                    FieldSettings{});
+  return sessionInfoFor(field);
+}
+
+TEST(NetHostile, ClientOverTheCapGetsARejectNamingIt) {
+  NetServerOptions o;
+  o.maxClients = 1;  // the good client holds the only place
+  HostileFixture f(o);
+  RawPeer extra(f.port());
+  extra.send(helloFrame(kToken));
+  auto frame = extra.readFrame();
+  ASSERT_TRUE(frame.has_value());
+  auto message = decodeMessage(*frame);
+  ASSERT_TRUE(message.ok());
+  ASSERT_TRUE(std::holds_alternative<RejectMsg>(*message));
+  const std::string reason = std::get<RejectMsg>(*message).reason;
+  std::printf("reject reason: %s\n", reason.c_str());
+  EXPECT_NE(reason.find("server full"), std::string::npos);
+  EXPECT_TRUE(extra.closedByServer());
+  f.expectOnlyCause(DisconnectCause::Rejected, 1);
+  const NetServerStats s = f.stats();
+  EXPECT_EQ(s.rejectsBy(RejectCause::ServerFull), 1u);
+  EXPECT_EQ(s.rejectsBy(RejectCause::Auth), 0u);
+  EXPECT_EQ(s.sessions, 1u);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, ConnectionsThatNeverSayHelloAreCapped) {
+  NetServerOptions o;
+  o.maxPendingConnections = 3;
+  HostileFixture f(o);
+  // Three silent connections take every pending place; the fourth is closed at once.
+  std::vector<std::unique_ptr<RawPeer>> silent;
+  for (int i = 0; i < 3; ++i) silent.push_back(std::make_unique<RawPeer>(f.port()));
+  ASSERT_TRUE(waitFor([&] { return f.stats().connections == 4; }, 5.0));
+  RawPeer fourth(f.port());
+  EXPECT_TRUE(fourth.closedByServer(5.0));
+  f.expectOnlyCause(DisconnectCause::TooManyPending, 1);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, FloodingClientIsDisconnected) {
+  NetServerOptions o;
+  o.maxMessagesPerSecond = 300;
+  HostileFixture f(o);
+  auto flooder = joinedPeer(f.port());
+  // 3,000 poses in one burst: ten times the rate allowed, far past the one-second burst.
+  ViewerPoseMsg pose;
+  pose.position = glm::vec3(1.0f);
+  flooder->send(concat(encodeMessage(pose), 3000));
+  EXPECT_TRUE(flooder->closedByServer());
+  f.expectOnlyCause(DisconnectCause::Flood, 1);
+  EXPECT_EQ(f.stats().rejectedMessages[std::size_t(DisconnectCause::Flood)], 1u);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, FloodOfBytesIsDisconnected) {
+  NetServerOptions o;
+  o.maxMessageBytes = 64 << 10;
+  o.maxReceiveBytesPerSecond = 128 << 10;
+  o.maxMessagesPerSecond = 1e6;  // only the byte rate is under test
+  HostileFixture f(o);
+  auto flooder = joinedPeer(f.port());
+  // Valid acks, one range per brick of the first cascade (version 0: holds nothing), 2 MiB of
+  // them in a burst: sixteen times the byte rate allowed.
+  const gpu::CascadeDesc c = builtinInfo().cascades[0];
+  const std::uint32_t bricks =
+      std::uint32_t((c.counts.x + 3) / 4 * ((c.counts.y + 3) / 4) * ((c.counts.z + 3) / 4));
+  AckMsg ack;
+  for (std::uint32_t b = 0; b < bricks; ++b) ack.ranges.push_back({0, b, 1, 0});
+  const std::vector<std::uint8_t> frame = encodeMessage(ack);
+  ASSERT_LT(frame.size(), std::size_t(64 << 10));
+  flooder->send(concat(frame, int((2u << 20) / frame.size()) + 1));
+  EXPECT_TRUE(flooder->closedByServer());
+  f.expectOnlyCause(DisconnectCause::Flood, 1);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, MalformedMessageIsDisconnected) {
+  HostileFixture f;
+  auto peer = joinedPeer(f.port());
+  // A frame of the right length and identifier whose body is garbage.
+  AckMsg ack;
+  ack.ranges.push_back({0, 0, 1, 1});
+  std::vector<std::uint8_t> bad = encodeMessage(ack);
+  for (std::size_t i = 12; i < bad.size(); ++i) bad[i] ^= 0x5A;
+  peer->send(bad);
+  EXPECT_TRUE(peer->closedByServer());
+  f.expectOnlyCause(DisconnectCause::Malformed, 1);
+  EXPECT_EQ(f.stats().rejectedMessages[std::size_t(DisconnectCause::Malformed)], 1u);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, OversizedFrameIsRefusedBeforeItsBodyArrives) {
+  NetServerOptions o;
+  o.maxMessageBytes = 64 << 10;
+  HostileFixture f(o);
+  // Past the handshake: a prefix announcing 1 MiB and nothing after it. The server must close
+  // on the prefix alone (it never waits for, or allocates, the body).
+  auto peer = joinedPeer(f.port());
+  const std::uint32_t announced = 1u << 20;
+  std::vector<std::uint8_t> prefix(4);
+  std::memcpy(prefix.data(), &announced, 4);
+  peer->send(prefix);
+  EXPECT_TRUE(peer->closedByServer(5.0));
+  // Before the Hello the cap is 4 KiB: a 5 KiB prefix is refused the same way.
+  RawPeer early(f.port());
+  const std::uint32_t five = 5u << 10;
+  std::memcpy(prefix.data(), &five, 4);
+  early.send(prefix);
+  EXPECT_TRUE(early.closedByServer(5.0));
+  f.expectOnlyCause(DisconnectCause::Oversized, 2);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, ClientThatNeverReadsIsDisconnected) {
+  NetServerOptions o;
+  o.writeStallSeconds = 1.0;
+  o.maxWriteQueueBytes = 1u << 20;
+  HostileFixture f(o);
+  // A tiny receive window, datagrams over TCP, and no reads: the server's writes stall.
+  RawPeer sloth(f.port(), 4096);
+  sloth.send(helloFrame(kToken, false));
+  f.expectOnlyCause(DisconnectCause::NotReading, 1);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, MessagesOnlyTheServerSendsAreRefused) {
+  HostileFixture f;
+  // A client posing as the server: scene state, session info, a Welcome, and a datagram frame.
+  SceneStateMsg state;
+  state.animationTime = 1.0;
+  SessionInfoMsg info;
+  std::vector<std::vector<std::uint8_t>> frames = {
+      encodeMessage(state), encodeMessage(info), encodeMessage(WelcomeMsg{kProtocolVersion, 1})};
+  std::vector<std::uint8_t> datagramBytes(40, 0);
+  std::memcpy(datagramBytes.data() + 4, "PCDG", 4);  // identifier at the datagram's offset 4
+  frames.push_back(datagramFrame(datagramBytes));
+  for (const auto& frame : frames) {
+    auto peer = joinedPeer(f.port());
+    peer->send(frame);
+    EXPECT_TRUE(peer->closedByServer());
+  }
+  f.expectOnlyCause(DisconnectCause::WrongDirection, 4);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, MessagesOutOfOrderAreRefused) {
+  HostileFixture f;
+  // An ack before any Hello.
+  RawPeer first(f.port());
+  AckMsg ack;
+  first.send(encodeMessage(ack));
+  EXPECT_TRUE(first.closedByServer());
+  // A second Hello (a client trying to become another session on the same connection).
+  auto twice = joinedPeer(f.port());
+  twice->send(helloFrame(kToken));
+  EXPECT_TRUE(twice->closedByServer());
+  f.expectOnlyCause(DisconnectCause::Protocol, 2);
+  f.expectGoodClientUnaffected();
+}
+
+TEST(NetHostile, AcksAndRepairsBeyondTheFieldAreRefused) {
+  HostileFixture f;
+  // Ranges outside the field, an ack covering the field many times over (work a client could
+  // multiply at will), and a repair request naming more bricks than the field holds.
+  AckMsg outside;
+  outside.ranges.push_back({0, 1u << 30, 5, 1});
+  AckMsg repeated;
+  for (int i = 0; i < 64; ++i) repeated.ranges.push_back({0, 0, 64, 1});
+  std::size_t fieldBricks = 0;
+  for (const gpu::CascadeDesc& c : builtinInfo().cascades)
+    fieldBricks += std::size_t((c.counts.x + 3) / 4 * ((c.counts.y + 3) / 4) * ((c.counts.z + 3) / 4));
+  RepairRequestMsg repair;  // within the frame cap (16 bytes a brick), over the field
+  repair.bricks.assign(fieldBricks + 1, BrickRefMsg{0, 0, 0});
+  for (const auto& frame : {encodeMessage(outside), encodeMessage(repeated), encodeMessage(repair)}) {
+    auto peer = joinedPeer(f.port());
+    peer->send(frame);
+    EXPECT_TRUE(peer->closedByServer());
+  }
+  f.expectOnlyCause(DisconnectCause::Invalid, 3);
+  f.expectGoodClientUnaffected();
+}
+
+// A fake server: accepts one connection at a time, reads the Hello, answers Welcome and the
+// given SessionInfo, then holds the connection open (sending nothing) until the next accept.
+class FakeServer {
+ public:
+  explicit FakeServer(SessionInfoMsg info)
+      : acceptor_(io_, {boost::asio::ip::make_address("127.0.0.1"), 0}), info_(std::move(info)) {
+    thread_ = std::thread([this] { run(); });
+  }
+  ~FakeServer() {
+    // A blocking accept does not return when another thread closes the acceptor: wake it
+    // with one more connection, which it sees after the stop flag.
+    stop_ = true;
+    boost::asio::io_context io;
+    boost::asio::ip::tcp::socket wake(io);
+    boost::system::error_code ec;
+    wake.connect({boost::asio::ip::make_address("127.0.0.1"), port()}, ec);
+    thread_.join();
+  }
+  std::uint16_t port() const { return acceptor_.local_endpoint().port(); }
+
+ private:
+  void run() {
+    std::vector<boost::asio::ip::tcp::socket> held;
+    while (!stop_) {
+      boost::system::error_code ec;
+      boost::asio::ip::tcp::socket socket(io_);
+      acceptor_.accept(socket, ec);
+      if (ec || stop_) return;
+      std::array<std::uint8_t, 4> prefix{};
+      boost::asio::read(socket, boost::asio::buffer(prefix), ec);
+      auto size = frameSize(prefix, 4096);
+      if (ec || !size) continue;
+      std::vector<std::uint8_t> rest(*size - 4);
+      boost::asio::read(socket, boost::asio::buffer(rest), ec);
+      std::vector<std::uint8_t> out = encodeMessage(WelcomeMsg{kProtocolVersion, 7});
+      const std::vector<std::uint8_t> info = encodeMessage(info_);
+      out.insert(out.end(), info.begin(), info.end());
+      boost::asio::write(socket, boost::asio::buffer(out), ec);
+      held.push_back(std::move(socket));
+    }
+  }
+
+  boost::asio::io_context io_;
+  boost::asio::ip::tcp::acceptor acceptor_;
+  SessionInfoMsg info_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+TEST(NetHostileServer, HugeFieldLayoutIsRefusedBeforeAllocating) {
+  // One cascade of 253 x 253 x 61 probes: 4M slots, within what mirrorField accepts, so only
+  // the memory cap stands between this message and about 40 GiB of allocations.
+  SessionInfoMsg info = builtinInfo();
+  info.cascades.resize(1);
+  info.cascades[0].counts = glm::ivec3(253, 253, 61);
+  info.cascades[0].scroll = glm::ivec3(0);
+  const std::uint64_t needed = client::mirrorMemoryBytes(info);
+  EXPECT_GT(needed, std::uint64_t(30) << 30);
+  FakeServer fake(info);
+  client::FieldMirror mirror;
+  client::NetClient client(mirror, goodOptions(fake.port()));
+  client.start();
+  ASSERT_TRUE(waitFor([&] { return !client.stats().lastError.empty(); }, 10.0));
+  const client::NetClientStats s = client.stats();
+  std::printf("client error: %s\n", s.lastError.c_str());
+  EXPECT_NE(s.lastError.find("mirror memory"), std::string::npos);
+  EXPECT_NE(s.lastError.find(std::to_string((needed + (1u << 20) - 1) >> 20) + " MiB"),
+            std::string::npos);
+  EXPECT_NE(s.lastError.find("1024 MiB"), std::string::npos);  // the default cap
+  EXPECT_EQ(s.sessions, 0u);
+  EXPECT_EQ(s.layoutResets, 0u);
+  EXPECT_FALSE(mirror.present());
+}
+
+TEST(NetHostileServer, MirrorCapIsExact) {
+  const SessionInfoMsg info = builtinInfo();
+  const std::uint64_t needed = client::mirrorMemoryBytes(info);
+  std::printf("built-in field: %.1f MiB of mirror memory\n", double(needed) / (1 << 20));
+  FakeServer fake(info);
+  {
+    // One byte under what the layout needs: refused.
+    client::FieldMirror mirror;
+    auto o = goodOptions(fake.port());
+    o.maxMirrorBytes = needed - 1;
+    client::NetClient client(mirror, o);
+    client.start();
+    ASSERT_TRUE(waitFor([&] { return !client.stats().lastError.empty(); }, 10.0));
+    EXPECT_NE(client.stats().lastError.find("mirror memory"), std::string::npos);
+    EXPECT_EQ(client.stats().sessions, 0u);
+  }
+  {
+    // Exactly enough: the session starts and the mirror takes the layout.
+    client::FieldMirror mirror;
+    auto o = goodOptions(fake.port());
+    o.maxMirrorBytes = needed;
+    client::NetClient client(mirror, o);
+    client.start();
+    ASSERT_TRUE(waitFor([&] { return client.stats().sessions >= 1; }, 10.0));
+    EXPECT_TRUE(mirror.present());
+  }
+}
+
+}  // namespace
+}  // namespace pc::nettest

@@ -1,0 +1,234 @@
+// The server's observability: Prometheus text from MetricsText, the /metrics endpoint of a
+// real server scraped over a plain socket while a client comes and goes, and the log line
+// formats (text key=value and JSON).
+#include <gtest/gtest.h>
+
+#include <map>
+#include <sstream>
+
+#include "common/log.h"
+#include "test_net_support.h"
+
+namespace pc::nettest {
+namespace {
+
+struct HttpResponse {
+  int status = 0;
+  std::string headers, body;
+};
+
+// One HTTP/1.1 request over a plain socket; the server closes after answering.
+std::optional<HttpResponse> httpGet(std::uint16_t port, const std::string& target,
+                                    const std::string& method = "GET") {
+  namespace asio = boost::asio;
+  asio::io_context io;
+  asio::ip::tcp::socket socket(io);
+  boost::system::error_code ec;
+  socket.connect({asio::ip::make_address("127.0.0.1"), port}, ec);
+  if (ec) return std::nullopt;
+  const std::string request =
+      method + " " + target + " HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n";
+  asio::write(socket, asio::buffer(request), ec);
+  if (ec) return std::nullopt;
+  std::string raw;
+  std::array<char, 4096> chunk{};
+  while (true) {
+    const std::size_t n = socket.read_some(asio::buffer(chunk), ec);
+    raw.append(chunk.data(), n);
+    if (ec) break;  // eof once the answer is complete
+  }
+  const std::size_t split = raw.find("\r\n\r\n");
+  if (split == std::string::npos || raw.compare(0, 9, "HTTP/1.1 ") != 0) return std::nullopt;
+  HttpResponse r;
+  r.status = std::stoi(raw.substr(9, 3));
+  r.headers = raw.substr(0, split);
+  r.body = raw.substr(split + 4);
+  return r;
+}
+
+// Samples by their full name with labels ("probecast_disconnects_total{cause=\"flood\"}"),
+// checking the exposition format on the way: every sample's family has exactly one HELP and
+// one TYPE line, before its samples.
+struct Scrape {
+  std::map<std::string, double> samples;
+  std::map<std::string, std::string> types;
+  double operator[](const std::string& key) const {
+    auto it = samples.find(key);
+    EXPECT_NE(it, samples.end()) << "no sample " << key;
+    return it == samples.end() ? -1.0 : it->second;
+  }
+};
+
+Scrape parseMetrics(const std::string& text) {
+  Scrape s;
+  std::map<std::string, int> helps;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    if (line.rfind("# HELP ", 0) == 0) {
+      ++helps[line.substr(7, line.find(' ', 7) - 7)];
+      continue;
+    }
+    if (line.rfind("# TYPE ", 0) == 0) {
+      const std::string rest = line.substr(7);
+      const std::string name = rest.substr(0, rest.find(' '));
+      EXPECT_EQ(s.types.count(name), 0u) << "two TYPE lines for " << name;
+      s.types[name] = rest.substr(rest.find(' ') + 1);
+      continue;
+    }
+    const std::size_t space = line.rfind(' ');
+    const std::string key = line.substr(0, space);
+    const std::string family = key.substr(0, key.find('{'));
+    EXPECT_EQ(helps[family], 1) << "HELP lines for " << family;
+    EXPECT_EQ(s.types.count(family), 1u) << "no TYPE before " << key;
+    EXPECT_EQ(s.samples.count(key), 0u) << "duplicate sample " << key;
+    s.samples[key] = std::stod(line.substr(space + 1));
+  }
+  return s;
+}
+
+Scrape scrape(std::uint16_t port) {
+  auto r = httpGet(port, "/metrics");
+  EXPECT_TRUE(r.has_value());
+  if (!r) return {};
+  EXPECT_EQ(r->status, 200);
+  EXPECT_NE(r->headers.find("text/plain; version=0.0.4"), std::string::npos);
+  return parseMetrics(r->body);
+}
+
+TEST(NetMetrics, TextFormatGroupsFamiliesAndEscapesLabels) {
+  MetricsText m;
+  m.counter("x_total", "Things.", 3, {{"cause", "a"}});
+  m.gauge("y", "A level.", 0.25);
+  m.counter("x_total", "Things.", 4, {{"cause", "quote\" back\\ nl\n"}});
+  EXPECT_EQ(m.str(),
+            "# HELP x_total Things.\n"
+            "# TYPE x_total counter\n"
+            "x_total{cause=\"a\"} 3\n"
+            "x_total{cause=\"quote\\\" back\\\\ nl\\n\"} 4\n"
+            "# HELP y A level.\n"
+            "# TYPE y gauge\n"
+            "y 0.25\n");
+}
+
+TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
+  NetServerOptions o;
+  o.metricsPort = 0;  // any free port
+  TestServer server(-1.0, o);
+  const std::uint16_t port = server.net().metricsPort();
+  ASSERT_NE(port, 0);
+  server.net().setExtraMetrics(
+      [&server](MetricsText& m) { appendFieldLoopMetrics(m, server.loop().stats()); });
+
+  const Scrape before = scrape(port);
+  EXPECT_EQ(before["probecast_clients"], 0.0);
+  EXPECT_EQ(before.types.at("probecast_clients"), "gauge");
+  EXPECT_EQ(before.types.at("probecast_sent_bytes_total"), "counter");
+  EXPECT_EQ(before.types.at("probecast_disconnects_total"), "counter");
+  EXPECT_EQ(before["probecast_disconnects_total{cause=\"flood\"}"], 0.0);
+  EXPECT_EQ(before["probecast_sessions_rejected_total{cause=\"server_full\"}"], 0.0);
+
+  std::uint64_t sentWhileConnected = 0;
+  {
+    client::FieldMirror mirror;
+    client::NetClientOptions co;
+    co.port = server.port();
+    co.token = kToken;
+    client::NetClient client(mirror, co);
+    client.start();
+    ASSERT_TRUE(waitFor([&] { return client.stats().synced; }, 20.0));
+    const Scrape during = scrape(port);
+    EXPECT_EQ(during["probecast_clients"], 1.0);
+    EXPECT_EQ(during["probecast_sessions_total"], 1.0);
+    EXPECT_GT(during["probecast_sent_bytes_total"], before["probecast_sent_bytes_total"]);
+    EXPECT_GT(during["probecast_datagrams_sent_total"], 0.0);
+    EXPECT_GT(during["probecast_received_messages_total"], 1.0);  // hello and acks
+    EXPECT_GT(during["probecast_field_version"], 0.0);
+    EXPECT_GT(during["probecast_encodes_total"], 0.0);
+    EXPECT_GT(during["probecast_encode_seconds_total"], 0.0);
+    // The field thread's figures, once its first update (after the client synced) is done.
+    ASSERT_TRUE(waitFor([&] { return scrape(port)["probecast_field_updates_total"] > 0; }, 10.0));
+    const Scrape updated = scrape(port);
+    EXPECT_GT(updated["probecast_field_last_pass_seconds{pass=\"total\"}"], 0.0);
+    EXPECT_GT(updated["probecast_field_last_pass_seconds{pass=\"trace\"}"], 0.0);
+    EXPECT_GT(updated["probecast_field_update_seconds_total"], 0.0);
+    EXPECT_GT(updated["probecast_field_ticks_total"], 0.0);
+    // Counters only grow: a later scrape has sent more (the field never freezes).
+    ASSERT_TRUE(waitFor([&] {
+      return scrape(port)["probecast_sent_bytes_total"] > during["probecast_sent_bytes_total"];
+    }, 5.0));
+    sentWhileConnected = std::uint64_t(scrape(port)["probecast_sent_bytes_total"]);
+    std::printf("while connected: %llu bytes sent, field version %.0f\n",
+                (unsigned long long)sentWhileConnected, during["probecast_field_version"]);
+
+    // A malformed message from another client shows up under its cause.
+    RawPeer bad(server.port());
+    std::vector<std::uint8_t> junk(64, 0xAB);
+    junk[0] = 60, junk[1] = junk[2] = junk[3] = 0;
+    bad.send(junk);
+    EXPECT_TRUE(bad.closedByServer());
+  }
+  ASSERT_TRUE(waitFor([&] { return scrape(port)["probecast_clients"] == 0.0; }, 5.0));
+  const Scrape after = scrape(port);
+  EXPECT_EQ(after["probecast_disconnects_total{cause=\"malformed\"}"], 1.0);
+  EXPECT_EQ(after["probecast_rejected_messages_total{cause=\"malformed\"}"], 1.0);
+  EXPECT_EQ(after["probecast_disconnects_total{cause=\"client_closed\"}"], 1.0);
+  EXPECT_EQ(after["probecast_connections_accepted_total"], 2.0);
+  EXPECT_GE(after["probecast_sent_bytes_total"], double(sentWhileConnected));
+
+  // Only /metrics is served, and only to GET and HEAD.
+  auto missing = httpGet(port, "/other");
+  ASSERT_TRUE(missing.has_value());
+  EXPECT_EQ(missing->status, 404);
+  auto post = httpGet(port, "/metrics", "POST");
+  ASSERT_TRUE(post.has_value());
+  EXPECT_EQ(post->status, 405);
+}
+
+TEST(NetMetrics, MetricsPortThatIsTakenIsAnError) {
+  NetServerOptions o;
+  o.metricsPort = 0;
+  TestServer first(-1.0, o);
+  Field layout = Field::create({ProbeVolume{glm::vec3(0.0f), 1.0f, glm::ivec3(4)}}, FieldSettings{});
+  FieldHub hub(layout);
+  NetServerOptions taken;
+  taken.bindAddress = "127.0.0.1";
+  taken.port = 0;
+  taken.token = kToken;
+  taken.metricsPort = first.net().metricsPort();
+  auto second = NetServer::create(hub, taken);
+  ASSERT_FALSE(second.ok());
+  std::printf("error: %s\n", second.error().message.c_str());
+  EXPECT_NE(second.error().message.find("metrics"), std::string::npos);
+}
+
+TEST(Log, TextLinesCarryFieldsAsKeyValue) {
+  const std::string line =
+      formatLogLine(LogFormat::Text, "2024-05-01 12:00:00.000", LogLevel::Warn,
+                    "client disconnected",
+                    {{"session", 42}, {"peer", "127.0.0.1:5000"}, {"detail", "no write progress"}});
+  EXPECT_EQ(line,
+            "[2024-05-01 12:00:00.000] [warn] client disconnected session=42 "
+            "peer=127.0.0.1:5000 detail=\"no write progress\"");
+}
+
+TEST(Log, JsonLinesAreOneEscapedObject) {
+  const std::string line = formatLogLine(
+      LogFormat::Json, "2024-05-01T10:00:00.000Z", LogLevel::Info, "say \"hi\"",
+      {{"session", 7}, {"name", "a\\b\nc"}, {"seconds", 1.5}});
+  EXPECT_EQ(line,
+            "{\"ts\":\"2024-05-01T10:00:00.000Z\",\"level\":\"info\",\"msg\":\"say \\\"hi\\\"\","
+            "\"session\":7,\"name\":\"a\\\\b\\nc\",\"seconds\":1.500000}");
+}
+
+TEST(Log, LevelAndFormatNamesParse) {
+  EXPECT_EQ(parseLogLevel("warn"), LogLevel::Warn);
+  EXPECT_EQ(parseLogLevel("debug"), LogLevel::Debug);
+  EXPECT_FALSE(parseLogLevel("loud").has_value());
+  EXPECT_EQ(parseLogFormat("json"), LogFormat::Json);
+  EXPECT_FALSE(parseLogFormat("xml").has_value());
+}
+
+}  // namespace
+}  // namespace pc::nettest
