@@ -60,8 +60,10 @@ struct NetServerOptions {
   // Sessions past the handshake; a Hello beyond this gets a Reject ("server full").
   std::size_t maxClients = 64;
   // Connections still before their Hello; one more is closed as soon as it is accepted, so
-  // unauthenticated peers never hold more than this many sockets and 4 KiB buffers.
-  std::size_t maxPendingConnections = 16;
+  // unauthenticated peers never hold more than this many sockets and 4 KiB buffers (for at
+  // most helloTimeout each). Generous: many clients joining at once are all pending for a
+  // moment.
+  std::size_t maxPendingConnections = 256;
   // Largest frame an authenticated client may send, checked on the 4-byte prefix before
   // anything is allocated. 0: derived from the field, room for a full ack or repair request
   // naming every brick (32 bytes a brick + 4 KiB, at least 64 KiB, at most the protocol's

@@ -78,6 +78,8 @@ int main(int argc, char** argv) {
   app.add_option("--log-format", logFormat, "log lines: text, or json (one object per line)");
   app.add_option("--log-level", logLevel, "least severe level logged: debug, info, warn, error");
   app.add_option("--max-clients", net.maxClients, "clients past the handshake; more get a Reject");
+  app.add_option("--max-pending", net.maxPendingConnections,
+                 "connections awaiting their Hello; more are closed when accepted");
   app.add_option("--max-message-bytes", net.maxMessageBytes,
                  "largest message a client may send (0: derived from the field's brick count)");
   app.add_option("--max-messages-per-second", net.maxMessagesPerSecond,
