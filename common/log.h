@@ -47,7 +47,7 @@ std::string formatLogLine(LogFormat format, std::string_view timestamp, LogLevel
 class Progress {
  public:
   Progress(std::string label, std::uint64_t total);
-  ~Progress();  // finishes the bar / prints the last line
+  ~Progress();                        // finishes the bar / prints the last line
   void advance(std::uint64_t n = 1);  // thread-safe
  private:
   void print(bool final);

@@ -205,7 +205,8 @@ Result<std::unique_ptr<MetricsHttpServer>> MetricsHttpServer::create(
   Impl& s = *impl;
   beast::error_code ec;
   const auto address = asio::ip::make_address(s.options.bindAddress, ec);
-  if (ec) return Error{"metrics: bad bind address '" + s.options.bindAddress + "': " + ec.message()};
+  if (ec)
+    return Error{"metrics: bad bind address '" + s.options.bindAddress + "': " + ec.message()};
   const tcp::endpoint endpoint(address, s.options.port);
   s.acceptor.open(endpoint.protocol(), ec);
   if (!ec) s.acceptor.set_option(tcp::acceptor::reuse_address(true), ec);

@@ -21,8 +21,7 @@ class MetricsText {
  public:
   using Labels = std::vector<std::pair<std::string, std::string>>;
   // Counters only go up (names end in _total); gauges go both ways.
-  void counter(const std::string& name, const std::string& help, double value,
-               Labels labels = {});
+  void counter(const std::string& name, const std::string& help, double value, Labels labels = {});
   void gauge(const std::string& name, const std::string& help, double value, Labels labels = {});
   std::string str() const;
 

@@ -175,13 +175,15 @@ class Session : public std::enable_shared_from_this<Session> {
       : server_(server), socket_(std::move(socket)), id_(id) {
     boost::system::error_code ec;
     auto remote = socket_.remote_endpoint(ec);
-    peer_ = ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
+    peer_ =
+        ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
     acceptedAt_ = lastHeard_ = steadySeconds();
     socket_.set_option(tcp::no_delay(true), ec);
     // Flood limits; before the Hello the prefix check allows one small frame anyway.
     messageBucket_.init(server_.options.maxMessagesPerSecond, server_.options.maxMessagesPerSecond,
                         acceptedAt_);
-    byteBucket_.init(server_.maxReceiveBytesPerSecond, server_.maxReceiveBytesPerSecond, acceptedAt_);
+    byteBucket_.init(server_.maxReceiveBytesPerSecond, server_.maxReceiveBytesPerSecond,
+                     acceptedAt_);
   }
 
   void start() { readPrefix(); }
@@ -263,8 +265,8 @@ class Session : public std::enable_shared_from_this<Session> {
       close(DisconnectCause::HelloTimeout,
             "no Hello within " + std::to_string(server_.options.helloTimeout) + " s");
     } else if (writing_ && now - writeStartedAt_ > server_.options.writeStallSeconds) {
-      close(DisconnectCause::NotReading, "no write progress for " +
-                                             std::to_string(server_.options.writeStallSeconds) + " s");
+      close(DisconnectCause::NotReading,
+            "no write progress for " + std::to_string(server_.options.writeStallSeconds) + " s");
     } else if (sender_ && now - lastHeard_ > server_.options.silenceTimeout) {
       close(DisconnectCause::Silent,
             "no message for " + std::to_string(server_.options.silenceTimeout) + " s");
@@ -289,7 +291,6 @@ class Session : public std::enable_shared_from_this<Session> {
   std::uint64_t tcpQueueFullPolls() const { return tcpQueueFullPolls_; }
 
  private:
-
   void readPrefix() {
     auto self = shared_from_this();
     asio::async_read(socket_, asio::buffer(prefix_),
@@ -320,14 +321,15 @@ class Session : public std::enable_shared_from_this<Session> {
                         " messages per second");
     }
     if (!byteBucket_.take(double(*size), now)) {
-      return refuse(DisconnectCause::Flood, "more than " +
-                                                std::to_string(server_.maxReceiveBytesPerSecond) +
-                                                " bytes per second");
+      return refuse(
+          DisconnectCause::Flood,
+          "more than " + std::to_string(server_.maxReceiveBytesPerSecond) + " bytes per second");
     }
     frame_.assign(prefix_.begin(), prefix_.end());
     frame_.resize(*size);
     auto self = shared_from_this();
-    asio::async_read(socket_, asio::buffer(frame_.data() + kFramePrefixBytes, *size - kFramePrefixBytes),
+    asio::async_read(socket_,
+                     asio::buffer(frame_.data() + kFramePrefixBytes, *size - kFramePrefixBytes),
                      [self](boost::system::error_code ec2, std::size_t) { self->onFrame(ec2); });
   }
 
@@ -420,8 +422,8 @@ class Session : public std::enable_shared_from_this<Session> {
     std::optional<RejectMsg> reject = checkHello(hello, server_.options.token);
     RejectCause cause = RejectCause::Auth;
     if (reject) {
-      const bool versionOk = hello.protocolVersion >= kMinProtocolVersion &&
-                             hello.protocolVersion <= kProtocolVersion;
+      const bool versionOk =
+          hello.protocolVersion >= kMinProtocolVersion && hello.protocolVersion <= kProtocolVersion;
       cause = versionOk ? RejectCause::Auth : RejectCause::Version;
     } else if (server_.established >= server_.options.maxClients) {
       reject = RejectMsg{kProtocolVersion, "server full: " + std::to_string(server_.established) +
@@ -459,7 +461,8 @@ class Session : public std::enable_shared_from_this<Session> {
     {
       auto lock = server_.hub.lock();
       info = server_.hub.publisher().sessionInfo();
-      sender_ = std::make_unique<StreamSender>(server_.hub.publisher(), id_, server_.options.sender);
+      sender_ =
+          std::make_unique<StreamSender>(server_.hub.publisher(), id_, server_.options.sender);
       scene = server_.hub.sceneFrame();
       sceneSerialSent_ = server_.hub.sceneSerial();
     }
@@ -480,9 +483,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void enqueue(SharedBytes bytes) {
     if (closed_) return;
     if (queuedBytes_ + bytes->size() > server_.options.maxWriteQueueBytes) {
-      return close(DisconnectCause::NotReading,
-                   "write queue over " + std::to_string(server_.options.maxWriteQueueBytes) +
-                       " bytes");
+      return close(
+          DisconnectCause::NotReading,
+          "write queue over " + std::to_string(server_.options.maxWriteQueueBytes) + " bytes");
     }
     queuedBytes_ += bytes->size();
     writes_.push_back(std::move(bytes));
@@ -493,8 +496,9 @@ class Session : public std::enable_shared_from_this<Session> {
     writing_ = true;
     writeStartedAt_ = steadySeconds();
     auto self = shared_from_this();
-    asio::async_write(socket_, asio::buffer(*writes_.front()),
-                      [self](boost::system::error_code ec, std::size_t n) { self->onWritten(ec, n); });
+    asio::async_write(
+        socket_, asio::buffer(*writes_.front()),
+        [self](boost::system::error_code ec, std::size_t n) { self->onWritten(ec, n); });
   }
 
   void onWritten(boost::system::error_code ec, std::size_t n) {
@@ -650,8 +654,7 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
           double(s.connections));
   m.counter("probecast_connections_accepted_total", "TCP connections accepted.",
             double(s.accepted));
-  m.counter("probecast_sessions_total", "Handshakes completed (Welcome sent).",
-            double(s.sessions));
+  m.counter("probecast_sessions_total", "Handshakes completed (Welcome sent).", double(s.sessions));
   for (std::size_t c = 0; c < kRejectCauses; ++c) {
     m.counter("probecast_sessions_rejected_total", "Hellos answered with a Reject, by cause.",
               double(s.rejects[c]), {{"cause", causeName(RejectCause(c))}});
@@ -730,15 +733,16 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
     for (int k = 0; k < hub.publisher().cascadeCount(); ++k)
       s.fieldBricks += std::size_t(hub.publisher().brickCount(k));
   }
-  s.maxMessageBytes = s.options.maxMessageBytes != 0
-                          ? s.options.maxMessageBytes
-                          : std::clamp<std::size_t>(32 * s.fieldBricks + 4096, 64u << 10,
-                                                    kMaxSessionMessageBytes);
+  s.maxMessageBytes =
+      s.options.maxMessageBytes != 0
+          ? s.options.maxMessageBytes
+          : std::clamp<std::size_t>(32 * s.fieldBricks + 4096, 64u << 10, kMaxSessionMessageBytes);
   s.maxMessageBytes = std::min(s.maxMessageBytes, kMaxSessionMessageBytes);
   s.maxReceiveBytesPerSecond = s.options.maxReceiveBytesPerSecond > 0
                                    ? s.options.maxReceiveBytesPerSecond
                                    : std::max(double(1u << 20), 4.0 * double(s.maxMessageBytes));
-  if (s.options.maxMessagesPerSecond < 1 || s.maxReceiveBytesPerSecond < double(s.maxMessageBytes)) {
+  if (s.options.maxMessagesPerSecond < 1 ||
+      s.maxReceiveBytesPerSecond < double(s.maxMessageBytes)) {
     return Error{"flood limits: at least 1 message and one largest message (" +
                  std::to_string(s.maxMessageBytes) + " bytes) per second"};
   }
@@ -784,9 +788,7 @@ void NetServer::stop() {
 std::uint16_t NetServer::port() const { return impl_->tcpPort; }
 std::uint16_t NetServer::udpPort() const { return impl_->udpPortNumber; }
 
-std::uint16_t NetServer::metricsPort() const {
-  return impl_->metrics ? impl_->metrics->port() : 0;
-}
+std::uint16_t NetServer::metricsPort() const { return impl_->metrics ? impl_->metrics->port() : 0; }
 
 void NetServer::setExtraMetrics(std::function<void(MetricsText&)> extra) {
   std::lock_guard lock(impl_->extraMutex);

@@ -27,12 +27,12 @@ namespace pc {
 // Why a connection ended: the label of probecast_disconnects_total and the `cause` field of
 // the "client disconnected" log event (causeName).
 enum class DisconnectCause {
-  ClientClosed,    // the client closed the connection, or it broke (read or write error)
-  HelloTimeout,    // no Hello within helloTimeout
-  Silent,          // no message within silenceTimeout
-  NotReading,      // write queue over maxWriteQueueBytes, or no write progress for writeStallSeconds
-  Malformed,       // a frame or message that does not decode
-  Oversized,       // a frame announcing more than the cap (refused before it is read)
+  ClientClosed,  // the client closed the connection, or it broke (read or write error)
+  HelloTimeout,  // no Hello within helloTimeout
+  Silent,        // no message within silenceTimeout
+  NotReading,    // write queue over maxWriteQueueBytes, or no write progress for writeStallSeconds
+  Malformed,     // a frame or message that does not decode
+  Oversized,     // a frame announcing more than the cap (refused before it is read)
   WrongDirection,  // a message only the server sends (Welcome, Reject, SessionInfo,
                    // SceneState), or a datagram frame
   Protocol,        // out of order: something else before the Hello, or a second Hello
@@ -81,9 +81,9 @@ struct NetServerOptions {
   // TCP-only mode polls a client's sender only while less than this is queued, so a slow
   // client gets the newest state instead of a backlog (the sender keeps one entry per brick).
   std::size_t tcpDatagramQueueBytes = 256u << 10;
-  double helloTimeout = 5.0;    // s from accept to a Hello
+  double helloTimeout = 5.0;     // s from accept to a Hello
   double silenceTimeout = 10.0;  // s without any message from a client (full acks come every 1 s)
-  double pollInterval = 0.005;  // s between sender polls
+  double pollInterval = 0.005;   // s between sender polls
   // Prometheus metrics (GET /metrics over HTTP) on this port; nothing: no endpoint; 0: any
   // free port (NetServer::metricsPort). Bound on metricsBindAddress, else bindAddress.
   std::optional<std::uint16_t> metricsPort;
@@ -101,9 +101,9 @@ struct NetClientInfo {
 };
 
 struct NetServerStats {
-  std::uint64_t accepted = 0;   // TCP connections accepted
-  std::uint64_t sessions = 0;   // handshakes completed (Welcome sent)
-  std::uint64_t rejected = 0;   // Hellos answered with a Reject (sum of rejects)
+  std::uint64_t accepted = 0;      // TCP connections accepted
+  std::uint64_t sessions = 0;      // handshakes completed (Welcome sent)
+  std::uint64_t rejected = 0;      // Hellos answered with a Reject (sum of rejects)
   std::uint64_t disconnected = 0;  // connections ended (sum of disconnects)
   std::array<std::uint64_t, kRejectCauses> rejects{};
   std::array<std::uint64_t, kDisconnectCauses> disconnects{};

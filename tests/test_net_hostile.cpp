@@ -28,7 +28,8 @@ class HostileFixture {
   explicit HostileFixture(NetServerOptions options = {})
       : server_(-1.0, options), good_(mirror_, goodOptions(server_.port())) {
     good_.start();
-    EXPECT_TRUE(waitFor([&] { return good_.stats().synced; }, 20.0)) << "the good client never synced";
+    EXPECT_TRUE(waitFor([&] { return good_.stats().synced; }, 20.0))
+        << "the good client never synced";
   }
 
   TestServer& server() { return server_; }
@@ -91,8 +92,8 @@ std::vector<std::uint8_t> concat(const std::vector<std::uint8_t>& frame, int tim
 SessionInfoMsg builtinInfo() {
   const Scene scene = builtinScene();
   // The layout TestServer serves.
-  const Field field = Field::create(scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes,
-                                    FieldSettings{});
+  const Field field =
+      Field::create(scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes, FieldSettings{});
   return sessionInfoFor(field);
 }
 
@@ -225,8 +226,8 @@ TEST(NetHostile, MessagesOnlyTheServerSendsAreRefused) {
   SceneStateMsg state;
   state.animationTime = 1.0;
   SessionInfoMsg info;
-  std::vector<std::vector<std::uint8_t>> frames = {
-      encodeMessage(state), encodeMessage(info), encodeMessage(WelcomeMsg{kProtocolVersion, 1})};
+  std::vector<std::vector<std::uint8_t>> frames = {encodeMessage(state), encodeMessage(info),
+                                                   encodeMessage(WelcomeMsg{kProtocolVersion, 1})};
   std::vector<std::uint8_t> datagramBytes(40, 0);
   std::memcpy(datagramBytes.data() + 4, "PCDG", 4);  // identifier at the datagram's offset 4
   frames.push_back(datagramFrame(datagramBytes));
@@ -264,10 +265,12 @@ TEST(NetHostile, AcksAndRepairsBeyondTheFieldAreRefused) {
   for (int i = 0; i < 64; ++i) repeated.ranges.push_back({0, 0, 64, 1});
   std::size_t fieldBricks = 0;
   for (const gpu::CascadeDesc& c : builtinInfo().cascades)
-    fieldBricks += std::size_t((c.counts.x + 3) / 4 * ((c.counts.y + 3) / 4) * ((c.counts.z + 3) / 4));
+    fieldBricks +=
+        std::size_t((c.counts.x + 3) / 4 * ((c.counts.y + 3) / 4) * ((c.counts.z + 3) / 4));
   RepairRequestMsg repair;  // within the frame cap (16 bytes a brick), over the field
   repair.bricks.assign(fieldBricks + 1, BrickRefMsg{0, 0, 0});
-  for (const auto& frame : {encodeMessage(outside), encodeMessage(repeated), encodeMessage(repair)}) {
+  for (const auto& frame :
+       {encodeMessage(outside), encodeMessage(repeated), encodeMessage(repair)}) {
     auto peer = joinedPeer(f.port());
     peer->send(frame);
     EXPECT_TRUE(peer->closedByServer());

@@ -155,9 +155,11 @@ TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
     EXPECT_GT(updated["probecast_field_update_seconds_total"], 0.0);
     EXPECT_GT(updated["probecast_field_ticks_total"], 0.0);
     // Counters only grow: a later scrape has sent more (the field never freezes).
-    ASSERT_TRUE(waitFor([&] {
-      return scrape(port)["probecast_sent_bytes_total"] > during["probecast_sent_bytes_total"];
-    }, 5.0));
+    ASSERT_TRUE(waitFor(
+        [&] {
+          return scrape(port)["probecast_sent_bytes_total"] > during["probecast_sent_bytes_total"];
+        },
+        5.0));
     sentWhileConnected = std::uint64_t(scrape(port)["probecast_sent_bytes_total"]);
     std::printf("while connected: %llu bytes sent, field version %.0f\n",
                 (unsigned long long)sentWhileConnected, during["probecast_field_version"]);
@@ -190,7 +192,8 @@ TEST(NetMetrics, MetricsPortThatIsTakenIsAnError) {
   NetServerOptions o;
   o.metricsPort = 0;
   TestServer first(-1.0, o);
-  Field layout = Field::create({ProbeVolume{glm::vec3(0.0f), 1.0f, glm::ivec3(4)}}, FieldSettings{});
+  Field layout =
+      Field::create({ProbeVolume{glm::vec3(0.0f), 1.0f, glm::ivec3(4)}}, FieldSettings{});
   FieldHub hub(layout);
   NetServerOptions taken;
   taken.bindAddress = "127.0.0.1";
@@ -204,19 +207,18 @@ TEST(NetMetrics, MetricsPortThatIsTakenIsAnError) {
 }
 
 TEST(Log, TextLinesCarryFieldsAsKeyValue) {
-  const std::string line =
-      formatLogLine(LogFormat::Text, "2024-05-01 12:00:00.000", LogLevel::Warn,
-                    "client disconnected",
-                    {{"session", 42}, {"peer", "127.0.0.1:5000"}, {"detail", "no write progress"}});
+  const std::string line = formatLogLine(
+      LogFormat::Text, "2024-05-01 12:00:00.000", LogLevel::Warn, "client disconnected",
+      {{"session", 42}, {"peer", "127.0.0.1:5000"}, {"detail", "no write progress"}});
   EXPECT_EQ(line,
             "[2024-05-01 12:00:00.000] [warn] client disconnected session=42 "
             "peer=127.0.0.1:5000 detail=\"no write progress\"");
 }
 
 TEST(Log, JsonLinesAreOneEscapedObject) {
-  const std::string line = formatLogLine(
-      LogFormat::Json, "2024-05-01T10:00:00.000Z", LogLevel::Info, "say \"hi\"",
-      {{"session", 7}, {"name", "a\\b\nc"}, {"seconds", 1.5}});
+  const std::string line =
+      formatLogLine(LogFormat::Json, "2024-05-01T10:00:00.000Z", LogLevel::Info, "say \"hi\"",
+                    {{"session", 7}, {"name", "a\\b\nc"}, {"seconds", 1.5}});
   EXPECT_EQ(line,
             "{\"ts\":\"2024-05-01T10:00:00.000Z\",\"level\":\"info\",\"msg\":\"say \\\"hi\\\"\","
             "\"session\":7,\"name\":\"a\\\\b\\nc\",\"seconds\":1.500000}");
