@@ -75,6 +75,8 @@ int main(int argc, char** argv) {
   app.add_option("--metrics-port", metricsPort,
                  "serve Prometheus metrics at http://BIND:PORT/metrics (0: off)")
       ->check(CLI::Range(0, 65535));
+  app.add_option("--metrics-bind", net.metricsBindAddress,
+                 "address the metrics endpoint listens on (default: --bind's)");
   app.add_option("--log-format", logFormat, "log lines: text, or json (one object per line)");
   app.add_option("--log-level", logLevel, "least severe level logged: debug, info, warn, error");
   app.add_option("--max-clients", net.maxClients, "clients past the handshake; more get a Reject");
@@ -155,7 +157,8 @@ int main(int argc, char** argv) {
   pc::logInfo("listening on " + net.bindAddress + ":" + std::to_string((*server)->port()) +
               " (TCP), datagrams from UDP port " + std::to_string((*server)->udpPort()));
   if ((*server)->metricsPort() != 0) {
-    pc::logInfo("metrics at http://" + net.bindAddress + ":" +
+    pc::logInfo("metrics at http://" +
+                (net.metricsBindAddress.empty() ? net.bindAddress : net.metricsBindAddress) + ":" +
                 std::to_string((*server)->metricsPort()) + "/metrics");
   }
   // A line a script can wait for before starting clients.
