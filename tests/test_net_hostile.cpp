@@ -220,6 +220,26 @@ TEST(NetHostile, ClientThatNeverReadsIsDisconnected) {
   f.expectGoodClientUnaffected();
 }
 
+TEST(NetHostile, ClientThatNeverSpeaksIsDisconnected) {
+  NetServerOptions o;
+  o.helloTimeout = 0.5;
+  o.silenceTimeout = 1.0;  // the good client acks far more often than this
+  HostileFixture f(o);
+  // Connected, nothing sent: no Hello in time.
+  RawPeer mute(f.port());
+  EXPECT_TRUE(mute.closedByServer(5.0));
+  // Past the handshake, then silent (no acks, no poses).
+  auto silent = joinedPeer(f.port());
+  EXPECT_TRUE(silent->closedByServer(5.0));
+  // The counts reach stats() with the next poll.
+  EXPECT_TRUE(waitFor([&] { return f.stats().disconnected >= 2; }, 5.0));
+  const NetServerStats s = f.stats();
+  EXPECT_EQ(s.disconnectsBy(DisconnectCause::HelloTimeout), 1u);
+  EXPECT_EQ(s.disconnectsBy(DisconnectCause::Silent), 1u);
+  EXPECT_EQ(s.disconnected, 2u);
+  f.expectGoodClientUnaffected();
+}
+
 TEST(NetHostile, MessagesOnlyTheServerSendsAreRefused) {
   HostileFixture f;
   // A client posing as the server: scene state, session info, a Welcome, and a datagram frame.
