@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
   std::vector<pc::bench::Benchmark> benches = {
       pc::bench::addEnergy(app), pc::bench::addTrace(app), pc::bench::addQuality(app),
       pc::bench::addLeak(app), pc::bench::addClient(app), pc::bench::addGpuTrace(app),
-      pc::bench::addFaults(app), pc::bench::addStream(app)};
+      pc::bench::addFaults(app), pc::bench::addStream(app), pc::bench::addLoad(app)};
   CLI11_PARSE(app, argc, argv);
   for (auto& b : benches)
     if (b.command->parsed()) return b.run();

@@ -1,0 +1,146 @@
+// load: many clients against one real server. Starts build/bin/probecast-server on the built-in
+// scene as a child process (so its CPU time and resident memory come from /proc/<pid>), runs
+// the load generator's protocol-only clients in this process (loadgen/), and reports update
+// latency from the server's publish to the client's apply, server CPU per client, errors,
+// starved clients and the server's memory growth over the window.
+//
+// With several --clients values (e.g. 10,100,1000) it runs each against a fresh server and
+// prints the fan-out curve: the server encodes each brick version once for all clients, so
+// what each client costs is sending, and cpu_ms_per_client_s should stay flat as N grows.
+// cpu_ms_per_client_s = (server CPU during the window - server CPU idle before any client
+// joined) / N / window. The server and the clients share this machine's cores.
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "bench.h"
+#include "loadgen/server_load.h"
+#include "loadgen/server_process.h"
+
+namespace pc::bench {
+
+namespace {
+
+struct LoadSetup {
+  std::vector<int> clients = {100};
+  double seconds = 30;
+  double warmup = 3;
+  double ramp = -1;  // < 0: 5 ms per client, at least 1 s
+  int threads = 1;
+  bool tcpOnly = false;
+  double rateLimitMbit = 1.0;  // per client, the server's token bucket
+  double fieldRate = 10;       // server field updates per second
+  int rays = 64;
+  int serverWarmup = 8;
+  double starveSeconds = 2.0;
+  std::string server;  // default: probecast-server beside this executable
+  std::string serverLog = "build/load-server.log";
+  std::string json;
+  double sessionSeconds = 0;  // churn
+};
+
+std::string suffix(int clients) { return ".clients_" + std::to_string(clients); }
+
+}  // namespace
+
+Benchmark addLoad(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "load", "many protocol-only clients against a probecast-server process: latency, server "
+              "CPU per client, memory");
+  static LoadSetup s;
+  cmd->add_option("--clients", s.clients,
+                  "clients; several values (10,100,1000) give the fan-out curve, each against a "
+                  "fresh server")
+      ->delimiter(',');
+  cmd->add_option("--seconds", s.seconds, "measured window per run, s");
+  cmd->add_option("--warmup", s.warmup, "s after every client is synced, before the window");
+  cmd->add_option("--ramp", s.ramp, "s over which clients join (default 5 ms per client, >= 1 s)");
+  cmd->add_option("--threads", s.threads, "the load generator's network threads");
+  cmd->add_flag("--tcp-only", s.tcpOnly, "datagrams over TCP");
+  cmd->add_option("--rate-limit", s.rateLimitMbit, "server send rate per client, Mbit/s");
+  cmd->add_option("--field-rate", s.fieldRate, "server field updates per second");
+  cmd->add_option("--rays", s.rays, "server rays per probe per update");
+  cmd->add_option("--server-warmup", s.serverWarmup, "server warm-up bake updates");
+  cmd->add_option("--starve-seconds", s.starveSeconds, "gap that makes a client starved");
+  cmd->add_option("--session-seconds", s.sessionSeconds, "churn: sessions end after about this long");
+  cmd->add_option("--server", s.server, "probecast-server executable");
+  cmd->add_option("--server-log", s.serverLog, "the server's log");
+  cmd->add_option("--json", s.json, "write the last run's loadgen report as JSON here");
+  return {cmd, [] {
+            std::vector<load::ServerLoadResult> runs;
+            for (int n : s.clients) {
+              load::ServerLoadOptions o;
+              o.serverExecutable =
+                  s.server.empty() ? load::siblingExecutable("probecast-server") : s.server;
+              o.serverLog = s.serverLog;
+              o.serverArgs = {"--rate", std::to_string(s.fieldRate),
+                              "--rays", std::to_string(s.rays),
+                              "--warmup", std::to_string(s.serverWarmup),
+                              "--rate-limit", std::to_string(s.rateLimitMbit * 1e6 / 8),
+                              "--max-clients", std::to_string(n + 16),
+                              "--stats-interval", "0"};
+              if (s.tcpOnly) o.serverArgs.push_back("--tcp-only");
+              o.load.clients = n;
+              o.load.threads = s.threads;
+              o.load.tcpOnly = s.tcpOnly;
+              o.load.rampSeconds = s.ramp >= 0 ? s.ramp : std::max(1.0, 0.005 * n);
+              o.load.starveSeconds = s.starveSeconds;
+              o.load.sessionSeconds = s.sessionSeconds;
+              o.warmupSeconds = s.warmup;
+              o.seconds = s.seconds;
+              std::printf("load: %d clients, %.0f s window\n", n, s.seconds);
+              std::fflush(stdout);
+              auto r = load::runServerLoad(o, [](const std::string& line) {
+                std::printf("  %s\n", line.c_str());
+                std::fflush(stdout);
+              });
+              if (!r) {
+                std::fprintf(stderr, "load: %s\n", r.error().message.c_str());
+                return 1;
+              }
+              std::printf("%s", load::reportTable(r->report).c_str());
+              if (!r->serverExit.empty()) std::printf("server exit: %s\n", r->serverExit.c_str());
+              if (!s.json.empty()) {
+                std::ofstream(s.json) << load::reportJson(r->report);
+              }
+              runs.push_back(std::move(r).value());
+            }
+
+            std::printf("\nMachine: %s (server and clients share it)\n", machineDescription().c_str());
+            std::printf("Server: built-in scene, %.0f field updates/s, %d rays, %.1f Mbit/s per "
+                        "client, %s\n",
+                        s.fieldRate, s.rays, s.rateLimitMbit, s.tcpOnly ? "TCP only" : "UDP");
+            std::printf("%8s %8s %8s %8s %9s %9s %11s %9s %8s %7s %8s %9s %9s\n", "clients",
+                        "synced", "p50 ms", "p99 ms", "stale p95", "kbit/cl", "srv CPU ms/s",
+                        "ms/cl/s", "lg ms/s", "errors", "starved", "RSS warm", "RSS grow");
+            for (const load::ServerLoadResult& r : runs) {
+              const load::LoadReport& l = r.report;
+              std::printf("%8d %8s %8.1f %8.1f %9.1f %9.1f %11.1f %9.3f %8.0f %7llu %8d %9.1f %9.2f\n",
+                          l.clients, r.allSynced ? "yes" : "NO", l.latencyMs.p50, l.latencyMs.p99,
+                          l.stalenessMs.p95, l.kbitPerClient.mean, r.serverCpuMsPerS,
+                          r.cpuMsPerClientS, r.loadgenCpuMsPerS, (unsigned long long)l.errors,
+                          l.starvedClients, r.rssWarmMb, r.rssEndMb - r.rssWarmMb);
+            }
+            std::printf("(server idle CPU, before any client: %.1f ms/s; ms/cl/s = (srv CPU - "
+                        "idle) / clients; lg = the load generator's own CPU)\n",
+                        runs.back().serverIdleCpuMsPerS);
+
+            auto figures = [](const load::ServerLoadResult& r, const std::string& sfx) {
+              const load::LoadReport& l = r.report;
+              figure("p50_latency_ms" + sfx, l.latencyMs.p50, "ms");
+              figure("p99_latency_ms" + sfx, l.latencyMs.p99, "ms");
+              figure("cpu_ms_per_client_s" + sfx, r.cpuMsPerClientS, "ms");
+              figure("errors" + sfx, double(l.errors), "count");
+              figure("starved_clients" + sfx, double(l.starvedClients), "count");
+              figure("rss_growth_mb" + sfx, r.rssEndMb - r.rssWarmMb, "MB");
+            };
+            if (runs.size() > 1) {
+              for (const load::ServerLoadResult& r : runs) figures(r, suffix(r.report.clients));
+            }
+            figures(runs.back(), "");
+            return 0;
+          }};
+}
+
+}  // namespace pc::bench
