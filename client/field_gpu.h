@@ -40,7 +40,7 @@ class FieldGpu {
   // Atlases laid out as `desc` says; without a desc, 1x1 placeholders keep every descriptor
   // valid and the shaders use the ambient term. `fadeSeconds` <= 0: changed bricks pop in.
   static Result<FieldGpu> create(const vk::Context& ctx, const std::optional<gpu::FieldDesc>& desc,
-                                 int frameSlots, int bricksPerFrame, double fadeSeconds = 0.15);
+                                 int frameSlots, int bricksPerFrame, double fadeSeconds = 0.0);
 
   bool present() const { return present_; }
   // Once per frame: records the uploads of up to bricksPerFrame pending bricks of `mirror`

@@ -1,4 +1,5 @@
-// probecast-client's network mode (--connect): the headless frame loop fed by a NetClient.
+// probecast-client's network mode (--connect): the headless or windowed frame loop fed by a
+// NetClient.
 #pragma once
 
 #include <string>
@@ -21,5 +22,8 @@ struct NetRunConfig {
 // renders one last frame (<prefix>_last[_left|_right]) and writes the summary. Exit codes as
 // runHeadless.
 int runNetHeadless(const ClientConfig& config, const NetRunConfig& run);
+// The same stream into the window (window.cpp): the fly camera is the viewer; stops when the
+// window closes, or after run.duration or ClientConfig::frames where set.
+int runNetWindowed(const ClientConfig& config, const NetRunConfig& run);
 
 }  // namespace pc::client

@@ -40,7 +40,9 @@ struct RendererOptions {
   ShadowSettings shadows;
   int sampleFlags = 0;               // PC_SAMPLE_* for the field
   int bricksPerFrame = 32;           // field upload budget per frame
-  double fieldFadeSeconds = 0.15;    // a changed brick fades in over this long (0: at once)
+  // A changed brick fades in over this long (the window uses 0.15 s); 0: at once, so that
+  // headless images show exactly the field the mirror holds.
+  double fieldFadeSeconds = 0.0;
   std::optional<glm::vec3> ambient;  // irradiance where no field covers; default from the sky
   // Depth-only pass first, then shading with an EQUAL depth test: each sample is shaded once,
   // whatever the draw order (the shadow lookups dominate a fragment's cost).

@@ -1,6 +1,8 @@
 // Windowed front end: GLFW window, swapchain (recreated on resize), fly camera (right mouse
 // button drag to look, WASD/QE to move, shift for speed), overlay with frame time and field age.
-// Stereo shows both eyes side by side, each half the window's width.
+// Stereo shows both eyes side by side, each half the window's width. With --connect the field
+// streams from a server (NetClient on its own thread): the window follows the server's clock,
+// sends the fly camera as the viewer, and rebuilds the renderer when the layout changes.
 #define GLFW_INCLUDE_VULKAN
 #include <GLFW/glfw3.h>
 
@@ -11,6 +13,7 @@
 #include "client_app.h"
 #include "client_setup.h"
 #include "common/log.h"
+#include "net_app.h"
 #include "renderer.h"
 #include "swapchain.h"
 
@@ -42,7 +45,10 @@ char* lineBuffer() {
 
 }  // namespace
 
-int runWindowed(const ClientConfig& config) {
+// Changed bricks fade in over this long in the window (headless images stay exact).
+constexpr double kFieldFadeSeconds = 0.15;
+
+int runWindow(const ClientConfig& config, const NetRunConfig* net) {
   auto scene = loadClientScene(config);
   if (!scene) {
     logError(scene.error().message);
@@ -54,7 +60,14 @@ int runWindowed(const ClientConfig& config) {
     return 1;
   }
   FieldMirror mirror;
-  loadFallbackField(*scene, config, mirror);
+  if (!net || !config.probes.empty()) loadFallbackField(*scene, config, mirror);
+  std::optional<NetClient> client;
+  if (net) {
+    client.emplace(mirror, net->net);
+    client->setViewer(camera->position,
+                      glm::quatLookAt(glm::normalize(camera->forward), camera->up));
+    client->start();
+  }
 
   Glfw glfw;
   if (!glfwInit()) {
@@ -113,11 +126,14 @@ int runWindowed(const ClientConfig& config) {
     ro.msaa = config.msaa;
     ro.shadows = config.shadows;
     ro.sampleFlags = config.sampleFlags;
+    ro.fieldFadeSeconds = kFieldFadeSeconds;
     auto renderer = Renderer::create(**ctx, *scene, mirror, ro);
     if (!renderer) {
       logError("renderer: " + renderer.error().message);
       return 1;
     }
+    std::uint64_t generation = client ? client->layoutGeneration() : 0;
+    const double start = secondsNow();
 
     FlyCamera fly(*camera);
     const float speed = 0.25f * std::max(glm::length(scene->boundsMax - scene->boundsMin), 1e-3f);
@@ -130,10 +146,32 @@ int runWindowed(const ClientConfig& config) {
          ++frame) {
       glfwPollEvents();
       const double now = secondsNow();
+      if (net && net->duration > 0 && now - start >= net->duration) break;
       const float dt = float(now - lastTime);
       cpuFrameMs = 0.9 * cpuFrameMs + 0.1 * dt * 1000.0;
       lastTime = now;
       animationTime += config.dt >= 0.0 ? config.dt : dt;
+      if (client) {
+        // The server's clock when synced: direct light then matches its indirect light.
+        animationTime = client->animationTime().value_or(animationTime);
+        client->setViewer(fly.camera().position,
+                          glm::quatLookAt(glm::normalize(fly.camera().forward), fly.camera().up));
+        if (client->layoutGeneration() != generation) {
+          // The server's layout differs from the one the renderer was made for: rebuild it
+          // around the mirror, at the window's current size.
+          generation = client->layoutGeneration();
+          (*renderer)->waitIdle();
+          (*renderer).reset();
+          ro.width = std::max(1, int(swapchain.extent().width) / eyes);
+          ro.height = int(swapchain.extent().height);
+          renderer = Renderer::create(**ctx, *scene, mirror, ro);
+          if (!renderer) {
+            logError("renderer: " + renderer.error().message);
+            status = 1;
+            break;
+          }
+        }
+      }
 
       // ---- input ----
       if (glfwGetKey(glfw.window, GLFW_KEY_ESCAPE) == GLFW_PRESS)
@@ -237,6 +275,13 @@ int runWindowed(const ClientConfig& config) {
         std::snprintf(lineBuffer(), 128, "%ux%u  MSAA %dx%s", swapchain.extent().width,
                       swapchain.extent().height, config.msaa, config.stereo ? "  STEREO" : "");
         input.overlay.push_back(lineBuffer());
+        if (client) {
+          const NetClientStats ns = client->stats();
+          std::snprintf(lineBuffer(), 128, "NET %s  BRICKS %d/%d  FADING %d",
+                        ns.connected ? "CONNECTED" : "OFFLINE", ns.bricksHeld, ns.bricksTotal,
+                        (*renderer)->lastStats().bricksFading);
+          input.overlay.push_back(lineBuffer());
+        }
       }
       const OutputTarget target{swapchain.image(imageIndex), swapchain.view(imageIndex),
                                 swapchain.format(), VK_IMAGE_LAYOUT_PRESENT_SRC_KHR};
@@ -268,13 +313,20 @@ int runWindowed(const ClientConfig& config) {
         std::ofstream(config.readyFile) << "ready\n";
       }
     }
-    (*renderer)->waitIdle();
+    if (renderer) (*renderer)->waitIdle();
   }
+  if (client) client->stop();
   if ((*ctx)->validationErrorCount() > 0) {
     logError("validation errors: " + std::to_string((*ctx)->validationErrorCount()));
     return 3;
   }
   return status;
+}
+
+int runWindowed(const ClientConfig& config) { return runWindow(config, nullptr); }
+
+int runNetWindowed(const ClientConfig& config, const NetRunConfig& run) {
+  return runWindow(config, &run);
 }
 
 }  // namespace pc::client

@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
   // Network mode: the field comes from a server (the baked file stays the fallback).
   pc::client::NetRunConfig net;
   std::string connect, token;
-  app.add_option("--connect", connect, "stream the field from a server at HOST:PORT (headless)");
+  app.add_option("--connect", connect, "stream the field from a server at HOST:PORT");
   app.add_option("--token", token, "--connect: auth token (else $PROBECAST_TOKEN)");
   app.add_option("--name", net.net.name, "--connect: client name the server logs");
   app.add_flag("--tcp-only", net.net.tcpOnly, "--connect: datagrams over TCP");
@@ -105,8 +105,7 @@ int main(int argc, char** argv) {
       if (const char* env = std::getenv("PROBECAST_TOKEN")) token = env;
     }
     net.net.token = token;
-    if (c.windowed) return pc::logError("--connect runs headless; drop --window"), 1;
-    return pc::client::runNetHeadless(c, net);
+    return c.windowed ? pc::client::runNetWindowed(c, net) : pc::client::runNetHeadless(c, net);
   }
   return c.windowed ? pc::client::runWindowed(c) : pc::client::runHeadless(c);
 }
