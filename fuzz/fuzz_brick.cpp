@@ -24,7 +24,7 @@ using namespace pc;
 
 constexpr std::size_t kRawBytes = brick_layout::kCodes * 2;
 
-// 'Q' 'Z', format 1, flags, then one zstd frame with its content size and checksum
+// 'Q' 'Z', format 2, flags, then one zstd frame with its content size and checksum
 // (PROTOCOL.md, "Brick codec").
 std::vector<std::uint8_t> sealPayload(std::span<const std::uint8_t> planes, bool residual) {
   std::vector<std::uint8_t> raw(kRawBytes, 0);

@@ -18,8 +18,9 @@ namespace {
 using namespace pc::gpu;
 using namespace brick_layout;
 
-// Payload header: magic "QZ", format 1, flags (bit 0: residual).
-constexpr std::uint8_t kMagic0 = 'Q', kMagic1 = 'Z', kFormat = 1, kFlagResidual = 1;
+// Payload header: magic "QZ", format 2, flags (bit 0: residual). Format 1 (protocol version 1)
+// had 9 irradiance mantissa bits.
+constexpr std::uint8_t kMagic0 = 'Q', kMagic1 = 'Z', kFormat = 2, kFlagResidual = 1;
 constexpr std::size_t kHeaderBytes = 4;
 constexpr std::size_t kRawBytes = kCodes * 2;
 
@@ -254,10 +255,12 @@ BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b) {
     occMax = std::max(occMax, std::abs(int(a.codes[i]) - int(b.codes[i])));
   }
   ch.occlusion = float(occMax) / 255.0f;
+  int offsetMax = 0;
   for (std::size_t i = kOffset; i < kState; ++i) {
-    if (std::abs(int(a.codes[i]) - int(b.codes[i])) > 327) ch.records = true;  // 1% of spacing
+    offsetMax = std::max(offsetMax, std::abs(int(a.codes[i]) - int(b.codes[i])));
   }
-  for (std::size_t i = kState; i < kCodes; ++i) ch.records |= a.codes[i] != b.codes[i];
+  ch.offset = float(offsetMax) / 32767.0f;
+  for (std::size_t i = kState; i < kCodes; ++i) ch.states |= a.codes[i] != b.codes[i];
   return ch;
 }
 
@@ -309,7 +312,11 @@ std::size_t holdSmallChanges(QuantizedBrick& q, const QuantizedBrick& previous,
     for (std::size_t i = kOffset; i < kState; ++i) {
       std::uint16_t& c = q.codes[i];
       const std::uint16_t p = previous.codes[i];
-      if (c != p && std::abs(int(c) - int(p)) <= limit) {
+      // A probe that is not sampled (inside geometry, or without data) is never read by a
+      // client, and an inside probe's relocation wanders every update: hold its offsets.
+      const std::uint16_t state = q.codes[kState + (i - kOffset) % kSlots];
+      const bool sampled = state == PC_PROBE_ACTIVE || state == PC_PROBE_SLEEPING;
+      if (c != p && (!sampled || std::abs(int(c) - int(p)) <= limit)) {
         c = p;
         ++held;
       }

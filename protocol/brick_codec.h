@@ -34,10 +34,13 @@ inline constexpr std::size_t kState = kOffset + std::size_t(3) * kSlots;
 inline constexpr std::size_t kCodes = kState + kSlots;
 }  // namespace brick_layout
 
-// Quantization bounds (see PROTOCOL.md). Irradiance: the gamma-encoded value e as a 14-bit
-// float (5 exponent bits for e in [2^-15, 2^16), 9 stored mantissa bits, round to nearest).
-inline constexpr int kIrradianceMantissaBits = 9;
-inline constexpr float kIrradianceRelativeBound = 1.0f / 1024.0f;   // |e' - e| <= this * e
+// Quantization bounds (see PROTOCOL.md). Irradiance: the gamma-encoded value e as a 12-bit
+// float (5 exponent bits for e in [2^-15, 2^16), 7 stored mantissa bits, round to nearest).
+// Seven bits, not more: the temporal dead zone and the sender's thresholds hold changes of a
+// few times 1/256 anyway, and each further bit costs about one bit per changed code on the
+// wire (docs/BENCHMARKS.md, streaming bandwidth).
+inline constexpr int kIrradianceMantissaBits = 7;
+inline constexpr float kIrradianceRelativeBound = 1.0f / 256.0f;   // |e' - e| <= this * e
 inline constexpr float kIrradianceAbsoluteBound = 1.0f / 32768.0f;  // for e < 2^-15
 // Depth mean and standard deviation: 16 bits over [0, maxRayDistance].
 inline constexpr float kDepthBound = 1.0f / 131070.0f;  // x maxRayDistance
@@ -72,7 +75,8 @@ struct BrickChange {
   float irradianceMean = 0;
   float depth = 0;       // max |delta mean| / maxRayDistance
   float occlusion = 0;   // max |delta|
-  bool records = false;  // a probe state changed, or an offset by more than 1% of the spacing
+  float offset = 0;      // max |delta| of a relocation offset component / spacing
+  bool states = false;   // a probe state changed
 };
 BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b);
 
@@ -87,7 +91,8 @@ struct DeadZone {
   float irradiance = 0;  // |delta e| (gamma-encoded irradiance)
   float depth = 0;       // |delta| of depth mean and standard deviation, x the texel's mean
   float occlusion = 0;   // |delta|
-  float offset = 0;      // |delta| of a relocation offset component, x the spacing
+  float offset = 0;      // |delta| of a relocation offset component, x the spacing; when
+                         // > 0, offsets of probes that are not sampled are always held
   // A flip between active and sleeping keeps the previous state: both are sampled alike, and
   // the classification flips with ray noise for probes near its distance limit.
   bool sleepingAsActive = false;

@@ -9,8 +9,10 @@ namespace pc {
 
 // The protocol version this code speaks, and the oldest peer version it still serves. Bump by
 // the rules in PROTOCOL.md ("Versioning of the streaming protocol").
-inline constexpr std::uint32_t kProtocolVersion = 1;
-inline constexpr std::uint32_t kMinProtocolVersion = 1;
+// Version 2: brick codec format 2 (7 irradiance mantissa bits instead of 9); version 1 peers
+// would misread its payloads, so they are not served.
+inline constexpr std::uint32_t kProtocolVersion = 2;
+inline constexpr std::uint32_t kMinProtocolVersion = 2;
 
 // UDP datagrams never exceed this (fits the IPv6 minimum MTU of 1280 with headers).
 inline constexpr std::size_t kMaxDatagramBytes = 1200;

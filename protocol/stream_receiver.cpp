@@ -90,12 +90,15 @@ Status StreamReceiver::apply(const CompletedUpdate& u, double now) {
   }
   std::shared_ptr<const QuantizedBrick> base;
   if (u.update.baseVersion != 0) {
-    if (u.update.baseVersion != b.version) {
+    if (u.update.baseVersion == b.version) {
+      base = b.content;
+    } else if (u.update.baseVersion == b.previousVersion && b.previous) {
+      base = b.previous;
+    } else {
       ++stats_.missingBase;
       requestRepair(b);
       return Status::success();
     }
-    base = b.content;
   }
   Result<std::shared_ptr<const QuantizedBrick>> q = Error{};
   if (options_.decoder) {
@@ -112,6 +115,8 @@ Status StreamReceiver::apply(const CompletedUpdate& u, double now) {
     return q.error();
   }
   if (options_.keepField) applyBrick(field_, u.update.cascade, int(u.update.brick), **q);
+  b.previous = std::move(b.content);
+  b.previousVersion = b.version;
   b.content = std::move(q.value());
   b.version = u.update.version;
   b.appliedAt = now;

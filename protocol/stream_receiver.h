@@ -91,6 +91,11 @@ class StreamReceiver {
     std::uint64_t version = 0;
     double appliedAt = 0;
     std::shared_ptr<const QuantizedBrick> content;  // codes of `version`: residuals' base
+    // The version held before `version`, also a base: the server sends one version of a brick
+    // at a time, but when an ack is late it sends the next one on the version acknowledged,
+    // which this client may just have replaced.
+    std::uint64_t previousVersion = 0;
+    std::shared_ptr<const QuantizedBrick> previous;
     double repairAt = -1e30;
     bool wantRepair = false;
     bool ackDirty = false;

@@ -136,18 +136,47 @@ bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version
   auto cur = publisher_.find(k, b, version);
   auto old = publisher_.find(k, b, ref);
   bool below = false;
+  Reason reason = Reason::First;  // a version no longer in the history: as if new
   if (cur && old) {
     const BrickChange c = brickChange(*cur, *old);
-    below = c.irradiance < options_.irradianceThreshold &&
-            (options_.irradianceMeanThreshold <= 0 ||
-             c.irradianceMean < options_.irradianceMeanThreshold) &&
-            c.depth < options_.depthThreshold &&
-            c.occlusion < options_.occlusionThreshold && !c.records;
+    if (c.irradiance >= options_.irradianceThreshold)
+      reason = Reason::Irradiance;
+    else if (options_.irradianceMeanThreshold > 0 &&
+             c.irradianceMean >= options_.irradianceMeanThreshold)
+      reason = Reason::IrradianceMean;
+    else if (c.depth >= options_.depthThreshold)
+      reason = Reason::Depth;
+    else if (c.occlusion >= options_.occlusionThreshold)
+      reason = Reason::Occlusion;
+    else if (c.offset >= options_.offsetThreshold)
+      reason = Reason::Offset;
+    else if (c.states)
+      reason = Reason::State;
+    else
+      below = true;
   }
   t.skipVersion = version;
   t.skipRef = ref;
   t.skipBelow = below;
+  t.skipReason = reason;
   return below;
+}
+
+void StreamSender::count(Reason reason) {
+  SenderStats::Reasons& r = stats_.reasons;
+  switch (reason) {
+    case Reason::First: ++r.first; break;
+    case Reason::Irradiance: ++r.irradiance; break;
+    case Reason::IrradianceMean: ++r.irradianceMean; break;
+    case Reason::Depth: ++r.depth; break;
+    case Reason::Occlusion: ++r.occlusion; break;
+    case Reason::Offset: ++r.offset; break;
+    case Reason::State: ++r.state; break;
+    case Reason::Settled: ++r.settled; break;
+    case Reason::Refresh: ++r.refresh; break;
+    case Reason::Repair: ++r.repair; break;
+    case Reason::Timeout: ++r.timeout; break;
+  }
 }
 
 double StreamSender::distanceInBricks(int k, int b) const {
@@ -182,21 +211,34 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
         continue;
       }
       if (t.pendingSince < 0) t.pendingSince = now;
-      if (t.sent == cur.version && now - t.sentAt < resendTimeout()) continue;  // in flight
-      if (t.sent != cur.version && !t.repair) {
+      // One version in flight per brick: the client keeps only the version it holds, so a
+      // newer version sent before the last one is acknowledged would have to be a residual on
+      // a version the client may already have replaced (and would need a repair). Waiting for
+      // the ack (one round trip) also batches a quickly changing brick's versions.
+      if (t.sent != 0 && t.sent != t.acked && now - t.sentAt < resendTimeout()) continue;
+      Reason reason = Reason::Timeout;
+      if (t.repair) {
+        reason = Reason::Repair;
+      } else if (t.sent != cur.version) {
         // A new version: hold it back while the change is small, still moving, and the client
         // heard from this brick recently.
         const std::uint64_t ref = std::max(t.acked, t.sent);
-        if (ref != 0 && now - cur.publishedAt < options_.settleTime &&
-            now - t.sentAt < options_.refreshInterval &&
-            belowThresholds(t, k, b, cur.version, ref)) {
+        if (ref == 0) {
+          reason = Reason::First;
+        } else if (now - cur.publishedAt >= options_.settleTime) {
+          reason = Reason::Settled;
+        } else if (now - t.sentAt >= options_.refreshInterval) {
+          reason = Reason::Refresh;
+        } else if (belowThresholds(t, k, b, cur.version, ref)) {
           ++stats_.skipped;
           continue;
+        } else {
+          reason = t.skipReason;
         }
       }
       const double key =
           distanceInBricks(k, b) - options_.agingBricksPerSecond * (now - t.pendingSince);
-      candidates.push_back(Candidate{k, b, key});
+      candidates.push_back(Candidate{k, b, key, reason});
     }
   }
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
@@ -235,6 +277,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     t.repair = false;
     ++stats_.updates;
     stats_.residualUpdates += base != 0;
+    count(c.reason);
     chosen.push_back(std::move(update));
     if (chosen.size() * 2 >= options_.maxDatagramsPerPoll) break;
   }

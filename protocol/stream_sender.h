@@ -3,7 +3,8 @@
 // send now. One per client; all of them read one shared FieldPublisher.
 //
 // What it sends, per brick: nothing while the client has acknowledged the brick's current
-// version, or while that version is in flight (sent less than a resend timeout ago). Otherwise
+// version, or while any version of the brick is in flight (sent less than a resend timeout
+// ago and not acknowledged). Otherwise
 // the current version, as a residual on the version the client acknowledged (when that is
 // still in the publisher's history) or self-contained, unless the change since the version the
 // client has or is receiving is below the perceptual thresholds, the version is younger than
@@ -46,6 +47,10 @@ struct SenderOptions {
   float irradianceMeanThreshold = 0.0f;
   float depthThreshold = 0.005f;       // max |delta mean depth| / maxRayDistance
   float occlusionThreshold = 0.02f;
+  // max |delta| of a relocation offset component, x the spacing. Relocation jitters with ray
+  // noise by a few percent of the spacing, which moves the sampled light very little; a probe
+  // state change (to or from inside geometry) always counts.
+  float offsetThreshold = 0.01f;
   double heartbeatInterval = 0.25;  // s: an empty datagram when nothing else was sent
   double agingBricksPerSecond =
       8;  // priority: each second waiting counts as this many bricks nearer
@@ -56,6 +61,15 @@ struct SenderStats {
   std::uint64_t datagrams = 0, bytes = 0;
   std::uint64_t updates = 0, residualUpdates = 0, resends = 0, fragments = 0;
   std::uint64_t skipped = 0;  // brick-polls held back by the perceptual thresholds
+  // Why each update was sent (they add up to `updates`): the client held nothing of the brick
+  // (or the sender knew of nothing it held); the change passed a threshold (by quantity:
+  // irradiance maximum, irradiance mean, depth, occlusion, relocation offset, probe state); the version was
+  // older than the settle time; the brick had not been sent for the refresh interval; the
+  // client asked for a repair; or the version was sent before and not acknowledged in time.
+  struct Reasons {
+    std::uint64_t first = 0, irradiance = 0, irradianceMean = 0, depth = 0, occlusion = 0,
+                  offset = 0, state = 0, settled = 0, refresh = 0, repair = 0, timeout = 0;
+  } reasons;
   std::uint64_t badMessages = 0;
   double srtt = 0;
 };
@@ -78,6 +92,10 @@ class StreamSender {
   double resendTimeout() const;
 
  private:
+  enum class Reason : std::uint8_t {
+    First, Irradiance, IrradianceMean, Depth, Occlusion, Offset, State, Settled, Refresh,
+    Repair, Timeout
+  };
   struct Track {
     std::uint64_t acked = 0;  // what the client holds, from acks and repair requests
     std::uint64_t sent = 0;   // newest version sent
@@ -89,15 +107,20 @@ class StreamSender {
     // Cached perceptual decision for (current version, reference version).
     std::uint64_t skipVersion = 0, skipRef = 0;
     bool skipBelow = false;
+    Reason skipReason = Reason::First;  // which threshold the change passed, when not below
   };
   struct Candidate {
     int cascade;
     int brick;
     double key;
+    Reason reason;
   };
   Status onAck(const AckMsg& ack, double now);
   Status onRepair(const RepairRequestMsg& repair);
+  // Whether the change from `ref` to `version` is below every threshold; if not, t.skipReason
+  // names the first threshold it passed.
   bool belowThresholds(Track& t, int k, int b, std::uint64_t version, std::uint64_t ref);
+  void count(Reason reason);
   double distanceInBricks(int k, int b) const;
 
   FieldPublisher& publisher_;

@@ -100,11 +100,12 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
   const float backfaceFraction = float(backfaces) / float(std::max(rayCount, 1));
   const int oldState = record.state;
   const glm::vec3 oldOffset = record.offset;
-  record.offset = pcRelocate(record.offset, backfaceFraction, closestBack, closestBackDir,
+  const bool inside = pcProbeInside(backfaceFraction, oldState);
+  record.offset = pcRelocate(record.offset, inside, closestBack, closestBackDir,
                              closestFront, closestFrontDir, 0.2f * c.spacing, 0.45f * c.spacing);
   const bool moved = glm::length(record.offset - oldOffset) > 0.01f * c.spacing;
 
-  if (backfaceFraction > PC_INSIDE_BACKFACE_FRACTION) {
+  if (inside) {
     // Inside geometry: its tiles describe the inside of a wall; never sampled. History is
     // dropped so that, once relocated out, it starts clean.
     record.state = PC_PROBE_INSIDE;

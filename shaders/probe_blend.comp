@@ -95,10 +95,11 @@ void main() {
     vec3 frontDir = sFrontRay[0] < rayCount ? rayDirs[sFrontRay[0]].xyz : vec3(0.0f);
     int oldState = r.state;
     vec3 oldOffset = r.offset;
-    r.offset = pcRelocate(r.offset, backfaceFraction, sBackDist[0], backDir, sFrontDist[0], frontDir,
+    bool inside = pcProbeInside(backfaceFraction, oldState);
+    r.offset = pcRelocate(r.offset, inside, sBackDist[0], backDir, sFrontDist[0], frontDir,
                           0.2f * c.spacing, 0.45f * c.spacing);
     bool moved = length(r.offset - oldOffset) > 0.01f * c.spacing;
-    if (backfaceFraction > PC_INSIDE_BACKFACE_FRACTION) {
+    if (inside) {
       // Inside geometry: never sampled, history dropped, tiles left alone.
       r.state = PC_PROBE_INSIDE;
       r.updates = 0u;

@@ -214,4 +214,31 @@ TEST(BrickCodec, DeadZoneHoldsSmallChangesWithinItsTolerance) {
   EXPECT_EQ(untouched, movedExact);
 }
 
+TEST(BrickCodec, DeadZoneHoldsOffsetsOfProbesThatAreNotSampled) {
+  Field f = test::makeSyntheticLayout();
+  std::mt19937 rng(7);
+  test::evolveField(f, rng, 1.0f, 0.0f);
+  const int brick = 1;
+  const int inside = brick * gpu::PC_PROBES_PER_BRICK + 3;
+  const int active = brick * gpu::PC_PROBES_PER_BRICK + 4;
+  f.probe(0, inside).state = gpu::PC_PROBE_INSIDE;
+  f.probe(0, active).state = gpu::PC_PROBE_ACTIVE;
+  const QuantizedBrick previous = quantizeBrick(f, 0, brick);
+  // Both wander by 30% of the spacing, far past a 5% dead zone.
+  const float spacing = f.cascade(0).spacing;
+  f.probe(0, inside).offset += glm::vec3(0.3f * spacing, 0.0f, 0.0f);
+  f.probe(0, active).offset += glm::vec3(0.3f * spacing, 0.0f, 0.0f);
+  QuantizedBrick q = quantizeBrick(f, 0, brick);
+  DeadZone dz;
+  dz.offset = 0.05f;
+  holdSmallChanges(q, previous, dz);
+  using namespace brick_layout;
+  EXPECT_EQ(q.codes[kOffset + 3], previous.codes[kOffset + 3]) << "inside: never read, held";
+  EXPECT_NE(q.codes[kOffset + 4], previous.codes[kOffset + 4]) << "active: a real move passes";
+  // The change measure sees the active probe's move as a fraction of the spacing.
+  const BrickChange c = brickChange(q, previous);
+  EXPECT_NEAR(c.offset, 0.3f, 0.01f);
+  EXPECT_FALSE(c.states);
+}
+
 }  // namespace

@@ -189,3 +189,30 @@ TEST(FieldSampling, ProbesInsideGeometryAreIgnored) {
   pc::sampleField(f, vec3(0.5f), vec3(0, 1, 0), vec3(0, 1, 0), PC_SAMPLE_DEFAULT, &coverage);
   EXPECT_EQ(coverage, 0.0f);
 }
+
+TEST(ProbeClassification, InsideHasHysteresis) {
+  // Between the two thresholds a probe keeps its state: ray noise around one threshold no
+  // longer flips it (and resets its history) at every update.
+  EXPECT_FALSE(pcProbeInside(0.2f, PC_PROBE_ACTIVE));
+  EXPECT_TRUE(pcProbeInside(0.2f, PC_PROBE_INSIDE));
+  EXPECT_TRUE(pcProbeInside(0.3f, PC_PROBE_ACTIVE));
+  EXPECT_FALSE(pcProbeInside(0.05f, PC_PROBE_INSIDE));
+  EXPECT_FALSE(pcProbeInside(0.2f, PC_PROBE_SLEEPING));
+}
+
+TEST(ProbeClassification, InsideProbeStepsOutOnlyWithinReach) {
+  const float minFront = 0.2f, maxOffset = 0.45f;
+  // A backface 0.1 away: the step (0.1 + 0.1) fits, the probe moves through it.
+  vec3 moved = pcRelocate(vec3(0.0f), true, 0.1f, vec3(1, 0, 0), 1e30f, vec3(0.0f), minFront,
+                          maxOffset);
+  EXPECT_NEAR(moved.x, 0.2f, 1e-6f);
+  // From an offset of 0.3 the same step would end at 0.5, past the reach: it stays put rather
+  // than being clamped back inside.
+  moved = pcRelocate(vec3(0.3f, 0, 0), true, 0.1f, vec3(1, 0, 0), 1e30f, vec3(0.0f), minFront,
+                     maxOffset);
+  EXPECT_EQ(moved, vec3(0.3f, 0, 0));
+  // Outside and too close to a wall: it backs away, clamped to the reach.
+  moved = pcRelocate(vec3(0.4f, 0, 0), false, 1e30f, vec3(0.0f), 0.05f, vec3(-1, 0, 0), minFront,
+                     maxOffset);
+  EXPECT_NEAR(glm::length(moved), maxOffset, 1e-5f);
+}

@@ -86,6 +86,16 @@ TEST(ProtocolStream, CalmLinkDeliversEverythingWithResiduals) {
   EXPECT_GT(r.sender.residualUpdates, 0u);
   EXPECT_EQ(r.receiver.rejectedDatagrams, 0u);
   EXPECT_EQ(r.receiver.decodeErrors, 0u);
+  // One version in flight per brick: on a link that loses nothing, no residual ever names a
+  // base the client has already replaced, so nothing needs a repair.
+  EXPECT_EQ(r.receiver.missingBase, 0u);
+  EXPECT_EQ(r.sender.reasons.repair, 0u);
+  // Every update sent has exactly one reason.
+  const auto& why = r.sender.reasons;
+  EXPECT_EQ(why.first + why.irradiance + why.irradianceMean + why.depth + why.occlusion +
+                why.offset + why.state + why.settled + why.refresh + why.repair + why.timeout,
+            r.sender.updates);
+  EXPECT_GT(why.first, 0u);
   expectBounded(r, o);
 }
 

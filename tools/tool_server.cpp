@@ -16,6 +16,7 @@
 
 #include "common/log.h"
 #include "protocol/baked_file.h"
+#include "protocol/stream_tuning.h"
 #include "server/bake.h"
 #include "server/net_field_loop.h"
 #include "server/net_server.h"
@@ -68,6 +69,12 @@ int main(int argc, char** argv) {
   app.add_option("--token", net.token, "shared secret clients must present (else $PROBECAST_TOKEN)");
   app.add_flag("--tcp-only", net.tcpOnly, "send datagrams over TCP to every client");
   app.add_option("--rate-limit", rateLimit, "bytes per second per client (0: default)");
+  pc::StreamTuning tuning;
+  app.add_option("--stream-threshold", tuning.threshold,
+                 "perceptual threshold T of the stream: changes of the gamma-encoded irradiance "
+                 "below T are held back (0: every version exactly; docs/BENCHMARKS.md has the "
+                 "bandwidth and PSNR for each T)")
+      ->check(CLI::Range(0.0, 0.5));
   app.add_option("--duration", duration, "exit after this many seconds (0: run until a signal)");
   app.add_option("--stats-interval", statsInterval, "seconds between statistics lines");
   int metricsPort = 0;
@@ -108,6 +115,8 @@ int main(int argc, char** argv) {
   }
   if (loop.rate <= 0 || loop.rate > 240) return pc::logError("--rate: expected 0 < rate <= 240"), 1;
   if (rateLimit > 0) net.sender.bytesPerSecond = rateLimit;
+  pc::PublisherOptions publisherOptions;
+  pc::applyStreamTuning(tuning, publisherOptions, net.sender);
   loop.dumpField = dumpField;
 
   // Signals go to the thread that waits for them (main), never to the worker threads: block
@@ -147,7 +156,7 @@ int main(int argc, char** argv) {
               std::to_string(field.desc.cascadeCount) + " cascades, version " +
               std::to_string(field.version));
 
-  pc::FieldHub hub(field);
+  pc::FieldHub hub(field, publisherOptions);
   auto server = pc::NetServer::create(hub, net);
   if (!server) return pc::logError(server.error().message), 1;
   // The first publish happens before any client can connect, so every Welcome carries a field.

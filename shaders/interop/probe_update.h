@@ -25,18 +25,32 @@ PC_FN vec3 pcDecodeIrradiance(vec3 g) { return pow(max(g, vec3(0.0f)), vec3(PC_I
 // wall close by; the sign carries the backface flag through the ray buffer.
 PC_CONST float PC_BACKFACE_DEPTH_SCALE = 0.2f;
 
-// Share of backface hits above which a probe counts as inside geometry.
+// Share of backface hits above which a probe counts as inside geometry, and below which a
+// probe inside counts as outside again. The gap is hysteresis: a probe whose share hovers
+// near one threshold (a probe in a corner that relocation cannot free) would otherwise flip
+// with ray noise, losing its history at every flip and making every flip a brick change that
+// goes to every client.
 PC_CONST float PC_INSIDE_BACKFACE_FRACTION = 0.25f;
+PC_CONST float PC_OUTSIDE_BACKFACE_FRACTION = 0.1f;
+
+PC_FN bool pcProbeInside(float backfaceFraction, int oldState) {
+  float limit = oldState == PC_PROBE_INSIDE ? PC_OUTSIDE_BACKFACE_FRACTION : PC_INSIDE_BACKFACE_FRACTION;
+  return backfaceFraction > limit;
+}
 
 // Relocation: push the probe out of geometry or away from a too-close wall. Offsets are kept
 // within maxOffset (a fraction of spacing) of the grid point.
-PC_FN vec3 pcRelocate(vec3 offset, float backfaceFraction, float closestBackface,
+PC_FN vec3 pcRelocate(vec3 offset, bool inside, float closestBackface,
                       vec3 closestBackfaceDir, float closestFrontface, vec3 closestFrontfaceDir,
                       float minFrontface, float maxOffset) {
   vec3 moved = offset;
-  if (backfaceFraction > PC_INSIDE_BACKFACE_FRACTION && closestBackface < 1e30f) {
-    // Inside: step through the nearest backface, a little past the surface.
-    moved += closestBackfaceDir * (closestBackface + minFrontface * 0.5f);
+  if (inside && closestBackface < 1e30f) {
+    // Inside: step through the nearest backface, a little past the surface, if that stays
+    // within reach. A step that would be clamped could leave the probe inside again, and a
+    // probe that alternates between two clamped positions flips between inside and active
+    // at every update; this update's rays may find a reachable way out next time.
+    vec3 stepped = offset + closestBackfaceDir * (closestBackface + minFrontface * 0.5f);
+    if (length(stepped) <= maxOffset) moved = stepped;
   } else if (closestFrontface < minFrontface) {
     // Too close to a wall: back away from it.
     moved -= closestFrontfaceDir * (minFrontface - closestFrontface);

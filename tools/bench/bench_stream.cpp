@@ -4,18 +4,19 @@
 // StreamSender + StreamReceiver pair per threshold streams it over an in-memory link. All the
 // pairs see the same field updates, so the rows of the table differ only in the threshold.
 //
-// Per threshold T (change of gamma-encoded irradiance e): the publisher's dead zone holds codes
-// that moved by <= T (depth by <= --depth-tolerance of its mean, occlusion by <= 0.02, offsets
-// by <= 5% of the spacing, active <-> sleeping flips), and the
-// sender holds back brick versions whose mean irradiance change over the brick is below T (and
-// no texel moved by 8 T) until the change accumulates or the refresh interval ends. The client
-// joins at the start (an empty mirror);
-// the bandwidth is measured after it holds every brick once, over --seconds of simulated
+// Per threshold T (change of gamma-encoded irradiance e), the rules the server streams with
+// (applyStreamTuning, protocol/stream_tuning.h): the publisher's dead zone holds codes that
+// moved by <= T (depth by <= --depth-tolerance of its mean, occlusion by <= 0.02, offsets by
+// <= 5% of the spacing, active <-> sleeping flips), and the sender holds back brick versions
+// whose mean irradiance change over the brick is below T (and no texel moved by 8 T) until the
+// change accumulates or the refresh interval ends. The client joins at the start (an empty
+// mirror); the bandwidth is measured after it holds every brick once, over --seconds of simulated
 // time: every datagram's bytes plus the session messages going back (acks, repair requests),
 // each with its IPv4 + UDP (28) or IPv4 + TCP (40) header bytes. At the end the CPU probe-lit
 // image of camera 0 is rendered from the client's mirror and from the server's exact field
 // (same camera, time, samples and direct light; only the field differs) and compared.
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -28,10 +29,13 @@
 #include "cpu/path_tracer.h"
 #include "cpu/probe_lit_render.h"
 #include "protocol/baked_file.h"
+#include "protocol/brick_codec.h"
+#include "protocol/datagram.h"
 #include "protocol/fault_link.h"
 #include "protocol/field_publisher.h"
 #include "protocol/stream_receiver.h"
 #include "protocol/stream_sender.h"
+#include "protocol/stream_tuning.h"
 #include "server/bake.h"
 #include "server/probe_scheduler.h"
 #include "server/tracer.h"
@@ -57,13 +61,14 @@ struct StreamSetup {
   int budget = 4000;  // probes traced per update (the scheduler's budget); 0: all
   int bakeUpdates = 32;
   std::vector<double> thresholds = {0.004, 0.002, 0.008, 0.016};
-  float depthTolerance = 0.05f;
-  float occlusionTolerance = 0.02f;
+  float depthTolerance = StreamTuning{}.depthTolerance;
+  float occlusionTolerance = StreamTuning{}.occlusionTolerance;
   double loss = 0;
   double refresh = 2.0;   // s: the sender's refresh interval
   double rateLimit = 0;  // Mbit/s of the sender's token bucket; 0: unconstrained
   int width = 320, height = 180;
   int aa = 2;
+  bool breakdown = false;
   std::string cacheDir = "build/stream-cache";
   std::string outDir;
 };
@@ -81,7 +86,44 @@ struct Client {
   double downBytes = 0, upBytes = 0, datagrams = 0, messages = 0;
   double measuredDown = 0, measuredUp = 0;
   SenderStats senderAtStart;
+  // With --breakdown, over the measured window: payload bytes by section (each section coded
+  // alone, the others equal to the base or zero) and codes changed against the base.
+  std::array<double, 4> sectionBytes{}, sectionChanged{};
+  double payloadBytes = 0, sampledUpdates = 0;
 };
+
+// Sections of a brick's codes, for --breakdown.
+constexpr std::array<const char*, 4> kSectionNames = {"irradiance", "depth", "occlusion",
+                                                      "records"};
+constexpr std::array<std::size_t, 5> kSectionStarts = {
+    brick_layout::kIrradiance, brick_layout::kDepth, brick_layout::kOcclusion,
+    brick_layout::kOffset, brick_layout::kCodes};
+
+// What each section of the updates in `datagram` costs: every update whose first fragment is
+// here is re-encoded once per section with only that section's codes as sent.
+void addBreakdown(Client& c, const std::vector<std::uint8_t>& datagram) {
+  auto d = decodeDatagram(datagram);
+  if (!d) return;
+  for (const Fragment& f : d->fragments) {
+    if (f.index != 0) continue;
+    const UpdateHeader& h = f.update;
+    auto q = c.publisher->find(h.cascade, int(h.brick), h.version);
+    auto base = h.baseVersion ? c.publisher->find(h.cascade, int(h.brick), h.baseVersion)
+                              : nullptr;
+    if (!q || (h.baseVersion && !base)) continue;
+    c.payloadBytes += h.totalSize;
+    c.sampledUpdates += 1;
+    for (std::size_t s = 0; s < 4; ++s) {
+      QuantizedBrick only;
+      only.codes = base ? base->codes : std::vector<std::uint16_t>(brick_layout::kCodes, 0);
+      for (std::size_t i = kSectionStarts[s]; i < kSectionStarts[s + 1]; ++i) {
+        only.codes[i] = q->codes[i];
+        c.sectionChanged[s] += base && base->codes[i] != q->codes[i];
+      }
+      c.sectionBytes[s] += double(encodeBrick(only, base.get()).size());
+    }
+  }
+}
 
 bool holdsEveryBrick(const Field& server, const StreamReceiver& r) {
   for (int k = 0; k < server.cascadeCount(); ++k)
@@ -147,6 +189,8 @@ Benchmark addStream(CLI::App& app) {
   cmd->add_option("--width", s.width, "probe-lit image width");
   cmd->add_option("--height", s.height, "probe-lit image height");
   cmd->add_option("--aa", s.aa, "primary samples per pixel of the probe-lit images");
+  cmd->add_flag("--breakdown", s.breakdown,
+               "print what the sent updates cost by section and why they were sent (slower)");
   cmd->add_option("--cache", s.cacheDir, "folder for the baked starting field ('' to disable)");
   cmd->add_option("--out", s.outDir, "write the images here");
   return {cmd, [] {
@@ -178,24 +222,14 @@ Benchmark addStream(CLI::App& app) {
               Client& c = clients[i];
               c.threshold = s.thresholds[i];
               PublisherOptions po;
-              po.deadZone.irradiance = float(c.threshold);
-              po.deadZone.depth = s.depthTolerance;
-              po.deadZone.occlusion = s.occlusionTolerance;
-              // Relocation and classification follow static geometry too; with fresh ray
-              // directions every update they jitter. Offsets within 5% of the spacing and
-              // active <-> sleeping flips render the same.
-              po.deadZone.offset = 0.05f;
-              po.deadZone.sleepingAsActive = true;
+              SenderOptions so;
+              StreamTuning tuning;
+              tuning.threshold = float(c.threshold);
+              tuning.depthTolerance = s.depthTolerance;
+              tuning.occlusionTolerance = s.occlusionTolerance;
+              applyStreamTuning(tuning, po, so);
               c.publisher = std::make_unique<FieldPublisher>(server, po);
               (void)c.publisher->publish(server, 0.0);
-              SenderOptions so;
-              // T bounds the brick's mean change; single texels may move up to 8 T (noise
-              // that passed the dead zone). Depth and occlusion follow static geometry: their
-              // changes are noise, sent along with irradiance updates and refreshes.
-              so.irradianceMeanThreshold = float(c.threshold);
-              so.irradianceThreshold = float(8.0 * c.threshold);
-              so.depthThreshold = 1.0f;
-              so.occlusionThreshold = 1.0f;
               so.refreshInterval = s.refresh;
               so.bytesPerSecond = s.rateLimit > 0 ? s.rateLimit * 1e6 / 8.0 : 1e12;
               so.burstBytes = s.rateLimit > 0 ? so.burstBytes : 1e12;
@@ -258,6 +292,7 @@ Benchmark addStream(CLI::App& app) {
                   c.downBytes += bytes;
                   c.datagrams += 1;
                   if (measureStart >= 0) c.measuredDown += bytes;
+                  if (measureStart >= 0 && s.breakdown) addBreakdown(c, d);
                   c.link->send(std::move(d), t);
                 }
                 for (auto& d : c.link->receive(t)) (void)c.receiver->onDatagram(d, t);
@@ -355,6 +390,34 @@ Benchmark addStream(CLI::App& app) {
                 figMbit = mbit;
                 figRatio = raw / mbit;
                 figPsnr = psnr;
+              }
+            }
+            if (s.breakdown) {
+              std::printf("\nwhy updates were sent (measured window, per second):\n");
+              std::printf("%9s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s\n", "threshold", "first",
+                          "irr_max", "irr_mean", "depth", "occl", "offset", "state", "settled",
+                          "refresh", "repair", "timeout");
+              for (const Client& c : clients) {
+                const auto& a = c.sender->stats().reasons;
+                const auto& b = c.senderAtStart.reasons;
+                auto rate = [&](std::uint64_t x, std::uint64_t y) { return double(x - y) / measured; };
+                std::printf("%9.4f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f\n",
+                            c.threshold, rate(a.first, b.first), rate(a.irradiance, b.irradiance),
+                            rate(a.irradianceMean, b.irradianceMean), rate(a.depth, b.depth),
+                            rate(a.occlusion, b.occlusion), rate(a.offset, b.offset),
+                            rate(a.state, b.state),
+                            rate(a.settled, b.settled), rate(a.refresh, b.refresh),
+                            rate(a.repair, b.repair), rate(a.timeout, b.timeout));
+              }
+              std::printf("\nbytes per update by section (each coded alone) and codes changed "
+                          "against the base:\n");
+              for (const Client& c : clients) {
+                const double n = std::max(c.sampledUpdates, 1.0);
+                std::printf("%9.4f payload %.0f B:", c.threshold, c.payloadBytes / n);
+                for (std::size_t k = 0; k < 4; ++k)
+                  std::printf("  %s %.0f B (%.0f changed)", kSectionNames[k],
+                              c.sectionBytes[k] / n, c.sectionChanged[k] / n);
+                std::printf("\n");
               }
             }
             std::printf(
