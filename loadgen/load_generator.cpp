@@ -91,6 +91,7 @@ struct LoadGenerator::Impl {
   double windowStart = 0;
 
   std::atomic<std::uint64_t> sessionsStarted{0}, sessionsEnded{0}, errors{0};
+  std::atomic<std::uint64_t> newestFieldVersion{0};
   std::atomic<int> inSession{0}, synced{0};
   std::mutex mutex;  // errorSamples and the layout figures
   std::vector<std::string> errorSamples;
@@ -415,6 +416,9 @@ void Client::onSceneState(const SceneStateMsg& state, double now) {
   if (!o_.sameClock) {
     const double offset = now - state.publishTime;
     if (!clockOffset_ || offset < *clockOffset_) clockOffset_ = offset;
+  }
+  for (std::uint64_t v = gen_.newestFieldVersion.load(); state.fieldVersion > v;) {
+    if (gen_.newestFieldVersion.compare_exchange_weak(v, state.fieldVersion)) break;
   }
   if (versions_.empty() || state.fieldVersion > versions_.back().first) {
     versions_.emplace_back(state.fieldVersion, state.publishTime);
@@ -783,6 +787,7 @@ LoadSnapshot LoadGenerator::snapshot() const {
   s.sessionsStarted = g.sessionsStarted.load();
   s.sessionsEnded = g.sessionsEnded.load();
   s.errors = g.errors.load();
+  s.newestFieldVersion = g.newestFieldVersion.load();
   return s;
 }
 

@@ -60,6 +60,7 @@ struct LoadSnapshot {
   int synced = 0;     // in a session and holding every brick
   std::uint64_t sessionsStarted = 0, sessionsEnded = 0;
   std::uint64_t errors = 0;
+  std::uint64_t newestFieldVersion = 0;  // announced by any SceneState so far
 };
 
 struct Percentiles {

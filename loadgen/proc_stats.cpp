@@ -9,17 +9,18 @@
 
 namespace pc::load {
 
-Result<ProcStats> readProcStats(pid_t pid) {
-  const std::string dir = "/proc/" + std::to_string(pid);
-  ProcStats s;
+namespace {
 
-  // /proc/<pid>/stat: the command name (field 2) may hold spaces, so fields are counted from
-  // its closing parenthesis; utime and stime are fields 14 and 15, in clock ticks.
-  std::ifstream statFile(dir + "/stat");
+// utime + stime of a /proc/.../stat file in seconds. The command name (field 2) may hold
+// spaces, so fields are counted from its closing parenthesis; utime and stime are fields 14
+// and 15, in clock ticks.
+Result<double> statCpuSeconds(const std::string& path) {
+  std::ifstream statFile(path);
   std::string stat((std::istreambuf_iterator<char>(statFile)), std::istreambuf_iterator<char>());
   const std::size_t close = stat.rfind(')');
-  if (!statFile.good() && stat.empty()) return Error{"cannot read " + dir + "/stat"};
-  if (close == std::string::npos) return Error{dir + "/stat: unexpected format"};
+  if (stat.empty()) return Error{"cannot read " + path};
+  if (close == std::string::npos || close + 2 > stat.size())
+    return Error{path + ": unexpected format"};
   std::istringstream fields(stat.substr(close + 2));
   std::string field;
   unsigned long long utime = 0, stime = 0;
@@ -27,7 +28,28 @@ Result<ProcStats> readProcStats(pid_t pid) {
     if (i == 14) utime = std::stoull(field);
     if (i == 15) stime = std::stoull(field);
   }
-  s.cpuSeconds = double(utime + stime) / double(sysconf(_SC_CLK_TCK));
+  return double(utime + stime) / double(sysconf(_SC_CLK_TCK));
+}
+
+}  // namespace
+
+Result<ProcStats> readProcStats(pid_t pid) {
+  const std::string dir = "/proc/" + std::to_string(pid);
+  ProcStats s;
+  auto cpu = statCpuSeconds(dir + "/stat");
+  if (!cpu) return cpu.error();
+  s.cpuSeconds = *cpu;
+
+  // Per thread: a thread that exits between the listing and the read is skipped.
+  std::error_code tec;
+  for (auto it = std::filesystem::directory_iterator(dir + "/task", tec);
+       !tec && it != std::filesystem::directory_iterator(); it.increment(tec)) {
+    std::ifstream commFile(it->path() / "comm");
+    std::string name;
+    if (!std::getline(commFile, name)) continue;
+    auto threadCpu = statCpuSeconds((it->path() / "stat").string());
+    if (threadCpu) s.threadCpuSeconds[name] += *threadCpu;
+  }
 
   std::ifstream status(dir + "/status");
   std::string line;

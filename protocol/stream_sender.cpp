@@ -39,9 +39,29 @@ class Packer {
 
 }  // namespace
 
+std::optional<BrickChange> BrickChangeCache::get(const FieldPublisher& publisher, int cascade,
+                                                 int brick, std::uint64_t version,
+                                                 std::uint64_t ref) {
+  const Key key{cascade, brick, version, ref};
+  if (auto it = entries_.find(key); it != entries_.end()) {
+    ++hits_;
+    return it->second;
+  }
+  // Old pairs are never asked for again once clients moved on; dropping everything now and
+  // then is simpler than tracking ages and costs one comparison per live pair.
+  if (entries_.size() >= maxEntries_) entries_.clear();
+  ++computed_;
+  std::optional<BrickChange> change;
+  auto cur = publisher.find(cascade, brick, version);
+  auto old = publisher.find(cascade, brick, ref);
+  if (cur && old) change = brickChange(*cur, *old);
+  entries_.emplace(key, change);
+  return change;
+}
+
 StreamSender::StreamSender(FieldPublisher& publisher, std::uint32_t sessionId,
-                           SenderOptions options)
-    : publisher_(publisher), sessionId_(sessionId), options_(options) {
+                           SenderOptions options, BrickChangeCache* changes)
+    : publisher_(publisher), sessionId_(sessionId), options_(options), changes_(changes) {
   tracks_.resize(publisher.cascadeCount());
   for (int k = 0; k < publisher.cascadeCount(); ++k) tracks_[k].resize(publisher.brickCount(k));
   stats_.srtt = options_.initialRtt;
@@ -133,12 +153,18 @@ Status StreamSender::onRepair(const RepairRequestMsg& repair) {
 bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version,
                                    std::uint64_t ref) {
   if (t.skipVersion == version && t.skipRef == ref) return t.skipBelow;
-  auto cur = publisher_.find(k, b, version);
-  auto old = publisher_.find(k, b, ref);
+  std::optional<BrickChange> change;
+  if (changes_) {
+    change = changes_->get(publisher_, k, b, version, ref);
+  } else {
+    auto cur = publisher_.find(k, b, version);
+    auto old = publisher_.find(k, b, ref);
+    if (cur && old) change = brickChange(*cur, *old);
+  }
   bool below = false;
   Reason reason = Reason::First;  // a version no longer in the history: as if new
-  if (cur && old) {
-    const BrickChange c = brickChange(*cur, *old);
+  if (change) {
+    const BrickChange& c = *change;
     if (c.irradiance >= options_.irradianceThreshold)
       reason = Reason::Irradiance;
     else if (options_.irradianceMeanThreshold > 0 &&

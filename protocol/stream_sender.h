@@ -18,6 +18,7 @@
 #include <glm/glm.hpp>
 #include <optional>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 #include "common/result.h"
@@ -74,9 +75,47 @@ struct SenderStats {
   double srtt = 0;
 };
 
+// How two versions of a brick differ (brickChange), shared by the senders of one publisher.
+// A brick version's content never changes, so the comparison of (version, reference) is the
+// same for every client, and clients that acknowledged the same versions ask for the same
+// pairs: comparing once per pair instead of once per client keeps the perceptual skip's cost
+// from growing with the client count. Not thread-safe: use it where the senders are used
+// (the server polls them all under one lock).
+class BrickChangeCache {
+ public:
+  explicit BrickChangeCache(std::size_t maxEntries = 16384) : maxEntries_(maxEntries) {}
+  // The change from `ref` to `version` of the brick; nullopt when either version has left the
+  // publisher's history.
+  std::optional<BrickChange> get(const FieldPublisher& publisher, int cascade, int brick,
+                                 std::uint64_t version, std::uint64_t ref);
+  std::uint64_t computed() const { return computed_; }
+  std::uint64_t hits() const { return hits_; }
+
+ private:
+  struct Key {
+    int cascade, brick;
+    std::uint64_t version, ref;
+    bool operator==(const Key&) const = default;
+  };
+  struct KeyHash {
+    std::size_t operator()(const Key& k) const {
+      std::uint64_t h = k.version * 0x9E3779B97F4A7C15ull ^ k.ref * 0xC2B2AE3D27D4EB4Full;
+      h ^= std::uint64_t(k.cascade) << 48 ^ std::uint64_t(k.brick) << 20;
+      return std::size_t(h ^ (h >> 29));
+    }
+  };
+  std::size_t maxEntries_;
+  // nullopt: a version was missing from the history (it never comes back).
+  std::unordered_map<Key, std::optional<BrickChange>, KeyHash> entries_;
+  std::uint64_t computed_ = 0, hits_ = 0;
+};
+
 class StreamSender {
  public:
-  StreamSender(FieldPublisher& publisher, std::uint32_t sessionId, SenderOptions options = {});
+  // `changes`, when given, is shared with the other senders of `publisher` and must outlive
+  // this sender; without one the sender compares versions itself.
+  StreamSender(FieldPublisher& publisher, std::uint32_t sessionId, SenderOptions options = {},
+               BrickChangeCache* changes = nullptr);
 
   // A session message frame from the client. Acks, repair requests and viewer poses are used;
   // anything else, or a frame that fails decoding, is an Error and changes nothing.
@@ -126,6 +165,7 @@ class StreamSender {
   FieldPublisher& publisher_;
   std::uint32_t sessionId_;
   SenderOptions options_;
+  BrickChangeCache* changes_ = nullptr;
   std::vector<std::vector<Track>> tracks_;
   std::optional<glm::vec3> viewer_;
   double tokens_ = 0, lastPoll_ = -1, lastDatagramAt_ = -1e30;

@@ -178,7 +178,10 @@ int main(int argc, char** argv) {
   (*server)->setExtraMetrics(
       [&fieldLoop](pc::MetricsText& m) { pc::appendFieldLoopMetrics(m, fieldLoop.stats()); });
   std::atomic<bool> stop{false};
-  std::thread fieldThread([&] { fieldLoop.run(stop, pc::steadySeconds); });
+  std::thread fieldThread([&] {
+    pthread_setname_np(pthread_self(), "pc-field");
+    fieldLoop.run(stop, pc::steadySeconds);
+  });
 
   const double start = pc::steadySeconds();
   double lastStats = start;
