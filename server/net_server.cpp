@@ -137,6 +137,8 @@ struct NetServer::Impl {
       : hub(h), options(std::move(o)), acceptor(io), udpSocket(io), pollTimer(io) {}
 
   void acceptNext();
+  void onAccepted(tcp::socket socket);
+  static constexpr int kAcceptBatch = 64;  // accepts per turn of the event loop, at most
   void schedulePoll();
   void poll();
   void remove(std::uint32_t id, DisconnectCause cause);
@@ -559,29 +561,45 @@ void NetServer::Impl::acceptNext() {
     if (stopped) return;
     if (ec) {
       logWarn("accept: " + ec.message());
-    } else if (sessions.size() - established >= options.maxPendingConnections) {
-      // Too many connections still before their Hello: this one is not read at all (a full
-      // server answers a Hello with a Reject, but only this many Hellos are awaited at once).
-      boost::system::error_code ignored;
-      const auto remote = socket.remote_endpoint(ignored);
-      ++totals.accepted;
-      ++totals.disconnected;
-      ++totals.disconnects[std::size_t(DisconnectCause::TooManyPending)];
-      logEvent(LogLevel::Warn, "client disconnected",
-               {{"peer", remote.address().to_string() + ":" + std::to_string(remote.port())},
-                {"cause", causeName(DisconnectCause::TooManyPending)},
-                {"detail", std::to_string(options.maxPendingConnections) +
-                               " connections already awaiting their Hello"}});
-      socket.close(ignored);
     } else {
-      const std::uint32_t id = nextSessionId++;
-      auto session = std::make_shared<Session>(*this, std::move(socket), id);
-      sessions[id] = session;
-      ++totals.accepted;
-      session->start();
+      onAccepted(std::move(socket));
+      // Then whatever else waits in the backlog: one accept per turn of the event loop falls
+      // behind a crowd of joining clients once a poll takes longer than the poll interval
+      // (connections then waited seconds in the backlog), so the backlog is drained here.
+      boost::system::error_code more;
+      for (int i = 0; i < kAcceptBatch && !stopped; ++i) {
+        tcp::socket next(io);
+        acceptor.accept(next, more);
+        if (more) break;  // would_block: the backlog is empty
+        onAccepted(std::move(next));
+      }
     }
     acceptNext();
   });
+}
+
+void NetServer::Impl::onAccepted(tcp::socket socket) {
+  if (sessions.size() - established >= options.maxPendingConnections) {
+    // Too many connections still before their Hello: this one is not read at all (a full
+    // server answers a Hello with a Reject, but only this many Hellos are awaited at once).
+    boost::system::error_code ignored;
+    const auto remote = socket.remote_endpoint(ignored);
+    ++totals.accepted;
+    ++totals.disconnected;
+    ++totals.disconnects[std::size_t(DisconnectCause::TooManyPending)];
+    logEvent(LogLevel::Warn, "client disconnected",
+             {{"peer", remote.address().to_string() + ":" + std::to_string(remote.port())},
+              {"cause", causeName(DisconnectCause::TooManyPending)},
+              {"detail", std::to_string(options.maxPendingConnections) +
+                             " connections already awaiting their Hello"}});
+    socket.close(ignored);
+    return;
+  }
+  const std::uint32_t id = nextSessionId++;
+  auto session = std::make_shared<Session>(*this, std::move(socket), id);
+  sessions[id] = session;
+  ++totals.accepted;
+  session->start();
 }
 
 void NetServer::Impl::schedulePoll() {
@@ -771,6 +789,8 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
   if (!ec) s.acceptor.set_option(tcp::acceptor::reuse_address(true), ec);
   if (!ec) s.acceptor.bind(endpoint, ec);
   if (!ec) s.acceptor.listen(asio::socket_base::max_listen_connections, ec);
+  // Non-blocking, so acceptNext can drain the backlog without waiting.
+  if (!ec) s.acceptor.non_blocking(true, ec);
   if (ec) {
     return Error{"cannot listen on TCP " + s.options.bindAddress + ":" +
                  std::to_string(s.options.port) + ": " + ec.message()};
