@@ -776,7 +776,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
     auto add = [&](VkImage image, std::uint32_t layer, std::uint32_t count) {
       VkImageMemoryBarrier2 b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER_2};
       if (toAttachment) {
-        b.srcStageMask = VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
+        b.srcStageMask = kShaderStages;   // read by the lighting pass (compute)
         b.srcAccessMask = VK_ACCESS_2_NONE;  // earlier reads only: an execution dependency
         b.dstStageMask = depthStages;
         b.dstAccessMask = depthAccess;
@@ -786,7 +786,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
       } else {
         b.srcStageMask = depthStages;
         b.srcAccessMask = depthAccess;
-        b.dstStageMask = VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
+        b.dstStageMask = kShaderStages;
         b.dstAccessMask = VK_ACCESS_2_SHADER_SAMPLED_READ_BIT;
         b.oldLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
         b.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
@@ -916,7 +916,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                        VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT}});
   timer.end(cmd);
 
-  // ---- probe-sampling pass ----
+  // ---- lighting pass: direct light and the field, per distinct sample (compute) ----
   timer.begin(cmd, "probe");
   // Bound here: the field's write pass binds its own compute set during the uploads.
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &slot.set, 0, nullptr);

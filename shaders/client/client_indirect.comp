@@ -1,12 +1,13 @@
 #version 460
-// Probe-sampling pass: indirect light from the field's cascades for every pixel, added to the
-// resolved direct light. Shading is per sample of the multisampled G-buffer, but samples
+// Lighting pass: direct light from the lights (with shadow maps) and indirect light from the
+// field's cascades for every pixel, added to the resolved emission. Shading is per sample of the multisampled G-buffer, but samples
 // written by the same fragment hold bit-identical positions, so each pixel samples the field
 // once per distinct surface it covers (once inside triangles, a few times on edges): the
 // result equals shading every sample, at per-pixel cost.
 #extension GL_GOOGLE_include_directive : require
 #include "client_common.glsl"
 #include "../interop/probe_math.h"
+#include "client_direct.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(constant_id = 0) const int SAMPLES = 4;
@@ -19,7 +20,7 @@ layout(set = 0, binding = PC_BIND_OCCLUSION) uniform sampler2D occlusionAtlas;
 layout(set = 0, binding = PC_BIND_G_POSITION) uniform sampler2DMSArray gPosition;
 layout(set = 0, binding = PC_BIND_G_NORMAL) uniform sampler2DMSArray gNormal;
 layout(set = 0, binding = PC_BIND_G_ALBEDO) uniform sampler2DMSArray gAlbedo;
-layout(set = 0, binding = PC_BIND_DIRECT) uniform sampler2DArray directLight;
+layout(set = 0, binding = PC_BIND_DIRECT) uniform sampler2DArray directLight;  // emission
 layout(set = 0, binding = PC_BIND_HDR_IMAGE, rgba32f) uniform writeonly image2DArray hdrImage;
 
 // Fetch hooks of shaders/interop/probe_sampling.h: bilinear reads of a bordered tile, done by
@@ -97,7 +98,7 @@ void main() {
       vec3 N = texelFetch(gNormal, id, s).xyz;
       vec3 albedo = texelFetch(gAlbedo, id, s).rgb;
       vec3 V = normalize(eye - p.xyz);
-      shaded[s] = albedo * (1.0 / PC_PI) * fieldIrradiance(p.xyz, N, V);
+      shaded[s] = albedo * (1.0 / PC_PI) * (directIrradiance(p.xyz, N) + fieldIrradiance(p.xyz, N, V));
     }
     sum += shaded[s];
   }

@@ -1,0 +1,110 @@
+// Direct light at a surface point: punctual lights and emitter stand-ins with their shadow maps
+// (3x3 PCF from four gathers). Evaluated in the compute pass that also samples the field, not in
+// the fragment shader: a G-buffer fragment stage that only writes attributes keeps the raster
+// work small, which matters most on GPUs with few graphics units (an H100 has two of its
+// processing clusters' worth), and surfaces are shaded once per distinct sample position.
+// Needs client_common.glsl first.
+layout(set = 0, binding = PC_BIND_LIGHTS, std430) readonly buffer LightBlock { GpuLight lights[]; };
+layout(set = 0, binding = PC_BIND_SHADOW_MATRICES, std430) readonly buffer ShadowBlock {
+  mat4 shadowMatrices[];
+};
+layout(set = 0, binding = PC_BIND_SHADOW_MAPS) uniform sampler2DArrayShadow shadowMaps[2];
+
+float rangeWindow(float distance, float range) {
+  if (range <= 0.0) return 1.0;
+  float r = distance / range;
+  float w = clamp(1.0 - r * r * r * r, 0.0, 1.0);
+  return w * w;
+}
+
+float spotFactor(GpuLight l, vec3 towardLight) {
+  float cosAngle = dot(-towardLight, normalize(l.direction));
+  if (l.cosInner - l.cosOuter <= 1e-6) return cosAngle >= l.cosOuter ? 1.0 : 0.0;
+  float t = clamp((cosAngle - l.cosOuter) / (l.cosInner - l.cosOuter), 0.0, 1.0);
+  return t * t * (3.0 - 2.0 * t);
+}
+
+// Cube face of direction v, in the order the client renders them: +x, -x, +y, -y, +z, -z.
+int cubeFace(vec3 v) {
+  vec3 a = abs(v);
+  if (a.x >= a.y && a.x >= a.z) return v.x >= 0.0 ? 0 : 1;
+  if (a.y >= a.z) return v.y >= 0.0 ? 2 : 3;
+  return v.z >= 0.0 ? 4 : 5;
+}
+
+// Share of the light that reaches P, from the light's shadow map with 3x3 percentage-closer
+// filtering: the mean of nine bilinear 2x2 comparisons one texel apart. Those nine taps cover
+// a 4x4 block of texels with per-axis weights (1 - f, 1, 1, f) (f: the bilinear fraction),
+// so four gathered comparisons of that block, weighted here, give the same filter with four
+// fetches instead of nine. The receiver moves along its normal by a texel's footprint so
+// surfaces do not shadow themselves.
+float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
+  if (l.shadowLayer < 0) return 1.0;
+  bool perspective = l.type != PC_LIGHT_DIRECTIONAL;
+  vec3 offsetP = P + N * (perspective ? l.normalOffset * dist : l.normalOffset);
+  int matrixIndex = l.shadowMatrix;
+  int layer = l.shadowLayer;
+  if (l.type == PC_LIGHT_POINT || l.type == PC_LIGHT_AREA) {
+    int face = cubeFace(offsetP - l.position);
+    matrixIndex += face;
+    layer += face;
+  }
+  vec4 clip = shadowMatrices[matrixIndex] * vec4(offsetP, 1.0);
+  if (clip.w <= 0.0) return 1.0;
+  vec3 ndc = clip.xyz / clip.w;
+  vec2 uv = ndc.xy * 0.5 + 0.5;
+  if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0))) || ndc.z >= 1.0) return 1.0;
+  float ref = ndc.z - l.depthBias;
+  vec3 coord = vec3(uv, float(layer));
+  // Gather components: x (low u, high v), y (high u, high v), z (high u, low v), w (low, low).
+  vec4 a = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(-1, -1));
+  vec4 b = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(1, -1));
+  vec4 c = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(-1, 1));
+  vec4 d = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(1, 1));
+  vec4 all4 = a + b + c + d;
+  float total = all4.x + all4.y + all4.z + all4.w;
+  if (total == 0.0 || total == 16.0) return total / 16.0;  // fully shadowed or fully lit
+  vec2 f = fract(uv / l.shadowTexel - 0.5);
+  vec2 lo = 1.0 - f;  // weight of the lowest texel row/column; the middle two weigh 1
+  float sum = dot(a, vec4(lo.x, 1.0, 1.0, lo.x) * vec4(1.0, 1.0, lo.y, lo.y)) +
+              dot(b, vec4(1.0, f.x, f.x, 1.0) * vec4(1.0, 1.0, lo.y, lo.y)) +
+              dot(c, vec4(lo.x, 1.0, 1.0, lo.x) * vec4(f.y, f.y, 1.0, 1.0)) +
+              dot(d, vec4(1.0, f.x, f.x, 1.0) * vec4(f.y, f.y, 1.0, 1.0));
+  return sum / 9.0;
+}
+
+vec3 directIrradiance(vec3 P, vec3 N) {
+  vec3 E = vec3(0.0);
+  for (int i = 0; i < frame.lightCount; ++i) {
+    GpuLight l = lights[i];
+    if (l.type == PC_LIGHT_DIRECTIONAL) {
+      vec3 wi = -normalize(l.direction);
+      float cosTheta = dot(N, wi);
+      if (cosTheta <= 0.0) continue;
+      E += l.power * (cosTheta * shadowVisibility(l, P, N, 0.0));
+      continue;
+    }
+    vec3 toLight = l.position - P;
+    float d2 = dot(toLight, toLight);
+    if (d2 <= 0.0) continue;
+    float d = sqrt(d2);
+    vec3 wi = toLight / d;
+    float cosTheta = dot(N, wi);
+    if (cosTheta <= 0.0) continue;
+    float scale;
+    if (l.type == PC_LIGHT_AREA) {
+      // A patch of emitter: one-sided cosine emission; `range` holds the squared distance
+      // below which a patch stops brightening (its own size: the point-light form of a
+      // patch diverges where the area integral does not).
+      float cosLight = -dot(l.direction, wi);
+      if (cosLight <= 0.0) continue;
+      scale = cosTheta * cosLight / max(d2, l.range);
+    } else {
+      scale = cosTheta / d2 * rangeWindow(d, l.range);
+      if (l.type == PC_LIGHT_SPOT) scale *= spotFactor(l, wi);
+    }
+    if (scale <= 0.0) continue;
+    E += l.power * (scale * shadowVisibility(l, P, N, d));
+  }
+  return E;
+}
