@@ -15,9 +15,13 @@ namespace pc::client {
 namespace {
 
 constexpr VkFormat kDirectFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
-constexpr VkFormat kPositionFormat = VK_FORMAT_R32G32B32A32_SFLOAT;  // world units need float32
-constexpr VkFormat kNormalFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
-constexpr VkFormat kAlbedoFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
+// The G-buffer is written per sample, and on GPUs with few graphics units (an H100) those writes
+// bound the main pass: 12 bytes per sample instead of 40. Position is the distance along the
+// pixel-centre ray from the view's eye (float32: world units), the lighting pass rebuilds it;
+// normals take 10 bits per component, albedo 8-bit sRGB.
+constexpr VkFormat kPositionFormat = VK_FORMAT_R32_SFLOAT;
+constexpr VkFormat kNormalFormat = VK_FORMAT_A2B10G10R10_UNORM_PACK32;
+constexpr VkFormat kAlbedoFormat = VK_FORMAT_R8G8B8A8_SRGB;
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
 constexpr VkFormat kHdrFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat kOffscreenFormat = VK_FORMAT_R8G8B8A8_UNORM;
@@ -864,7 +868,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
     colors[i] = {VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     colors[i].imageView = targets[i]->arrayView.get();
     colors[i].imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-    colors[i].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // zero: no light, and position w = 0: sky
+    colors[i].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // zero: no light, and distance 0: sky
     colors[i].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     colors[i].clearValue.color = {{0.0f, 0.0f, 0.0f, 0.0f}};
   }

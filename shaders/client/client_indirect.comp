@@ -1,9 +1,9 @@
 #version 460
 // Lighting pass: direct light from the lights (with shadow maps) and indirect light from the
-// field's cascades for every pixel, added to the resolved emission. Shading is per sample of the multisampled G-buffer, but samples
-// written by the same fragment hold bit-identical positions, so each pixel samples the field
-// once per distinct surface it covers (once inside triangles, a few times on edges): the
-// result equals shading every sample, at per-pixel cost.
+// field's cascades for every pixel, added to the resolved emission. Shading is per sample of
+// the multisampled G-buffer, but samples written by the same fragment hold bit-identical
+// distances and normals, so each pixel is lit once per distinct surface it covers (once inside
+// triangles, a few times on edges): the result equals shading every sample, at per-pixel cost.
 #extension GL_GOOGLE_include_directive : require
 #include "client_common.glsl"
 #include "../interop/probe_math.h"
@@ -69,36 +69,43 @@ void main() {
   ClientView view = frame.views[id.z];
   vec3 eye = view.position.xyz;
 
-  vec3 positions[SAMPLES];
+  // The pixel-centre ray, on which every sample's surface point lies (see client_scene.frag).
+  vec2 ndc = (vec2(id.xy) + 0.5) / vec2(size) * 2.0 - 1.0;
+  vec4 far = view.invViewProj * vec4(ndc, 0.5, 1.0);
+  vec3 ray = normalize(far.xyz / far.w - eye);
+
+  float distances[SAMPLES];
+  vec4 normals[SAMPLES];
   vec3 shaded[SAMPLES];
   vec3 sum = vec3(0.0);
   for (int s = 0; s < SAMPLES; ++s) {
-    vec4 p = texelFetch(gPosition, id, s);
-    positions[s] = p.xyz;
+    float t = texelFetch(gPosition, id, s).r;
+    vec4 n = texelFetch(gNormal, id, s);
+    distances[s] = t;
+    normals[s] = n;
     shaded[s] = vec3(0.0);
-    if (p.w == 0.0) {
+    if (t == 0.0) {
       // No geometry: the sky through the pixel centre.
-      vec2 ndc = (vec2(id.xy) + 0.5) / vec2(size) * 2.0 - 1.0;
-      vec4 far = view.invViewProj * vec4(ndc, 0.5, 1.0);
-      shaded[s] = skyRadiance(normalize(far.xyz / far.w - eye));
-      positions[s] = vec3(uintBitsToFloat(0x7fc00000u));  // NaN: matches no surface
+      shaded[s] = skyRadiance(ray);
+      distances[s] = -1.0;  // matches no surface
       sum += shaded[s];
       continue;
     }
     int same = -1;
-    for (int t = 0; t < s; ++t) {
-      if (positions[t] == p.xyz) {
-        same = t;
+    for (int u = 0; u < s; ++u) {
+      if (distances[u] == t && normals[u] == n) {
+        same = u;
         break;
       }
     }
     if (same >= 0) {
       shaded[s] = shaded[same];
     } else {
-      vec3 N = texelFetch(gNormal, id, s).xyz;
+      vec3 P = eye + ray * t;
+      vec3 N = normalize(n.xyz * 2.0 - 1.0);
       vec3 albedo = texelFetch(gAlbedo, id, s).rgb;
-      vec3 V = normalize(eye - p.xyz);
-      shaded[s] = albedo * (1.0 / PC_PI) * (directIrradiance(p.xyz, N) + fieldIrradiance(p.xyz, N, V));
+      vec3 V = -ray;
+      shaded[s] = albedo * (1.0 / PC_PI) * (directIrradiance(P, N) + fieldIrradiance(P, N, V));
     }
     sum += shaded[s];
   }

@@ -18,7 +18,7 @@ layout(location = 2) in vec2 inUv;
 layout(location = 3) flat in int inDraw;
 
 layout(location = 0) out vec4 outDirect;
-layout(location = 1) out vec4 outPosition;
+layout(location = 1) out float outDistance;  // from the eye along the pixel-centre ray
 layout(location = 2) out vec4 outNormal;
 layout(location = 3) out vec4 outAlbedo;
 
@@ -43,7 +43,9 @@ void main() {
   vec3 emission = gl_FrontFacing ? d.emissive.rgb * textureRgb(d.textures.y, inUv) : vec3(0.0);
   // Direct light from lights is added in the compute pass (client_direct.glsl); emission here.
   outDirect = vec4(emission, 1.0);
-  outPosition = vec4(P, 1.0);
-  outNormal = vec4(N, 0.0);
+  // inWorld is interpolated at the pixel centre, so it lies on the pixel-centre ray: its
+  // distance from the eye is all the lighting pass needs to rebuild it.
+  outDistance = length(P - frame.views[gl_ViewIndex].position.xyz);
+  outNormal = vec4(N * 0.5 + 0.5, 0.0);
   outAlbedo = vec4(albedo, 0.0);
 }

@@ -21,8 +21,8 @@ PC_CONST int PC_BIND_DEPTH = 7;            // sampler2D, linear
 PC_CONST int PC_BIND_OCCLUSION = 8;        // sampler2D, linear
 PC_CONST int PC_BIND_SHADOW_MAPS = 9;      // sampler2DArrayShadow[2]: large maps, small maps
 PC_CONST int PC_BIND_TEXTURES = 10;        // sampler2D[textureCount]
-PC_CONST int PC_BIND_G_POSITION = 11;      // sampler2DMSArray: world position, w = 1 on geometry
-PC_CONST int PC_BIND_G_NORMAL = 12;        // sampler2DMSArray: shading normal
+PC_CONST int PC_BIND_G_POSITION = 11;      // sampler2DMSArray: distance from the eye along the pixel-centre ray, 0: sky
+PC_CONST int PC_BIND_G_NORMAL = 12;        // sampler2DMSArray: shading normal x 0.5 + 0.5
 PC_CONST int PC_BIND_G_ALBEDO = 13;        // sampler2DMSArray: diffuse albedo
 PC_CONST int PC_BIND_DIRECT = 14;          // sampler2DArray: resolved direct light + emission
 PC_CONST int PC_BIND_HDR_IMAGE = 15;       // image2DArray rgba32f: the final linear frame
