@@ -165,6 +165,33 @@ TEST(ProtocolMessages, MirrorFieldRefusesBadLayouts) {
   expectBad([](SessionInfoMsg& i) { i.cascades[0].counts = glm::ivec3(1024); }, "probe slots");
 }
 
+TEST(ProtocolDatagrams, Crc32MatchesTheStandardAndTheBytewiseDefinition) {
+  const std::string check = "123456789";
+  const auto* p = reinterpret_cast<const std::uint8_t*>(check.data());
+  EXPECT_EQ(crc32(std::span(p, check.size())), 0xCBF43926u);  // the standard check value
+  EXPECT_EQ(crc32({}), 0u);
+  // Every length and alignment against the bit-by-bit definition, and chaining.
+  std::mt19937 rng(3);
+  std::vector<std::uint8_t> bytes(300);
+  for (auto& b : bytes) b = std::uint8_t(rng());
+  auto bitwise = [](std::span<const std::uint8_t> d) {
+    std::uint32_t c = 0xFFFFFFFFu;
+    for (std::uint8_t b : d) {
+      c ^= b;
+      for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+    }
+    return ~c;
+  };
+  for (std::size_t offset = 0; offset < 9; ++offset) {
+    for (std::size_t n = 0; n + offset <= bytes.size(); n += 7) {
+      const auto part = std::span(bytes).subspan(offset, n);
+      ASSERT_EQ(crc32(part), bitwise(part)) << offset << " " << n;
+    }
+  }
+  const auto all = std::span(bytes);
+  EXPECT_EQ(crc32(all.subspan(123), crc32(all.first(123))), crc32(all));
+}
+
 TEST(ProtocolDatagrams, SizesAndChecks) {
   // A full fragment fits with room to spare; so do many small ones packed by the overheads.
   std::vector<std::uint8_t> payload(3000, 0xAB);
