@@ -19,38 +19,58 @@ FieldPublisher::FieldPublisher(const Field& layout, PublisherOptions options)
   }
 }
 
-Status FieldPublisher::publish(const Field& field, double now) {
+Result<PreparedBricks> FieldPublisher::prepare(const Field& field) const {
   if (field.cascadeCount() != cascadeCount()) return Error{"publish: field layout changed"};
   for (int k = 0; k < cascadeCount(); ++k) {
     if (field.brickVersions[k].size() != bricks_[k].size()) {
       return Error{"publish: cascade " + std::to_string(k) + " changed its brick count"};
     }
   }
-  info_.fieldVersion = field.version;
-  fieldVersion_ = field.version;
+  PreparedBricks p;
+  p.fieldVersion = field.version;
   for (int k = 0; k < cascadeCount(); ++k) {
     for (std::size_t b = 0; b < bricks_[k].size(); ++b) {
       const std::uint64_t v = field.brickVersions[k][b];
-      auto& h = bricks_[k][b];
-      if (v == 0 || v == h.back().version) continue;
+      const BrickVersion& current = bricks_[k][b].back();
+      if (v == 0 || v == current.version) continue;
       QuantizedBrick fresh = quantizeBrick(field, k, int(b));
-      quantizedCodes_ += fresh.codes.size();
+      p.quantizedCodes += fresh.codes.size();
       std::shared_ptr<const QuantizedBrick> q;
-      if (h.back().version != 0) {
-        const std::shared_ptr<const QuantizedBrick>& previous = h.back().content;
+      if (current.version != 0) {
+        const std::shared_ptr<const QuantizedBrick>& previous = current.content;
         if (options_.deadZone.active()) {
-          heldCodes_ += holdSmallChanges(fresh, *previous, options_.deadZone);
+          p.heldCodes += holdSmallChanges(fresh, *previous, options_.deadZone);
         }
         // Unchanged content shares the previous version's codes instead of a copy.
         if (fresh == *previous) q = previous;
-        historyBytes_ += kBrickBytes;  // the old current joins history
-      } else {
-        h.pop_back();
       }
       if (!q) q = std::make_shared<const QuantizedBrick>(std::move(fresh));
-      h.push_back(BrickVersion{v, now, std::move(q), false});
-      trim(h);
+      p.bricks.push_back(PreparedBricks::Brick{k, b, v, std::move(q)});
     }
+  }
+  return p;
+}
+
+Status FieldPublisher::publish(const Field& field, double now) {
+  auto p = prepare(field);
+  if (!p) return p.error();
+  commit(std::move(p).value(), now);
+  return Status::success();
+}
+
+void FieldPublisher::commit(PreparedBricks prepared, double now) {
+  info_.fieldVersion = prepared.fieldVersion;
+  fieldVersion_ = prepared.fieldVersion;
+  quantizedCodes_ += prepared.quantizedCodes;
+  heldCodes_ += prepared.heldCodes;
+  for (PreparedBricks::Brick& item : prepared.bricks) {
+    auto& h = bricks_[item.cascade][item.brick];
+    if (h.back().version != 0)
+      historyBytes_ += kBrickBytes;  // the old current joins history
+    else
+      h.pop_back();
+    h.push_back(BrickVersion{item.version, now, std::move(item.content), false});
+    trim(h);
   }
   // Over the byte cap: trim every brick's history to its current version. Rare (the cap is
   // sized for the version count), and only costs residual opportunities.
@@ -64,7 +84,6 @@ Status FieldPublisher::publish(const Field& field, double now) {
       }
     }
   }
-  return Status::success();
 }
 
 void FieldPublisher::trim(std::deque<BrickVersion>& h) {

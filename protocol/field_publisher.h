@@ -1,8 +1,9 @@
 // The server's side of streaming that every client shares: after each field update, the bricks
 // whose version changed are quantized once and kept in a short per-brick history (the bases a
 // residual may refer to); encoded updates come from one EncodeCache. Each client's StreamSender
-// reads from here. Not thread-safe: call publish and every sender from the same thread, or
-// hold one lock around them.
+// reads from here. Not thread-safe: call publish/commit and every sender from the same thread,
+// or hold one lock around them; prepare() may run outside that lock on the thread that
+// commits.
 #pragma once
 
 #include <cstddef>
@@ -33,6 +34,19 @@ struct PublisherOptions {
   DeadZone deadZone;
 };
 
+// Bricks of one field update, quantized (and held by the dead zone) but not yet published.
+struct PreparedBricks {
+  struct Brick {
+    int cascade;
+    std::size_t brick;
+    std::uint64_t version;
+    std::shared_ptr<const QuantizedBrick> content;
+  };
+  std::uint64_t fieldVersion = 0;
+  std::vector<Brick> bricks;
+  std::uint64_t quantizedCodes = 0, heldCodes = 0;
+};
+
 struct BrickVersion {
   std::uint64_t version = 0;
   double publishedAt = 0;  // time publish() first saw this version
@@ -46,7 +60,15 @@ class FieldPublisher {
   explicit FieldPublisher(const Field& layout, PublisherOptions options = {});
 
   // Quantizes every brick whose version differs from the one held (version 0: no data yet).
+  // The same as commit(prepare(field), now).
   Status publish(const Field& field, double now);
+  // The expensive half: quantizes the changed bricks. It reads only what commit() changes, so
+  // the thread that publishes may run it without the lock that guards the senders (FieldHub),
+  // which then wait only for commit().
+  Result<PreparedBricks> prepare(const Field& field) const;
+  // Makes prepared bricks the current versions. `prepared` must come from prepare() on this
+  // publisher with no commit in between.
+  void commit(PreparedBricks prepared, double now);
 
   std::uint64_t fieldVersion() const { return fieldVersion_; }
   const SessionInfoMsg& sessionInfo() const { return info_; }

@@ -33,7 +33,11 @@ class FieldHub {
   // Field thread: a finished update and the scene state it was traced at. The state goes out
   // stamped with the field version and the moment it became visible to the senders (`now` is
   // the tick's start, before tracing), so clients can measure latency from publish to apply.
+  // Quantizing the changed bricks is the slow part and happens before the lock is taken (only
+  // this thread changes what it reads), so the network thread waits only for the commit.
   Status publish(const Field& field, const SceneStateMsg& state, double now) {
+    auto prepared = publisher_.prepare(field);
+    if (!prepared) return prepared.error();
     SceneStateMsg stamped = state;
     stamped.fieldVersion = field.version;
     stamped.publishTime = steadySeconds();
@@ -42,7 +46,8 @@ class FieldHub {
     sceneFrame_ = std::move(frame);
     animationTime_ = state.animationTime;
     ++sceneSerial_;
-    return publisher_.publish(field, now);
+    publisher_.commit(std::move(prepared).value(), now);
+    return Status::success();
   }
 
   // Viewer positions by session, for the probe scheduler.
