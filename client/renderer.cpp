@@ -16,7 +16,7 @@ namespace {
 
 constexpr VkFormat kDirectFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 // The G-buffer is written per sample, and on GPUs with few graphics units (an H100) those writes
-// bound the main pass: 12 bytes per sample instead of 40. Position is the distance along the
+// bound the main pass: 12 bytes per sample instead of 32 (emission adds 8 more, resolved). Position is the distance along the
 // pixel-centre ray from the view's eye (float32: world units), the lighting pass rebuilds it;
 // normals take 10 bits per component, albedo 8-bit sRGB.
 constexpr VkFormat kPositionFormat = VK_FORMAT_R32_SFLOAT;
