@@ -8,12 +8,12 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene) {
   if (g.packed_.indices.empty()) return Error{"scene has no triangles to draw"};
   auto vb =
       vk::uploadBuffer(ctx, g.packed_.vertices.data(), g.packed_.vertices.size() * sizeof(Vertex),
-                       VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+                       VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   if (!vb) return vb.error();
   g.vertices_ = std::move(vb).value();
   auto ib = vk::uploadBuffer(ctx, g.packed_.indices.data(),
                              g.packed_.indices.size() * sizeof(std::uint32_t),
-                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   if (!ib) return ib.error();
   g.indices_ = std::move(ib).value();
 

@@ -1,6 +1,7 @@
 // The scene's geometry and textures on the GPU: one vertex and one index buffer for every
-// mesh (scene_pack.h), the base-color and emissive textures as sRGB images, and the sampler
-// that reads them the way Texture::sample does (bilinear, repeating, no mipmaps).
+// mesh (scene_pack.h; the lighting pass reads them as storage buffers too), the base-color and
+// emissive textures as sRGB images, and the sampler that reads them the way Texture::sample
+// does (bilinear, repeating, no mipmaps).
 #pragma once
 
 #include <vector>

@@ -14,14 +14,10 @@ namespace pc::client {
 
 namespace {
 
-constexpr VkFormat kDirectFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
-// The G-buffer is written per sample, and on GPUs with few graphics units (an H100) those writes
-// bound the main pass: 12 bytes per sample instead of 32 (emission adds 8 more, resolved). Position is the distance along the
-// pixel-centre ray from the view's eye (float32: world units), the lighting pass rebuilds it;
-// normals take 10 bits per component, albedo 8-bit sRGB.
-constexpr VkFormat kPositionFormat = VK_FORMAT_R32_SFLOAT;
-constexpr VkFormat kNormalFormat = VK_FORMAT_A2B10G10R10_UNORM_PACK32;
-constexpr VkFormat kAlbedoFormat = VK_FORMAT_R8G8B8A8_SRGB;
+// The main pass writes per sample, and on GPUs with few graphics units (an H100) those writes
+// bound it: a visibility buffer (the triangle's id, 4 bytes) plus depth, instead of a G-buffer
+// (20 bytes with depth); the lighting pass rebuilds the surface (client_surface.glsl).
+constexpr VkFormat kVisibilityFormat = VK_FORMAT_R32_UINT;
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
 constexpr VkFormat kHdrFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat kOffscreenFormat = VK_FORMAT_R8G8B8A8_UNORM;
@@ -53,8 +49,7 @@ std::vector<VkPipelineShaderStageCreateInfo> stageInfos(std::initializer_list<Sh
 // The fixed-function state the client's graphics pipelines share, filled per pipeline.
 struct GraphicsDesc {
   std::vector<VkPipelineShaderStageCreateInfo> stages;
-  bool vertexInput = true;    // the packed Vertex layout (else no vertex buffer)
-  bool positionOnly = false;  // only location 0 (shadow maps)
+  bool vertexInput = true;  // the packed Vertex layout's position (else no vertex buffer)
   std::vector<VkFormat> colorFormats;
   VkFormat depthFormat = VK_FORMAT_UNDEFINED;
   VkCompareOp depthCompare = VK_COMPARE_OP_GREATER;
@@ -68,17 +63,17 @@ struct GraphicsDesc {
 Result<vk::UniquePipeline> createGraphicsPipeline(const vk::Context& ctx, VkPipelineLayout layout,
                                                   const GraphicsDesc& d) {
   VkVertexInputBindingDescription binding{0, sizeof(Vertex), VK_VERTEX_INPUT_RATE_VERTEX};
-  const VkVertexInputAttributeDescription attributes[3] = {
-      {0, 0, VK_FORMAT_R32G32B32_SFLOAT, offsetof(Vertex, position)},
-      {1, 0, VK_FORMAT_R32G32B32_SFLOAT, offsetof(Vertex, normal)},
-      {2, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(Vertex, uv)}};
+  // Positions only: the lighting pass reads normals and texture coordinates from the
+  // vertex buffer itself.
+  const VkVertexInputAttributeDescription position{0, 0, VK_FORMAT_R32G32B32_SFLOAT,
+                                                   offsetof(Vertex, position)};
   VkPipelineVertexInputStateCreateInfo vertexInput{
       VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
   if (d.vertexInput) {
     vertexInput.vertexBindingDescriptionCount = 1;
     vertexInput.pVertexBindingDescriptions = &binding;
-    vertexInput.vertexAttributeDescriptionCount = d.positionOnly ? 1 : 3;
-    vertexInput.pVertexAttributeDescriptions = attributes;
+    vertexInput.vertexAttributeDescriptionCount = 1;
+    vertexInput.pVertexAttributeDescriptions = &position;
   }
   VkPipelineInputAssemblyStateCreateInfo assembly{
       VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
@@ -196,6 +191,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
     return Error{"msaa must be 2, 4 or 8 samples"};
   if (options.views == 2 && !ctx.options().multiview)
     return Error{"stereo needs a Vulkan context created with multiview"};
+  VkPhysicalDeviceFeatures features{};
+  vkGetPhysicalDeviceFeatures(ctx.physicalDevice(), &features);
+  if (!features.geometryShader)
+    return Error{"the Vulkan device lacks the geometryShader feature, which the client's "
+                 "visibility buffer needs for primitive ids in fragment shaders"};
   std::unique_ptr<Renderer> r(new Renderer);
   r->ctx_ = &ctx;
   r->scene_ = &scene;
@@ -217,6 +217,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   auto gpuScene = GpuScene::create(ctx, scene);
   if (!gpuScene) return gpuScene.error();
   r->gpuScene_.emplace(std::move(gpuScene).value());
+  // Visibility ids are 32-bit with 0 for the sky (client_frame.h, DrawData).
+  if (r->gpuScene_->packed().triangleIds >= 0xFFFFFFFFull)
+    return Error{"scene has too many triangles over its instances for 32-bit visibility ids"};
 
   auto field = FieldGpu::create(ctx, mirror.desc(), kFrameSlots, options.bricksPerFrame,
                                 options.fieldFadeSeconds);
@@ -257,6 +260,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   auto linear = createSampler(ctx, VK_FILTER_LINEAR, false);
   if (!linear) return linear.error();
   r->linearSampler_ = std::move(linear).value();
+  auto nearest = createSampler(ctx, VK_FILTER_NEAREST, false);
+  if (!nearest) return nearest.error();
+  r->nearestSampler_ = std::move(nearest).value();
   auto shadow = createSampler(ctx, VK_FILTER_LINEAR, true);
   if (!shadow) return shadow.error();
   r->shadowSampler_ = std::move(shadow).value();
@@ -338,8 +344,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   const std::uint32_t textures = std::uint32_t(r->gpuScene_->textureCount());
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2 * kFrameSlots},
-      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 5 * kFrameSlots},
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, (10 + textures) * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 7 * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, (7 + textures) * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1 * kFrameSlots}};
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pi.maxSets = kFrameSlots;
@@ -387,11 +393,7 @@ Status Renderer::createTargets() {
       VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
   const VkImageAspectFlags color = VK_IMAGE_ASPECT_COLOR_BIT;
   for (Status s :
-       {make(direct_, kDirectFormat, samples, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT, color),
-        make(directResolved_, kDirectFormat, VK_SAMPLE_COUNT_1_BIT, colorSampled, color),
-        make(position_, kPositionFormat, samples, colorSampled, color),
-        make(normal_, kNormalFormat, samples, colorSampled, color),
-        make(albedo_, kAlbedoFormat, samples, colorSampled, color),
+       {make(visibility_, kVisibilityFormat, samples, colorSampled, color),
         make(depth_, kDepthFormat, samples, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
              VK_IMAGE_ASPECT_DEPTH_BIT),
         make(hdr_, kHdrFormat, VK_SAMPLE_COUNT_1_BIT,
@@ -430,10 +432,9 @@ Status Renderer::createPipelines() {
       {gpu::PC_BIND_OCCLUSION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
       {gpu::PC_BIND_SHADOW_MAPS, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2},
       {gpu::PC_BIND_TEXTURES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, textures},
-      {gpu::PC_BIND_G_POSITION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_G_NORMAL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_G_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_DIRECT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_G_VISIBILITY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_BIND_VERTICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_INDICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
       {gpu::PC_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
       {gpu::PC_BIND_HDR_TEXTURE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
       {gpu::PC_BIND_OVERLAY, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
@@ -474,13 +475,10 @@ Status Renderer::createPipelines() {
   if (!indirect) return indirect.error();
 
   const std::uint32_t viewMask = options_.views == 2 ? 0b11u : 0u;
-  const std::int32_t textureCount = std::int32_t(textures);
-  const VkSpecializationMapEntry entry{0, 0, sizeof(std::int32_t)};
-  const VkSpecializationInfo textureSpec{1, &entry, sizeof textureCount, &textureCount};
   GraphicsDesc scene;
   scene.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, sceneVert->get()},
-                             {VK_SHADER_STAGE_FRAGMENT_BIT, sceneFrag->get(), &textureSpec}});
-  scene.colorFormats = {kDirectFormat, kPositionFormat, kNormalFormat, kAlbedoFormat};
+                             {VK_SHADER_STAGE_FRAGMENT_BIT, sceneFrag->get()}});
+  scene.colorFormats = {kVisibilityFormat};
   scene.depthFormat = kDepthFormat;
   scene.depthCompare = VK_COMPARE_OP_GREATER;  // reversed depth: nearer is larger
   scene.samples = static_cast<VkSampleCountFlagBits>(options_.msaa);
@@ -502,7 +500,6 @@ Status Renderer::createPipelines() {
 
   GraphicsDesc shadow;
   shadow.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, shadowVert->get()}});
-  shadow.positionOnly = true;
   shadow.depthCompare = VK_COMPARE_OP_LESS_OR_EQUAL;
   shadow.depthBias = true;
   shadow.depthFormat = kLargeShadowFormat;
@@ -514,10 +511,13 @@ Status Renderer::createPipelines() {
   if (!small) return small.error();
   smallShadowPipeline_ = std::move(small).value();
 
-  const std::int32_t samples = options_.msaa;
-  const VkSpecializationInfo sampleSpec{1, &entry, sizeof samples, &samples};
+  // Lighting pass constants: samples per pixel, then the scene's texture count.
+  const std::int32_t lightingConstants[2] = {options_.msaa, std::int32_t(textures)};
+  const VkSpecializationMapEntry entries[2] = {{0, 0, sizeof(std::int32_t)},
+                                               {1, sizeof(std::int32_t), sizeof(std::int32_t)}};
+  const VkSpecializationInfo lightingSpec{2, entries, sizeof lightingConstants, lightingConstants};
   VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-  ci.stage = stageInfos({{VK_SHADER_STAGE_COMPUTE_BIT, indirect->get(), &sampleSpec}})[0];
+  ci.stage = stageInfos({{VK_SHADER_STAGE_COMPUTE_BIT, indirect->get(), &lightingSpec}})[0];
   ci.layout = pipelineLayout;
   VkPipeline compute = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateComputePipelines(ctx_->device(), VK_NULL_HANDLE, 1, &ci, nullptr, &compute));
@@ -562,10 +562,11 @@ Status Renderer::writeDescriptors() {
     return VkDescriptorImageInfo{linear, t.arrayView.get(), layout};
   };
   const VkImageLayout readOnly = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-  const VkDescriptorImageInfo gPosition = sampled(position_, readOnly);
-  const VkDescriptorImageInfo gNormal = sampled(normal_, readOnly);
-  const VkDescriptorImageInfo gAlbedo = sampled(albedo_, readOnly);
-  const VkDescriptorImageInfo direct = sampled(directResolved_, readOnly);
+  // Integer ids are only fetched, never filtered.
+  const VkDescriptorImageInfo gVisibility{nearestSampler_.get(), visibility_.arrayView.get(),
+                                          readOnly};
+  const VkDescriptorBufferInfo vertices{gpuScene_->vertices(), 0, VK_WHOLE_SIZE};
+  const VkDescriptorBufferInfo indices{gpuScene_->indices(), 0, VK_WHOLE_SIZE};
   const VkDescriptorImageInfo hdrImage{VK_NULL_HANDLE, hdr_.arrayView.get(),
                                        VK_IMAGE_LAYOUT_GENERAL};
   const VkDescriptorImageInfo hdrTexture = sampled(hdr_, VK_IMAGE_LAYOUT_GENERAL);
@@ -607,15 +608,14 @@ Status Renderer::writeDescriptors() {
     buffer(gpu::PC_BIND_SHADOW_MATRICES, ssbo, &matrices);
     buffer(gpu::PC_BIND_PROBES, ssbo, &probes);
     buffer(gpu::PC_BIND_OVERLAY, ssbo, &overlay);
+    buffer(gpu::PC_BIND_VERTICES, ssbo, &vertices);
+    buffer(gpu::PC_BIND_INDICES, ssbo, &indices);
     image(gpu::PC_BIND_IRRADIANCE, cis, &irradiance, 1);
     image(gpu::PC_BIND_DEPTH, cis, &depth, 1);
     image(gpu::PC_BIND_OCCLUSION, cis, &occlusion, 1);
     image(gpu::PC_BIND_SHADOW_MAPS, cis, shadows, 2);
     image(gpu::PC_BIND_TEXTURES, cis, textures.data(), std::uint32_t(textures.size()));
-    image(gpu::PC_BIND_G_POSITION, cis, &gPosition, 1);
-    image(gpu::PC_BIND_G_NORMAL, cis, &gNormal, 1);
-    image(gpu::PC_BIND_G_ALBEDO, cis, &gAlbedo, 1);
-    image(gpu::PC_BIND_DIRECT, cis, &direct, 1);
+    image(gpu::PC_BIND_G_VISIBILITY, cis, &gVisibility, 1);
     image(gpu::PC_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, &hdrImage, 1);
     image(gpu::PC_BIND_HDR_TEXTURE, cis, &hdrTexture, 1);
     vkUpdateDescriptorSets(ctx_->device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
@@ -716,6 +716,7 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   f.fieldPresent = field_->present() ? 1 : 0;
   f.sampleFlags = options_.sampleFlags;
   f.overlayLines = int(std::min<std::size_t>(input.overlay.size(), gpu::PC_OVERLAY_MAX_LINES));
+  f.drawCount = int(draws.size());
   slot.frame.write(&f, sizeof f);
   if (!input.overlay.empty()) {
     const gpu::OverlayText text = makeOverlayText(input.overlay);
@@ -839,7 +840,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   shadowBarriers(false);
   timer.end(cmd);
 
-  // ---- main pass: direct light, emission, G-buffer ----
+  // ---- main pass: the visibility buffer ----
   timer.begin(cmd, "main");
   const VkPipelineStageFlags2 colorStage = VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
   const VkAccessFlags2 colorWrite = VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
@@ -854,29 +855,16 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                         colorStage,
                         colorWrite};
   };
-  imageBarriers(cmd, {toColor(direct_),
-                      toColor(directResolved_),
-                      toColor(position_),
-                      toColor(normal_),
-                      toColor(albedo_),
+  imageBarriers(cmd, {toColor(visibility_),
                       {depth_.image.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
                        VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, depthStages, VK_ACCESS_2_NONE,
                        depthStages, depthAccess}});
-  VkRenderingAttachmentInfo colors[4];
-  const Target* targets[4] = {&direct_, &position_, &normal_, &albedo_};
-  for (int i = 0; i < 4; ++i) {
-    colors[i] = {VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    colors[i].imageView = targets[i]->arrayView.get();
-    colors[i].imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-    colors[i].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // zero: no light, and distance 0: sky
-    colors[i].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    colors[i].clearValue.color = {{0.0f, 0.0f, 0.0f, 0.0f}};
-  }
-  // Direct light resolves (box filter over the samples) into the image the probe pass adds to.
-  colors[0].resolveMode = VK_RESOLVE_MODE_AVERAGE_BIT;
-  colors[0].resolveImageView = directResolved_.arrayView.get();
-  colors[0].resolveImageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-  colors[0].storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  VkRenderingAttachmentInfo visibility{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  visibility.imageView = visibility_.arrayView.get();
+  visibility.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+  visibility.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // id 0: the sky
+  visibility.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  visibility.clearValue.color.uint32[0] = 0;
   VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
   depth.imageView = depth_.arrayView.get();
   depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
@@ -887,8 +875,8 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   ri.renderArea = {{0, 0}, {w, h}};
   ri.layerCount = 1;
   ri.viewMask = options_.views == 2 ? 0b11u : 0u;
-  ri.colorAttachmentCount = 4;
-  ri.pColorAttachments = colors;
+  ri.colorAttachmentCount = 1;
+  ri.pColorAttachments = &visibility;
   ri.pDepthAttachment = &depth;
   vkCmdBeginRendering(cmd, &ri);
   setViewport(cmd, w, h);
@@ -909,10 +897,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                         VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                         VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
   };
-  imageBarriers(cmd, {toRead(directResolved_),
-                      toRead(position_),
-                      toRead(normal_),
-                      toRead(albedo_),
+  imageBarriers(cmd, {toRead(visibility_),
                       {hdr_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                        VK_IMAGE_LAYOUT_GENERAL,
                        VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,

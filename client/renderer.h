@@ -1,6 +1,7 @@
-// The client's frame: field uploads, shadow maps, the main pass (direct light, emission and a
-// multisampled G-buffer), the probe-sampling pass (indirect light from the field's cascades,
-// per distinct surface of each pixel) and tone mapping with the overlay, in one command
+// The client's frame: field uploads, shadow maps, the main pass (a multisampled visibility
+// buffer: which triangle covers each sample), the lighting pass (rebuilds each distinct surface
+// of a pixel; emission, direct light with shadow maps and indirect light from the field's
+// cascades, in compute) and tone mapping with the overlay, in one command
 // buffer per frame. Frames rotate through kFrameSlots slots, each with its own command
 // buffer, uniforms and staging, so the CPU prepares frame N+1 while the GPU draws frame N.
 // Stereo renders both eyes in every pass with VK_KHR_multiview (2-layer targets).
@@ -44,9 +45,10 @@ struct RendererOptions {
   // headless images show exactly the field the mirror holds.
   double fieldFadeSeconds = 0.0;
   std::optional<glm::vec3> ambient;  // irradiance where no field covers; default from the sky
-  // Depth-only pass first, then shading with an EQUAL depth test: each sample is shaded once,
-  // whatever the draw order (the shadow lookups dominate a fragment's cost).
-  bool depthPrepass = true;
+  // Depth-only pass first, then the visibility pass with an EQUAL depth test: each sample's id
+  // is written once, whatever the draw order. Off by default: the visibility fragment is so
+  // cheap that drawing the scene twice costs more than the overdraw it saves.
+  bool depthPrepass = false;
 };
 
 struct FrameInput {
@@ -153,12 +155,12 @@ class Renderer {
     vk::Image image;
     vk::UniqueImageView arrayView;
   };
-  Target direct_, directResolved_, position_, normal_, albedo_, depth_, hdr_, offscreen_;
+  Target visibility_, depth_, hdr_, offscreen_;
   vk::Image largeShadows_, smallShadows_;
   vk::UniqueImageView largeShadowView_, smallShadowView_;
   std::vector<vk::UniqueImageView> largeLayerViews_, smallLayerViews_;
 
-  vk::UniqueSampler linearSampler_, shadowSampler_;
+  vk::UniqueSampler linearSampler_, nearestSampler_, shadowSampler_;
   vk::UniqueDescriptorSetLayout setLayout_;
   vk::UniquePipelineLayout pipelineLayout_;
   vk::UniqueDescriptorPool descriptorPool_;

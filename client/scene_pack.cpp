@@ -27,8 +27,11 @@ PackedScene packScene(const Scene& scene) {
   }
   for (std::size_t i = 0; i < scene.instances.size(); ++i) {
     const int mesh = scene.instances[i].mesh;
-    if (mesh >= 0 && std::size_t(mesh) < p.meshes.size() && p.meshes[mesh].indexCount > 0)
+    if (mesh >= 0 && std::size_t(mesh) < p.meshes.size() && p.meshes[mesh].indexCount > 0) {
       p.drawInstances.push_back(int(i));
+      p.triangleBases.push_back(std::uint32_t(p.triangleIds));
+      p.triangleIds += p.meshes[mesh].indexCount / 3;
+    }
   }
   return p;
 }
@@ -37,7 +40,8 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
                                     const SceneState& state) {
   std::vector<gpu::DrawData> draws;
   draws.reserve(packed.drawInstances.size());
-  for (int i : packed.drawInstances) {
+  for (std::size_t k = 0; k < packed.drawInstances.size(); ++k) {
+    const int i = packed.drawInstances[k];
     const Instance& inst = scene.instances[i];
     gpu::DrawData d{};
     d.model = std::size_t(i) < state.instanceTransforms.size() ? state.instanceTransforms[i]
@@ -45,6 +49,10 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
     d.normalMatrix = glm::transpose(glm::inverse(d.model));
     const int mat = scene.meshes[inst.mesh].material;
     d.textures = glm::ivec4(-1, -1, 0, 0);
+    const MeshRange& range = packed.meshes[std::size_t(inst.mesh)];
+    d.geometry = glm::ivec4(std::int32_t(range.firstIndex), range.vertexOffset,
+                            std::int32_t(packed.triangleBases[k]),
+                            glm::determinant(glm::mat3(d.model)) < 0.0f ? -1 : 1);
     d.baseColor = glm::vec4(0.8f, 0.8f, 0.8f, 0.0f);
     if (mat >= 0 && std::size_t(mat) < scene.materials.size()) {
       const Material& m = scene.materials[mat];

@@ -29,6 +29,10 @@ struct PackedScene {
   std::vector<std::uint32_t> indices;
   std::vector<MeshRange> meshes;   // per Scene::meshes entry
   std::vector<int> drawInstances;  // instance of each draw (instances with a drawable mesh)
+  // Per draw: the first of its triangles' ids in the visibility buffer (ascending), and the
+  // total over all draws, which must stay below 2^32 - 1 (id 0 is the sky).
+  std::vector<std::uint32_t> triangleBases;
+  std::uint64_t triangleIds = 0;
 };
 
 PackedScene packScene(const Scene& scene);

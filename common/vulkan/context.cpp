@@ -302,6 +302,8 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   enable.base.features.samplerAnisotropy = supported.base.features.samplerAnisotropy;
   enable.base.features.fragmentStoresAndAtomics = supported.base.features.fragmentStoresAndAtomics;
   enable.base.features.multiDrawIndirect = supported.base.features.multiDrawIndirect;
+  // gl_PrimitiveID in fragment shaders (the client's visibility buffer) needs it.
+  enable.base.features.geometryShader = supported.base.features.geometryShader;
   enable.base.features.shaderStorageImageWriteWithoutFormat =
       supported.base.features.shaderStorageImageWriteWithoutFormat;
   enable.v11.multiview = options.multiview ? VK_TRUE : VK_FALSE;

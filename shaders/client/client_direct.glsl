@@ -1,9 +1,8 @@
 // Direct light at a surface point: punctual lights and emitter stand-ins with their shadow maps
 // (3x3 PCF from four gathers). Evaluated in the compute pass that also samples the field, not in
-// the fragment shader: a G-buffer fragment stage that only writes attributes keeps the raster
-// work small, which matters most on GPUs with few graphics units (on an H100 the main pass
-// cost the same with or without lighting in it: docs/BENCHMARKS.md), and surfaces are shaded
-// once per distinct sample position.
+// a fragment shader: the raster pass only writes visibility ids, which keeps the raster work
+// small where graphics units are few (an H100: docs/BENCHMARKS.md), and surfaces are shaded
+// once per distinct triangle of a pixel.
 // Needs client_common.glsl first.
 layout(set = 0, binding = PC_BIND_LIGHTS, std430) readonly buffer LightBlock { GpuLight lights[]; };
 layout(set = 0, binding = PC_BIND_SHADOW_MATRICES, std430) readonly buffer ShadowBlock {

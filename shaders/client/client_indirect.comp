@@ -1,9 +1,10 @@
 #version 460
-// Lighting pass: direct light from the lights (with shadow maps) and indirect light from the
-// field's cascades for every pixel, added to the resolved emission. Shading is per sample of
-// the multisampled G-buffer, but samples written by the same fragment hold bit-identical
-// distances and normals, so each pixel is lit once per distinct surface it covers (once inside
-// triangles, a few times on edges): the result equals shading every sample, at per-pixel cost.
+// Lighting pass: rebuilds each sample's surface from the visibility buffer (client_surface.glsl)
+// and lights it: emission, direct light from the lights (with shadow maps) and indirect light
+// from the field's cascades. Shading is per sample of the multisampled visibility buffer, but
+// samples covered by the same triangle share the pixel-centre surface point, so each pixel is
+// lit once per distinct triangle it covers (once inside triangles, a few times on edges): the
+// result equals shading every sample, at per-pixel cost.
 #extension GL_GOOGLE_include_directive : require
 #include "client_common.glsl"
 #include "../interop/probe_math.h"
@@ -11,16 +12,15 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(constant_id = 0) const int SAMPLES = 4;
+layout(constant_id = 1) const int TEXTURE_COUNT = 1;
+#include "client_surface.glsl"
 
 layout(set = 0, binding = PC_BIND_FIELD_DESC) uniform FieldBlock { FieldDesc field; };
 layout(set = 0, binding = PC_BIND_PROBES, std430) readonly buffer ProbeBlock { vec4 probes[]; };
 layout(set = 0, binding = PC_BIND_IRRADIANCE) uniform sampler2D irradianceAtlas;
 layout(set = 0, binding = PC_BIND_DEPTH) uniform sampler2D depthAtlas;
 layout(set = 0, binding = PC_BIND_OCCLUSION) uniform sampler2D occlusionAtlas;
-layout(set = 0, binding = PC_BIND_G_POSITION) uniform sampler2DMSArray gPosition;
-layout(set = 0, binding = PC_BIND_G_NORMAL) uniform sampler2DMSArray gNormal;
-layout(set = 0, binding = PC_BIND_G_ALBEDO) uniform sampler2DMSArray gAlbedo;
-layout(set = 0, binding = PC_BIND_DIRECT) uniform sampler2DArray directLight;  // emission
+layout(set = 0, binding = PC_BIND_G_VISIBILITY) uniform usampler2DMSArray gVisibility;
 layout(set = 0, binding = PC_BIND_HDR_IMAGE, rgba32f) uniform writeonly image2DArray hdrImage;
 
 // Fetch hooks of shaders/interop/probe_sampling.h: bilinear reads of a bordered tile, done by
@@ -69,46 +69,36 @@ void main() {
   ClientView view = frame.views[id.z];
   vec3 eye = view.position.xyz;
 
-  // The pixel-centre ray, on which every sample's surface point lies (see client_scene.frag).
+  // The pixel-centre ray, on which every sample's surface point lies (client_surface.glsl).
   vec2 ndc = (vec2(id.xy) + 0.5) / vec2(size) * 2.0 - 1.0;
   vec4 far = view.invViewProj * vec4(ndc, 0.5, 1.0);
   vec3 ray = normalize(far.xyz / far.w - eye);
 
-  float distances[SAMPLES];
-  vec4 normals[SAMPLES];
+  uint ids[SAMPLES];
   vec3 shaded[SAMPLES];
   vec3 sum = vec3(0.0);
   for (int s = 0; s < SAMPLES; ++s) {
-    float t = texelFetch(gPosition, id, s).r;
-    vec4 n = texelFetch(gNormal, id, s);
-    distances[s] = t;
-    normals[s] = n;
-    shaded[s] = vec3(0.0);
-    if (t == 0.0) {
-      // No geometry: the sky through the pixel centre.
-      shaded[s] = skyRadiance(ray);
-      distances[s] = -1.0;  // matches no surface
-      sum += shaded[s];
-      continue;
-    }
+    uint visibility = texelFetch(gVisibility, id, s).r;
+    ids[s] = visibility;
     int same = -1;
     for (int u = 0; u < s; ++u) {
-      if (distances[u] == t && normals[u] == n) {
+      if (ids[u] == visibility) {
         same = u;
         break;
       }
     }
     if (same >= 0) {
       shaded[s] = shaded[same];
+    } else if (visibility == 0u) {
+      shaded[s] = skyRadiance(ray);  // no geometry: the sky through the pixel centre
     } else {
-      vec3 P = eye + ray * t;
-      vec3 N = normalize(n.xyz * 2.0 - 1.0);
-      vec3 albedo = texelFetch(gAlbedo, id, s).rgb;
+      Surface f = surfaceOf(visibility, eye, ray);
       vec3 V = -ray;
-      shaded[s] = albedo * (1.0 / PC_PI) * (directIrradiance(P, N) + fieldIrradiance(P, N, V));
+      shaded[s] = f.emission + f.albedo * (1.0 / PC_PI) *
+                                   (directIrradiance(f.position, f.normal) +
+                                    fieldIrradiance(f.position, f.normal, V));
     }
     sum += shaded[s];
   }
-  vec3 direct = texelFetch(directLight, id, 0).rgb;
-  imageStore(hdrImage, id, vec4(direct + sum / float(SAMPLES), 1.0));
+  imageStore(hdrImage, id, vec4(sum / float(SAMPLES), 1.0));
 }

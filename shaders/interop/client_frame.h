@@ -21,14 +21,13 @@ PC_CONST int PC_BIND_DEPTH = 7;            // sampler2D, linear
 PC_CONST int PC_BIND_OCCLUSION = 8;        // sampler2D, linear
 PC_CONST int PC_BIND_SHADOW_MAPS = 9;      // sampler2DArrayShadow[2]: large maps, small maps
 PC_CONST int PC_BIND_TEXTURES = 10;        // sampler2D[textureCount]
-PC_CONST int PC_BIND_G_POSITION = 11;      // sampler2DMSArray: distance from the eye along the pixel-centre ray, 0: sky
-PC_CONST int PC_BIND_G_NORMAL = 12;        // sampler2DMSArray: shading normal x 0.5 + 0.5
-PC_CONST int PC_BIND_G_ALBEDO = 13;        // sampler2DMSArray: diffuse albedo
-PC_CONST int PC_BIND_DIRECT = 14;          // sampler2DArray: resolved direct light + emission
-PC_CONST int PC_BIND_HDR_IMAGE = 15;       // image2DArray rgba32f: the final linear frame
-PC_CONST int PC_BIND_HDR_TEXTURE = 16;     // sampler2DArray: the same image, read by tone mapping
-PC_CONST int PC_BIND_OVERLAY = 17;         // buffer OverlayText
-PC_CONST int PC_BINDING_COUNT = 18;
+PC_CONST int PC_BIND_G_VISIBILITY = 11;    // usampler2DMSArray: draw's triangleBase + primitive + 1, 0: sky
+PC_CONST int PC_BIND_VERTICES = 12;        // buffer float[]: the packed Vertex records (8 floats)
+PC_CONST int PC_BIND_INDICES = 13;         // buffer uint[]: the packed index buffer
+PC_CONST int PC_BIND_HDR_IMAGE = 14;       // image2DArray rgba32f: the final linear frame
+PC_CONST int PC_BIND_HDR_TEXTURE = 15;     // sampler2DArray: the same image, read by tone mapping
+PC_CONST int PC_BIND_OVERLAY = 16;         // buffer OverlayText
+PC_CONST int PC_BINDING_COUNT = 17;
 
 // Light kinds (GpuLight.type). Area lights are virtual point lights standing for a patch of
 // an emissive surface: they emit only to their front (cosine falloff), like the emitter.
@@ -62,16 +61,25 @@ struct FrameUniforms {
   int sampleFlags;   // PC_SAMPLE_* of field_desc.h
   int overlayLines;  // 0: no overlay text
   // -- 384
+  int drawCount;  // DrawData records (the visibility buffer's triangle ids index them)
+  int pad0, pad1, pad2;
+  // -- 400
 };
 
 // One draw: an instance of a mesh with its material. Indexed by gl_InstanceIndex (each draw
-// is issued with firstInstance = its index).
+// is issued with firstInstance = its index). The visibility buffer names a triangle by
+// triangleBase + its primitive index in the draw, so every draw owns a range of ids; the
+// lighting pass finds the draw by binary search over triangleBase (ascending with the index).
 struct DrawData {
   mat4 model;         // object -> world
   mat4 normalMatrix;  // inverse transpose of model (upper 3x3 used)
   vec4 baseColor;     // linear albedo factor, w unused
   vec4 emissive;      // linear emitted radiance factor, w unused
   ivec4 textures;     // x: base color texture (-1 none), y: emissive texture (-1 none)
+  // x: first index in the packed index buffer, y: vertex offset, z: triangleBase,
+  // w: +1 or -1, the sign of the model's determinant (a mirroring transform keeps the mesh's
+  // own front faces, as the CPU renders do)
+  ivec4 geometry;
 };
 
 struct GpuLight {
@@ -139,8 +147,8 @@ PC_END
 
 #ifdef __cplusplus
 static_assert(sizeof(pc::gpu::ClientView) == 144);
-static_assert(sizeof(pc::gpu::FrameUniforms) == 384);
-static_assert(sizeof(pc::gpu::DrawData) == 176);
+static_assert(sizeof(pc::gpu::FrameUniforms) == 400);
+static_assert(sizeof(pc::gpu::DrawData) == 192);
 static_assert(sizeof(pc::gpu::GpuLight) == 80);
 static_assert(sizeof(pc::gpu::FieldWrite) == 16);
 static_assert(sizeof(pc::gpu::OverlayText) ==
