@@ -37,8 +37,10 @@ enum ShadingFlags : int {
 struct UpdateStats {
   double traceMs = 0, shadeMs = 0, blendMs = 0, totalMs = 0;  // trace+shade are fused on the CPU
   // GPU backends: timestamps of each pass in execution order (name, ms) and their sum. The
-  // Vulkan tracer's passes: upload, tlas, trace (trace + shade), blend (blend, borders,
-  // classification, relocation), changes (brick detection + packing), readback.
+  // Vulkan tracer's passes: upload, tlas, trace (probe rays to their closest hits), shade
+  // (hits and shadow-ray requests), shadow trace, blend (visible light added; blend, borders,
+  // classification, relocation), changes (brick detection + packing), readback. Its shadeMs
+  // is shade + shadow trace.
   std::vector<std::pair<std::string, double>> gpuPasses;
   double gpuMs = 0;
   std::uint64_t readbackBytes = 0;  // bytes copied back to the host (changed bricks, records)

@@ -19,6 +19,11 @@ namespace pc {
 using namespace pc::gpu;
 
 static_assert(PC_MAX_RAYS_PER_PROBE == kMaxRaysPerProbe, "the blend's shared scratch holds every ray");
+// The blend's threads: one per irradiance/occlusion texel, the rest share the depth texels; a
+// power-of-two share of them per probe of a group for the reductions.
+static_assert(PC_IRRADIANCE_TEXELS == PC_OCCLUSION_TEXELS, "irradiance and occlusion share their taps");
+static_assert(PC_BLEND_THREADS > PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS);
+static_assert(PC_BLEND_THREADS % PC_BLEND_MAX_PROBES == 0 && PC_TRACE_TILE_PROBES % PC_BLEND_MAX_PROBES == 0);
 // A brick's probes must lie in one atlas tile row for the packed row runs (gpu_trace.h).
 static_assert(PC_ATLAS_TILES_PER_ROW % PC_PROBES_PER_BRICK == 0);
 
@@ -127,11 +132,15 @@ struct VulkanTracer::Impl {
   vk::UniqueDescriptorPool descriptorPool;
   VkDescriptorSet set = VK_NULL_HANDLE;
   vk::UniquePipelineLayout pipelineLayout;
-  vk::UniquePipeline tracePipeline, rawPipeline, blendPipeline, changesPipeline, packPipeline;
-  BindingTable traceTable, rawTable;
+  vk::UniquePipeline tracePipeline, shadowPipeline, shadePipeline, blendPipeline, changesPipeline, packPipeline;
+  BindingTable traceTable, shadowTable;
 
   // ---- per-update buffers ----
-  vk::Buffer params, rayDirs, requests, rays, changes, counters, countersReadback;
+  vk::Buffer params, rayDirs, requests, changes, counters, countersReadback;
+  // The wavefront's per-ray records (gpu_trace.h), for probeCapacity x rayCapacity rays and
+  // slotCapacity shadow slots each.
+  vk::Buffer hits, rays, rayShading, shadowRays;
+  int slotCapacity = -1;
   vk::Buffer tapsUpload, taps;  // blend taps: host-written, copied to device memory per update
   std::size_t tapBytes = 0;     // of this update's taps
   std::size_t probeCapacity = 0, rayCapacity = 0;
@@ -152,13 +161,18 @@ struct VulkanTracer::Impl {
   Status uploadScene();
   Status createPipelines();
   void writeDescriptors();
-  void ensureRequestCapacity(std::size_t probes, int rayCount);
+  int shadowSlots() const;
+  void ensureRequestCapacity(std::size_t probes, int rayCount, int slots);
   bool ensureFieldBuffers(const Field& field);
   void writeUpdateInputs(const Field& field, const UpdateRequest& request, bool blendTaps);
   void begin();
   void submitAndWait();
   void recordFieldSync(const Field& field, std::vector<vk::Buffer>& staging);
-  void recordTrace(VkPipeline pipeline, const BindingTable& table, int probeCount, int rayCount);
+  std::uint64_t maxLaunchWidth() const;
+  void recordTrace(int probeCount, int rayCount);
+  void recordShade(int probeCount, int rayCount);
+  void recordShadowTrace(std::uint64_t requests);
+  void dispatchRows(std::uint64_t groups);
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -188,7 +202,7 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   timer = std::move(t).value();
   if (Status s = uploadScene(); !s) return s;
   if (Status s = createPipelines(); !s) return s;
-  ensureRequestCapacity(1, 1);
+  ensureRequestCapacity(1, 1, 0);
   return Status::success();
 }
 
@@ -425,24 +439,25 @@ Status VulkanTracer::Impl::createPipelines() {
     rci.pStages = stages.data();
     rci.groupCount = std::uint32_t(groups.size());
     rci.pGroups = groups.data();
-    rci.maxPipelineRayRecursionDepth = 1;  // shadow rays leave from ray generation too
+    rci.maxPipelineRayRecursionDepth = 1;  // every ray leaves from ray generation
     rci.layout = pl;
     VkPipeline p = VK_NULL_HANDLE;
     PC_VK_TRY(ctx->rt().createRayTracingPipelines(ctx->device(), VK_NULL_HANDLE, VK_NULL_HANDLE, 1, &rci, nullptr, &p));
     return vk::UniquePipeline(ctx->device(), p);
   };
-  auto trace = makeRayPipeline("probe_trace.rgen.spv", {"probe_trace.rmiss.spv", "shadow.rmiss.spv"});
+  auto trace = makeRayPipeline("probe_trace.rgen.spv", {"probe_trace.rmiss.spv"});
   if (!trace) return trace.error();
   tracePipeline = std::move(trace).value();
-  auto raw = makeRayPipeline("probe_trace_raw.rgen.spv", {"probe_trace.rmiss.spv"});
-  if (!raw) return raw.error();
-  rawPipeline = std::move(raw).value();
-  auto tt = makeBindingTable(*ctx, tracePipeline.get(), 2);
+  // Shadow rays skip closest-hit shaders; the hit group is there for a complete binding table.
+  auto shadow = makeRayPipeline("probe_shadow.rgen.spv", {"shadow.rmiss.spv"});
+  if (!shadow) return shadow.error();
+  shadowPipeline = std::move(shadow).value();
+  auto tt = makeBindingTable(*ctx, tracePipeline.get(), 1);
   if (!tt) return tt.error();
   traceTable = std::move(tt).value();
-  auto rt = makeBindingTable(*ctx, rawPipeline.get(), 1);
-  if (!rt) return rt.error();
-  rawTable = std::move(rt).value();
+  auto st = makeBindingTable(*ctx, shadowPipeline.get(), 1);
+  if (!st) return st.error();
+  shadowTable = std::move(st).value();
 
   auto makeCompute = [&](const char* name) -> Result<vk::UniquePipeline> {
     auto m = vk::loadShader(*ctx, name);
@@ -457,6 +472,9 @@ Status VulkanTracer::Impl::createPipelines() {
     PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
     return vk::UniquePipeline(ctx->device(), p);
   };
+  auto shade = makeCompute("probe_shade.comp.spv");
+  if (!shade) return shade.error();
+  shadePipeline = std::move(shade).value();
   auto blend = makeCompute("probe_blend.comp.spv");
   if (!blend) return blend.error();
   blendPipeline = std::move(blend).value();
@@ -472,20 +490,33 @@ Status VulkanTracer::Impl::createPipelines() {
 // ---------------------------------------------------------------------------------------------
 // Buffers and descriptors
 
-void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount) {
+int VulkanTracer::Impl::shadowSlots() const {
+  return pcShadowSlots(int(state.lights.size()), int(emissive.size() / sizeof(GpuEmissiveTriangle)),
+                       options.emissiveSamples);
+}
+
+void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount, int slots) {
   probes = std::max<std::size_t>(probes, 1);
   const std::size_t rayTotal = probes * std::size_t(std::max(rayCount, 1));
   if (probes <= probeCapacity && rayTotal <= probeCapacity * std::size_t(rayCapacity) &&
-      std::size_t(rayCount) <= std::size_t(rayCapacity))
+      std::size_t(rayCount) <= std::size_t(rayCapacity) && slots <= slotCapacity)
     return;
   probeCapacity = std::max(probes, probeCapacity);
   rayCapacity = std::max<std::size_t>(std::size_t(rayCount), rayCapacity);
+  slotCapacity = std::max(slots, slotCapacity);
   using vk::MemoryUsage;
+  const std::size_t rayRecords = probeCapacity * rayCapacity;
   params = orDie(vk::Buffer::create(*ctx, sizeof(UpdateParams), kStorage, MemoryUsage::Upload), "params");
   rayDirs = orDie(vk::Buffer::create(*ctx, rayCapacity * 16, kStorage, MemoryUsage::Upload), "ray directions");
   requests = orDie(vk::Buffer::create(*ctx, probeCapacity * 8, kStorage, MemoryUsage::Upload), "requests");
-  rays = orDie(vk::Buffer::create(*ctx, probeCapacity * rayCapacity * 16, kStorage, MemoryUsage::DeviceLocal),
-               "ray results");
+  hits = orDie(vk::Buffer::create(*ctx, rayRecords * sizeof(GpuHit), kStorage, MemoryUsage::DeviceLocal), "hits");
+  rays = orDie(vk::Buffer::create(*ctx, rayRecords * 16, kStorage, MemoryUsage::DeviceLocal), "ray results");
+  rayShading = orDie(vk::Buffer::create(*ctx, rayRecords * sizeof(GpuRayShading), kStorage, MemoryUsage::DeviceLocal),
+                     "ray shading");
+  shadowRays = orDie(vk::Buffer::create(*ctx, std::max<std::size_t>(rayRecords * std::size_t(slotCapacity), 1) *
+                                                  sizeof(GpuShadowRay),
+                                        kStorage, MemoryUsage::DeviceLocal),
+                     "shadow rays");
   changes = orDie(vk::Buffer::create(*ctx, probeCapacity * 4, kStorage, MemoryUsage::DeviceLocal), "changes");
   counters = orDie(vk::Buffer::create(*ctx, PC_COUNTER_SLOTS * 4,
                                       kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
@@ -569,6 +600,9 @@ void VulkanTracer::Impl::writeDescriptors() {
   buffers[PC_BIND_PACKED] = &packed;
   buffers[PC_BIND_COUNTERS] = &counters;
   buffers[PC_BIND_TAPS] = &taps;
+  buffers[PC_BIND_HITS] = &hits;
+  buffers[PC_BIND_RAY_SHADING] = &rayShading;
+  buffers[PC_BIND_SHADOW_RAYS] = &shadowRays;
   std::vector<VkWriteDescriptorSet> writes;
   for (int b = 0; b < PC_BINDING_COUNT; ++b) {
     if (!buffers[b] || !buffers[b]->get()) continue;
@@ -609,7 +643,7 @@ void VulkanTracer::Impl::writeDescriptors() {
 void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateRequest& request, bool blendTaps) {
   const int rayCount = field.settings.raysPerProbe;
   const std::size_t n = request.probes.size();
-  ensureRequestCapacity(n, rayCount);
+  ensureRequestCapacity(n, rayCount, shadowSlots());
   ensureFieldBuffers(field);
   writeDescriptors();
 
@@ -618,11 +652,12 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
   auto* d = rayDirs.as<glm::vec4>();
   for (int i = 0; i < rayCount; ++i) d[i] = glm::vec4(dirs[i], 0.0f);
   if (blendTaps) {
-    // The CPU's taps for these directions, laid out for the blend shader (gpu_trace.h).
+    // The CPU's taps for these directions, laid out for the blend shader (gpu_trace.h); the
+    // occlusion taps are the irradiance taps (same tile size, same lobe).
     const BlendTaps bt = BlendTaps::build(dirs.data(), rayCount, field.settings.distanceExponent);
     auto* out = tapsUpload.as<glm::uvec2>();
     std::uint32_t texel = 0, next = PC_TAP_TEXELS;
-    for (const TexelTaps* tt : {&bt.irradiance, &bt.depth, &bt.occlusion}) {
+    for (const TexelTaps* tt : {&bt.irradiance, &bt.depth}) {
       const std::uint32_t texels = std::uint32_t(tt->begin.size() - 1);
       std::uint32_t most = 0;
       for (std::uint32_t t = 0; t < texels; ++t) most = std::max(most, tt->begin[t + 1] - tt->begin[t]);
@@ -657,6 +692,7 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
   p.hysteresis = field.settings.hysteresis;
   p.changeThreshold = request.changeThreshold;
   p.brickTotal = brickTotal;
+  p.shadowSlots = shadowSlots();
   p.cascadeBrickOffset = glm::ivec4(brickOffset[0], brickOffset[1], brickOffset[2], brickOffset[3]);
   params.write(&p, sizeof p);
 
@@ -721,25 +757,54 @@ void VulkanTracer::Impl::recordFieldSync(const Field& field, std::vector<vk::Buf
   timer.end(cmd);
 }
 
-void VulkanTracer::Impl::recordTrace(VkPipeline pipeline, const BindingTable& table, int probeCount, int rayCount) {
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipeline);
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
-  // One-dimensional launches (gpu_trace.h: PC_TRACE_TILE_PROBES), bounded by the compute limits
-  // and the invocation limit; whole tiles per launch but the last.
+// Invocations one launch may have: the compute limits and the ray-tracing invocation limit.
+std::uint64_t VulkanTracer::Impl::maxLaunchWidth() const {
   const auto& limits = ctx->properties().limits;
-  const std::uint64_t maxWidth =
-      std::min<std::uint64_t>(std::uint64_t(limits.maxComputeWorkGroupCount[0]) * limits.maxComputeWorkGroupSize[0],
-                              ctx->rayTracingProperties().maxRayDispatchInvocationCount);
+  return std::min<std::uint64_t>(std::uint64_t(limits.maxComputeWorkGroupCount[0]) * limits.maxComputeWorkGroupSize[0],
+                                 ctx->rayTracingProperties().maxRayDispatchInvocationCount);
+}
+
+void VulkanTracer::Impl::recordTrace(int probeCount, int rayCount) {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, tracePipeline.get());
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
+  // One-dimensional launches (gpu_trace.h: PC_TRACE_TILE_PROBES); whole tiles per launch but
+  // the last, so launch order runs on across launches.
   const std::uint64_t rays = std::uint64_t(std::max(rayCount, 1));
-  const int maxProbes =
-      std::max(PC_TRACE_TILE_PROBES, int(std::min<std::uint64_t>(maxWidth / rays, 1u << 30)) / PC_TRACE_TILE_PROBES *
-                                         PC_TRACE_TILE_PROBES);
+  const int maxProbes = std::max(PC_TRACE_TILE_PROBES, int(std::min<std::uint64_t>(maxLaunchWidth() / rays, 1u << 30)) /
+                                                           PC_TRACE_TILE_PROBES * PC_TRACE_TILE_PROBES);
   for (int base = 0; base < probeCount; base += maxProbes) {
     const TracePush push{base, std::min(probeCount - base, maxProbes)};
     vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof push, &push);
-    ctx->rt().cmdTraceRays(cmd, &table.raygen, &table.miss, &table.hit, &table.callable,
-                           std::uint32_t(std::uint64_t(push.probeCount) * rays), 1, 1);
+    ctx->rt().cmdTraceRays(cmd, &traceTable.raygen, &traceTable.miss, &traceTable.hit, &traceTable.callable,
+                           std::uint32_t(std::uint64_t(push.count) * rays), 1, 1);
+  }
+}
+
+// A dispatch of `groups` workgroups, in rows of PC_DISPATCH_ROWS (the shaders flatten it).
+void VulkanTracer::Impl::dispatchRows(std::uint64_t groups) {
+  if (groups == 0) return;
+  const std::uint64_t rows = (groups + PC_DISPATCH_ROWS - 1) / PC_DISPATCH_ROWS;
+  vkCmdDispatch(cmd, std::uint32_t(std::min<std::uint64_t>(groups, PC_DISPATCH_ROWS)), std::uint32_t(rows), 1);
+}
+
+void VulkanTracer::Impl::recordShade(int probeCount, int rayCount) {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipeline.get());
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
+  const std::uint64_t rays = std::uint64_t(probeCount) * std::uint64_t(rayCount);
+  dispatchRows((rays + PC_SHADE_THREADS - 1) / PC_SHADE_THREADS);
+}
+
+void VulkanTracer::Impl::recordShadowTrace(std::uint64_t requests) {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
+  const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
+  for (std::uint64_t first = 0; first < requests; first += maxWidth) {
+    const TracePush push{int(first), int(std::min(requests - first, maxWidth))};
+    vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                       sizeof push, &push);
+    ctx->rt().cmdTraceRays(cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit, &shadowTable.callable,
+                           std::uint32_t(push.count), 1, 1);
   }
 }
 
@@ -880,15 +945,30 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
                     kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                     kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
 
+  // The wavefront (gpu_trace.h): trace, shade, shadow rays, then the blend adds the visible
+  // light and blends.
   m.timer.begin(cmd, "trace");
-  m.recordTrace(m.tracePipeline.get(), m.traceTable, n, rayCount);
+  m.recordTrace(n, rayCount);
   m.timer.end(cmd);
   vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
 
+  m.timer.begin(cmd, "shade");
+  m.recordShade(n, rayCount);
+  m.timer.end(cmd);
+  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kRayStage | kComputeStage, kShaderRW);
+
+  const int slots = m.shadowSlots();
+  if (slots > 0) {
+    m.timer.begin(cmd, "shadow trace");
+    m.recordShadowTrace(std::uint64_t(slots) * std::uint64_t(n) * std::uint64_t(rayCount));
+    m.timer.end(cmd);
+    vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+  }
+
   m.timer.begin(cmd, "blend");
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipelineLayout.get(), 0, 1, &m.set, 0, nullptr);
-  vkCmdDispatch(cmd, std::uint32_t(std::min(n, PC_BLEND_ROWS)), std::uint32_t((n + PC_BLEND_ROWS - 1) / PC_BLEND_ROWS), 1);
+  const int groupProbes = pcBlendProbes(rayCount);
+  m.dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
   m.timer.end(cmd);
   vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
 
@@ -971,6 +1051,7 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   for (const auto& [name, ms] : stats.gpuPasses) {
     stats.gpuMs += ms;
     if (name == "trace") stats.traceMs = ms;
+    if (name == "shade" || name == "shadow trace") stats.shadeMs += ms;
     if (name == "blend" || name == "changes") stats.blendMs += ms;
   }
   stats.gpuPasses.emplace_back("host unpack (CPU)", hostMs);
@@ -993,7 +1074,7 @@ double VulkanTracer::traceOnly(Field& field, const UpdateRequest& request) {
     m.tlasDirty = false;
   }
   m.timer.begin(m.cmd, "raw trace");
-  m.recordTrace(m.rawPipeline.get(), m.rawTable, n, field.settings.raysPerProbe);
+  m.recordTrace(n, field.settings.raysPerProbe);
   m.timer.end(m.cmd);
   m.submitAndWait();
   // The field on the GPU is what the host holds: the sync above uploaded any difference.

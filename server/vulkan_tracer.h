@@ -1,5 +1,6 @@
 // The GPU backend of the Tracer interface: Vulkan ray-tracing pipelines (no ray queries, which
-// NVIDIA's data-centre GPUs lack) trace and shade the probe rays; compute shaders blend them
+// NVIDIA's data-centre GPUs lack) trace the probe rays and, after a compute pass shaded their
+// hits, the shadow rays (a wavefront: shaders/interop/gpu_trace.h); compute shaders blend them
 // into the atlases, fix the borders, classify and relocate probes and pack the changed
 // bricks. The GPU holds the field between updates; only changed bricks' tiles and the probe
 // records come back into the pc::Field, which stays the host mirror the encoder and baked
@@ -34,8 +35,9 @@ class VulkanTracer final : public Tracer {
   void setState(const SceneState& state) override;
   UpdateStats update(Field& field, const UpdateRequest& request) override;
 
-  // Traces the same probe rays as update() through a pipeline with trivial shaders (closest
-  // hit only: no shading, blending or readback) and returns the GPU milliseconds of the trace.
+  // Runs only update()'s trace pass on the same probe rays (closest hits, stored for shading:
+  // no shading, shadow rays, blending or readback) and returns its GPU milliseconds: the raw
+  // rate the full update is measured against.
   double traceOnly(Field& field, const UpdateRequest& request);
 
   const vk::Context& context() const;

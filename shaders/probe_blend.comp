@@ -1,15 +1,19 @@
 #version 460
-// Blends one probe's ray results into its tiles: one workgroup per requested probe, the same
-// steps and shared math as the CPU's blendProbe (server/probe_blend.cpp):
+// Blends requested probes' ray results into their tiles, the same steps and shared math as the
+// CPU's blendProbe (server/probe_blend.cpp):
 //   1. classification and relocation from backface share and closest hits,
 //   2. irradiance (cosine lobe), depth moments (cos^exponent lobe), occlusion (share of rays
 //      past d_max), blended with hysteresis after a running mean,
 //   3. the tiles' 1-texel borders,
 // and records the largest change of an encoded irradiance texel for change detection.
-// The probe's ray results are read from global memory once, into shared memory; the lobe
-// weights come from the update's tap lists (PC_BIND_TAPS), the CPU's own, so each texel sums
-// the same rays with the same weights in the same order as the CPU.
+//
+// A workgroup takes pcBlendProbes consecutive requests (interop/gpu_trace.h). Their rays are
+// read once, into shared memory, with the visible shadow-ray contributions added (the last
+// step of the shade wavefront). The lobe weights come from the update's tap lists
+// (PC_BIND_TAPS), the CPU's own, so each texel sums the same rays with the same weights in
+// the same order as the CPU; each tap loaded serves every probe of the group.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
 #include "field_buffers.glsl"
 #include "interop/probe_update.h"
 
@@ -19,196 +23,252 @@ layout(std430, set = 0, binding = PC_BIND_PARAMS) readonly buffer Params { Updat
 layout(std430, set = 0, binding = PC_BIND_REQUESTS) readonly buffer Requests { ivec2 requests[]; };
 layout(std430, set = 0, binding = PC_BIND_RAY_DIRS) readonly buffer RayDirs { vec4 rayDirs[]; };
 layout(std430, set = 0, binding = PC_BIND_RAYS) readonly buffer Rays { vec4 rays[]; };
+layout(std430, set = 0, binding = PC_BIND_RAY_SHADING) readonly buffer RayShading { GpuRayShading rayShading[]; };
+layout(std430, set = 0, binding = PC_BIND_SHADOW_RAYS) readonly buffer ShadowRays { GpuShadowRay shadowRays[]; };
 layout(std430, set = 0, binding = PC_BIND_CHANGES) writeonly buffer Changes { float changes[]; };
 layout(std430, set = 0, binding = PC_BIND_TAPS) readonly buffer Taps { uvec2 taps[]; };
 
 const uint kInfinityBits = 0x7f800000u;
+const int K = PC_BLEND_MAX_PROBES;
 
-// The probe's rays: radiance and signed distance, and the distance the depth moments use.
+// The group's rays, probe fastest ([ray * groupProbes + k]): radiance and signed distance, and the
+// distance the depth moments use.
 shared vec4 sRay[PC_MAX_RAYS_PER_PROBE];
 shared float sDepth[PC_MAX_RAYS_PER_PROBE];
-// Reductions: backface count and the closest back/front hits (distance, then ray index, so
-// ties resolve to the first ray as on the CPU).
+// Reductions, PC_BLEND_THREADS / groupProbes threads per probe: backface count and the closest
+// back/front hits (distance, then ray index, so ties resolve to the first ray as on the CPU).
 shared uint sBackfaces[PC_BLEND_THREADS];
 shared float sBackDist[PC_BLEND_THREADS];
 shared int sBackRay[PC_BLEND_THREADS];
 shared float sFrontDist[PC_BLEND_THREADS];
 shared int sFrontRay[PC_BLEND_THREADS];
-shared float sAlpha;
-shared bool sInside;
-shared uint sMaxChange;  // float bits; non-negative floats order like their bits
+shared float sAlpha[K];
+shared bool sInside[K];
+shared uint sMaxChange[K];  // float bits; non-negative floats order like their bits
 
 bool closer(float d, int i, float bestD, int bestI) { return d < bestD || (d == bestD && i < bestI); }
 
+// Radiance toward the probe of the ray at launch index i: what the shade pass left, with the
+// light of its visible shadow requests, summed in the order the CPU sums them.
+vec3 radianceOf(uint i, vec3 emitted) {
+  GpuRayShading s = rayShading[i];
+  uint stride = uint(params.probeCount) * uint(params.rayCount);
+  vec3 direct = vec3(0.0f);
+  for (int slot = 0; slot < params.lightCount; ++slot) {
+    uint j = uint(slot) * stride + i;
+    if (shadowRays[j].visible != 0u) direct += shadowRays[j].irradiance;
+  }
+  int samples = params.shadowSlots - params.lightCount;
+  if (samples > 0) {
+    vec3 sum = vec3(0.0f);
+    for (int slot = params.lightCount; slot < params.shadowSlots; ++slot) {
+      uint j = uint(slot) * stride + i;
+      if (shadowRays[j].visible != 0u) sum += shadowRays[j].irradiance;
+    }
+    direct = direct + sum / float(samples);
+  }
+  return emitted + s.albedoOverPi * (direct + s.indirect);
+}
+
 void main() {
-  int request = int(gl_WorkGroupID.y) * PC_BLEND_ROWS + int(gl_WorkGroupID.x);
-  if (request >= params.probeCount) return;  // uniform across the workgroup
-  int tid = int(gl_LocalInvocationIndex);
-  ivec2 ref = requests[request];
-  CascadeDesc c = field.cascades[ref.x];
-  int slot = ref.y;
-  int record = c.firstProbe + slot;
-  int rayCount = params.rayCount;
-  int rayBase = request * rayCount;
-
-  // ---- 1. classification and relocation ----
-  uint backfaces = 0u;
-  float backDist = PC_MISS_DISTANCE, frontDist = PC_MISS_DISTANCE;
-  int backRay = rayCount, frontRay = rayCount;
-  for (int i = tid; i < rayCount; i += PC_BLEND_THREADS) {
-    vec4 r = rays[rayBase + i];
-    float d = r.w;
-    sRay[i] = r;
-    sDepth[i] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, c.maxRayDistance);
-    if (d < 0.0f) {
-      ++backfaces;
-      if (-d < backDist) backDist = -d, backRay = i;
-    } else if (d < frontDist) {
-      frontDist = d, frontRay = i;
-    }
-  }
-  sBackfaces[tid] = backfaces;
-  sBackDist[tid] = backDist;
-  sBackRay[tid] = backRay;
-  sFrontDist[tid] = frontDist;
-  sFrontRay[tid] = frontRay;
-  barrier();
-  for (int stride = PC_BLEND_THREADS / 2; stride > 0; stride /= 2) {
-    if (tid < stride) {
-      int o = tid + stride;
-      sBackfaces[tid] += sBackfaces[o];
-      if (closer(sBackDist[o], sBackRay[o], sBackDist[tid], sBackRay[tid])) {
-        sBackDist[tid] = sBackDist[o];
-        sBackRay[tid] = sBackRay[o];
-      }
-      if (closer(sFrontDist[o], sFrontRay[o], sFrontDist[tid], sFrontRay[tid])) {
-        sFrontDist[tid] = sFrontDist[o];
-        sFrontRay[tid] = sFrontRay[o];
-      }
-    }
-    barrier();
-  }
-  if (tid == 0) {
-    GpuProbeRecord r = probes[record];
-    float backfaceFraction = float(sBackfaces[0]) / float(max(rayCount, 1));
-    vec3 backDir = sBackRay[0] < rayCount ? rayDirs[sBackRay[0]].xyz : vec3(0.0f);
-    vec3 frontDir = sFrontRay[0] < rayCount ? rayDirs[sFrontRay[0]].xyz : vec3(0.0f);
-    int oldState = r.state;
-    vec3 oldOffset = r.offset;
-    bool inside = pcProbeInside(backfaceFraction, oldState);
-    r.offset = pcRelocate(r.offset, inside, sBackDist[0], backDir, sFrontDist[0], frontDir,
-                          0.2f * c.spacing, 0.45f * c.spacing);
-    bool moved = length(r.offset - oldOffset) > 0.01f * c.spacing;
-    if (inside) {
-      // Inside geometry: never sampled, history dropped, tiles left alone.
-      r.state = PC_PROBE_INSIDE;
-      r.updates = 0u;
-      sInside = true;
-      changes[request] = (oldState != PC_PROBE_INSIDE || moved) ? uintBitsToFloat(kInfinityBits) : 0.0f;
-    } else {
-      float reach = sqrt(3.0f) * c.spacing;
-      r.state = (sBackfaces[0] == 0u && sFrontDist[0] > reach) ? PC_PROBE_SLEEPING : PC_PROBE_ACTIVE;
-      bool hasHistory = r.updates > 0u && !moved;
-      sAlpha = hasHistory ? min(params.hysteresis, float(r.updates) / float(r.updates + 1u)) : 0.0f;
-      r.updates = hasHistory ? r.updates + 1u : 1u;
-      sInside = false;
-      sMaxChange = (oldState != r.state || moved) ? kInfinityBits : 0u;
-    }
-    probes[record] = r;
-  }
-  barrier();
-  if (sInside) return;  // uniform: read after the barrier by every invocation
-  float alpha = sAlpha;
-
-  // ---- 2. tiles: irradiance (threads 0-63), occlusion (64-127), depth (all 256) ----
   const int ni = PC_IRRADIANCE_TEXELS, nd = PC_DEPTH_TEXELS, no = PC_OCCLUSION_TEXELS;
-  bool doIrradiance = tid < ni * ni;
-  bool doOcclusion = tid >= ni * ni && tid < ni * ni + no * no;
-  int ot = tid - ni * ni;
-  float dmax = field.occlusionDistance;
+  int tid = int(gl_LocalInvocationIndex);
+  int rayCount = params.rayCount;
+  int groupProbes = pcBlendProbes(rayCount);
+  int firstRequest = (int(gl_WorkGroupID.y) * PC_DISPATCH_ROWS + int(gl_WorkGroupID.x)) * groupProbes;
+  if (firstRequest >= params.probeCount) return;  // uniform across the workgroup
+  int probesHere = min(groupProbes, params.probeCount - firstRequest);
 
-  vec3 irrSum = vec3(0.0f);
-  float irrWeight = 0.0f, m1 = 0.0f, m2 = 0.0f, depthWeight = 0.0f, open = 0.0f, occWeight = 0.0f;
-  if (doIrradiance) {
+  // ---- 0. the rays: the group's requests are neighbours in launch order, so the reads of
+  // one ray of all of them are contiguous ----
+  for (int item = tid; item < probesHere * rayCount; item += PC_BLEND_THREADS) {
+    int k = item % probesHere, ray = item / probesHere;
+    int request = firstRequest + k;
+    uint i = pcProbeRayLaunchIndex(request, ray, params.probeCount, rayCount);
+    vec4 r = rays[i];
+    float d = r.w;
+    sRay[ray * groupProbes + k] = vec4(radianceOf(i, r.xyz), d);
+    float maxDistance = field.cascades[requests[request].x].maxRayDistance;
+    sDepth[ray * groupProbes + k] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, maxDistance);
+  }
+  barrier();
+
+  // ---- 1. classification and relocation: a power-of-two share of the threads per probe ----
+  {
+    int share = PC_BLEND_THREADS / groupProbes;
+    int k = tid / share, lane = tid - k * share;
+    uint backfaces = 0u;
+    float backDist = PC_MISS_DISTANCE, frontDist = PC_MISS_DISTANCE;
+    int backRay = rayCount, frontRay = rayCount;
+    for (int ray = k < probesHere ? lane : rayCount; ray < rayCount; ray += share) {
+      float d = sRay[ray * groupProbes + k].w;
+      if (d < 0.0f) {
+        ++backfaces;
+        if (-d < backDist) backDist = -d, backRay = ray;
+      } else if (d < frontDist) {
+        frontDist = d, frontRay = ray;
+      }
+    }
+    sBackfaces[tid] = backfaces;
+    sBackDist[tid] = backDist;
+    sBackRay[tid] = backRay;
+    sFrontDist[tid] = frontDist;
+    sFrontRay[tid] = frontRay;
+    barrier();
+    for (int stride = share / 2; stride > 0; stride /= 2) {
+      if (lane < stride) {
+        int o = tid + stride;
+        sBackfaces[tid] += sBackfaces[o];
+        if (closer(sBackDist[o], sBackRay[o], sBackDist[tid], sBackRay[tid])) {
+          sBackDist[tid] = sBackDist[o];
+          sBackRay[tid] = sBackRay[o];
+        }
+        if (closer(sFrontDist[o], sFrontRay[o], sFrontDist[tid], sFrontRay[tid])) {
+          sFrontDist[tid] = sFrontDist[o];
+          sFrontRay[tid] = sFrontRay[o];
+        }
+      }
+      barrier();
+    }
+    if (lane == 0 && k < probesHere) {
+      int request = firstRequest + k;
+      ivec2 ref = requests[request];
+      CascadeDesc c = field.cascades[ref.x];
+      int record = c.firstProbe + ref.y;
+      GpuProbeRecord r = probes[record];
+      float backfaceFraction = float(sBackfaces[tid]) / float(max(rayCount, 1));
+      vec3 backDir = sBackRay[tid] < rayCount ? rayDirs[sBackRay[tid]].xyz : vec3(0.0f);
+      vec3 frontDir = sFrontRay[tid] < rayCount ? rayDirs[sFrontRay[tid]].xyz : vec3(0.0f);
+      int oldState = r.state;
+      vec3 oldOffset = r.offset;
+      bool inside = pcProbeInside(backfaceFraction, oldState);
+      r.offset = pcRelocate(r.offset, inside, sBackDist[tid], backDir, sFrontDist[tid], frontDir,
+                            0.2f * c.spacing, 0.45f * c.spacing);
+      bool moved = length(r.offset - oldOffset) > 0.01f * c.spacing;
+      sInside[k] = inside;
+      if (inside) {
+        // Inside geometry: never sampled, history dropped, tiles left alone.
+        r.state = PC_PROBE_INSIDE;
+        r.updates = 0u;
+        changes[request] = (oldState != PC_PROBE_INSIDE || moved) ? uintBitsToFloat(kInfinityBits) : 0.0f;
+      } else {
+        float reach = sqrt(3.0f) * c.spacing;
+        r.state = (sBackfaces[tid] == 0u && sFrontDist[tid] > reach) ? PC_PROBE_SLEEPING : PC_PROBE_ACTIVE;
+        bool hasHistory = r.updates > 0u && !moved;
+        sAlpha[k] = hasHistory ? min(params.hysteresis, float(r.updates) / float(r.updates + 1u)) : 0.0f;
+        r.updates = hasHistory ? r.updates + 1u : 1u;
+        sMaxChange[k] = (oldState != r.state || moved) ? kInfinityBits : 0u;
+      }
+      probes[record] = r;
+    }
+  }
+  barrier();
+
+  // ---- 2. tiles: irradiance and occlusion (one texel per thread of the first n_i^2), depth
+  // (the other threads, several texels each); texels of inside probes are left alone ----
+  const int irrTexelCount = ni * ni, depthTexelCount = nd * nd;
+  if (tid < irrTexelCount) {
+    float dmax = field.occlusionDistance;
+    vec3 irrSum[K];
+    float irrWeight[K], open[K], occWeight[K];
+    [[unroll]] for (int k = 0; k < K; ++k) {
+      irrSum[k] = vec3(0.0f);
+      irrWeight[k] = open[k] = occWeight[k] = 0.0f;
+    }
     uvec2 h = taps[tid];
     for (uint j = 0u; j < h.x; ++j) {
-      uvec2 e = taps[h.y + j * uint(ni * ni)];
-      vec4 r = sRay[e.x];
-      if (r.w < 0.0f) continue;  // backface hits carry no light
+      uvec2 e = taps[h.y + j * uint(irrTexelCount)];
       float w = uintBitsToFloat(e.y);
-      irrSum += w * r.xyz;
-      irrWeight += w;
+      int base = int(e.x) * groupProbes;
+      [[unroll]] for (int k = 0; k < K; ++k) {
+        if (k >= probesHere) break;
+        vec4 r = sRay[base + k];
+        open[k] += r.w > dmax ? w : 0.0f;
+        occWeight[k] += w;
+        if (r.w >= 0.0f) {  // backface hits carry no light
+          irrSum[k] += w * r.xyz;
+          irrWeight[k] += w;
+        }
+      }
     }
-  } else if (doOcclusion) {
-    uvec2 h = taps[ni * ni + nd * nd + ot];
-    for (uint j = 0u; j < h.x; ++j) {
-      uvec2 e = taps[h.y + j * uint(no * no)];
-      float w = uintBitsToFloat(e.y);
-      open += sRay[e.x].w > dmax ? w : 0.0f;
-      occWeight += w;
+    [[unroll]] for (int k = 0; k < K; ++k) {
+      if (k >= probesHere) break;
+      if (sInside[k]) continue;
+      int request = firstRequest + k;
+      ivec2 ref = requests[request];
+      CascadeDesc c = field.cascades[ref.x];
+      ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
+      if (irrWeight[k] > 0.0f) {
+        int i = pcIrradianceIndex(pcAtlasTileOrigin(c, ref.y, ni + 2) + texel);
+        vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
+        vec3 old = vec3(irradianceTexels[i], irradianceTexels[i + 1], irradianceTexels[i + 2]);
+        vec3 blended = mix(sample_, old, sAlpha[k]);
+        vec3 delta = abs(blended - old);
+        atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
+        irradianceTexels[i] = blended.x;
+        irradianceTexels[i + 1] = blended.y;
+        irradianceTexels[i + 2] = blended.z;
+      }
+      if (occWeight[k] > 0.0f) {
+        int i = pcOcclusionIndex(pcAtlasTileOrigin(c, ref.y, no + 2) + texel);
+        occlusionTexels[i] = mix(open[k] / occWeight[k], occlusionTexels[i], sAlpha[k]);
+      }
     }
-  }
-  {
-    uvec2 h = taps[ni * ni + tid];
-    for (uint j = 0u; j < h.x; ++j) {
-      uvec2 e = taps[h.y + j * uint(nd * nd)];
-      float w = uintBitsToFloat(e.y);
-      float dist = sDepth[e.x];
-      m1 += w * dist;
-      m2 += w * dist * dist;
-      depthWeight += w;
+  } else {
+    for (int t = tid - irrTexelCount; t < depthTexelCount; t += PC_BLEND_THREADS - irrTexelCount) {
+      float m1[K], m2[K], depthWeight[K];
+      [[unroll]] for (int k = 0; k < K; ++k) m1[k] = m2[k] = depthWeight[k] = 0.0f;
+      uvec2 h = taps[irrTexelCount + t];
+      for (uint j = 0u; j < h.x; ++j) {
+        uvec2 e = taps[h.y + j * uint(depthTexelCount)];
+        float w = uintBitsToFloat(e.y);
+        int base = int(e.x) * groupProbes;
+        [[unroll]] for (int k = 0; k < K; ++k) {
+          if (k >= probesHere) break;
+          float dist = sDepth[base + k];
+          m1[k] += w * dist;
+          m2[k] += w * dist * dist;
+          depthWeight[k] += w;
+        }
+      }
+      [[unroll]] for (int k = 0; k < K; ++k) {
+        if (k >= probesHere) break;
+        if (sInside[k] || !(depthWeight[k] > 0.0f)) continue;
+        ivec2 ref = requests[firstRequest + k];
+        ivec2 o = pcAtlasTileOrigin(field.cascades[ref.x], ref.y, nd + 2);
+        int i = pcDepthIndex(o + ivec2(1 + t % nd, 1 + t / nd));
+        depthTexels[i] = mix(m1[k] / depthWeight[k], depthTexels[i], sAlpha[k]);
+        depthTexels[i + 1] = mix(m2[k] / depthWeight[k], depthTexels[i + 1], sAlpha[k]);
+      }
     }
-  }
-
-  if (doIrradiance && irrWeight > 0.0f) {
-    ivec2 o = pcAtlasTileOrigin(c, slot, ni + 2);
-    int i = pcIrradianceIndex(o + ivec2(1 + tid % ni, 1 + tid / ni));
-    vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum / irrWeight);
-    vec3 old = vec3(irradianceTexels[i], irradianceTexels[i + 1], irradianceTexels[i + 2]);
-    vec3 blended = mix(sample_, old, alpha);
-    vec3 delta = abs(blended - old);
-    atomicMax(sMaxChange, floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
-    irradianceTexels[i] = blended.x;
-    irradianceTexels[i + 1] = blended.y;
-    irradianceTexels[i + 2] = blended.z;
-  }
-  if (doOcclusion && occWeight > 0.0f) {
-    ivec2 o = pcAtlasTileOrigin(c, slot, no + 2);
-    int i = pcOcclusionIndex(o + ivec2(1 + ot % no, 1 + ot / no));
-    occlusionTexels[i] = mix(open / occWeight, occlusionTexels[i], alpha);
-  }
-  if (depthWeight > 0.0f) {
-    ivec2 o = pcAtlasTileOrigin(c, slot, nd + 2);
-    int i = pcDepthIndex(o + ivec2(1 + tid % nd, 1 + tid / nd));
-    depthTexels[i] = mix(m1 / depthWeight, depthTexels[i], alpha);
-    depthTexels[i + 1] = mix(m2 / depthWeight, depthTexels[i + 1], alpha);
   }
   memoryBarrierBuffer();
   barrier();
 
   // ---- 3. borders: each border texel copies its interior source (pcBorderSource) ----
   // Border texels of a tile of size s = n + 2, walked as top row, bottom row, left and right
-  // columns: 4 (s - 1) of them.
+  // columns: 4 (s - 1) of them per channel.
   const int si = ni + 2, sd = nd + 2, so = no + 2;
   const int bi = 4 * (si - 1), bd = 4 * (sd - 1), bo = 4 * (so - 1);
-  int b = tid, s, n;
-  int channel;  // 0 irradiance, 1 depth, 2 occlusion, -1 idle
-  if (b < bi) {
-    channel = 0, s = si, n = ni;
-  } else if (b < bi + bd) {
-    channel = 1, s = sd, n = nd, b -= bi;
-  } else if (b < bi + bd + bo) {
-    channel = 2, s = so, n = no, b -= bi + bd;
-  } else {
-    channel = -1, s = 0, n = 0;
-  }
-  if (channel >= 0) {
+  for (int item = tid; item < probesHere * (bi + bd + bo); item += PC_BLEND_THREADS) {
+    int k = item / (bi + bd + bo), b = item % (bi + bd + bo);
+    if (sInside[k]) continue;
+    int s, n;
+    int channel;  // 0 irradiance, 1 depth, 2 occlusion
+    if (b < bi) {
+      channel = 0, s = si, n = ni;
+    } else if (b < bi + bd) {
+      channel = 1, s = sd, n = nd, b -= bi;
+    } else {
+      channel = 2, s = so, n = no, b -= bi + bd;
+    }
     ivec2 bxy = b < s ? ivec2(b, 0)
               : b < 2 * s ? ivec2(b - s, s - 1)
               : b < 3 * s - 2 ? ivec2(0, 1 + b - 2 * s)
               : ivec2(s - 1, 1 + b - (3 * s - 2));
     ivec2 src = pcBorderSource(bxy.x, bxy.y, n) + ivec2(1);
-    ivec2 o = pcAtlasTileOrigin(c, slot, s);
+    ivec2 ref = requests[firstRequest + k];
+    ivec2 o = pcAtlasTileOrigin(field.cascades[ref.x], ref.y, s);
     if (channel == 0) {
       int from = pcIrradianceIndex(o + src), to = pcIrradianceIndex(o + bxy);
       irradianceTexels[to] = irradianceTexels[from];
@@ -222,5 +282,5 @@ void main() {
       occlusionTexels[pcOcclusionIndex(o + bxy)] = occlusionTexels[pcOcclusionIndex(o + src)];
     }
   }
-  if (tid == 0) changes[request] = uintBitsToFloat(sMaxChange);
+  if (tid < probesHere && !sInside[tid]) changes[firstRequest + tid] = uintBitsToFloat(sMaxChange[tid]);
 }

@@ -3,6 +3,6 @@
 // nothing was in the way.
 #extension GL_EXT_ray_tracing : require
 
-layout(location = 1) rayPayloadInEXT uint visible;
+layout(location = 0) rayPayloadInEXT uint visible;
 
 void main() { visible = 1u; }

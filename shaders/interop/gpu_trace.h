@@ -1,7 +1,17 @@
 // GPU-visible structures of the Vulkan field update (server/vulkan_tracer.cpp and the shaders
-// probe_trace.*, probe_blend.comp, brick_*.comp): descriptor bindings, the scene in buffers,
-// probe records and the per-update parameters. std430 layout; 16-byte rows are marked and C++
-// checks the sizes with static_assert.
+// probe_trace.*, probe_shade.comp, probe_shadow.rgen, probe_blend.comp, brick_*.comp):
+// descriptor bindings, the scene in buffers, probe records, the per-ray wavefront records and
+// the per-update parameters. std430 layout; 16-byte rows are marked and C++ checks the sizes
+// with static_assert.
+//
+// An update runs as a wavefront of passes, each over every probe ray of the update:
+//   trace   (probe_trace.rgen)   closest hit of each probe ray -> GpuHit
+//   shade   (probe_shade.comp)   material, emission, previous field at the hit -> rays and
+//                                GpuRayShading; one GpuShadowRay request per shadow slot
+//   shadow  (probe_shadow.rgen)  any-hit test of each request -> its `visible` flag
+//   blend   (probe_blend.comp)   adds the visible contributions, blends into the tiles
+// Per-ray records are stored in launch order (pcLaunchProbeRay below), so every pass reads
+// and writes them coalesced.
 #ifndef PC_GPU_TRACE_H
 #define PC_GPU_TRACE_H
 
@@ -19,7 +29,7 @@ PC_CONST int PC_BIND_OCCLUSION = 5;   // float[] (r)
 PC_CONST int PC_BIND_PROBES = 6;      // GpuProbeRecord[], field-wide slot index
 PC_CONST int PC_BIND_REQUESTS = 7;    // ivec2[]: (cascade, slot) of each probe to update
 PC_CONST int PC_BIND_RAY_DIRS = 8;    // vec4[]: this update's ray directions (xyz)
-PC_CONST int PC_BIND_RAYS = 9;        // vec4[]: radiance rgb, signed distance; [probe * rays + ray]
+PC_CONST int PC_BIND_RAYS = 9;        // vec4[] per ray, launch order: emitted radiance, signed distance
 PC_CONST int PC_BIND_VERTICES = 10;   // GpuVertex[]
 PC_CONST int PC_BIND_INDICES = 11;    // uint[], mesh-local
 PC_CONST int PC_BIND_MESHES = 12;     // GpuMesh[]
@@ -33,30 +43,70 @@ PC_CONST int PC_BIND_BRICK_LIST = 19;   // uint[]: dispatch args (x = count, 1, 
 PC_CONST int PC_BIND_PACKED = 20;       // float[]: changed bricks' tile rows, for the host
 PC_CONST int PC_BIND_COUNTERS = 21;     // uint[PC_COUNTER_SLOTS]: shadow rays traced
 PC_CONST int PC_BIND_TAPS = 22;         // uvec2[]: this update's blend taps (see below)
-PC_CONST int PC_BIND_TEXTURES = 23;     // sampler2D[]: base colour and emissive textures; the
+PC_CONST int PC_BIND_HITS = 23;         // GpuHit[] per ray, launch order
+PC_CONST int PC_BIND_RAY_SHADING = 24;  // GpuRayShading[] per ray, launch order
+PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: [slot * rays of the update + launch index]
+PC_CONST int PC_BIND_TEXTURES = 26;     // sampler2D[]: base colour and emissive textures; the
                                         // variable-count binding, so it must stay the last
-PC_CONST int PC_BINDING_COUNT = 24;
+PC_CONST int PC_BINDING_COUNT = 27;
 
 PC_CONST int PC_COUNTER_SLOTS = 1024;  // shadow-ray counters are spread to avoid contention
 PC_CONST int PC_BRICK_LIST_HEADER = 3;  // uints of dispatch arguments before the brick list
-PC_CONST int PC_BLEND_THREADS = 256;    // probe_blend.comp workgroup: one depth texel each
-PC_CONST int PC_BLEND_ROWS = 32768;     // workgroups per row of a 2D blend dispatch
+PC_CONST int PC_DISPATCH_ROWS = 32768;  // workgroups per row of a 2D compute dispatch
+PC_CONST int PC_SHADE_THREADS = 128;    // probe_shade.comp workgroup: one ray each
 PC_CONST int PC_MAX_RAYS_PER_PROBE = 1024;  // kMaxRaysPerProbe (common/field.h): blend scratch
 
+// probe_blend.comp: a workgroup blends up to PC_BLEND_MAX_PROBES consecutive requests, as many
+// as its shared scratch of PC_MAX_RAYS_PER_PROBE rays holds (a power of two, so a group never
+// straddles a launch tile), so each tap it loads serves every one of them. Its first
+// PC_IRRADIANCE_TEXELS^2 threads own an irradiance and occlusion texel each, the others share
+// the depth texels: about the same number of taps per thread.
+PC_CONST int PC_BLEND_THREADS = 128;
+PC_CONST int PC_BLEND_MAX_PROBES = 4;
+PC_FN int pcBlendProbes(int rayCount) {
+  return rayCount * 4 <= PC_MAX_RAYS_PER_PROBE ? 4 : rayCount * 2 <= PC_MAX_RAYS_PER_PROBE ? 2 : 1;
+}
+
 // Blend taps (PC_BIND_TAPS), built on the host from the update's ray directions exactly as the
-// CPU's BlendTaps: which rays feed which texel, with what lobe weight. Texels are numbered
-// irradiance (n_i^2), then depth (n_d^2), then occlusion (n_o^2), each channel row-major. Entry
-// t < PC_TAP_TEXELS is texel t's (tap count, first tap); tap j of a texel of a channel with N
-// texels is at first + j * N (texels' taps interleave, so a warp's loads are contiguous), as
-// (ray index, weight's float bits).
-PC_CONST int PC_TAP_TEXELS = PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS + PC_DEPTH_TEXELS * PC_DEPTH_TEXELS +
-                             PC_OCCLUSION_TEXELS * PC_OCCLUSION_TEXELS;
+// CPU's BlendTaps: which rays feed which texel, with what lobe weight. Irradiance and occlusion
+// tiles have the same size and the same cosine lobe, so their taps are one list (the CPU builds
+// it twice). Texels are numbered irradiance/occlusion (n_i^2), then depth (n_d^2), each channel
+// row-major. Entry t < PC_TAP_TEXELS is texel t's (tap count, first tap); tap j of a texel of
+// a channel with N texels is at first + j * N (texels' taps interleave, so a warp's loads are
+// contiguous), as (ray index, weight's float bits).
+PC_CONST int PC_TAP_TEXELS = PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS + PC_DEPTH_TEXELS * PC_DEPTH_TEXELS;
 
 // Probe-ray launches are one-dimensional: a warp's 32 invocations trace the same ray direction
 // from PC_TRACE_TILE_PROBES neighbouring probes (neighbouring slots of a brick), which keeps
 // traversal, hit shading and field fetches coherent; launch index i covers probe
 // tile * PC_TRACE_TILE_PROBES + (i mod tile's probes) and ray (i / tile's probes) within its tile.
+// The later passes keep this order.
 PC_CONST int PC_TRACE_TILE_PROBES = 32;
+
+// Request (x) and ray (y) of launch index `id` of a launch over `probeCount` requests.
+PC_FN ivec2 pcLaunchProbeRay(uint id, int probeCount, int rayCount) {
+  uint tileRays = uint(PC_TRACE_TILE_PROBES * rayCount);
+  int tile = int(id / tileRays);
+  int first = tile * PC_TRACE_TILE_PROBES;
+  uint tileProbes = uint(min(PC_TRACE_TILE_PROBES, probeCount - first));
+  uint within = id - uint(tile) * tileRays;
+  return ivec2(first + int(within % tileProbes), int(within / tileProbes));
+}
+// The inverse: launch index of ray `ray` of request `probe`.
+PC_FN uint pcProbeRayLaunchIndex(int probe, int ray, int probeCount, int rayCount) {
+  int tile = probe / PC_TRACE_TILE_PROBES;
+  int first = tile * PC_TRACE_TILE_PROBES;
+  int tileProbes = min(PC_TRACE_TILE_PROBES, probeCount - first);
+  return uint(first) * uint(rayCount) + uint(ray * tileProbes + probe - first);
+}
+
+// Shadow rays per probe ray: a fixed slot per punctual light, then one per emissive sample
+// (when the scene has light-sampled emitters). Slot s of launch index i is request
+// s * (rays of the update) + i, so a shadow launch's warp tests one light from neighbouring
+// probes' hits of one direction.
+PC_FN int pcShadowSlots(int lightCount, int emissiveCount, int emissiveSamples) {
+  return lightCount + (emissiveCount > 0 && emissiveSamples > 0 ? emissiveSamples : 0);
+}
 
 // Misses report this distance instead of +infinity: shader compilers may assume finite
 // floats. Above every comparison the update makes.
@@ -153,11 +203,47 @@ struct GpuEmissiveTriangle {
   // -- 80
 };
 
-// Push constants of the probe-ray launches: the launch covers requests
-// [probeBase, probeBase + probeCount).
+// Push constants of the ray launches: the launch covers items [first, first + count), requests
+// for the probe-ray launch, shadow requests for the shadow launch.
 struct TracePush {
-  int probeBase;
-  int probeCount;
+  int first;
+  int count;
+};
+
+// A probe ray's closest hit (probe_trace.rgen -> probe_shade.comp).
+struct GpuHit {
+  vec2 barycentric;
+  float t;
+  int instance;  // shading record (GpuInstance); -1: miss
+  // -- 16
+  int primitive;
+  int pad0;
+  // -- 24
+};
+
+// What the shade pass leaves for the blend besides `rays` (emitted radiance, distance): the
+// radiance toward the probe is emitted + albedoOverPi * (direct + indirect), direct being the
+// sum of the ray's visible shadow requests (lights, then emissive samples / their count).
+struct GpuRayShading {
+  vec3 albedoOverPi;  // zero for misses and backface hits
+  float pad0;
+  // -- 16
+  vec3 indirect;  // irradiance from the previous field
+  float pad1;
+  // -- 32
+};
+
+// One shadow-ray request (probe_shade.comp -> probe_shadow.rgen -> probe_blend.comp).
+struct GpuShadowRay {
+  vec3 origin;
+  float tmax;  // 0: no request in this slot
+  // -- 16
+  vec3 direction;
+  uint visible;  // set by the shadow pass
+  // -- 32
+  vec3 irradiance;  // what the light adds when visible
+  float pad0;
+  // -- 48
 };
 
 struct GpuProbeRecord {
@@ -189,7 +275,7 @@ struct UpdateParams {
   float hysteresis;
   float changeThreshold;
   int brickTotal;  // bricks over all cascades
-  int pad0;
+  int shadowSlots;  // pcShadowSlots
   // -- 80
   ivec4 cascadeBrickOffset;  // first field-wide brick of each cascade
   // -- 96
@@ -206,6 +292,9 @@ static_assert(sizeof(pc::gpu::GpuLight) == 64);
 static_assert(sizeof(pc::gpu::GpuEmissiveTriangle) == 80);
 static_assert(sizeof(pc::gpu::GpuProbeRecord) == 32);
 static_assert(sizeof(pc::gpu::TracePush) == 8);
+static_assert(sizeof(pc::gpu::GpuHit) == 24);
+static_assert(sizeof(pc::gpu::GpuRayShading) == 32);
+static_assert(sizeof(pc::gpu::GpuShadowRay) == 48);
 static_assert(sizeof(pc::gpu::UpdateParams) == 96);
 static_assert(pc::gpu::PC_MAX_CASCADES == 4);  // cascadeBrickOffset is an ivec4
 #endif

@@ -1,7 +1,8 @@
 // gpu-trace: the Vulkan ray-tracing backend on one scene, in one run:
 //   - speed: GPU milliseconds per pass, per update, probe rays per second end to end (trace,
-//     shade, blend, change detection) and all rays (with shadow rays), against the raw rate of
-//     the same probe rays through a pipeline with trivial shaders (the ceiling);
+//     shade, shadow trace, blend, change detection) and all rays (with shadow rays), against
+//     the raw rate of the same probe rays through the update's trace pass alone (closest hits
+//     only: the ceiling);
 //   - agreement: the GPU and Embree fields after the same updates (same seeds and settings);
 //   - quality: the probe-lit render from each field against the path-traced reference.
 // The Embree backend runs the same updates on this machine's cores for comparison.
@@ -131,7 +132,7 @@ Benchmark addGpuTrace(CLI::App& app) {
               std::printf("%-36s %12.3f\n", name.c_str(), passMs[name] / updates);
             std::printf("%-36s %12.3f\n", "update, GPU passes", gpuMs / updates);
             std::printf("%-36s %12.3f\n", "update, wall clock (submit..unpack)", wallMs / updates);
-            std::printf("%-36s %12.3f\n", "raw closest hit (trivial shaders)", rawMs / updates);
+            std::printf("%-36s %12.3f\n", "raw closest hit (trace pass alone)", rawMs / updates);
             std::printf("%-36s %12.1f\n", "readback KiB/update", double(readback) / 1024.0 / updates);
             std::printf("%-36s %12s %14s\n", "rate", "Grays/s", "rays/update");
             std::printf("%-36s %12.4f %14llu\n", "raw probe rays", raw, (unsigned long long)probeRaysPerUpdate);

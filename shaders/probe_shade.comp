@@ -1,0 +1,278 @@
+#version 460
+// The shade pass of the wavefront (interop/gpu_trace.h): shades each probe ray's stored hit as
+// the Embree backend does (server/embree_tracer.cpp, cpu/embree_scene.cpp, cpu/lighting.cpp):
+// direct light from punctual lights and light-sampled emissive triangles, emission when not
+// light-sampled, indirect light from the previous field through the shared sampling code.
+// Direct light needs shadow rays: this pass writes each one as a request in its fixed slot
+// (the light's contribution if visible), probe_shadow.rgen traces them and the blend adds the
+// visible ones. Backface hits report a negative distance and no light. One invocation per ray,
+// in launch order.
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_nonuniform_qualifier : require
+#include "field_sampling.glsl"
+
+layout(local_size_x = PC_SHADE_THREADS) in;
+
+layout(std430, set = 0, binding = PC_BIND_PARAMS) readonly buffer Params { UpdateParams params; };
+layout(std430, set = 0, binding = PC_BIND_RAY_DIRS) readonly buffer RayDirs { vec4 rayDirs[]; };
+layout(std430, set = 0, binding = PC_BIND_HITS) readonly buffer Hits { GpuHit hits[]; };
+layout(std430, set = 0, binding = PC_BIND_RAYS) writeonly buffer Rays { vec4 rays[]; };
+layout(std430, set = 0, binding = PC_BIND_RAY_SHADING) writeonly buffer RayShading { GpuRayShading rayShading[]; };
+layout(std430, set = 0, binding = PC_BIND_SHADOW_RAYS) writeonly buffer ShadowRays { GpuShadowRay shadowRays[]; };
+layout(std430, set = 0, binding = PC_BIND_VERTICES) readonly buffer Vertices { GpuVertex vertices[]; };
+layout(std430, set = 0, binding = PC_BIND_INDICES) readonly buffer Indices { uint indices[]; };
+layout(std430, set = 0, binding = PC_BIND_MESHES) readonly buffer Meshes { GpuMesh meshes[]; };
+layout(std430, set = 0, binding = PC_BIND_INSTANCES) readonly buffer Instances { GpuInstance instances[]; };
+layout(std430, set = 0, binding = PC_BIND_MATERIALS) readonly buffer Materials { GpuMaterial materials[]; };
+layout(std430, set = 0, binding = PC_BIND_LIGHTS) readonly buffer Lights { GpuLight lights[]; };
+layout(std430, set = 0, binding = PC_BIND_EMISSIVE) readonly buffer Emissive { GpuEmissiveTriangle emissive[]; };
+layout(std430, set = 0, binding = PC_BIND_COUNTERS) buffer Counters { uint shadowCounters[]; };
+layout(set = 0, binding = PC_BIND_TEXTURES) uniform sampler2D textures[];
+
+// Shadow rays stop a hair short of the light, like the CPU's (cpu/lighting.cpp); the near end
+// is probe_shadow.rgen's.
+const float kShadowFarScale = 1.0f - 1e-4f;
+
+uint rngState;
+float rnd() {
+  rngState = pcHash(rngState);
+  return pcHashToFloat(rngState);
+}
+
+// This ray's launch index, the request stride between its slots and the requests it made.
+uint launchIndex;
+uint slotStride;
+uint shadowRequests = 0u;
+
+// Writes slot `slot`'s request: a shadow ray that adds `irradiance` when nothing blocks it.
+// tmax 0 leaves the slot empty.
+void request(int slot, vec3 origin, vec3 dir, float tmax, vec3 irradiance) {
+  GpuShadowRay r;
+  r.origin = origin;
+  r.tmax = tmax;
+  r.direction = dir;
+  r.visible = 0u;
+  r.irradiance = irradiance;
+  r.pad0 = 0.0f;
+  shadowRays[uint(slot) * slotStride + launchIndex] = r;
+  if (tmax > 0.0f) ++shadowRequests;
+}
+void noRequest(int slot) { request(slot, vec3(0.0f), vec3(0.0f), 0.0f, vec3(0.0f)); }
+
+vec3 skyRadiance(vec3 dir) {
+  float len = length(dir);
+  float y = len > 0.0f ? clamp(dir.y / len, -1.0f, 1.0f) : 0.0f;
+  return y >= 0.0f ? mix(params.skyHorizon, params.skyZenith, y) : mix(params.skyHorizon, params.skyGround, -y);
+}
+
+float rangeWindow(float d, float range) {
+  if (range <= 0.0f) return 1.0f;
+  float r = d / range;
+  float w = clamp(1.0f - r * r * r * r, 0.0f, 1.0f);
+  return w * w;
+}
+
+float spotFactor(GpuLight light, vec3 towardLight) {
+  float cosAngle = dot(-towardLight, light.direction);
+  if (light.cosInner - light.cosOuter <= 1e-6f) return cosAngle >= light.cosOuter ? 1.0f : 0.0f;
+  float t = clamp((cosAngle - light.cosOuter) / (light.cosInner - light.cosOuter), 0.0f, 1.0f);
+  return t * t * (3.0f - 2.0f * t);
+}
+
+// Light `slot`'s request.
+void punctualRequest(int slot, GpuLight light, vec3 P, vec3 N) {
+  if (light.type == PC_LIGHT_DIRECTIONAL) {
+    vec3 wi = -light.direction;
+    float cosTheta = dot(N, wi);
+    if (cosTheta <= 0.0f) {
+      noRequest(slot);
+      return;
+    }
+    request(slot, P, wi, PC_MISS_DISTANCE, light.power * cosTheta);
+    return;
+  }
+  vec3 toLight = light.position - P;
+  float d2 = dot(toLight, toLight);
+  if (d2 <= 0.0f) {
+    noRequest(slot);
+    return;
+  }
+  float d = sqrt(d2);
+  vec3 wi = toLight / d;
+  float cosTheta = dot(N, wi);
+  if (cosTheta <= 0.0f) {
+    noRequest(slot);
+    return;
+  }
+  float scale = cosTheta / d2 * rangeWindow(d, light.range);
+  if (light.type == PC_LIGHT_SPOT) scale *= spotFactor(light, wi);
+  if (scale <= 0.0f) {
+    noRequest(slot);
+    return;
+  }
+  request(slot, P, wi, d * kShadowFarScale, light.power * scale);
+}
+
+// A fixed number of float steps along the normal (cpu/lighting.cpp offsetRayOrigin).
+vec3 offsetRayOrigin(vec3 P, vec3 n) {
+  const float kNearZero = 1.0f / 32.0f;
+  const float kAbsoluteStep = 1.0f / 65536.0f;
+  const float kUlpsPerUnitNormal = 256.0f;
+  vec3 o;
+  for (int c = 0; c < 3; ++c) {
+    float p = P[c];
+    if (abs(p) < kNearZero) {
+      o[c] = p + kAbsoluteStep * n[c];
+    } else {
+      int ulps = int(kUlpsPerUnitNormal * n[c]);
+      o[c] = intBitsToFloat(floatBitsToInt(p) + (p < 0.0f ? -ulps : ulps));
+    }
+  }
+  return o;
+}
+
+// First triangle whose cumulative probability exceeds u (std::upper_bound on the CDF).
+int pickEmissive(float u) {
+  int lo = 0, hi = params.emissiveCount;
+  while (lo < hi) {
+    int mid = (lo + hi) / 2;
+    if (emissive[mid].cdf > u) hi = mid;
+    else lo = mid + 1;
+  }
+  return min(lo, params.emissiveCount - 1);
+}
+
+// Emissive sample `s`'s request (slot lightCount + s). Samples draw from the ray's stream in
+// order: u, then the point on the triangle (none when the pick has no probability).
+void emissiveRequest(int s, int samples, vec3 P, vec3 N) {
+  int slot = params.lightCount + s;
+  float u = (float(s) + rnd()) / float(samples);
+  int k = pickEmissive(u);
+  float pTriangle = emissive[k].cdf - (k > 0 ? emissive[k - 1].cdf : 0.0f);
+  if (pTriangle <= 0.0f) {
+    noRequest(slot);
+    return;
+  }
+  GpuEmissiveTriangle tri = emissive[k];
+  float r = sqrt(rnd());
+  float v = rnd();
+  vec3 Q = tri.p0 + r * (1.0f - v) * tri.e1 + r * v * tri.e2;
+  vec3 toLight = Q - P;
+  float d2 = dot(toLight, toLight);
+  if (d2 <= 0.0f) {
+    noRequest(slot);
+    return;
+  }
+  float d = sqrt(d2);
+  vec3 wi = toLight / d;
+  float cosSurface = dot(N, wi);
+  float cosLight = -dot(tri.normal, wi);
+  if (cosSurface <= 0.0f || cosLight <= 0.0f) {
+    noRequest(slot);
+    return;
+  }
+  vec3 target = offsetRayOrigin(Q, tri.normal);
+  float shadowFar = length(target - P) * kShadowFarScale;
+  float pdfArea = pTriangle / tri.area;
+  request(slot, P, wi, shadowFar, tri.radiance * (cosSurface * cosLight / (d2 * pdfArea)));
+}
+
+// Every slot's request for a lit surface point.
+void directRequests(vec3 P, vec3 N) {
+  for (int i = 0; i < params.lightCount; ++i) punctualRequest(i, lights[i], P, N);
+  int samples = params.shadowSlots - params.lightCount;
+  for (int s = 0; s < samples; ++s) emissiveRequest(s, samples, P, N);
+}
+
+vec3 textureRgb(int t, vec2 uv) {
+  if (t < 0) return vec3(1.0f);
+  return textureLod(textures[nonuniformEXT(t)], uv, 0.0f).rgb;
+}
+
+// A ray with no light to add: misses and backface hits.
+void unlit(vec3 radiance, float distance) {
+  rays[launchIndex] = vec4(radiance, distance);
+  GpuRayShading s;
+  s.albedoOverPi = vec3(0.0f);
+  s.pad0 = 0.0f;
+  s.indirect = vec3(0.0f);
+  s.pad1 = 0.0f;
+  rayShading[launchIndex] = s;
+  for (int slot = 0; slot < params.shadowSlots; ++slot) noRequest(slot);
+}
+
+// Rays, shading record and shadow requests of a hit (cpu/embree_scene.cpp surface()).
+void shadeHit(GpuHit hit, vec3 dir) {
+  GpuInstance inst = instances[hit.instance];
+  GpuMesh mesh = meshes[inst.mesh];
+  uint base = uint(mesh.firstIndex) + 3u * uint(hit.primitive);
+  GpuVertex v0 = vertices[mesh.firstVertex + int(indices[base])];
+  GpuVertex v1 = vertices[mesh.firstVertex + int(indices[base + 1u])];
+  GpuVertex v2 = vertices[mesh.firstVertex + int(indices[base + 2u])];
+  vec3 p0 = vec3(inst.objectToWorld * vec4(v0.position, 1.0f));
+  vec3 p1 = vec3(inst.objectToWorld * vec4(v1.position, 1.0f));
+  vec3 p2 = vec3(inst.objectToWorld * vec4(v2.position, 1.0f));
+  float u = hit.barycentric.x, v = hit.barycentric.y, w = 1.0f - u - v;
+  vec3 P = w * p0 + u * p1 + v * p2;
+
+  // Front face: counter-clockwise in world space (mirroring transforms flip it back).
+  vec3 ng = inst.side * cross(p1 - p0, p2 - p0);
+  float ngLength = length(ng);
+  ng = ngLength > 0.0f ? ng / ngLength : -dir;
+  if (dot(dir, ng) > 0.0f) {
+    unlit(vec3(0.0f), -hit.t);
+    return;
+  }
+
+  mat3 normalMatrix = mat3(inst.normalToWorld);
+  vec3 n0 = normalMatrix * v0.normal, n1 = normalMatrix * v1.normal, n2 = normalMatrix * v2.normal;
+  n0 = length(n0) > 0.0f ? normalize(n0) : vec3(0.0f);
+  n1 = length(n1) > 0.0f ? normalize(n1) : vec3(0.0f);
+  n2 = length(n2) > 0.0f ? normalize(n2) : vec3(0.0f);
+  vec3 ns = w * n0 + u * n1 + v * n2;
+  float nsLength = length(ns);
+  ns = nsLength > 0.0f ? ns / nsLength : ng;
+  vec3 N = dot(ns, ng) < 0.0f ? -ns : ns;
+
+  vec2 uv = w * vec2(v0.u, v0.v) + u * vec2(v1.u, v1.v) + v * vec2(v2.u, v2.v);
+  vec3 albedo = vec3(0.0f), emission = vec3(0.0f);
+  bool sampled = false;
+  if (mesh.material >= 0) {
+    GpuMaterial m = materials[mesh.material];
+    albedo = m.baseColor * textureRgb(m.baseColorTexture, uv);
+    if (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f)
+      emission = m.emissive * textureRgb(m.emissiveTexture, uv);
+    sampled = m.sampled != 0;
+  }
+  directRequests(P, N);
+  vec3 indirect = vec3(0.0f);
+  if ((params.shading & 1) == 0) {
+    float coverage = 0.0f;
+    indirect = pcSampleField(field, P, N, -dir, PC_SAMPLE_NO_OCCLUSION, coverage).xyz;
+  }
+  rays[launchIndex] = vec4(sampled ? vec3(0.0f) : emission, hit.t);
+  GpuRayShading s;
+  s.albedoOverPi = albedo * (1.0f / PC_PI);
+  s.pad0 = 0.0f;
+  s.indirect = indirect;
+  s.pad1 = 0.0f;
+  rayShading[launchIndex] = s;
+}
+
+void main() {
+  launchIndex = (gl_WorkGroupID.y * uint(PC_DISPATCH_ROWS) + gl_WorkGroupID.x) * uint(PC_SHADE_THREADS) +
+                gl_LocalInvocationID.x;
+  slotStride = uint(params.probeCount) * uint(params.rayCount);
+  if (launchIndex >= slotStride) return;
+  ivec2 pr = pcLaunchProbeRay(launchIndex, params.probeCount, params.rayCount);
+  uint rayIndex = uint(pr.x) * uint(params.rayCount) + uint(pr.y);
+  rngState = pcHash(params.seed * 0x9E3779B9u ^ pcHash(rayIndex));
+  vec3 dir = rayDirs[pr.y].xyz;
+  GpuHit hit = hits[launchIndex];
+  if (hit.instance < 0) {
+    unlit(skyRadiance(dir), PC_MISS_DISTANCE);
+  } else {
+    shadeHit(hit, dir);
+  }
+  if (shadowRequests > 0u) atomicAdd(shadowCounters[rayIndex % uint(PC_COUNTER_SLOTS)], shadowRequests);
+}
