@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <vector>
 
 #include "common/field.h"
 #include "common/scene.h"
@@ -18,6 +19,7 @@
 #include "server/embree_tracer.h"
 #include "server/field_compare.h"
 #include "server/vulkan_tracer.h"
+#include "shaders/interop/gpu_trace.h"
 
 namespace pc {
 namespace {
@@ -238,6 +240,30 @@ TEST(VulkanTracer, MirroredAndSharedStaticInstancesMatchEmbree) {
   EXPECT_LE(d.stateMismatches, 2);
   expectSameBrickVersions(fg, fc);
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
+}
+
+}  // namespace
+}  // namespace pc
+
+namespace pc {
+namespace {
+
+// The wavefront's passes find a ray's records by launch index (gpu_trace.h): the blend maps
+// (request, ray) back to it, so the two mappings must be inverses over whole and partial tiles.
+TEST(VulkanTracer, LaunchOrderMapsBothWays) {
+  for (int probes : {1, 31, 32, 33, 100}) {
+    for (int rays : {1, 64, 256}) {
+      std::vector<int> seen(std::size_t(probes) * rays, 0);
+      for (std::uint32_t id = 0; id < std::uint32_t(probes * rays); ++id) {
+        const glm::ivec2 pr = gpu::pcLaunchProbeRay(id, probes, rays);
+        ASSERT_LT(pr.x, probes);
+        ASSERT_LT(pr.y, rays);
+        ++seen[std::size_t(pr.x) * rays + pr.y];
+        EXPECT_EQ(gpu::pcProbeRayLaunchIndex(pr.x, pr.y, probes, rays), id);
+      }
+      for (int n : seen) EXPECT_EQ(n, 1);
+    }
+  }
 }
 
 }  // namespace
