@@ -1,5 +1,7 @@
 #include "encode_cache.h"
 
+#include <iterator>
+
 namespace pc {
 
 std::shared_ptr<const EncodedUpdate> EncodeCache::find(const EncodeKey& key) {
@@ -26,21 +28,29 @@ std::shared_ptr<const EncodedUpdate> EncodeCache::insert(const EncodeKey& key, s
                            codec,
                            std::uint32_t(payload.size())};
   u->payload = std::move(payload);
-  if (auto it = map_.find(key); it != map_.end()) {
-    bytes_ -= it->second.update->payload.size();
-    lru_.erase(it->second.lru);
-    map_.erase(it);
-  }
-  bytes_ += u->payload.size();
+  if (auto it = map_.find(key); it != map_.end()) erase(it);
+  bytes_ += u->payload.capacity();
   lru_.push_front(key);
   map_.emplace(key, Entry{u, lru_.begin()});
-  while (bytes_ > maxBytes_ && lru_.size() > 1) {
-    auto victim = map_.find(lru_.back());
-    bytes_ -= victim->second.update->payload.size();
-    map_.erase(victim);
-    lru_.pop_back();
-  }
+  while (bytes_ > maxBytes_ && lru_.size() > 1) erase(map_.find(lru_.back()));
   return u;
+}
+
+void EncodeCache::eraseBrickIf(int cascade, std::uint32_t brick,
+                               const std::function<bool(const EncodeKey&)>& drop) {
+  // Keys order by (cascade, brick, version, base): one brick's entries are one range.
+  auto it = map_.lower_bound(EncodeKey{cascade, brick, 0, 0});
+  while (it != map_.end() && it->first.cascade == cascade && it->first.brick == brick) {
+    auto next = std::next(it);
+    if (drop(it->first)) erase(it);
+    it = next;
+  }
+}
+
+void EncodeCache::erase(std::map<EncodeKey, Entry>::iterator it) {
+  bytes_ -= it->second.update->payload.capacity();
+  lru_.erase(it->second.lru);
+  map_.erase(it);
 }
 
 }  // namespace pc

@@ -1,10 +1,13 @@
 // Encoded brick updates, kept so that each (cascade, brick, version, base) is encoded once and
-// its bytes shared by every client. Least recently used entries go first when the byte cap is
-// reached; an entry still held by a sender stays alive through its shared_ptr.
+// its bytes shared by every client. The FieldPublisher drops a brick's entries once they can no
+// longer be sent (eraseBrickIf), which bounds the cache by the field's size; least recently
+// used entries go first when the byte cap is reached as well. An entry still held by a sender
+// stays alive through its shared_ptr.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <list>
 #include <map>
 #include <memory>
@@ -34,6 +37,10 @@ class EncodeCache {
   // Stores `payload` under `key` with a fresh update id and returns the entry.
   std::shared_ptr<const EncodedUpdate> insert(const EncodeKey& key, std::uint8_t codec,
                                               std::vector<std::uint8_t> payload);
+  // Drops every entry of brick (cascade, brick) whose key `drop` returns true for.
+  void eraseBrickIf(int cascade, std::uint32_t brick,
+                    const std::function<bool(const EncodeKey&)>& drop);
+  // Heap bytes of the payloads held (their capacity, which is what they cost).
   std::size_t bytes() const { return bytes_; }
   std::size_t entries() const { return map_.size(); }
   std::uint64_t hits() const { return hits_; }
@@ -44,6 +51,7 @@ class EncodeCache {
     std::shared_ptr<const EncodedUpdate> update;
     std::list<EncodeKey>::iterator lru;
   };
+  void erase(std::map<EncodeKey, Entry>::iterator it);
   std::size_t maxBytes_;
   std::size_t bytes_ = 0;
   std::map<EncodeKey, Entry> map_;

@@ -1,5 +1,6 @@
 #include "field_publisher.h"
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 
@@ -7,16 +8,48 @@ namespace pc {
 
 namespace {
 constexpr std::size_t kBrickBytes = brick_layout::kCodes * sizeof(std::uint16_t);
+
+std::size_t totalBrickCount(const Field& layout) {
+  std::size_t n = 0;
+  for (int k = 0; k < layout.cascadeCount(); ++k) n += gpu::pcBrickCount(layout.cascade(k));
+  return n;
 }
 
+PublisherOptions checked(PublisherOptions o) {
+  if (o.historyVersions < 1) o.historyVersions = 1;
+  if (o.sentVersions < 0) o.sentVersions = 0;
+  return o;
+}
+
+std::size_t versionsKept(const PublisherOptions& o) {
+  return std::size_t(o.historyVersions) + std::size_t(o.sentVersions);
+}
+
+std::size_t cacheBound(const PublisherOptions& o, std::size_t bricks) {
+  return std::min(o.maxCacheBytes, bricks * versionsKept(o) * maxEncodedBrickBytes());
+}
+}  // namespace
+
 FieldPublisher::FieldPublisher(const Field& layout, PublisherOptions options)
-    : options_(options), info_(sessionInfoFor(layout)), cache_(options.maxCacheBytes) {
-  if (options_.historyVersions < 1) options_.historyVersions = 1;
+    : options_(checked(options)),
+      info_(sessionInfoFor(layout)),
+      totalBricks_(totalBrickCount(layout)),
+      cache_(cacheBound(options_, totalBricks_)) {
   bricks_.resize(layout.cascadeCount());
   for (int k = 0; k < layout.cascadeCount(); ++k) {
     bricks_[k].resize(gpu::pcBrickCount(layout.cascade(k)));
     for (auto& h : bricks_[k]) h.push_back(BrickVersion{});
   }
+}
+
+std::size_t FieldPublisher::historyBoundBytes() const {
+  return std::min(options_.maxHistoryBytes,
+                  totalBricks_ * (versionsKept(options_) - 1) * kBrickBytes);
+}
+
+std::size_t FieldPublisher::cacheBoundBytes() const {
+  // One entry beyond the cap: the cache keeps its newest entry even when that alone is over.
+  return cacheBound(options_, totalBricks_) + maxEncodedBrickBytes();
 }
 
 Result<PreparedBricks> FieldPublisher::prepare(const Field& field) const {
@@ -65,22 +98,32 @@ void FieldPublisher::commit(PreparedBricks prepared, double now) {
   heldCodes_ += prepared.heldCodes;
   for (PreparedBricks::Brick& item : prepared.bricks) {
     auto& h = bricks_[item.cascade][item.brick];
-    if (h.back().version != 0)
+    if (h.back().version != 0) {
       historyBytes_ += kBrickBytes;  // the old current joins history
-    else
+    } else {
       h.pop_back();
+      currentBytes_ += kBrickBytes;
+    }
     h.push_back(BrickVersion{item.version, now, std::move(item.content), false});
     trim(h);
+    // Senders only ever send a brick's current version (a lagging client gets the newest,
+    // never a backlog), so the updates encoded for its older versions can no longer be sent.
+    cache_.eraseBrickIf(item.cascade, std::uint32_t(item.brick),
+                        [&](const EncodeKey& key) { return key.version != item.version; });
   }
-  // Over the byte cap: trim every brick's history to its current version. Rare (the cap is
-  // sized for the version count), and only costs residual opportunities.
+  // Over the byte cap: trim every brick's history to its current version. Only with fields of
+  // thousands of bricks (historyBoundBytes), and only costs residual opportunities; residuals
+  // on the dropped bases go too, which keeps the cache within cacheBoundBytes.
   if (historyBytes_ > options_.maxHistoryBytes) {
-    for (auto& cascade : bricks_) {
-      for (auto& h : cascade) {
+    for (int k = 0; k < cascadeCount(); ++k) {
+      for (std::size_t b = 0; b < bricks_[k].size(); ++b) {
+        auto& h = bricks_[k][b];
         while (h.size() > 1) {
           h.pop_front();
           historyBytes_ -= kBrickBytes;
         }
+        cache_.eraseBrickIf(k, std::uint32_t(b),
+                            [](const EncodeKey& key) { return key.base != 0; });
       }
     }
   }

@@ -26,8 +26,12 @@ struct PublisherOptions {
   // and acknowledge is a version that was sent, often many versions back when the sender holds
   // small changes back, and residuals need it as their base.
   int sentVersions = 2;
-  std::size_t maxHistoryBytes = 256u << 20;  // all bricks' histories together (beyond current)
-  std::size_t maxCacheBytes = 64u << 20;     // encoded updates
+  // Caps on all bricks' histories together (beyond the current versions) and on the encoded
+  // updates. Both are also bounded by the field itself (FieldPublisher::historyBoundBytes,
+  // cacheBoundBytes), which for a small field is far below these: the caps matter only for
+  // fields of thousands of bricks.
+  std::size_t maxHistoryBytes = 256u << 20;
+  std::size_t maxCacheBytes = 64u << 20;
   int zstdLevel = 3;
   // Codes that moved less than this since the brick's previous version keep their previous
   // value (see holdSmallChanges); zero (the default) quantizes every version exactly.
@@ -87,7 +91,23 @@ class FieldPublisher {
                                                std::uint64_t base);
 
   const EncodeCache& cache() const { return cache_; }
+  // Bytes of the quantized versions held beyond each brick's current one (an upper bound:
+  // versions with unchanged content share it).
   std::size_t historyBytes() const { return historyBytes_; }
+  // Bytes of the current versions (every brick that has data).
+  std::size_t currentBytes() const { return currentBytes_; }
+
+  // Upper bounds on what the publisher holds, from the field's brick count B and the versions
+  // kept per brick V = historyVersions + sentVersions (the current one included), after every
+  // commit whatever the clients do:
+  //   history (beyond current): min(maxHistoryBytes, B x (V - 1) x brick bytes);
+  //   encode cache: min(maxCacheBytes, B x V x maxEncodedBrickBytes()) plus one entry, because
+  //   senders only ever send a brick's current version, so once a brick has a newer version
+  //   its older entries are dropped, and the current version has at most V bases (0 or a
+  //   version in the history).
+  // The built-in scene (9 bricks, V = 6, 98,816-byte bricks): 4.4 MB and 5.4 MB.
+  std::size_t historyBoundBytes() const;
+  std::size_t cacheBoundBytes() const;
   std::uint64_t encodes() const { return encodes_; }
   // Seconds spent encoding those updates (cache misses), for the server's metrics.
   double encodeSeconds() const { return encodeSeconds_; }
@@ -101,7 +121,8 @@ class FieldPublisher {
   std::uint64_t fieldVersion_ = 0;
   // [cascade][brick]: oldest first; back() is the current version (a zero entry at start).
   std::vector<std::vector<std::deque<BrickVersion>>> bricks_;
-  std::size_t historyBytes_ = 0;
+  std::size_t totalBricks_ = 0;
+  std::size_t historyBytes_ = 0, currentBytes_ = 0;
   EncodeCache cache_;
   std::uint64_t encodes_ = 0;
   double encodeSeconds_ = 0;

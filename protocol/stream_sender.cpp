@@ -47,9 +47,18 @@ std::optional<BrickChange> BrickChangeCache::get(const FieldPublisher& publisher
     ++hits_;
     return it->second;
   }
-  // Old pairs are never asked for again once clients moved on; dropping everything now and
-  // then is simpler than tracking ages and costs one comparison per live pair.
-  if (entries_.size() >= maxEntries_) entries_.clear();
+  // Senders only compare a brick's current version, so pairs of older versions are never asked
+  // for again. Dropping them whenever the map has doubled since the last time keeps it near
+  // what is live (current versions x the references clients hold) at an amortized constant
+  // cost; past maxEntries everything goes, which costs one comparison per live pair.
+  if (entries_.size() >= pruneAt_) {
+    std::erase_if(entries_, [&](const auto& entry) {
+      const Key& k = entry.first;
+      return k.version != publisher.current(k.cascade, k.brick).version;
+    });
+    if (entries_.size() >= maxEntries_) entries_.clear();
+    pruneAt_ = std::min(maxEntries_, std::max(kMinPruneAt, 2 * entries_.size()));
+  }
   ++computed_;
   std::optional<BrickChange> change;
   auto cur = publisher.find(cascade, brick, version);

@@ -13,6 +13,7 @@
 // never a backlog. Bricks near the viewer go first, and waiting raises a brick's priority.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <glm/glm.hpp>
@@ -83,12 +84,22 @@ struct SenderStats {
 // (the server polls them all under one lock).
 class BrickChangeCache {
  public:
-  explicit BrickChangeCache(std::size_t maxEntries = 16384) : maxEntries_(maxEntries) {}
+  explicit BrickChangeCache(std::size_t maxEntries = 16384)
+      : maxEntries_(maxEntries), pruneAt_(std::min(kMinPruneAt, maxEntries)) {}
   // The change from `ref` to `version` of the brick; nullopt when either version has left the
   // publisher's history.
   std::optional<BrickChange> get(const FieldPublisher& publisher, int cascade, int brick,
                                  std::uint64_t version, std::uint64_t ref);
   std::uint64_t computed() const { return computed_; }
+  std::size_t entries() const { return entries_.size(); }
+  // Heap bytes held, estimated: a node per entry (key, value, next pointer, cached hash) and
+  // the bucket array. At most maxEntries entries (about 1.3 MB at the default 16,384); in
+  // practice about twice the live pairs (get() drops pairs of versions no longer current).
+  std::size_t bytes() const {
+    return entries_.size() *
+               (sizeof(Key) + sizeof(std::optional<BrickChange>) + 2 * sizeof(void*)) +
+           entries_.bucket_count() * sizeof(void*);
+  }
   std::uint64_t hits() const { return hits_; }
 
  private:
@@ -104,7 +115,9 @@ class BrickChangeCache {
       return std::size_t(h ^ (h >> 29));
     }
   };
+  static constexpr std::size_t kMinPruneAt = 256;
   std::size_t maxEntries_;
+  std::size_t pruneAt_;  // entries at which pairs of old versions are dropped
   // nullopt: a version was missing from the history (it never comes back).
   std::unordered_map<Key, std::optional<BrickChange>, KeyHash> entries_;
   std::uint64_t computed_ = 0, hits_ = 0;

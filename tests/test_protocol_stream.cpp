@@ -3,10 +3,15 @@
 // receiver must hold the server's field exactly as the codec quantizes it within 1 s of
 // simulated time, and every queue and buffer must stay within its cap.
 #include <gtest/gtest.h>
+#include <malloc.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <memory>
 #include <random>
+#include <vector>
 
+#include "protocol/stream_sender.h"
 #include "protocol/stream_simulation.h"
 #include "server/bake.h"
 #include "server/tracer.h"
@@ -247,6 +252,83 @@ TEST(ProtocolStream, PublisherKeepsSentVersionsAsResidualBases) {
   auto residual = publisher.encoded(0, 0, f.brickVersions[0][0], sent);
   ASSERT_TRUE(residual);
   EXPECT_EQ(residual->header.baseVersion, sent);
+}
+
+
+// The publisher's memory is bounded by the field, not by how long it runs or what clients do:
+// after many versions, with clients that each hold back their acks by a different number of
+// versions (one never acknowledges past the first), the history and the encode cache stay
+// within bricks x versions kept, and the process heap stops growing.
+TEST(ProtocolStream, PublisherMemoryStaysWithinTheFieldsBound) {
+  Field f = test::makeSyntheticLayout();
+  std::mt19937 rng(11);
+  test::evolveField(f, rng, 1.0f, 0.0f);
+  const PublisherOptions o;  // defaults: the 4 newest versions and 2 more that were sent
+  FieldPublisher publisher(f, o);
+  std::size_t bricks = 0;
+  for (int k = 0; k < publisher.cascadeCount(); ++k) bricks += std::size_t(publisher.brickCount(k));
+  ASSERT_EQ(bricks, 12u);
+  const std::size_t kept = std::size_t(o.historyVersions + o.sentVersions);
+  const std::size_t brickBytes = brick_layout::kCodes * sizeof(std::uint16_t);
+  // The stated bounds (FieldPublisher::historyBoundBytes, cacheBoundBytes); for these 12
+  // bricks under 6 MB and 8 MB, far below the 256 MiB and 64 MiB caps.
+  EXPECT_EQ(publisher.historyBoundBytes(), bricks * (kept - 1) * brickBytes);
+  EXPECT_EQ(publisher.cacheBoundBytes(), (bricks * kept + 1) * maxEncodedBrickBytes());
+  EXPECT_LT(publisher.historyBoundBytes(), 6000000u);
+  EXPECT_LT(publisher.cacheBoundBytes(), 8000000u);
+
+  SenderOptions so;
+  so.bytesPerSecond = 1e9;
+  so.burstBytes = 1e9;
+  so.selfContainedInterval = 1e9;  // residuals on whatever each client acknowledged
+  BrickChangeCache changes;
+  // Versions each client's acks lag behind the newest; the last one acks only version 1.
+  const std::vector<int> lags = {0, 1, 2, 3, 5, 8, 1000000};
+  std::vector<std::unique_ptr<StreamSender>> senders;
+  for (std::size_t c = 0; c < lags.size(); ++c) {
+    senders.push_back(
+        std::make_unique<StreamSender>(publisher, std::uint32_t(c + 1), so, &changes));
+  }
+  std::vector<std::uint64_t> published;
+  std::size_t heapAfterWarmup = 0;
+  const int rounds = 150, warmup = 50;
+  for (int round = 0; round < rounds; ++round) {
+    if (round > 0) test::evolveField(f, rng, 1.0f, 0.05f * float(round));
+    const double now = 0.5 * round;
+    ASSERT_TRUE(publisher.publish(f, now).ok());
+    published.push_back(f.version);
+    for (std::size_t c = 0; c < senders.size(); ++c) {
+      const std::size_t lag = std::min(std::size_t(lags[c]), published.size() - 1);
+      AckMsg ack;
+      ack.fieldVersion = published[published.size() - 1 - lag];
+      for (int k = 0; k < publisher.cascadeCount(); ++k) {
+        ack.ranges.push_back(AckRange{k, 0, std::uint32_t(publisher.brickCount(k)),
+                                      published[published.size() - 1 - lag]});
+      }
+      ASSERT_TRUE(senders[c]->onMessage(SessionMessage{ack}, now + 0.1).ok());
+      EXPECT_FALSE(senders[c]->poll(now + 0.3).empty());
+    }
+    ASSERT_LE(publisher.historyBytes(), publisher.historyBoundBytes()) << "round " << round;
+    ASSERT_LE(publisher.cache().bytes(), publisher.cacheBoundBytes()) << "round " << round;
+    ASSERT_LE(publisher.cache().entries(), bricks * kept) << "round " << round;
+    if (round + 1 == warmup) heapAfterWarmup = mallinfo2().uordblks;
+  }
+  // Residuals on many bases were encoded (the cache saw more than its bound's worth).
+  EXPECT_GT(publisher.encodes(), bricks * kept * 4);
+  // An encoded payload holds no more heap than its bytes (compressing needs a buffer of
+  // maxEncodedBrickBytes; a payload that kept it would cost ~20x its size in the cache).
+  auto update = publisher.encoded(0, 0, publisher.current(0, 0).version, 0);
+  ASSERT_TRUE(update);
+  EXPECT_EQ(update->payload.capacity(), update->payload.size());
+  // The heap after 100 more versions: flat to within 2 MB (the encode cache alone would grow
+  // by about 7 MB per version if it kept what can no longer be sent at that size).
+  const double growth = double(mallinfo2().uordblks) - double(heapAfterWarmup);
+  std::printf("publisher memory: history %zu B (bound %zu), encode cache %zu B in %zu entries "
+              "(bound %zu), %llu encodes; heap growth over the last %d versions %.0f B\n",
+              publisher.historyBytes(), publisher.historyBoundBytes(), publisher.cache().bytes(),
+              publisher.cache().entries(), publisher.cacheBoundBytes(),
+              (unsigned long long)publisher.encodes(), rounds - warmup, growth);
+  EXPECT_LT(growth, 2e6);
 }
 
 }  // namespace
