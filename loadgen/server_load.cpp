@@ -3,9 +3,14 @@
 #include <sys/resource.h>
 #include <sys/time.h>
 
+#include <boost/asio.hpp>
 #include <chrono>
+#include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <sstream>
 #include <thread>
 
 #include "proc_stats.h"
@@ -45,6 +50,49 @@ int reniceAllButNetwork(pid_t pid, int nice) {
   return changed;
 }
 
+// A TCP port free now on 127.0.0.1, for the server's metrics endpoint (probecast-server's
+// --metrics-port 0 means off, not any port). Another process could take it before the server
+// binds it; the server then fails to start and says so.
+Result<std::uint16_t> freeLocalPort() {
+  namespace asio = boost::asio;
+  asio::io_context io;
+  boost::system::error_code ec;
+  asio::ip::tcp::acceptor a(io);
+  const asio::ip::tcp::endpoint any(asio::ip::make_address("127.0.0.1"), 0);
+  a.open(any.protocol(), ec);
+  if (!ec) a.bind(any, ec);
+  if (ec) return Error{"no free TCP port for the metrics: " + ec.message()};
+  return a.local_endpoint().port();
+}
+
+// GET /metrics from 127.0.0.1:port; the unlabelled samples by name.
+Result<std::map<std::string, double>> fetchMetrics(std::uint16_t port) {
+  namespace asio = boost::asio;
+  asio::io_context io;
+  asio::ip::tcp::socket socket(io);
+  boost::system::error_code ec;
+  socket.connect({asio::ip::make_address("127.0.0.1"), port}, ec);
+  if (ec) return Error{"metrics: " + ec.message()};
+  const std::string request =
+      "GET /metrics HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
+  asio::write(socket, asio::buffer(request), ec);
+  if (ec) return Error{"metrics: " + ec.message()};
+  std::string response;
+  asio::read(socket, asio::dynamic_buffer(response), ec);
+  if (ec && ec != asio::error::eof) return Error{"metrics: " + ec.message()};
+  const std::size_t body = response.find("\r\n\r\n");
+  if (body == std::string::npos) return Error{"metrics: no HTTP body"};
+  std::map<std::string, double> samples;
+  std::istringstream lines(response.substr(body + 4));
+  for (std::string line; std::getline(lines, line);) {
+    if (line.empty() || line[0] == '#' || line.find('{') != std::string::npos) continue;
+    const std::size_t space = line.find(' ');
+    if (space == std::string::npos) continue;
+    samples[line.substr(0, space)] = std::strtod(line.c_str() + space + 1, nullptr);
+  }
+  return samples;
+}
+
 }  // namespace
 
 void raiseFileLimit() {
@@ -65,7 +113,10 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   sp.executable = options.serverExecutable;
   sp.logPath = options.serverLog;
   const std::string token = options.load.token.empty() ? "loadgen" : options.load.token;
-  sp.args = {"--scene", "builtin", "--bind", "127.0.0.1", "--port", "0", "--token", token};
+  auto metricsPort = freeLocalPort();
+  if (!metricsPort) return metricsPort.error();
+  sp.args = {"--scene", "builtin", "--bind", "127.0.0.1", "--port", "0", "--token", token,
+             "--metrics-port", std::to_string(*metricsPort)};
   sp.args.insert(sp.args.end(), options.serverArgs.begin(), options.serverArgs.end());
   auto server = ServerProcess::start(sp);
   if (!server) return server.error();
@@ -142,6 +193,20 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   }
   auto end = readProcStats(pid);
   const double window = nowSeconds() - windowStart;
+  if (auto m = fetchMetrics(*metricsPort)) {
+    auto mb = [&](const char* name) {
+      auto it = m->find(name);
+      return it == m->end() ? -1.0 : it->second / 1e6;
+    };
+    result.encodeCacheMb = mb("probecast_encode_cache_bytes");
+    result.encodeCacheBoundMb = mb("probecast_encode_cache_bound_bytes");
+    result.historyMb = mb("probecast_brick_history_bytes");
+    result.historyBoundMb = mb("probecast_brick_history_bound_bytes");
+    result.currentBricksMb = mb("probecast_current_bricks_bytes");
+    result.changeCacheMb = mb("probecast_change_cache_bytes");
+  } else {
+    result.metricsError = m.error().message;
+  }
   const double selfCpu1 = selfCpuSeconds();
   result.report = gen.report();
   result.fieldUpdatesPerS = double(gen.snapshot().newestFieldVersion - version0) / window;

@@ -48,6 +48,12 @@ struct ServerLoadResult {
   double loadgenCpuMsPerS = 0;  // this process during the window
   double rssWarmMb = 0, rssEndMb = 0;  // server, after the warm-up and at the window's end
   int fdsWarm = 0, fdsEnd = 0;
+  // The server's own memory gauges at the window's end (its /metrics), MB: encoded updates,
+  // brick history beyond the current versions and its bound, current brick versions, shared
+  // perceptual comparisons. Negative when /metrics could not be read.
+  double encodeCacheMb = -1, encodeCacheBoundMb = -1, historyMb = -1, historyBoundMb = -1;
+  double currentBricksMb = -1, changeCacheMb = -1;
+  std::string metricsError;  // why they could not be read
   std::string serverExit;  // empty when it exited cleanly on SIGTERM
 };
 

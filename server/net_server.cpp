@@ -628,10 +628,18 @@ void NetServer::Impl::poll() {
       list[i]->pollLocked(now, serial, frame, datagrams[i], scenes[i]);
     pollSeconds = steadySeconds() - now;
     // The publisher's figures for the metrics, while its lock is held anyway.
-    totals.fieldVersion = hub.publisher().fieldVersion();
-    totals.encodes = hub.publisher().encodes();
-    totals.encodeSeconds = hub.publisher().encodeSeconds();
-    totals.encodeCacheBytes = hub.publisher().cache().bytes();
+    const FieldPublisher& publisher = hub.publisher();
+    totals.fieldVersion = publisher.fieldVersion();
+    totals.encodes = publisher.encodes();
+    totals.encodeSeconds = publisher.encodeSeconds();
+    totals.encodeCacheBytes = publisher.cache().bytes();
+    totals.encodeCacheEntries = publisher.cache().entries();
+    totals.encodeCacheBoundBytes = publisher.cacheBoundBytes();
+    totals.historyBytes = publisher.historyBytes();
+    totals.historyBoundBytes = publisher.historyBoundBytes();
+    totals.currentBricksBytes = publisher.currentBytes();
+    totals.changeCacheBytes = changeCache.bytes();
+    totals.changeCacheEntries = changeCache.entries();
   }
   for (std::size_t i = 0; i < list.size(); ++i)
     list[i]->send(now, std::move(datagrams[i]), scenes[i]);
@@ -769,8 +777,26 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
             double(s.encodes));
   m.counter("probecast_encode_seconds_total", "Time spent encoding brick updates.",
             s.encodeSeconds);
-  m.gauge("probecast_encode_cache_bytes", "Bytes held by the encode cache.",
+  m.gauge("probecast_encode_cache_bytes", "Heap bytes of the encoded updates the cache holds.",
           double(s.encodeCacheBytes));
+  m.gauge("probecast_encode_cache_entries", "Encoded updates the cache holds.",
+          double(s.encodeCacheEntries));
+  m.gauge("probecast_encode_cache_bound_bytes",
+          "Most bytes the encode cache can hold for this field (bricks x versions kept).",
+          double(s.encodeCacheBoundBytes));
+  m.gauge("probecast_brick_history_bytes",
+          "Bytes of quantized brick versions kept beyond the current ones (residual bases).",
+          double(s.historyBytes));
+  m.gauge("probecast_brick_history_bound_bytes",
+          "Most bytes the brick history can hold for this field (bricks x versions kept).",
+          double(s.historyBoundBytes));
+  m.gauge("probecast_current_bricks_bytes", "Bytes of the current quantized brick versions.",
+          double(s.currentBricksBytes));
+  m.gauge("probecast_change_cache_bytes",
+          "Bytes held by the shared perceptual comparisons of brick versions (estimated).",
+          double(s.changeCacheBytes));
+  m.gauge("probecast_change_cache_entries", "Shared perceptual comparisons held.",
+          double(s.changeCacheEntries));
 }
 
 NetServer::NetServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}

@@ -120,7 +120,12 @@ struct NetServerStats {
   // time spent on them, encode cache size.
   std::uint64_t fieldVersion = 0, encodes = 0;
   double encodeSeconds = 0;
-  std::size_t encodeCacheBytes = 0;
+  // Memory the publisher and the senders share, in bytes (see FieldPublisher): encoded
+  // updates, the brick history beyond the current versions, the current versions, and the
+  // shared perceptual comparisons (estimated); the bounds the first two stay within.
+  std::size_t encodeCacheBytes = 0, encodeCacheEntries = 0, encodeCacheBoundBytes = 0;
+  std::size_t historyBytes = 0, historyBoundBytes = 0, currentBricksBytes = 0;
+  std::size_t changeCacheBytes = 0, changeCacheEntries = 0;
   std::vector<NetClientInfo> clients;  // sessions past the handshake
 
   std::uint64_t disconnectsBy(DisconnectCause c) const { return disconnects[std::size_t(c)]; }

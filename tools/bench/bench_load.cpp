@@ -149,6 +149,20 @@ Benchmark addLoad(CLI::App& app) {
                         "(after warm-up %.1f MB)\n",
                         runs.back().netIdleCpuMsPerS, runs.back().serverIdleCpuMsPerS,
                         runs.back().rssWarmMb);
+            // The server's caches beside its RSS, from its /metrics at the window's end.
+            std::printf("%7s %9s %9s %9s %9s %9s %9s %9s %9s\n", "clients", "RSS warm", "RSS end",
+                        "encode", "(bound)", "history", "(bound)", "current", "compare");
+            for (const load::ServerLoadResult& r : runs) {
+              std::printf("%7d %9.1f %9.1f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f\n",
+                          r.report.clients, r.rssWarmMb, r.rssEndMb, r.encodeCacheMb,
+                          r.encodeCacheBoundMb, r.historyMb, r.historyBoundMb, r.currentBricksMb,
+                          r.changeCacheMb);
+              if (!r.metricsError.empty()) std::printf("  (%s)\n", r.metricsError.c_str());
+            }
+            std::printf("MB; encode = encoded updates (probecast_encode_cache_bytes), history = "
+                        "brick versions kept as residual bases beyond the current ones, current "
+                        "= the current brick versions, compare = the senders' shared perceptual "
+                        "comparisons (estimated); (bound) = what the field allows at most\n");
 
             auto figures = [](const load::ServerLoadResult& r, const std::string& sfx) {
               const load::LoadReport& l = r.report;
@@ -159,6 +173,8 @@ Benchmark addLoad(CLI::App& app) {
               figure("errors" + sfx, double(l.errors), "count");
               figure("starved_clients" + sfx, double(l.starvedClients), "count");
               figure("rss_growth_mb" + sfx, r.rssEndMb - r.rssWarmMb, "MB");
+              figure("encode_cache_mb" + sfx, r.encodeCacheMb, "MB");
+              figure("brick_history_mb" + sfx, r.historyMb, "MB");
             };
             if (runs.size() > 1) {
               for (const load::ServerLoadResult& r : runs) figures(r, suffix(r.report.clients));
