@@ -167,6 +167,7 @@ struct Renderer::Slot {
   VkCommandBuffer cmd = VK_NULL_HANDLE;
   vk::UniqueFence fence;
   vk::Buffer frame, draws, lights, matrices, overlay;
+  vk::Buffer rasterStats;  // the compute rasterizer's counters, copied back at the frame's end
   VkDescriptorSet set = VK_NULL_HANDLE;
   std::optional<vk::GpuTimer> timer;
   std::vector<ShadowView> shadowViews;  // the layers this frame redraws
@@ -196,6 +197,15 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   if (!features.geometryShader)
     return Error{"the Vulkan device lacks the geometryShader feature, which the client's "
                  "visibility buffer needs for primitive ids in fragment shaders"};
+  if (options.computeRaster) {
+    VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    f2.pNext = &v12;
+    vkGetPhysicalDeviceFeatures2(ctx.physicalDevice(), &f2);
+    if (!f2.features.shaderInt64 || !v12.shaderBufferInt64Atomics)
+      return Error{"the compute rasterizer needs shaderInt64 and shaderBufferInt64Atomics, "
+                   "which this Vulkan device lacks"};
+  }
   std::unique_ptr<Renderer> r(new Renderer);
   r->ctx_ = &ctx;
   r->scene_ = &scene;
@@ -220,6 +230,31 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   // Visibility ids are 32-bit with 0 for the sky (client_frame.h, DrawData).
   if (r->gpuScene_->packed().triangleIds >= 0xFFFFFFFFull)
     return Error{"scene has too many triangles over its instances for 32-bit visibility ids"};
+  {
+    // The compute rasterizer's work lists: a clipped triangle yields a few pieces, most of
+    // them small enough for their own thread; tile jobs are capped at 4M (32 MiB). What does
+    // not fit is counted (FrameTimings::rasterDropped), never written out of bounds.
+    const bool on = options.computeRaster;
+    const std::uint64_t pieces = 2 * r->gpuScene_->packed().triangleIds * std::uint64_t(options.views);
+    r->rasterTriangleCapacity_ = on ? std::uint32_t(std::min<std::uint64_t>(pieces + 1024, 1u << 22)) : 1;
+    r->rasterJobCapacity_ = on ? (1u << 22) : 1;
+    const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    auto make = [&](std::size_t bytes, VkBufferUsageFlags usage, vk::Buffer& out) -> Status {
+      auto b = vk::Buffer::create(ctx, bytes, usage, vk::MemoryUsage::DeviceLocal);
+      if (!b) return b.error();
+      out = std::move(b).value();
+      return Status::success();
+    };
+    for (Status st :
+         {make(r->rasterTriangleCapacity_ * sizeof(gpu::RasterTriangle), storage, r->rasterTriangles_),
+          make(r->rasterJobCapacity_ * sizeof(glm::uvec2), storage, r->rasterJobs_),
+          make(sizeof(gpu::RasterCounters),
+               storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+                   VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
+               r->rasterCounters_)}) {
+      if (!st) return st.error();
+    }
+  }
 
   auto field = FieldGpu::create(ctx, mirror.desc(), kFrameSlots, options.bricksPerFrame,
                                 options.fieldFadeSeconds);
@@ -334,6 +369,10 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
           buffer(sizeof(gpu::OverlayText), storage, slot->overlay)}) {
       if (!st) return st.error();
     }
+    auto stats = vk::Buffer::create(ctx, sizeof(gpu::RasterCounters),
+                                    VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::Readback);
+    if (!stats) return stats.error();
+    slot->rasterStats = std::move(stats).value();
     auto timer = vk::GpuTimer::create(ctx, 16);
     if (!timer) return timer.error();
     slot->timer.emplace(std::move(timer).value());
@@ -344,7 +383,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   const std::uint32_t textures = std::uint32_t(r->gpuScene_->textureCount());
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2 * kFrameSlots},
-      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 7 * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 11 * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, (7 + textures) * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1 * kFrameSlots}};
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
@@ -372,11 +411,11 @@ Status Renderer::createTargets() {
   const std::uint32_t layers = std::uint32_t(options_.views);
   const auto samples = static_cast<VkSampleCountFlagBits>(options_.msaa);
   auto make = [&](Target& t, VkFormat format, VkSampleCountFlagBits count, VkImageUsageFlags usage,
-                  VkImageAspectFlags aspect, bool sideBySide = false) -> Status {
+                  VkImageAspectFlags aspect, bool sideBySide = false, bool placeholder = false) -> Status {
     vk::ImageDesc d;
     d.format = format;
-    d.width = sideBySide ? 2 * w : w;
-    d.height = h;
+    d.width = placeholder ? 1 : sideBySide ? 2 * w : w;
+    d.height = placeholder ? 1 : h;
     d.layers = sideBySide ? 1 : layers;
     d.samples = count;
     d.usage = usage;
@@ -393,9 +432,12 @@ Status Renderer::createTargets() {
       VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
   const VkImageAspectFlags color = VK_IMAGE_ASPECT_COLOR_BIT;
   for (Status s :
-       {make(visibility_, kVisibilityFormat, samples, colorSampled, color),
+       // With the compute rasterizer the raster targets are 1x1 placeholders (the lighting
+      // pass's descriptors must stay valid).
+      {make(visibility_, kVisibilityFormat, samples, colorSampled, color, false,
+            options_.computeRaster),
         make(depth_, kDepthFormat, samples, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
-             VK_IMAGE_ASPECT_DEPTH_BIT),
+             VK_IMAGE_ASPECT_DEPTH_BIT, false, options_.computeRaster),
         make(hdr_, kHdrFormat, VK_SAMPLE_COUNT_1_BIT,
              VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
                  VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
@@ -405,6 +447,14 @@ Status Renderer::createTargets() {
              sideBySide())}) {
     if (!s) return s;
   }
+  const std::size_t visBytes = options_.computeRaster
+                                   ? std::size_t(w) * h * layers * std::size_t(options_.msaa) * 8
+                                   : 8;
+  auto vis = vk::Buffer::create(*ctx_, visBytes,
+                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                vk::MemoryUsage::DeviceLocal);
+  if (!vis) return vis.error();
+  visSamples_ = std::move(vis).value();
   auto rb = vk::Buffer::create(*ctx_, std::size_t(w) * h * layers * (16 + 4),
                                VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::Readback);
   if (!rb) return rb.error();
@@ -435,6 +485,10 @@ Status Renderer::createPipelines() {
       {gpu::PC_BIND_G_VISIBILITY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
       {gpu::PC_BIND_VERTICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
       {gpu::PC_BIND_INDICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_VIS_SAMPLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_RASTER_TRIANGLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_RASTER_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_BIND_RASTER_COUNTERS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
       {gpu::PC_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
       {gpu::PC_BIND_HDR_TEXTURE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
       {gpu::PC_BIND_OVERLAY, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
@@ -511,17 +565,44 @@ Status Renderer::createPipelines() {
   if (!small) return small.error();
   smallShadowPipeline_ = std::move(small).value();
 
-  // Lighting pass constants: samples per pixel, then the scene's texture count.
-  const std::int32_t lightingConstants[2] = {options_.msaa, std::int32_t(textures)};
-  const VkSpecializationMapEntry entries[2] = {{0, 0, sizeof(std::int32_t)},
-                                               {1, sizeof(std::int32_t), sizeof(std::int32_t)}};
-  const VkSpecializationInfo lightingSpec{2, entries, sizeof lightingConstants, lightingConstants};
-  VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-  ci.stage = stageInfos({{VK_SHADER_STAGE_COMPUTE_BIT, indirect->get(), &lightingSpec}})[0];
-  ci.layout = pipelineLayout;
-  VkPipeline compute = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreateComputePipelines(ctx_->device(), VK_NULL_HANDLE, 1, &ci, nullptr, &compute));
-  indirectPipeline_ = vk::UniquePipeline(ctx_->device(), compute);
+  auto computePipeline = [&](VkShaderModule module, const VkSpecializationInfo* spec,
+                             vk::UniquePipeline& out) -> Status {
+    VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    ci.stage = stageInfos({{VK_SHADER_STAGE_COMPUTE_BIT, module, spec}})[0];
+    ci.layout = pipelineLayout;
+    VkPipeline compute = VK_NULL_HANDLE;
+    PC_VK_TRY(vkCreateComputePipelines(ctx_->device(), VK_NULL_HANDLE, 1, &ci, nullptr, &compute));
+    out = vk::UniquePipeline(ctx_->device(), compute);
+    return Status::success();
+  };
+  // Lighting pass constants: samples per pixel, the scene's texture count, and where the
+  // visibility ids come from.
+  struct LightingConstants {
+    std::int32_t samples, textures;
+    VkBool32 visBuffer;
+  } const lightingConstants{options_.msaa, std::int32_t(textures),
+                            options_.computeRaster ? VK_TRUE : VK_FALSE};
+  const VkSpecializationMapEntry entries[3] = {
+      {0, offsetof(LightingConstants, samples), sizeof(std::int32_t)},
+      {1, offsetof(LightingConstants, textures), sizeof(std::int32_t)},
+      {2, offsetof(LightingConstants, visBuffer), sizeof(VkBool32)}};
+  const VkSpecializationInfo lightingSpec{3, entries, sizeof lightingConstants, &lightingConstants};
+  Status s = computePipeline(indirect->get(), &lightingSpec, indirectPipeline_);
+  if (!s) return s;
+  if (options_.computeRaster) {
+    const VkSpecializationInfo sampleSpec{1, entries, sizeof(std::int32_t), &lightingConstants.samples};
+    auto raster = load("client_raster.comp.spv");
+    if (!raster) return raster.error();
+    auto args = load("client_raster_args.comp.spv");
+    if (!args) return args.error();
+    auto tiles = load("client_raster_tiles.comp.spv");
+    if (!tiles) return tiles.error();
+    for (Status st : {computePipeline(raster->get(), &sampleSpec, rasterPipeline_),
+                      computePipeline(args->get(), nullptr, rasterArgsPipeline_),
+                      computePipeline(tiles->get(), &sampleSpec, rasterTilesPipeline_)}) {
+      if (!st) return st;
+    }
+  }
   return Status::success();
 }
 
@@ -567,6 +648,10 @@ Status Renderer::writeDescriptors() {
                                           readOnly};
   const VkDescriptorBufferInfo vertices{gpuScene_->vertices(), 0, VK_WHOLE_SIZE};
   const VkDescriptorBufferInfo indices{gpuScene_->indices(), 0, VK_WHOLE_SIZE};
+  const VkDescriptorBufferInfo visSamples = visSamples_.descriptor();
+  const VkDescriptorBufferInfo rasterTriangles = rasterTriangles_.descriptor();
+  const VkDescriptorBufferInfo rasterJobs = rasterJobs_.descriptor();
+  const VkDescriptorBufferInfo rasterCounters = rasterCounters_.descriptor();
   const VkDescriptorImageInfo hdrImage{VK_NULL_HANDLE, hdr_.arrayView.get(),
                                        VK_IMAGE_LAYOUT_GENERAL};
   const VkDescriptorImageInfo hdrTexture = sampled(hdr_, VK_IMAGE_LAYOUT_GENERAL);
@@ -610,6 +695,10 @@ Status Renderer::writeDescriptors() {
     buffer(gpu::PC_BIND_OVERLAY, ssbo, &overlay);
     buffer(gpu::PC_BIND_VERTICES, ssbo, &vertices);
     buffer(gpu::PC_BIND_INDICES, ssbo, &indices);
+    buffer(gpu::PC_BIND_VIS_SAMPLES, ssbo, &visSamples);
+    buffer(gpu::PC_BIND_RASTER_TRIANGLES, ssbo, &rasterTriangles);
+    buffer(gpu::PC_BIND_RASTER_JOBS, ssbo, &rasterJobs);
+    buffer(gpu::PC_BIND_RASTER_COUNTERS, ssbo, &rasterCounters);
     image(gpu::PC_BIND_IRRADIANCE, cis, &irradiance, 1);
     image(gpu::PC_BIND_DEPTH, cis, &depth, 1);
     image(gpu::PC_BIND_OCCLUSION, cis, &occlusion, 1);
@@ -645,6 +734,15 @@ void Renderer::collectTimings(Slot& slot) {
     if (name == "probe") t.probeMs = ms;
     if (name == "tonemap") t.tonemapMs = ms;
   }
+  if (options_.computeRaster) {
+    slot.rasterStats.invalidate();
+    t.rasterDropped = slot.rasterStats.as<const gpu::RasterCounters>()->dropped;
+    if (t.rasterDropped > 0 && !rasterDropWarned_) {
+      logWarn("compute rasterizer: " + std::to_string(t.rasterDropped) +
+              " triangles not drawn this frame (work lists full)");
+      rasterDropWarned_ = true;
+    }
+  }
   timings_ = t;
   slot.submitted = false;
 }
@@ -666,8 +764,7 @@ Result<VkCommandBuffer> Renderer::beginFrame() {
 void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   const Scene& scene = *scene_;
   const SceneState state = evaluateScene(scene, input.time);
-  const std::vector<gpu::DrawData> draws = drawData(scene, gpuScene_->packed(), state);
-  if (!draws.empty()) slot.draws.write(draws.data(), draws.size() * sizeof(gpu::DrawData));
+  std::vector<gpu::DrawData> draws = drawData(scene, gpuScene_->packed(), state);
 
   LightSet lights =
       buildLights(scene, state, EmissiveLights::build(scene, state), options_.shadows);
@@ -705,6 +802,15 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
     slot.cameraViews[v] = m.viewProj;
   }
   if (options_.views == 1) slot.cameraViews[1] = slot.cameraViews[0];
+  // Which views each draw can touch: the compute rasterizer skips the others' triangles.
+  for (std::size_t d = 0; d < draws.size(); ++d) {
+    int mask = 0;
+    for (int v = 0; v < options_.views; ++v) {
+      if (boxTouchesFrustum(slot.cameraViews[v], slot.boxLo[d], slot.boxHi[d])) mask |= 1 << v;
+    }
+    draws[d].textures.z = mask;
+  }
+  if (!draws.empty()) slot.draws.write(draws.data(), draws.size() * sizeof(gpu::DrawData));
   f.skyZenith = glm::vec4(scene.sky.zenith, 0.0f);
   f.skyHorizon = glm::vec4(scene.sky.horizon, 0.0f);
   f.skyGround = glm::vec4(scene.sky.ground, 0.0f);
@@ -717,6 +823,9 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   f.sampleFlags = options_.sampleFlags;
   f.overlayLines = int(std::min<std::size_t>(input.overlay.size(), gpu::PC_OVERLAY_MAX_LINES));
   f.drawCount = int(draws.size());
+  f.triangleCount = std::uint32_t(gpuScene_->packed().triangleIds);
+  f.rasterTriangleCapacity = rasterTriangleCapacity_;
+  f.rasterJobCapacity = rasterJobCapacity_;
   slot.frame.write(&f, sizeof f);
   if (!input.overlay.empty()) {
     const gpu::OverlayText text = makeOverlayText(input.overlay);
@@ -855,38 +964,42 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                         colorStage,
                         colorWrite};
   };
-  imageBarriers(cmd, {toColor(visibility_),
-                      {depth_.image.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
-                       VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, depthStages, VK_ACCESS_2_NONE,
-                       depthStages, depthAccess}});
-  VkRenderingAttachmentInfo visibility{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-  visibility.imageView = visibility_.arrayView.get();
-  visibility.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-  visibility.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // id 0: the sky
-  visibility.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-  visibility.clearValue.color.uint32[0] = 0;
-  VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-  depth.imageView = depth_.arrayView.get();
-  depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-  depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-  depth.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
-  depth.clearValue.depthStencil = {0.0f, 0};  // reversed depth: 0 is infinitely far
-  VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
-  ri.renderArea = {{0, 0}, {w, h}};
-  ri.layerCount = 1;
-  ri.viewMask = options_.views == 2 ? 0b11u : 0u;
-  ri.colorAttachmentCount = 1;
-  ri.pColorAttachments = &visibility;
-  ri.pDepthAttachment = &depth;
-  vkCmdBeginRendering(cmd, &ri);
-  setViewport(cmd, w, h);
-  if (prepassPipeline_) {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, prepassPipeline_.get());
+  if (options_.computeRaster) {
+    recordComputeRaster(cmd, slot);
+  } else {
+    imageBarriers(cmd, {toColor(visibility_),
+                        {depth_.image.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
+                         VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, depthStages, VK_ACCESS_2_NONE,
+                         depthStages, depthAccess}});
+    VkRenderingAttachmentInfo visibility{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    visibility.imageView = visibility_.arrayView.get();
+    visibility.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    visibility.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // id 0: the sky
+    visibility.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    visibility.clearValue.color.uint32[0] = 0;
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = depth_.arrayView.get();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+    depth.clearValue.depthStencil = {0.0f, 0};  // reversed depth: 0 is infinitely far
+    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
+    ri.renderArea = {{0, 0}, {w, h}};
+    ri.layerCount = 1;
+    ri.viewMask = options_.views == 2 ? 0b11u : 0u;
+    ri.colorAttachmentCount = 1;
+    ri.pColorAttachments = &visibility;
+    ri.pDepthAttachment = &depth;
+    vkCmdBeginRendering(cmd, &ri);
+    setViewport(cmd, w, h);
+    if (prepassPipeline_) {
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, prepassPipeline_.get());
+      drawScene({slot.cameraViews[0], slot.cameraViews[1]});
+    }
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scenePipeline_.get());
     drawScene({slot.cameraViews[0], slot.cameraViews[1]});
+    vkCmdEndRendering(cmd);
   }
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scenePipeline_.get());
-  drawScene({slot.cameraViews[0], slot.cameraViews[1]});
-  vkCmdEndRendering(cmd);
   auto toRead = [&](const Target& t) {
     return ImageBarrier{t.image.get(),
                         VK_IMAGE_ASPECT_COLOR_BIT,
@@ -897,7 +1010,10 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                         VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                         VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
   };
-  imageBarriers(cmd, {toRead(visibility_),
+  // The compute rasterizer leaves the visibility image a never-drawn placeholder.
+  ImageBarrier visibilityRead = toRead(visibility_);
+  if (options_.computeRaster) visibilityRead.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  imageBarriers(cmd, {visibilityRead,
                       {hdr_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                        VK_IMAGE_LAYOUT_GENERAL,
                        VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
@@ -952,6 +1068,45 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                   present ? VK_PIPELINE_STAGE_2_NONE : VK_PIPELINE_STAGE_2_COPY_BIT,
                   present ? VK_ACCESS_2_NONE : VK_ACCESS_2_TRANSFER_READ_BIT}});
   timer.end(cmd);
+}
+
+void Renderer::recordComputeRaster(VkCommandBuffer cmd, Slot& slot) {
+  const VkPipelineStageFlags2 compute = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+  const VkAccessFlags2 readWrite = VK_ACCESS_2_SHADER_STORAGE_READ_BIT |
+                                   VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
+  const VkPipelineLayout layout = pipelineLayout_.get();
+  // The previous frame's lighting pass and tile pass are done with the buffers before they
+  // are cleared.
+  vk::memoryBarrier(cmd, compute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                    VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+  vkCmdFillBuffer(cmd, visSamples_.get(), 0, VK_WHOLE_SIZE, 0);  // depth 0, id 0: the sky
+  vkCmdFillBuffer(cmd, rasterCounters_.get(), 0, VK_WHOLE_SIZE, 0);
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, compute,
+                    readWrite);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &slot.set, 0, nullptr);
+  // Triangle pass: enough groups for one triangle per thread, up to the dimension limit (the
+  // shader strides over the rest).
+  const std::uint64_t groups =
+      (gpuScene_->packed().triangleIds + gpu::PC_RASTER_GROUP - 1) / gpu::PC_RASTER_GROUP;
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, rasterPipeline_.get());
+  vkCmdDispatch(cmd, std::uint32_t(std::clamp<std::uint64_t>(groups, 1, gpu::PC_RASTER_MAX_GROUPS)),
+                std::uint32_t(options_.views), 1);
+  vk::memoryBarrier(cmd, compute, readWrite, compute, readWrite);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, rasterArgsPipeline_.get());
+  vkCmdDispatch(cmd, 1, 1, 1);
+  vk::memoryBarrier(cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                    compute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                    readWrite | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, rasterTilesPipeline_.get());
+  vkCmdDispatchIndirect(cmd, rasterCounters_.get(), offsetof(gpu::RasterCounters, dispatch));
+  // The lighting pass reads the samples; the host reads how many triangles were dropped.
+  vk::memoryBarrier(cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                    compute | VK_PIPELINE_STAGE_2_COPY_BIT,
+                    VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_TRANSFER_READ_BIT);
+  const VkBufferCopy region{0, 0, sizeof(gpu::RasterCounters)};
+  vkCmdCopyBuffer(cmd, rasterCounters_.get(), slot.rasterStats.get(), 1, &region);
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                    VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
 }
 
 Status Renderer::endFrame(VkSemaphore wait, VkSemaphore signal) {

@@ -50,6 +50,11 @@ struct RendererOptions {
   // where fragments are dear (H100, sauer-pandora 1080p 4x: main pass 3.42 ms with it, 3.94
   // without).
   bool depthPrepass = true;
+  // Rasterize the visibility buffer in compute shaders (client_raster*.comp) instead of the
+  // fixed-function pipeline: for GPUs whose graphics units are few next to their compute (an
+  // H100), where the raster rate bounds the main pass. Needs 64-bit buffer atomics. Mono and
+  // stereo alike; the depth pre-pass does not apply.
+  bool computeRaster = false;
 };
 
 struct FrameInput {
@@ -73,6 +78,8 @@ struct OutputTarget {
 struct FrameTimings {
   bool valid = false;
   double uploadMs = 0, shadowMs = 0, mainMs = 0, probeMs = 0, tonemapMs = 0;
+  // Compute rasterizer: triangles not drawn because its work lists were full (0 normally).
+  std::uint32_t rasterDropped = 0;
   double frameMs() const { return uploadMs + shadowMs + mainMs + probeMs + tonemapMs; }
 };
 
@@ -166,7 +173,13 @@ class Renderer {
   vk::UniquePipelineLayout pipelineLayout_;
   vk::UniqueDescriptorPool descriptorPool_;
   vk::UniquePipeline scenePipeline_, prepassPipeline_, largeShadowPipeline_, smallShadowPipeline_,
-      indirectPipeline_;
+      indirectPipeline_, rasterPipeline_, rasterArgsPipeline_, rasterTilesPipeline_;
+  // Compute rasterizer: per-sample depth and id, its work lists and counters (minimal buffers
+  // when it is off, so that every descriptor stays valid).
+  vk::Buffer visSamples_, rasterTriangles_, rasterJobs_, rasterCounters_;
+  std::uint32_t rasterTriangleCapacity_ = 0, rasterJobCapacity_ = 0;
+  bool rasterDropWarned_ = false;
+  void recordComputeRaster(VkCommandBuffer cmd, Slot& slot);
   std::map<VkFormat, vk::UniquePipeline> tonemapPipelines_;
 
   std::optional<vk::CommandPool> commandPool_;

@@ -312,6 +312,8 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   enable.v12.timelineSemaphore = VK_TRUE;
   enable.v12.hostQueryReset = supported.v12.hostQueryReset;
   enable.v12.scalarBlockLayout = supported.v12.scalarBlockLayout;
+  // The client's compute rasterizer: depth and id in one 64-bit atomic max.
+  enable.v12.shaderBufferInt64Atomics = supported.v12.shaderBufferInt64Atomics;
   enable.v12.descriptorIndexing = supported.v12.descriptorIndexing;
   enable.v12.runtimeDescriptorArray = supported.v12.runtimeDescriptorArray;
   enable.v12.descriptorBindingPartiallyBound = supported.v12.descriptorBindingPartiallyBound;

@@ -13,6 +13,8 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(constant_id = 0) const int SAMPLES = 4;
 layout(constant_id = 1) const int TEXTURE_COUNT = 1;
+// true: the visibility ids come from the compute rasterizer's buffer, not the raster image.
+layout(constant_id = 2) const bool VIS_BUFFER = false;
 #include "client_surface.glsl"
 
 layout(set = 0, binding = PC_BIND_FIELD_DESC) uniform FieldBlock { FieldDesc field; };
@@ -21,6 +23,8 @@ layout(set = 0, binding = PC_BIND_IRRADIANCE) uniform sampler2D irradianceAtlas;
 layout(set = 0, binding = PC_BIND_DEPTH) uniform sampler2D depthAtlas;
 layout(set = 0, binding = PC_BIND_OCCLUSION) uniform sampler2D occlusionAtlas;
 layout(set = 0, binding = PC_BIND_G_VISIBILITY) uniform usampler2DMSArray gVisibility;
+// Per sample: depth bits in the high word, the id in the low word (client_raster.glsl).
+layout(set = 0, binding = PC_BIND_VIS_SAMPLES, std430) readonly buffer VisBlock { uvec2 visSamples[]; };
 layout(set = 0, binding = PC_BIND_HDR_IMAGE, rgba32f) uniform writeonly image2DArray hdrImage;
 
 // Fetch hooks of shaders/interop/probe_sampling.h: bilinear reads of a bordered tile, done by
@@ -78,7 +82,13 @@ void main() {
   vec3 shaded[SAMPLES];
   vec3 sum = vec3(0.0);
   for (int s = 0; s < SAMPLES; ++s) {
-    uint visibility = texelFetch(gVisibility, id, s).r;
+    uint visibility;
+    if (VIS_BUFFER) {
+      uint pixel = (uint(id.z) * uint(size.y) + uint(id.y)) * uint(size.x) + uint(id.x);
+      visibility = visSamples[pixel * uint(SAMPLES) + uint(s)].x;
+    } else {
+      visibility = texelFetch(gVisibility, id, s).r;
+    }
     ids[s] = visibility;
     int same = -1;
     for (int u = 0; u < s; ++u) {

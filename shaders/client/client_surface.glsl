@@ -7,10 +7,9 @@
 // whose front is the mesh's counter-clockwise side. Needs client_common.glsl first, and
 // TEXTURE_COUNT declared.
 #extension GL_EXT_nonuniform_qualifier : require
+#include "client_geometry.glsl"
 
 layout(set = 0, binding = PC_BIND_TEXTURES) uniform sampler2D textures[TEXTURE_COUNT];
-layout(set = 0, binding = PC_BIND_VERTICES, std430) readonly buffer VertexBlock { float vertexData[]; };
-layout(set = 0, binding = PC_BIND_INDICES, std430) readonly buffer IndexBlock { uint indexData[]; };
 
 struct Surface {
   vec3 position;
@@ -19,32 +18,6 @@ struct Surface {
   vec3 emission;
   float distance;  // along the ray from the eye
 };
-
-// The draw owning triangle id `triangle`: the last whose triangleBase is not above it.
-int drawOfTriangle(uint triangle) {
-  int lo = 0, hi = frame.drawCount;
-  while (hi - lo > 1) {
-    int mid = (lo + hi) / 2;
-    if (uint(draws[mid].geometry.z) <= triangle) lo = mid;
-    else hi = mid;
-  }
-  return lo;
-}
-
-struct VertexRecord {
-  vec3 position;
-  vec3 normal;
-  vec2 uv;
-};
-
-VertexRecord vertexAt(uint v) {
-  uint b = 8u * v;
-  VertexRecord r;
-  r.position = vec3(vertexData[b], vertexData[b + 1u], vertexData[b + 2u]);
-  r.normal = vec3(vertexData[b + 3u], vertexData[b + 4u], vertexData[b + 5u]);
-  r.uv = vec2(vertexData[b + 6u], vertexData[b + 7u]);
-  return r;
-}
 
 vec3 textureRgb(int index, vec2 uv) {
   if (index < 0 || index >= TEXTURE_COUNT) return vec3(1.0);
@@ -57,10 +30,9 @@ vec3 textureRgb(int index, vec2 uv) {
 Surface surfaceOf(uint id, vec3 eye, vec3 ray) {
   uint triangle = id - 1u;
   DrawData d = draws[drawOfTriangle(triangle)];
-  uint first = uint(d.geometry.x) + 3u * (triangle - uint(d.geometry.z));
-  VertexRecord v0 = vertexAt(uint(int(indexData[first]) + d.geometry.y));
-  VertexRecord v1 = vertexAt(uint(int(indexData[first + 1u]) + d.geometry.y));
-  VertexRecord v2 = vertexAt(uint(int(indexData[first + 2u]) + d.geometry.y));
+  uint i0, i1, i2;
+  triangleVertices(d, triangle, i0, i1, i2);
+  VertexRecord v0 = vertexAt(i0), v1 = vertexAt(i1), v2 = vertexAt(i2);
   vec3 p0 = (d.model * vec4(v0.position, 1.0)).xyz;
   vec3 e1 = (d.model * vec4(v1.position, 1.0)).xyz - p0;
   vec3 e2 = (d.model * vec4(v2.position, 1.0)).xyz - p0;

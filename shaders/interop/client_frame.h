@@ -27,7 +27,12 @@ PC_CONST int PC_BIND_INDICES = 13;         // buffer uint[]: the packed index bu
 PC_CONST int PC_BIND_HDR_IMAGE = 14;       // image2DArray rgba32f: the final linear frame
 PC_CONST int PC_BIND_HDR_TEXTURE = 15;     // sampler2DArray: the same image, read by tone mapping
 PC_CONST int PC_BIND_OVERLAY = 16;         // buffer OverlayText
-PC_CONST int PC_BINDING_COUNT = 17;
+// The compute rasterizer (RendererOptions::computeRaster; client_raster*.comp):
+PC_CONST int PC_BIND_VIS_SAMPLES = 17;       // buffer uint64 per sample: depth bits << 32 | visibility id
+PC_CONST int PC_BIND_RASTER_TRIANGLES = 18;  // buffer RasterTriangle[]: triangles split into tile jobs
+PC_CONST int PC_BIND_RASTER_JOBS = 19;       // buffer uvec2[]: (RasterTriangle index, tile y << 16 | x)
+PC_CONST int PC_BIND_RASTER_COUNTERS = 20;   // buffer RasterCounters
+PC_CONST int PC_BINDING_COUNT = 21;
 
 // Light kinds (GpuLight.type). Area lights are virtual point lights standing for a patch of
 // an emissive surface: they emit only to their front (cosine falloff), like the emitter.
@@ -61,8 +66,10 @@ struct FrameUniforms {
   int sampleFlags;   // PC_SAMPLE_* of field_desc.h
   int overlayLines;  // 0: no overlay text
   // -- 384
-  int drawCount;  // DrawData records (the visibility buffer's triangle ids index them)
-  int pad0, pad1, pad2;
+  int drawCount;       // DrawData records (the visibility buffer's triangle ids index them)
+  uint triangleCount;  // triangle ids in all (PackedScene::triangleIds)
+  uint rasterTriangleCapacity;  // RasterTriangle records the compute rasterizer may append
+  uint rasterJobCapacity;       // tile jobs it may append
   // -- 400
 };
 
@@ -75,7 +82,8 @@ struct DrawData {
   mat4 normalMatrix;  // inverse transpose of model (upper 3x3 used)
   vec4 baseColor;     // linear albedo factor, w unused
   vec4 emissive;      // linear emitted radiance factor, w unused
-  ivec4 textures;     // x: base color texture (-1 none), y: emissive texture (-1 none)
+  ivec4 textures;     // x: base color texture (-1 none), y: emissive texture (-1 none),
+                      // z: bit v set when the draw's bounds touch view v's frustum
   // x: first index in the packed index buffer, y: vertex offset, z: triangleBase,
   // w: +1 or -1, the sign of the model's determinant (a mirroring transform keeps the mesh's
   // own front faces, as the CPU renders do)
@@ -129,6 +137,32 @@ struct FieldWrite {
   int pad0;
 };
 
+// The compute rasterizer: a thread per triangle clips it (near plane and a guard band), snaps
+// it to PC_RASTER_SUBPIXEL fixed point and covers small ones itself; larger ones become one
+// job per PC_RASTER_TILE^2 pixel tile they touch, each covered by a workgroup. Depth and id go
+// into each sample with one 64-bit atomic max (reversed depth: nearer is larger).
+PC_CONST int PC_RASTER_SUBPIXEL = 256;      // fixed-point steps per pixel
+PC_CONST int PC_RASTER_TILE = 32;           // pixels per side of a tile job
+PC_CONST int PC_RASTER_SMALL = 64;          // bounding boxes up to this many pixels: one thread
+PC_CONST int PC_RASTER_GROUP = 64;          // threads per workgroup of the triangle pass
+PC_CONST int PC_RASTER_TILE_GROUP = 256;    // threads per tile job
+PC_CONST int PC_RASTER_MAX_GROUPS = 65535;  // per dispatch dimension (the Vulkan minimum limit)
+PC_CONST float PC_RASTER_GUARD = 8.0;       // guard band, in viewport half-sizes (keeps fixed point in range)
+
+struct RasterTriangle {
+  ivec4 ab;         // fixed-point screen positions of the corners a, b
+  ivec4 cIdView;    // c, visibility id, view
+  vec4 depth;       // at a, b, c (w unused)
+};
+
+struct RasterCounters {
+  uvec4 dispatch;   // xyz: the tile pass's indirect workgroup counts
+  uint triangles;   // RasterTriangle records appended
+  uint jobs;        // tile jobs appended
+  uint dropped;     // triangles or jobs past a capacity (not drawn)
+  uint pad0;
+};
+
 // Overlay text: `lines` x `columns` character codes (ASCII), one per uint, drawn with the
 // 5x7 font in `glyphs` (7 rows of 5 bits per glyph, glyphs for codes 32..127).
 PC_CONST int PC_OVERLAY_COLUMNS = 48;
@@ -151,6 +185,8 @@ static_assert(sizeof(pc::gpu::FrameUniforms) == 400);
 static_assert(sizeof(pc::gpu::DrawData) == 192);
 static_assert(sizeof(pc::gpu::GpuLight) == 80);
 static_assert(sizeof(pc::gpu::FieldWrite) == 16);
+static_assert(sizeof(pc::gpu::RasterTriangle) == 48);
+static_assert(sizeof(pc::gpu::RasterCounters) == 32);
 static_assert(sizeof(pc::gpu::OverlayText) ==
               4 * (pc::gpu::PC_FONT_GLYPHS * pc::gpu::PC_FONT_ROWS +
                    pc::gpu::PC_OVERLAY_MAX_LINES * pc::gpu::PC_OVERLAY_COLUMNS));

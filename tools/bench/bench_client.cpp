@@ -32,7 +32,7 @@ Benchmark addClient(CLI::App& app) {
   static std::string scenePath = "builtin", sidecar, outDir;
   static RenderSetup setup;
   static int speedWidth = 1920, speedHeight = 1080, frames = 5, areaLights = 16;
-  static bool validation = false, speedOnly = false, noPrepass = false;
+  static bool validation = false, speedOnly = false, noPrepass = false, computeRaster = false;
   static double dt = 0.0;
   static int msaa = 4;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
@@ -47,6 +47,8 @@ Benchmark addClient(CLI::App& app) {
   cmd->add_option("--dt", dt,
                   "animation seconds between timed frames (0: a still scene, shadow maps cached)");
   cmd->add_flag("--no-prepass", noPrepass, "main pass without the depth pre-pass");
+  cmd->add_flag("--compute-raster", computeRaster,
+                "rasterize the visibility buffer in compute shaders");
   cmd->add_option("--msaa", msaa, "main pass samples per pixel (2, 4, 8)");
   addRenderOptions(*cmd, setup);
   return {
@@ -83,6 +85,7 @@ Benchmark addClient(CLI::App& app) {
         ro.shadows.areaLights = areaLights;
         ro.msaa = msaa;
         ro.depthPrepass = !noPrepass;
+        ro.computeRaster = computeRaster;
         double vsCpu = 0, vsRef = 0, cpuVsRef = 0, stereoDb = 0;
         int areaLightCount = 0;
         client::FrameInput input;
