@@ -35,6 +35,8 @@ double msSince(Clock::time_point t0) {
 }
 
 constexpr VkBufferUsageFlags kStorage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+// Host-written inputs: mapped host memory, copied to a device-local mirror per submission.
+constexpr VkBufferUsageFlags kHostInput = kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
 constexpr VkPipelineStageFlags2 kRayStage = VK_PIPELINE_STAGE_2_RAY_TRACING_SHADER_BIT_KHR;
 constexpr VkPipelineStageFlags2 kComputeStage = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
 constexpr VkAccessFlags2 kShaderRW = VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
@@ -138,8 +140,8 @@ struct VulkanTracer::Impl {
   // ---- per-update buffers ----
   vk::Buffer params, rayDirs, requests, changes, counters, countersReadback;
   // The wavefront's per-ray records (gpu_trace.h), for probeCapacity x rayCapacity rays and
-  // slotCapacity shadow slots each.
-  vk::Buffer hits, rays, rayShading, shadowRays;
+  // slotCapacity shadow slots each; the compacted shadow list holds at most one ray per slot.
+  vk::Buffer hits, rays, rayShading, shadowLight, shadowRays;
   int slotCapacity = -1;
   vk::Buffer tapsUpload, taps;  // blend taps: host-written, copied to device memory per update
   std::size_t tapBytes = 0;     // of this update's taps
@@ -156,6 +158,24 @@ struct VulkanTracer::Impl {
   std::uint64_t syncedVersion = 0;
   std::vector<ProbeRecord> syncedRecords;  // the records the GPU holds
   bool descriptorsDirty = true;
+
+  // Device-local copies of the inputs the host writes through mapped (host) memory: the
+  // parameters, requests, ray directions, field description and scene state. Every pass reads
+  // these, many per invocation; from host memory each such read would cross the bus. Copied
+  // at the start of each submission (recordMirrorCopies); the descriptors point at the copies.
+  vk::Buffer paramsGpu, rayDirsGpu, requestsGpu, fieldDescGpu, materialsGpu, instancesGpu, lightsGpu, emissiveGpu;
+  std::array<std::pair<const vk::Buffer*, vk::Buffer*>, 8> mirrors() {
+    return {{{&params, &paramsGpu},
+             {&rayDirs, &rayDirsGpu},
+             {&requests, &requestsGpu},
+             {&fieldDesc, &fieldDescGpu},
+             {&materials, &materialsGpu},
+             {&instances, &instancesGpu},
+             {&lights, &lightsGpu},
+             {&emissive, &emissiveGpu}}};
+  }
+  void ensureMirrors();
+  void recordMirrorCopies();
 
   Status init(const VulkanTracerOptions& vulkan);
   Status uploadScene();
@@ -329,11 +349,11 @@ Status VulkanTracer::Impl::uploadScene() {
   sampler = vk::UniqueSampler(ctx->device(), smp);
 
   // Materials; `sampled` is filled per state (the emissive rule depends on the geometry).
-  auto mat = vk::Buffer::create(*ctx, std::max<std::size_t>(s.materials.size(), 1) * sizeof(GpuMaterial), kStorage,
+  auto mat = vk::Buffer::create(*ctx, std::max<std::size_t>(s.materials.size(), 1) * sizeof(GpuMaterial), kHostInput,
                                 vk::MemoryUsage::Upload);
   if (!mat) return mat.error();
   materials = std::move(mat).value();
-  auto ins = vk::Buffer::create(*ctx, std::max<std::size_t>(recordInstance.size(), 1) * sizeof(GpuInstance), kStorage,
+  auto ins = vk::Buffer::create(*ctx, std::max<std::size_t>(recordInstance.size(), 1) * sizeof(GpuInstance), kHostInput,
                                 vk::MemoryUsage::Upload);
   if (!ins) return ins.error();
   instances = std::move(ins).value();
@@ -506,23 +526,24 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   slotCapacity = std::max(slots, slotCapacity);
   using vk::MemoryUsage;
   const std::size_t rayRecords = probeCapacity * rayCapacity;
-  params = orDie(vk::Buffer::create(*ctx, sizeof(UpdateParams), kStorage, MemoryUsage::Upload), "params");
-  rayDirs = orDie(vk::Buffer::create(*ctx, rayCapacity * 16, kStorage, MemoryUsage::Upload), "ray directions");
-  requests = orDie(vk::Buffer::create(*ctx, probeCapacity * 8, kStorage, MemoryUsage::Upload), "requests");
+  params = orDie(vk::Buffer::create(*ctx, sizeof(UpdateParams), kHostInput, MemoryUsage::Upload), "params");
+  rayDirs = orDie(vk::Buffer::create(*ctx, rayCapacity * 16, kHostInput, MemoryUsage::Upload), "ray directions");
+  requests = orDie(vk::Buffer::create(*ctx, probeCapacity * 8, kHostInput, MemoryUsage::Upload), "requests");
   hits = orDie(vk::Buffer::create(*ctx, rayRecords * sizeof(GpuHit), kStorage, MemoryUsage::DeviceLocal), "hits");
   rays = orDie(vk::Buffer::create(*ctx, rayRecords * 16, kStorage, MemoryUsage::DeviceLocal), "ray results");
   rayShading = orDie(vk::Buffer::create(*ctx, rayRecords * sizeof(GpuRayShading), kStorage, MemoryUsage::DeviceLocal),
                      "ray shading");
-  shadowRays = orDie(vk::Buffer::create(*ctx, std::max<std::size_t>(rayRecords * std::size_t(slotCapacity), 1) *
-                                                  sizeof(GpuShadowRay),
-                                        kStorage, MemoryUsage::DeviceLocal),
+  const std::size_t slotRecords = std::max<std::size_t>(rayRecords * std::size_t(slotCapacity), 1);
+  shadowLight = orDie(vk::Buffer::create(*ctx, slotRecords * sizeof(GpuShadowLight), kStorage, MemoryUsage::DeviceLocal),
+                      "shadow light");
+  shadowRays = orDie(vk::Buffer::create(*ctx, slotRecords * sizeof(GpuShadowRay), kStorage, MemoryUsage::DeviceLocal),
                      "shadow rays");
   changes = orDie(vk::Buffer::create(*ctx, probeCapacity * 4, kStorage, MemoryUsage::DeviceLocal), "changes");
-  counters = orDie(vk::Buffer::create(*ctx, PC_COUNTER_SLOTS * 4,
+  counters = orDie(vk::Buffer::create(*ctx, PC_COUNTER_WORDS * 4,
                                       kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                       MemoryUsage::DeviceLocal),
                    "counters");
-  countersReadback = orDie(vk::Buffer::create(*ctx, PC_COUNTER_SLOTS * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+  countersReadback = orDie(vk::Buffer::create(*ctx, PC_COUNTER_WORDS * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                               MemoryUsage::Readback),
                            "counter readback");
   // At most every ray feeds every texel: the bound of the tap table.
@@ -541,7 +562,7 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
   using vk::MemoryUsage;
   const VkBufferUsageFlags rw = kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   auto bytes = [](const Atlas& a) { return a.texels.size() * sizeof(float); };
-  fieldDesc = orDie(vk::Buffer::create(*ctx, sizeof(FieldDesc), kStorage, MemoryUsage::Upload), "field desc");
+  fieldDesc = orDie(vk::Buffer::create(*ctx, sizeof(FieldDesc), kHostInput, MemoryUsage::Upload), "field desc");
   irradiance = orDie(vk::Buffer::create(*ctx, bytes(field.irradiance), rw, MemoryUsage::DeviceLocal), "irradiance");
   depth = orDie(vk::Buffer::create(*ctx, bytes(field.depth), rw, MemoryUsage::DeviceLocal), "depth");
   occlusion = orDie(vk::Buffer::create(*ctx, bytes(field.occlusion), rw, MemoryUsage::DeviceLocal), "occlusion");
@@ -574,26 +595,46 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
   return true;
 }
 
+void VulkanTracer::Impl::ensureMirrors() {
+  for (auto [host, device] : mirrors()) {
+    if (device->get() && device->size() == host->size()) continue;
+    *device = orDie(vk::Buffer::create(*ctx, host->size(), kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                       vk::MemoryUsage::DeviceLocal),
+                    "input copy");
+    descriptorsDirty = true;
+  }
+}
+
+void VulkanTracer::Impl::recordMirrorCopies() {
+  for (auto [host, device] : mirrors()) {
+    const VkBufferCopy copy{0, 0, host->size()};
+    if (copy.size > 0) vkCmdCopyBuffer(cmd, host->get(), device->get(), 1, &copy);
+  }
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, kRayStage | kComputeStage,
+                    VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+}
+
 void VulkanTracer::Impl::writeDescriptors() {
+  ensureMirrors();
   if (!descriptorsDirty) return;
   std::array<VkDescriptorBufferInfo, PC_BINDING_COUNT> infos{};
   std::array<const vk::Buffer*, PC_BINDING_COUNT> buffers{};
-  buffers[PC_BIND_PARAMS] = &params;
-  buffers[PC_BIND_FIELD] = &fieldDesc;
+  buffers[PC_BIND_PARAMS] = &paramsGpu;
+  buffers[PC_BIND_FIELD] = &fieldDescGpu;
   buffers[PC_BIND_IRRADIANCE] = &irradiance;
   buffers[PC_BIND_DEPTH] = &depth;
   buffers[PC_BIND_OCCLUSION] = &occlusion;
   buffers[PC_BIND_PROBES] = &records;
-  buffers[PC_BIND_REQUESTS] = &requests;
-  buffers[PC_BIND_RAY_DIRS] = &rayDirs;
+  buffers[PC_BIND_REQUESTS] = &requestsGpu;
+  buffers[PC_BIND_RAY_DIRS] = &rayDirsGpu;
   buffers[PC_BIND_RAYS] = &rays;
   buffers[PC_BIND_VERTICES] = &vertices;
   buffers[PC_BIND_INDICES] = &indices;
   buffers[PC_BIND_MESHES] = &meshes;
-  buffers[PC_BIND_INSTANCES] = &instances;
-  buffers[PC_BIND_MATERIALS] = &materials;
-  buffers[PC_BIND_LIGHTS] = &lights;
-  buffers[PC_BIND_EMISSIVE] = &emissive;
+  buffers[PC_BIND_INSTANCES] = &instancesGpu;
+  buffers[PC_BIND_MATERIALS] = &materialsGpu;
+  buffers[PC_BIND_LIGHTS] = &lightsGpu;
+  buffers[PC_BIND_EMISSIVE] = &emissiveGpu;
   buffers[PC_BIND_CHANGES] = &changes;
   buffers[PC_BIND_BRICK_FLAGS] = &brickFlags;
   buffers[PC_BIND_BRICK_LIST] = &brickList;
@@ -603,6 +644,7 @@ void VulkanTracer::Impl::writeDescriptors() {
   buffers[PC_BIND_HITS] = &hits;
   buffers[PC_BIND_RAY_SHADING] = &rayShading;
   buffers[PC_BIND_SHADOW_RAYS] = &shadowRays;
+  buffers[PC_BIND_SHADOW_LIGHT] = &shadowLight;
   std::vector<VkWriteDescriptorSet> writes;
   for (int b = 0; b < PC_BINDING_COUNT; ++b) {
     if (!buffers[b] || !buffers[b]->get()) continue;
@@ -711,6 +753,7 @@ void VulkanTracer::Impl::begin() {
   // Host writes (parameters, requests, instance records) before any GPU read.
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_WRITE_BIT,
                     VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT);
+  recordMirrorCopies();
 }
 
 void VulkanTracer::Impl::submitAndWait() {
@@ -795,6 +838,10 @@ void VulkanTracer::Impl::recordShade(int probeCount, int rayCount) {
   dispatchRows((rays + PC_SHADE_THREADS - 1) / PC_SHADE_THREADS);
 }
 
+// The shadow list's length is known only on the GPU (counters[0]): the launch covers the most
+// it can hold and the ray-generation shader returns past its end. (vkCmdTraceRaysIndirectKHR
+// could read the length from the counters, laid out for it, but needs the
+// rayTracingPipelineTraceRaysIndirect feature, which the device is not created with.)
 void VulkanTracer::Impl::recordShadowTrace(std::uint64_t requests) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
@@ -907,7 +954,7 @@ void VulkanTracer::setState(const SceneState& state) {
       return;
     }
     m.ctx->waitIdle();
-    b = orDie(vk::Buffer::create(*m.ctx, bytes, kStorage, vk::MemoryUsage::Upload), "scene state");
+    b = orDie(vk::Buffer::create(*m.ctx, bytes, kHostInput, vk::MemoryUsage::Upload), "scene state");
     b.write(data, bytes);
     m.descriptorsDirty = true;
   };
@@ -938,7 +985,8 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   vkCmdFillBuffer(cmd, m.brickFlags.get(), 0, VK_WHOLE_SIZE, 0);
   const std::uint32_t header[PC_BRICK_LIST_HEADER] = {0, 1, 1};
   vkCmdUpdateBuffer(cmd, m.brickList.get(), 0, sizeof header, header);
-  vkCmdFillBuffer(cmd, m.counters.get(), 0, VK_WHOLE_SIZE, 0);
+  const std::uint32_t counterInit[PC_COUNTER_WORDS] = {0, 1, 1, 0};
+  vkCmdUpdateBuffer(cmd, m.counters.get(), 0, sizeof counterInit, counterInit);
   const VkBufferCopy tapCopy{0, 0, m.tapBytes};
   vkCmdCopyBuffer(cmd, m.tapsUpload.get(), m.taps.get(), 1, &tapCopy);
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT | VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
@@ -1044,7 +1092,7 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   stats.readbackBytes = std::uint64_t(changed) * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float) +
                         m.records.size() + m.brickList.size() + m.counters.size();
   const auto* counts = m.countersReadback.as<std::uint32_t>();
-  for (int i = 0; i < PC_COUNTER_SLOTS; ++i) stats.shadowRays += counts[i];
+  stats.shadowRays = counts[0];  // the shadow list's length
   const double hostMs = msSince(th);
 
   stats.gpuPasses = m.timer.results();

@@ -12,6 +12,12 @@
 // step of the shade wavefront). The lobe weights come from the update's tap lists
 // (PC_BIND_TAPS), the CPU's own, so each texel sums the same rays with the same weights in
 // the same order as the CPU; each tap loaded serves every probe of the group.
+//
+// Shared memory holds each probe's rays in a row of rayCount + 1 (probe-major, padded): the
+// threads of a warp read different rays of one probe per tap, and with the padding those land
+// in different banks (with rays interleaved by probe, a vec4 tap read hit only two of the
+// eight 16-byte bank groups). Each probe's tile origins and ray reach are looked up once, up
+// front, instead of per texel and per border texel.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #include "field_buffers.glsl"
@@ -24,17 +30,18 @@ layout(std430, set = 0, binding = PC_BIND_REQUESTS) readonly buffer Requests { i
 layout(std430, set = 0, binding = PC_BIND_RAY_DIRS) readonly buffer RayDirs { vec4 rayDirs[]; };
 layout(std430, set = 0, binding = PC_BIND_RAYS) readonly buffer Rays { vec4 rays[]; };
 layout(std430, set = 0, binding = PC_BIND_RAY_SHADING) readonly buffer RayShading { GpuRayShading rayShading[]; };
-layout(std430, set = 0, binding = PC_BIND_SHADOW_RAYS) readonly buffer ShadowRays { GpuShadowRay shadowRays[]; };
+layout(std430, set = 0, binding = PC_BIND_SHADOW_LIGHT) readonly buffer ShadowLight { GpuShadowLight shadowLight[]; };
 layout(std430, set = 0, binding = PC_BIND_CHANGES) writeonly buffer Changes { float changes[]; };
 layout(std430, set = 0, binding = PC_BIND_TAPS) readonly buffer Taps { uvec2 taps[]; };
 
 const uint kInfinityBits = 0x7f800000u;
 const int K = PC_BLEND_MAX_PROBES;
 
-// The group's rays, probe fastest ([ray * groupProbes + k]): radiance and signed distance, and the
-// distance the depth moments use.
-shared vec4 sRay[PC_MAX_RAYS_PER_PROBE];
-shared float sDepth[PC_MAX_RAYS_PER_PROBE];
+// The group's rays, a padded row per probe ([k * (rayCount + 1) + ray]): radiance and signed
+// distance, and the distance the depth moments use.
+const int kScratch = PC_MAX_RAYS_PER_PROBE + PC_BLEND_MAX_PROBES;
+shared vec4 sRay[kScratch];
+shared float sDepth[kScratch];
 // Reductions, PC_BLEND_THREADS / groupProbes threads per probe: backface count and the closest
 // back/front hits (distance, then ray index, so ties resolve to the first ray as on the CPU).
 shared uint sBackfaces[PC_BLEND_THREADS];
@@ -43,6 +50,8 @@ shared int sBackRay[PC_BLEND_THREADS];
 shared float sFrontDist[PC_BLEND_THREADS];
 shared int sFrontRay[PC_BLEND_THREADS];
 shared float sAlpha[K];
+shared float sMaxDistance[K];
+shared ivec2 sIrradianceOrigin[K], sDepthOrigin[K], sOcclusionOrigin[K];  // tile origins (bordered)
 shared bool sInside[K];
 shared uint sMaxChange[K];  // float bits; non-negative floats order like their bits
 
@@ -55,15 +64,15 @@ vec3 radianceOf(uint i, vec3 emitted) {
   uint stride = uint(params.probeCount) * uint(params.rayCount);
   vec3 direct = vec3(0.0f);
   for (int slot = 0; slot < params.lightCount; ++slot) {
-    uint j = uint(slot) * stride + i;
-    if (shadowRays[j].visible != 0u) direct += shadowRays[j].irradiance;
+    GpuShadowLight l = shadowLight[uint(slot) * stride + i];
+    if (l.visible != 0u) direct += l.irradiance;
   }
   int samples = params.shadowSlots - params.lightCount;
   if (samples > 0) {
     vec3 sum = vec3(0.0f);
     for (int slot = params.lightCount; slot < params.shadowSlots; ++slot) {
-      uint j = uint(slot) * stride + i;
-      if (shadowRays[j].visible != 0u) sum += shadowRays[j].irradiance;
+      GpuShadowLight l = shadowLight[uint(slot) * stride + i];
+      if (l.visible != 0u) sum += l.irradiance;
     }
     direct = direct + sum / float(samples);
   }
@@ -78,18 +87,28 @@ void main() {
   int firstRequest = (int(gl_WorkGroupID.y) * PC_DISPATCH_ROWS + int(gl_WorkGroupID.x)) * groupProbes;
   if (firstRequest >= params.probeCount) return;  // uniform across the workgroup
   int probesHere = min(groupProbes, params.probeCount - firstRequest);
+  int rowStride = rayCount + 1;  // of the shared ray rows
+
+  // ---- each probe's cascade: ray reach and tile origins ----
+  if (tid < probesHere) {
+    ivec2 ref = requests[firstRequest + tid];
+    CascadeDesc c = field.cascades[ref.x];
+    sMaxDistance[tid] = c.maxRayDistance;
+    sIrradianceOrigin[tid] = pcAtlasTileOrigin(c, ref.y, ni + 2);
+    sDepthOrigin[tid] = pcAtlasTileOrigin(c, ref.y, nd + 2);
+    sOcclusionOrigin[tid] = pcAtlasTileOrigin(c, ref.y, no + 2);
+  }
+  barrier();
 
   // ---- 0. the rays: the group's requests are neighbours in launch order, so the reads of
   // one ray of all of them are contiguous ----
   for (int item = tid; item < probesHere * rayCount; item += PC_BLEND_THREADS) {
     int k = item % probesHere, ray = item / probesHere;
-    int request = firstRequest + k;
-    uint i = pcProbeRayLaunchIndex(request, ray, params.probeCount, rayCount);
+    uint i = pcProbeRayLaunchIndex(firstRequest + k, ray, params.probeCount, rayCount);
     vec4 r = rays[i];
     float d = r.w;
-    sRay[ray * groupProbes + k] = vec4(radianceOf(i, r.xyz), d);
-    float maxDistance = field.cascades[requests[request].x].maxRayDistance;
-    sDepth[ray * groupProbes + k] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, maxDistance);
+    sRay[k * rowStride + ray] = vec4(radianceOf(i, r.xyz), d);
+    sDepth[k * rowStride + ray] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
   }
   barrier();
 
@@ -101,7 +120,7 @@ void main() {
     float backDist = PC_MISS_DISTANCE, frontDist = PC_MISS_DISTANCE;
     int backRay = rayCount, frontRay = rayCount;
     for (int ray = k < probesHere ? lane : rayCount; ray < rayCount; ray += share) {
-      float d = sRay[ray * groupProbes + k].w;
+      float d = sRay[k * rowStride + ray].w;
       if (d < 0.0f) {
         ++backfaces;
         if (-d < backDist) backDist = -d, backRay = ray;
@@ -176,13 +195,16 @@ void main() {
       irrWeight[k] = open[k] = occWeight[k] = 0.0f;
     }
     uvec2 h = taps[tid];
+    // The next tap is loaded while this one is summed.
+    uvec2 next = h.x > 0u ? taps[h.y] : uvec2(0u);
     for (uint j = 0u; j < h.x; ++j) {
-      uvec2 e = taps[h.y + j * uint(irrTexelCount)];
+      uvec2 e = next;
+      if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(irrTexelCount)];
       float w = uintBitsToFloat(e.y);
-      int base = int(e.x) * groupProbes;
+      int ray = int(e.x);
       [[unroll]] for (int k = 0; k < K; ++k) {
         if (k >= probesHere) break;
-        vec4 r = sRay[base + k];
+        vec4 r = sRay[k * rowStride + ray];
         open[k] += r.w > dmax ? w : 0.0f;
         occWeight[k] += w;
         if (r.w >= 0.0f) {  // backface hits carry no light
@@ -194,12 +216,9 @@ void main() {
     [[unroll]] for (int k = 0; k < K; ++k) {
       if (k >= probesHere) break;
       if (sInside[k]) continue;
-      int request = firstRequest + k;
-      ivec2 ref = requests[request];
-      CascadeDesc c = field.cascades[ref.x];
       ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
       if (irrWeight[k] > 0.0f) {
-        int i = pcIrradianceIndex(pcAtlasTileOrigin(c, ref.y, ni + 2) + texel);
+        int i = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
         vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
         vec3 old = vec3(irradianceTexels[i], irradianceTexels[i + 1], irradianceTexels[i + 2]);
         vec3 blended = mix(sample_, old, sAlpha[k]);
@@ -210,7 +229,7 @@ void main() {
         irradianceTexels[i + 2] = blended.z;
       }
       if (occWeight[k] > 0.0f) {
-        int i = pcOcclusionIndex(pcAtlasTileOrigin(c, ref.y, no + 2) + texel);
+        int i = pcOcclusionIndex(sOcclusionOrigin[k] + texel);
         occlusionTexels[i] = mix(open[k] / occWeight[k], occlusionTexels[i], sAlpha[k]);
       }
     }
@@ -219,13 +238,15 @@ void main() {
       float m1[K], m2[K], depthWeight[K];
       [[unroll]] for (int k = 0; k < K; ++k) m1[k] = m2[k] = depthWeight[k] = 0.0f;
       uvec2 h = taps[irrTexelCount + t];
+      uvec2 next = h.x > 0u ? taps[h.y] : uvec2(0u);
       for (uint j = 0u; j < h.x; ++j) {
-        uvec2 e = taps[h.y + j * uint(depthTexelCount)];
+        uvec2 e = next;
+        if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(depthTexelCount)];
         float w = uintBitsToFloat(e.y);
-        int base = int(e.x) * groupProbes;
+        int ray = int(e.x);
         [[unroll]] for (int k = 0; k < K; ++k) {
           if (k >= probesHere) break;
-          float dist = sDepth[base + k];
+          float dist = sDepth[k * rowStride + ray];
           m1[k] += w * dist;
           m2[k] += w * dist * dist;
           depthWeight[k] += w;
@@ -234,9 +255,7 @@ void main() {
       [[unroll]] for (int k = 0; k < K; ++k) {
         if (k >= probesHere) break;
         if (sInside[k] || !(depthWeight[k] > 0.0f)) continue;
-        ivec2 ref = requests[firstRequest + k];
-        ivec2 o = pcAtlasTileOrigin(field.cascades[ref.x], ref.y, nd + 2);
-        int i = pcDepthIndex(o + ivec2(1 + t % nd, 1 + t / nd));
+        int i = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
         depthTexels[i] = mix(m1[k] / depthWeight[k], depthTexels[i], sAlpha[k]);
         depthTexels[i + 1] = mix(m2[k] / depthWeight[k], depthTexels[i + 1], sAlpha[k]);
       }
@@ -267,8 +286,7 @@ void main() {
               : b < 3 * s - 2 ? ivec2(0, 1 + b - 2 * s)
               : ivec2(s - 1, 1 + b - (3 * s - 2));
     ivec2 src = pcBorderSource(bxy.x, bxy.y, n) + ivec2(1);
-    ivec2 ref = requests[firstRequest + k];
-    ivec2 o = pcAtlasTileOrigin(field.cascades[ref.x], ref.y, s);
+    ivec2 o = channel == 0 ? sIrradianceOrigin[k] : channel == 1 ? sDepthOrigin[k] : sOcclusionOrigin[k];
     if (channel == 0) {
       int from = pcIrradianceIndex(o + src), to = pcIrradianceIndex(o + bxy);
       irradianceTexels[to] = irradianceTexels[from];

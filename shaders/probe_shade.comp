@@ -3,12 +3,14 @@
 // the Embree backend does (server/embree_tracer.cpp, cpu/embree_scene.cpp, cpu/lighting.cpp):
 // direct light from punctual lights and light-sampled emissive triangles, emission when not
 // light-sampled, indirect light from the previous field through the shared sampling code.
-// Direct light needs shadow rays: this pass writes each one as a request in its fixed slot
-// (the light's contribution if visible), probe_shadow.rgen traces them and the blend adds the
-// visible ones. Backface hits report a negative distance and no light. One invocation per ray,
-// in launch order.
+// Direct light needs shadow rays: this pass writes each slot's contribution (what the light
+// adds if visible) in its fixed place, and appends each real shadow ray to the compacted
+// shadow list, a subgroup at a time (interop/gpu_trace.h); probe_shadow.rgen traces the list
+// and marks the visible slots, and the blend adds them. Backface hits report a negative
+// distance and no light. One invocation per ray, in launch order.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_nonuniform_qualifier : require
+#extension GL_KHR_shader_subgroup_ballot : require
 #include "field_sampling.glsl"
 
 layout(local_size_x = PC_SHADE_THREADS) in;
@@ -19,6 +21,7 @@ layout(std430, set = 0, binding = PC_BIND_HITS) readonly buffer Hits { GpuHit hi
 layout(std430, set = 0, binding = PC_BIND_RAYS) writeonly buffer Rays { vec4 rays[]; };
 layout(std430, set = 0, binding = PC_BIND_RAY_SHADING) writeonly buffer RayShading { GpuRayShading rayShading[]; };
 layout(std430, set = 0, binding = PC_BIND_SHADOW_RAYS) writeonly buffer ShadowRays { GpuShadowRay shadowRays[]; };
+layout(std430, set = 0, binding = PC_BIND_SHADOW_LIGHT) writeonly buffer ShadowLight { GpuShadowLight shadowLight[]; };
 layout(std430, set = 0, binding = PC_BIND_VERTICES) readonly buffer Vertices { GpuVertex vertices[]; };
 layout(std430, set = 0, binding = PC_BIND_INDICES) readonly buffer Indices { uint indices[]; };
 layout(std430, set = 0, binding = PC_BIND_MESHES) readonly buffer Meshes { GpuMesh meshes[]; };
@@ -26,7 +29,7 @@ layout(std430, set = 0, binding = PC_BIND_INSTANCES) readonly buffer Instances {
 layout(std430, set = 0, binding = PC_BIND_MATERIALS) readonly buffer Materials { GpuMaterial materials[]; };
 layout(std430, set = 0, binding = PC_BIND_LIGHTS) readonly buffer Lights { GpuLight lights[]; };
 layout(std430, set = 0, binding = PC_BIND_EMISSIVE) readonly buffer Emissive { GpuEmissiveTriangle emissive[]; };
-layout(std430, set = 0, binding = PC_BIND_COUNTERS) buffer Counters { uint shadowCounters[]; };
+layout(std430, set = 0, binding = PC_BIND_COUNTERS) buffer Counters { uint counters[]; };
 layout(set = 0, binding = PC_BIND_TEXTURES) uniform sampler2D textures[];
 
 // Shadow rays stop a hair short of the light, like the CPU's (cpu/lighting.cpp); the near end
@@ -39,25 +42,35 @@ float rnd() {
   return pcHashToFloat(rngState);
 }
 
-// This ray's launch index, the request stride between its slots and the requests it made.
+// This ray's launch index and the stride between its slots' records.
 uint launchIndex;
 uint slotStride;
-uint shadowRequests = 0u;
+// The shadow ray of the slot last requested, until appendRequest lists it (tmax 0: none).
+GpuShadowRay pending;
 
-// Writes slot `slot`'s request: a shadow ray that adds `irradiance` when nothing blocks it.
-// tmax 0 leaves the slot empty.
+// Slot `slot`'s request: a shadow ray that adds `irradiance` when nothing blocks it. tmax 0
+// leaves the slot empty. appendRequest then lists the ray.
 void request(int slot, vec3 origin, vec3 dir, float tmax, vec3 irradiance) {
-  GpuShadowRay r;
-  r.origin = origin;
-  r.tmax = tmax;
-  r.direction = dir;
-  r.visible = 0u;
-  r.irradiance = irradiance;
-  r.pad0 = 0.0f;
-  shadowRays[uint(slot) * slotStride + launchIndex] = r;
-  if (tmax > 0.0f) ++shadowRequests;
+  uint light = uint(slot) * slotStride + launchIndex;
+  shadowLight[light] = GpuShadowLight(irradiance, 0u);
+  pending = GpuShadowRay(origin, tmax, dir, light);
 }
 void noRequest(int slot) { request(slot, vec3(0.0f), vec3(0.0f), 0.0f, vec3(0.0f)); }
+
+// Appends the pending shadow rays of the subgroup's active invocations to the shadow list:
+// one atomic per subgroup, the rays in lane order (launch order). Called where the
+// invocations that made requests for a slot have reconverged.
+void appendRequest() {
+  bool real = pending.tmax > 0.0f;
+  uvec4 ballot = subgroupBallot(real);
+  uint count = subgroupBallotBitCount(ballot);
+  if (count == 0u) return;
+  uint base = 0u;
+  if (subgroupElect()) base = atomicAdd(counters[0], count);
+  base = subgroupBroadcastFirst(base);
+  if (real) shadowRays[base + subgroupBallotExclusiveBitCount(ballot)] = pending;
+  pending.tmax = 0.0f;
+}
 
 vec3 skyRadiance(vec3 dir) {
   float len = length(dir);
@@ -179,9 +192,15 @@ void emissiveRequest(int s, int samples, vec3 P, vec3 N) {
 
 // Every slot's request for a lit surface point.
 void directRequests(vec3 P, vec3 N) {
-  for (int i = 0; i < params.lightCount; ++i) punctualRequest(i, lights[i], P, N);
+  for (int i = 0; i < params.lightCount; ++i) {
+    punctualRequest(i, lights[i], P, N);
+    appendRequest();
+  }
   int samples = params.shadowSlots - params.lightCount;
-  for (int s = 0; s < samples; ++s) emissiveRequest(s, samples, P, N);
+  for (int s = 0; s < samples; ++s) {
+    emissiveRequest(s, samples, P, N);
+    appendRequest();
+  }
 }
 
 vec3 textureRgb(int t, vec2 uv) {
@@ -264,6 +283,7 @@ void main() {
                 gl_LocalInvocationID.x;
   slotStride = uint(params.probeCount) * uint(params.rayCount);
   if (launchIndex >= slotStride) return;
+  pending.tmax = 0.0f;
   ivec2 pr = pcLaunchProbeRay(launchIndex, params.probeCount, params.rayCount);
   uint rayIndex = uint(pr.x) * uint(params.rayCount) + uint(pr.y);
   rngState = pcHash(params.seed * 0x9E3779B9u ^ pcHash(rayIndex));
@@ -274,5 +294,4 @@ void main() {
   } else {
     shadeHit(hit, dir);
   }
-  if (shadowRequests > 0u) atomicAdd(shadowCounters[rayIndex % uint(PC_COUNTER_SLOTS)], shadowRequests);
 }

@@ -7,11 +7,16 @@
 // An update runs as a wavefront of passes, each over every probe ray of the update:
 //   trace   (probe_trace.rgen)   closest hit of each probe ray -> GpuHit
 //   shade   (probe_shade.comp)   material, emission, previous field at the hit -> rays and
-//                                GpuRayShading; one GpuShadowRay request per shadow slot
-//   shadow  (probe_shadow.rgen)  any-hit test of each request -> its `visible` flag
+//                                GpuRayShading; one GpuShadowLight per shadow slot (what the
+//                                light adds), and each real shadow ray appended to a compacted
+//                                list of GpuShadowRay
+//   shadow  (probe_shadow.rgen)  any-hit test of each listed ray -> its slot's `visible` flag
 //   blend   (probe_blend.comp)   adds the visible contributions, blends into the tiles
 // Per-ray records are stored in launch order (pcLaunchProbeRay below), so every pass reads
-// and writes them coalesced.
+// and writes them coalesced. The shadow list is appended a subgroup at a time, so each
+// subgroup's rays stay together in launch order (neighbouring probes, one direction, one
+// light); the order of the subgroups' runs varies from run to run, which changes nothing:
+// each ray writes only its own slot's flag, and the blend sums the slots in a fixed order.
 #ifndef PC_GPU_TRACE_H
 #define PC_GPU_TRACE_H
 
@@ -41,16 +46,19 @@ PC_CONST int PC_BIND_CHANGES = 17;    // float[] per requested probe: largest ir
 PC_CONST int PC_BIND_BRICK_FLAGS = 18;  // uint[] per field-wide brick: changed this update
 PC_CONST int PC_BIND_BRICK_LIST = 19;   // uint[]: dispatch args (x = count, 1, 1), then bricks
 PC_CONST int PC_BIND_PACKED = 20;       // float[]: changed bricks' tile rows, for the host
-PC_CONST int PC_BIND_COUNTERS = 21;     // uint[PC_COUNTER_SLOTS]: shadow rays traced
+PC_CONST int PC_BIND_COUNTERS = 21;     // uint[PC_COUNTER_WORDS]: shadow list length, 1, 1, 0
 PC_CONST int PC_BIND_TAPS = 22;         // uvec2[]: this update's blend taps (see below)
 PC_CONST int PC_BIND_HITS = 23;         // GpuHit[] per ray, launch order
 PC_CONST int PC_BIND_RAY_SHADING = 24;  // GpuRayShading[] per ray, launch order
-PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: [slot * rays of the update + launch index]
-PC_CONST int PC_BIND_TEXTURES = 26;     // sampler2D[]: base colour and emissive textures; the
+PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: the compacted list of real shadow rays
+PC_CONST int PC_BIND_SHADOW_LIGHT = 26; // GpuShadowLight[]: [slot * rays of the update + launch index]
+PC_CONST int PC_BIND_TEXTURES = 27;     // sampler2D[]: base colour and emissive textures; the
                                         // variable-count binding, so it must stay the last
-PC_CONST int PC_BINDING_COUNT = 27;
+PC_CONST int PC_BINDING_COUNT = 28;
 
-PC_CONST int PC_COUNTER_SLOTS = 1024;  // shadow-ray counters are spread to avoid contention
+// The counters (PC_BIND_COUNTERS): the shadow list's length (the shadow rays traced), then
+// 1, 1: a VkTraceRaysIndirectCommandKHR for the shadow launch.
+PC_CONST int PC_COUNTER_WORDS = 4;
 PC_CONST int PC_BRICK_LIST_HEADER = 3;  // uints of dispatch arguments before the brick list
 PC_CONST int PC_DISPATCH_ROWS = 32768;  // workgroups per row of a 2D compute dispatch
 PC_CONST int PC_SHADE_THREADS = 128;    // probe_shade.comp workgroup: one ray each
@@ -101,9 +109,8 @@ PC_FN uint pcProbeRayLaunchIndex(int probe, int ray, int probeCount, int rayCoun
 }
 
 // Shadow rays per probe ray: a fixed slot per punctual light, then one per emissive sample
-// (when the scene has light-sampled emitters). Slot s of launch index i is request
-// s * (rays of the update) + i, so a shadow launch's warp tests one light from neighbouring
-// probes' hits of one direction.
+// (when the scene has light-sampled emitters). Slot s of launch index i is GpuShadowLight
+// s * (rays of the update) + i; only slots with a real ray are in the shadow list.
 PC_FN int pcShadowSlots(int lightCount, int emissiveCount, int emissiveSamples) {
   return lightCount + (emissiveCount > 0 && emissiveSamples > 0 ? emissiveSamples : 0);
 }
@@ -233,17 +240,22 @@ struct GpuRayShading {
   // -- 32
 };
 
-// One shadow-ray request (probe_shade.comp -> probe_shadow.rgen -> probe_blend.comp).
+// One real shadow ray of the compacted list (probe_shade.comp -> probe_shadow.rgen).
 struct GpuShadowRay {
   vec3 origin;
-  float tmax;  // 0: no request in this slot
+  float tmax;
   // -- 16
   vec3 direction;
-  uint visible;  // set by the shadow pass
+  uint light;  // its GpuShadowLight: slot * (rays of the update) + launch index
   // -- 32
-  vec3 irradiance;  // what the light adds when visible
-  float pad0;
-  // -- 48
+};
+
+// What a shadow slot adds when its ray reaches the light (probe_shade.comp ->
+// probe_blend.comp); empty slots add zero and are never visible.
+struct GpuShadowLight {
+  vec3 irradiance;
+  uint visible;  // 0 from the shade pass; the shadow pass sets 1
+  // -- 16
 };
 
 struct GpuProbeRecord {
@@ -294,7 +306,8 @@ static_assert(sizeof(pc::gpu::GpuProbeRecord) == 32);
 static_assert(sizeof(pc::gpu::TracePush) == 8);
 static_assert(sizeof(pc::gpu::GpuHit) == 24);
 static_assert(sizeof(pc::gpu::GpuRayShading) == 32);
-static_assert(sizeof(pc::gpu::GpuShadowRay) == 48);
+static_assert(sizeof(pc::gpu::GpuShadowRay) == 32);
+static_assert(sizeof(pc::gpu::GpuShadowLight) == 16);
 static_assert(sizeof(pc::gpu::UpdateParams) == 96);
 static_assert(pc::gpu::PC_MAX_CASCADES == 4);  // cascadeBrickOffset is an ivec4
 #endif
