@@ -1132,6 +1132,15 @@ Status Renderer::endFrame(VkSemaphore wait, VkSemaphore signal) {
   return Status::success();
 }
 
+Status Renderer::renderFrame(const FrameInput& input) {
+  auto cmd = beginFrame();
+  if (!cmd) return cmd.error();
+  recordFrame(*cmd, input,
+              {offscreen_.image.get(), offscreen_.arrayView.get(), kOffscreenFormat,
+               VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL});
+  return endFrame();
+}
+
 Result<Renderer::Readback> Renderer::renderOffscreen(const FrameInput& input) {
   auto cmd = beginFrame();
   if (!cmd) return cmd.error();

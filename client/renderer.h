@@ -134,6 +134,10 @@ class Renderer {
     std::vector<Image8> display;  // per view
   };
   Result<Readback> renderOffscreen(const FrameInput& input);
+  // Headless, pipelined: records and submits one frame into the offscreen target and returns
+  // without waiting or reading back (frames overlap CPU and GPU work as in a window; timings
+  // arrive through lastTimings() once the slot comes round again).
+  Status renderFrame(const FrameInput& input);
 
  private:
   Renderer() = default;
