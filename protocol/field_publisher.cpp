@@ -112,8 +112,8 @@ void FieldPublisher::commit(PreparedBricks prepared, double now) {
                         [&](const EncodeKey& key) { return key.version != item.version; });
   }
   // Over the byte cap: trim every brick's history to its current version. Only with fields of
-  // thousands of bricks (historyBoundBytes), and only costs residual opportunities; residuals
-  // on the dropped bases go too, which keeps the cache within cacheBoundBytes.
+  // more than about 540 bricks (historyBoundBytes), and only costs residual opportunities;
+  // residuals on the dropped bases go too, which keeps the cache within cacheBoundBytes.
   if (historyBytes_ > options_.maxHistoryBytes) {
     for (int k = 0; k < cascadeCount(); ++k) {
       for (std::size_t b = 0; b < bricks_[k].size(); ++b) {
