@@ -8,6 +8,7 @@
 #include <string>
 
 #include "light_pack.h"
+#include "renderer.h"
 
 namespace pc::client {
 
@@ -30,6 +31,7 @@ struct ClientConfig {
   bool validation = false;  // Khronos validation layer; errors make the run fail
   bool overlay = true;
   int msaa = 4;
+  Rasterizer rasterizer = Rasterizer::Auto;  // RendererOptions::rasterizer
   ShadowSettings shadows;
   int sampleFlags = 0;
   std::string readyFile;  // windowed: written after half the frames (tests take a screenshot)

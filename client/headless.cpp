@@ -36,6 +36,7 @@ int runHeadless(const ClientConfig& config) {
   ro.height = config.height;
   ro.views = config.stereo ? 2 : 1;
   ro.msaa = config.msaa;
+  ro.rasterizer = config.rasterizer;
   ro.shadows = config.shadows;
   ro.sampleFlags = config.sampleFlags;
   auto renderer = Renderer::create(**ctx, *scene, mirror, ro);

@@ -41,6 +41,7 @@ Result<std::unique_ptr<Renderer>> makeRenderer(const vk::Context& ctx, const Sce
   ro.height = config.height;
   ro.views = config.stereo ? 2 : 1;
   ro.msaa = config.msaa;
+  ro.rasterizer = config.rasterizer;
   ro.shadows = config.shadows;
   ro.sampleFlags = config.sampleFlags;
   return Renderer::create(ctx, scene, mirror, ro);

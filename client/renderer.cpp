@@ -12,6 +12,22 @@
 
 namespace pc::client {
 
+std::optional<Rasterizer> parseRasterizer(std::string_view name) {
+  if (name == "auto") return Rasterizer::Auto;
+  if (name == "fixed") return Rasterizer::FixedFunction;
+  if (name == "compute") return Rasterizer::Compute;
+  return std::nullopt;
+}
+
+const char* rasterizerName(Rasterizer r) {
+  switch (r) {
+    case Rasterizer::Auto: return "auto";
+    case Rasterizer::FixedFunction: return "fixed";
+    case Rasterizer::Compute: return "compute";
+  }
+  return "?";
+}
+
 namespace {
 
 // The main pass writes per sample, and on GPUs with few graphics units (an H100) those writes
@@ -197,20 +213,24 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   if (!features.geometryShader)
     return Error{"the Vulkan device lacks the geometryShader feature, which the client's "
                  "visibility buffer needs for primitive ids in fragment shaders"};
-  if (options.computeRaster) {
+  RendererOptions resolved = options;
+  {
     VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
     f2.pNext = &v12;
     vkGetPhysicalDeviceFeatures2(ctx.physicalDevice(), &f2);
-    if (!f2.features.shaderInt64 || !v12.shaderBufferInt64Atomics)
+    const bool computeCapable = f2.features.shaderInt64 && v12.shaderBufferInt64Atomics;
+    if (options.rasterizer == Rasterizer::Compute && !computeCapable)
       return Error{"the compute rasterizer needs shaderInt64 and shaderBufferInt64Atomics, "
-                   "which this Vulkan device lacks"};
+                   "which this Vulkan device lacks (use the fixed-function rasterizer)"};
+    if (options.rasterizer == Rasterizer::Auto)
+      resolved.rasterizer = computeCapable ? Rasterizer::Compute : Rasterizer::FixedFunction;
   }
   std::unique_ptr<Renderer> r(new Renderer);
   r->ctx_ = &ctx;
   r->scene_ = &scene;
   r->mirror_ = &mirror;
-  r->options_ = options;
+  r->options_ = resolved;
 
   const float diagonal = std::max(glm::length(scene.boundsMax - scene.boundsMin), 1e-3f);
   r->nearPlane_ = 5e-4f * diagonal;
@@ -234,7 +254,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
     // The compute rasterizer's work lists: a clipped triangle yields a few pieces, most of
     // them small enough for their own thread; tile jobs are capped at 4M (32 MiB). What does
     // not fit is counted (FrameTimings::rasterDropped), never written out of bounds.
-    const bool on = options.computeRaster;
+    const bool on = r->computeRaster();
     const std::uint64_t pieces = 2 * r->gpuScene_->packed().triangleIds * std::uint64_t(options.views);
     r->rasterTriangleCapacity_ = on ? std::uint32_t(std::min<std::uint64_t>(pieces + 1024, 1u << 22)) : 1;
     r->rasterJobCapacity_ = on ? (1u << 22) : 1;
@@ -435,9 +455,9 @@ Status Renderer::createTargets() {
        // With the compute rasterizer the raster targets are 1x1 placeholders (the lighting
       // pass's descriptors must stay valid).
       {make(visibility_, kVisibilityFormat, samples, colorSampled, color, false,
-            options_.computeRaster),
+            computeRaster()),
         make(depth_, kDepthFormat, samples, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
-             VK_IMAGE_ASPECT_DEPTH_BIT, false, options_.computeRaster),
+             VK_IMAGE_ASPECT_DEPTH_BIT, false, computeRaster()),
         make(hdr_, kHdrFormat, VK_SAMPLE_COUNT_1_BIT,
              VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
                  VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
@@ -447,7 +467,7 @@ Status Renderer::createTargets() {
              sideBySide())}) {
     if (!s) return s;
   }
-  const std::size_t visBytes = options_.computeRaster
+  const std::size_t visBytes = computeRaster()
                                    ? std::size_t(w) * h * layers * std::size_t(options_.msaa) * 8
                                    : 8;
   auto vis = vk::Buffer::create(*ctx_, visBytes,
@@ -537,7 +557,7 @@ Status Renderer::createPipelines() {
   scene.depthCompare = VK_COMPARE_OP_GREATER;  // reversed depth: nearer is larger
   scene.samples = static_cast<VkSampleCountFlagBits>(options_.msaa);
   scene.viewMask = viewMask;
-  if (options_.depthPrepass) {
+  if (options_.depthPrepass && !computeRaster()) {
     // Same vertex shader (invariant position), no fragment shader, no color writes.
     GraphicsDesc prepass = scene;
     prepass.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, sceneVert->get()}});
@@ -581,7 +601,7 @@ Status Renderer::createPipelines() {
     std::int32_t samples, textures;
     VkBool32 visBuffer;
   } const lightingConstants{options_.msaa, std::int32_t(textures),
-                            options_.computeRaster ? VK_TRUE : VK_FALSE};
+                            computeRaster() ? VK_TRUE : VK_FALSE};
   const VkSpecializationMapEntry entries[3] = {
       {0, offsetof(LightingConstants, samples), sizeof(std::int32_t)},
       {1, offsetof(LightingConstants, textures), sizeof(std::int32_t)},
@@ -589,7 +609,7 @@ Status Renderer::createPipelines() {
   const VkSpecializationInfo lightingSpec{3, entries, sizeof lightingConstants, &lightingConstants};
   Status s = computePipeline(indirect->get(), &lightingSpec, indirectPipeline_);
   if (!s) return s;
-  if (options_.computeRaster) {
+  if (computeRaster()) {
     const VkSpecializationInfo sampleSpec{1, entries, sizeof(std::int32_t), &lightingConstants.samples};
     auto raster = load("client_raster.comp.spv");
     if (!raster) return raster.error();
@@ -734,7 +754,7 @@ void Renderer::collectTimings(Slot& slot) {
     if (name == "probe") t.probeMs = ms;
     if (name == "tonemap") t.tonemapMs = ms;
   }
-  if (options_.computeRaster) {
+  if (computeRaster()) {
     slot.rasterStats.invalidate();
     t.rasterDropped = slot.rasterStats.as<const gpu::RasterCounters>()->dropped;
     if (t.rasterDropped > 0 && !rasterDropWarned_) {
@@ -964,7 +984,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                         colorStage,
                         colorWrite};
   };
-  if (options_.computeRaster) {
+  if (computeRaster()) {
     recordComputeRaster(cmd, slot);
   } else {
     imageBarriers(cmd, {toColor(visibility_),
@@ -1012,7 +1032,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   };
   // The compute rasterizer leaves the visibility image a never-drawn placeholder.
   ImageBarrier visibilityRead = toRead(visibility_);
-  if (options_.computeRaster) visibilityRead.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  if (computeRaster()) visibilityRead.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
   imageBarriers(cmd, {visibilityRead,
                       {hdr_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                        VK_IMAGE_LAYOUT_GENERAL,

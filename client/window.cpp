@@ -124,6 +124,7 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
     ro.width = std::max(1, int(swapchain.extent().width) / eyes);
     ro.height = int(swapchain.extent().height);
     ro.msaa = config.msaa;
+    ro.rasterizer = config.rasterizer;
     ro.shadows = config.shadows;
     ro.sampleFlags = config.sampleFlags;
     ro.fieldFadeSeconds = kFieldFadeSeconds;

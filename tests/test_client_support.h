@@ -58,7 +58,8 @@ struct ClientFrame {
 // Renders one frame (both eyes with cameras[1] set) and checks the validation layer stayed quiet.
 inline ClientFrame renderClientFrame(vk::Context& ctx, const Scene& scene, const Field* field,
                                      const Camera& left, const Camera* right, int width, int height,
-                                     ShadowSettings shadows = {}, bool computeRaster = false) {
+                                     ShadowSettings shadows = {},
+                                     Rasterizer rasterizer = Rasterizer::Auto) {
   FieldMirror mirror;
   if (field) mirror.reset(*field, 0.0);
   RendererOptions ro;
@@ -66,7 +67,7 @@ inline ClientFrame renderClientFrame(vk::Context& ctx, const Scene& scene, const
   ro.height = height;
   ro.views = right ? 2 : 1;
   ro.shadows = shadows;
-  ro.computeRaster = computeRaster;
+  ro.rasterizer = rasterizer;
   auto renderer = Renderer::create(ctx, scene, mirror, ro);
   EXPECT_TRUE(renderer.ok()) << (renderer ? "" : renderer.error().message);
   if (!renderer) return {};

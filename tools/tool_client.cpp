@@ -50,6 +50,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-overlay", noOverlay, "windowed: no text overlay");
   app.add_flag("--no-exr", noExr, "headless: PNG only");
   app.add_option("--msaa", c.msaa, "samples per pixel (2, 4, 8)");
+  std::string raster = "auto";
+  app.add_option("--raster", raster,
+                 "visibility buffer: auto, fixed (fixed-function, multiview) or compute");
   app.add_option("--shadow-size", c.shadows.largeSize, "sun, spot and point shadow maps, texels");
   app.add_option("--area-shadow-size", c.shadows.smallSize, "emitter light shadow maps, texels");
   app.add_option("--area-lights", c.shadows.areaLights, "virtual point lights for emitters");
@@ -70,6 +73,11 @@ int main(int argc, char** argv) {
   app.add_option("--save-every", net.saveEvery, "--connect: write every Nth frame (0: last only)");
   app.add_option("--summary", net.summary, "--connect: write a JSON summary here");
   CLI11_PARSE(app, argc, argv);
+  if (auto r = pc::client::parseRasterizer(raster)) {
+    c.rasterizer = *r;
+  } else {
+    return pc::logError("--raster: expected auto, fixed or compute"), 1;
+  }
 
   glm::vec3 v;
   if (!pos.empty()) {

@@ -33,7 +33,8 @@ Benchmark addClient(CLI::App& app) {
   static std::string scenePath = "builtin", sidecar, outDir;
   static RenderSetup setup;
   static int speedWidth = 1920, speedHeight = 1080, frames = 5, areaLights = 16;
-  static bool validation = false, speedOnly = false, noPrepass = false, computeRaster = false;
+  static bool validation = false, speedOnly = false, noPrepass = false;
+  static std::string raster = "auto";
   static double dt = 0.0;
   static int msaa = 4;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
@@ -48,8 +49,7 @@ Benchmark addClient(CLI::App& app) {
   cmd->add_option("--dt", dt,
                   "animation seconds between timed frames (0: a still scene, shadow maps cached)");
   cmd->add_flag("--no-prepass", noPrepass, "main pass without the depth pre-pass");
-  cmd->add_flag("--compute-raster", computeRaster,
-                "rasterize the visibility buffer in compute shaders");
+  cmd->add_option("--raster", raster, "visibility buffer: auto, fixed or compute");
   cmd->add_option("--msaa", msaa, "main pass samples per pixel (2, 4, 8)");
   addRenderOptions(*cmd, setup);
   return {
@@ -86,7 +86,12 @@ Benchmark addClient(CLI::App& app) {
         ro.shadows.areaLights = areaLights;
         ro.msaa = msaa;
         ro.depthPrepass = !noPrepass;
-        ro.computeRaster = computeRaster;
+        if (auto r = client::parseRasterizer(raster)) {
+          ro.rasterizer = *r;
+        } else {
+          std::printf("client: --raster: expected auto, fixed or compute\n");
+          return 1;
+        }
         double vsCpu = 0, vsRef = 0, cpuVsRef = 0, stereoDb = 0;
         int areaLightCount = 0;
         client::FrameInput input;
@@ -159,6 +164,7 @@ Benchmark addClient(CLI::App& app) {
           return 1;
         }
         areaLightCount = (*big)->areaLightCount();
+        const client::Rasterizer rasterizerUsed = (*big)->options().rasterizer;
         std::vector<double> frameMs, probeMs, shadowMs, mainMs, uploadMs, tonemapMs, redrawn;
         client::FrameStats stats;
         // Frames are pipelined (no wait, no readback), as in a window: a GPU left idle between
@@ -218,7 +224,7 @@ Benchmark addClient(CLI::App& app) {
         std::printf("%-34s %10.3f\n", "  field uploads", median(uploadMs));
         std::printf("%-34s %10.3f\n", "  tone mapping", median(tonemapMs));
         std::printf("%-34s %10.3f\n", "wall clock per frame (CPU + GPU)", wallMsPerFrame);
-        std::printf("%-34s %10s\n", "rasterizer", computeRaster ? "compute" : "fixed-function");
+        std::printf("%-34s %10s\n", "rasterizer", client::rasterizerName(rasterizerUsed));
         std::printf(
             "per frame (%s): %d draw calls, %llu triangles (all passes), %d lights per "
             "fragment, %d shadow layers (%g redrawn, median), %dx MSAA\n",
