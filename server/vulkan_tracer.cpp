@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 
 #include "../common/log.h"
@@ -123,6 +124,10 @@ struct VulkanTracer::Impl {
   std::vector<int> recordInstance;  // record -> Scene::instances index
   std::vector<int> staticMeshes;    // static record -> its world-space GpuMesh entry
   int staticCount = 0;
+  // Timing experiments (probe_blend.comp, probe_shade.comp: kVariant): PC_BLEND_VARIANT and
+  // PC_SHADE_VARIANT pick a variant that drops one step; 0, the default, is the real pass.
+  int blendVariant = 0;
+  int shadeVariant = 0;
   SceneAccel accel;
   bool tlasDirty = true;
   std::vector<vk::Image> textures;
@@ -479,7 +484,15 @@ Status VulkanTracer::Impl::createPipelines() {
   if (!st) return st.error();
   shadowTable = std::move(st).value();
 
-  auto makeCompute = [&](const char* name) -> Result<vk::UniquePipeline> {
+  auto variantOf = [](const char* variable) {
+    const char* v = std::getenv(variable);
+    const int n = v ? std::atoi(v) : 0;
+    if (n != 0) logWarn(std::string(variable) + "=" + std::to_string(n) + ": timing experiment, fields may be wrong");
+    return n;
+  };
+  blendVariant = variantOf("PC_BLEND_VARIANT");
+  shadeVariant = variantOf("PC_SHADE_VARIANT");
+  auto makeCompute = [&](const char* name, int variant = 0) -> Result<vk::UniquePipeline> {
     auto m = vk::loadShader(*ctx, name);
     if (!m) return m.error();
     VkComputePipelineCreateInfo cci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
@@ -487,15 +500,18 @@ Status VulkanTracer::Impl::createPipelines() {
     cci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
     cci.stage.module = m->get();
     cci.stage.pName = "main";
+    const VkSpecializationMapEntry entry{0, 0, sizeof(int)};
+    const VkSpecializationInfo spec{1, &entry, sizeof(int), &variant};
+    if (variant != 0) cci.stage.pSpecializationInfo = &spec;  // constant_id 0: kVariant
     cci.layout = pl;
     VkPipeline p = VK_NULL_HANDLE;
     PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
     return vk::UniquePipeline(ctx->device(), p);
   };
-  auto shade = makeCompute("probe_shade.comp.spv");
+  auto shade = makeCompute("probe_shade.comp.spv", shadeVariant);
   if (!shade) return shade.error();
   shadePipeline = std::move(shade).value();
-  auto blend = makeCompute("probe_blend.comp.spv");
+  auto blend = makeCompute("probe_blend.comp.spv", blendVariant);
   if (!blend) return blend.error();
   blendPipeline = std::move(blend).value();
   auto ch = makeCompute("brick_changes.comp.spv");
@@ -1015,7 +1031,7 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
 
   m.timer.begin(cmd, "blend");
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
-  const int groupProbes = pcBlendProbes(rayCount);
+  const int groupProbes = m.blendVariant == 10 ? 1 : pcBlendProbes(rayCount);  // 10: a timing experiment
   m.dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
   m.timer.end(cmd);
   vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);

@@ -25,6 +25,17 @@
 
 layout(local_size_x = PC_BLEND_THREADS) in;
 
+// Timing experiments only (PC_BLEND_VARIANT, read by server/vulkan_tracer.cpp): a nonzero value
+// drops or changes one step so that a per-pass GPU time can be attributed to it; the fields it
+// gives may be wrong. 0, the default, is the blend itself. The variants:
+//   1 no tiles (step 2 skipped)          2 no irradiance/occlusion texels  3 no depth texels
+//   4 no borders (step 3 skipped)        5 rays without shading/shadow light (rays[] only)
+//   6 no ray reads (step 0 from constants)  7 no classification/relocation (step 1 skipped)
+//   8 tile sums without atlas reads/writes  9 tile sums in vec4 registers (one lane per probe)
+//  10 one probe per workgroup (the host dispatches one group per request)
+//  11 workgroup-scope barrier before the borders instead of memoryBarrierBuffer
+layout(constant_id = 0) const int kVariant = 0;
+
 layout(std430, set = 0, binding = PC_BIND_PARAMS) readonly buffer Params { UpdateParams params; };
 layout(std430, set = 0, binding = PC_BIND_REQUESTS) readonly buffer Requests { ivec2 requests[]; };
 layout(std430, set = 0, binding = PC_BIND_RAY_DIRS) readonly buffer RayDirs { vec4 rayDirs[]; };
@@ -83,7 +94,7 @@ void main() {
   const int ni = PC_IRRADIANCE_TEXELS, nd = PC_DEPTH_TEXELS, no = PC_OCCLUSION_TEXELS;
   int tid = int(gl_LocalInvocationIndex);
   int rayCount = params.rayCount;
-  int groupProbes = pcBlendProbes(rayCount);
+  int groupProbes = kVariant == 10 ? 1 : pcBlendProbes(rayCount);
   int firstRequest = (int(gl_WorkGroupID.y) * PC_DISPATCH_ROWS + int(gl_WorkGroupID.x)) * groupProbes;
   if (firstRequest >= params.probeCount) return;  // uniform across the workgroup
   int probesHere = min(groupProbes, params.probeCount - firstRequest);
@@ -105,15 +116,21 @@ void main() {
   for (int item = tid; item < probesHere * rayCount; item += PC_BLEND_THREADS) {
     int k = item % probesHere, ray = item / probesHere;
     uint i = pcProbeRayLaunchIndex(firstRequest + k, ray, params.probeCount, rayCount);
-    vec4 r = rays[i];
+    vec4 r = kVariant == 6 ? vec4(0.5f, 0.5f, 0.5f, float(ray % 7) - 1.0f) : rays[i];  // timing experiment
     float d = r.w;
-    sRay[k * rowStride + ray] = vec4(radianceOf(i, r.xyz), d);
+    sRay[k * rowStride + ray] = vec4(kVariant == 5 || kVariant == 6 ? r.xyz : radianceOf(i, r.xyz), d);
     sDepth[k * rowStride + ray] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
   }
   barrier();
 
   // ---- 1. classification and relocation: a power-of-two share of the threads per probe ----
-  {
+  if (kVariant == 7) {  // timing experiment: no classification
+    if (tid < probesHere) {
+      sInside[tid] = false;
+      sAlpha[tid] = 0.5f;
+      sMaxChange[tid] = 0u;
+    }
+  } else {
     int share = PC_BLEND_THREADS / groupProbes;
     int k = tid / share, lane = tid - k * share;
     uint backfaces = 0u;
@@ -186,7 +203,9 @@ void main() {
   // ---- 2. tiles: irradiance and occlusion (one texel per thread of the first n_i^2), depth
   // (the other threads, several texels each); texels of inside probes are left alone ----
   const int irrTexelCount = ni * ni, depthTexelCount = nd * nd;
-  if (tid < irrTexelCount) {
+  if (kVariant == 1 || (kVariant == 2 && tid < irrTexelCount) || (kVariant == 3 && tid >= irrTexelCount)) {
+    // timing experiments: no tiles, no irradiance/occlusion texels, no depth texels
+  } else if (tid < irrTexelCount) {
     float dmax = field.occlusionDistance;
     vec3 irrSum[K];
     float irrWeight[K], open[K], occWeight[K];
@@ -197,6 +216,31 @@ void main() {
     uvec2 h = taps[tid];
     // The next tap is loaded while this one is summed.
     uvec2 next = h.x > 0u ? taps[h.y] : uvec2(0u);
+    if (kVariant == 9) {  // timing experiment: the same sums, probe k in component k
+      vec4 sr = vec4(0.0f), sg = vec4(0.0f), sb = vec4(0.0f), wi = vec4(0.0f), op = vec4(0.0f), wo = vec4(0.0f);
+      for (uint j = 0u; j < h.x; ++j) {
+        uvec2 e = next;
+        if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(irrTexelCount)];
+        float w = uintBitsToFloat(e.y);
+        int ray = int(e.x);
+        vec4 r0 = sRay[ray], r1 = sRay[rowStride + ray], r2 = sRay[2 * rowStride + ray], r3 = sRay[3 * rowStride + ray];
+        vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
+        op += vec4(greaterThan(d, vec4(dmax))) * w;
+        wo += w;
+        vec4 lit = vec4(greaterThanEqual(d, vec4(0.0f))) * w;
+        sr += lit * vec4(r0.x, r1.x, r2.x, r3.x);
+        sg += lit * vec4(r0.y, r1.y, r2.y, r3.y);
+        sb += lit * vec4(r0.z, r1.z, r2.z, r3.z);
+        wi += lit;
+      }
+      [[unroll]] for (int k = 0; k < K; ++k) {
+        irrSum[k] = vec3(sr[k], sg[k], sb[k]);
+        irrWeight[k] = wi[k];
+        open[k] = op[k];
+        occWeight[k] = wo[k];
+      }
+      h.x = 0u;
+    }
     for (uint j = 0u; j < h.x; ++j) {
       uvec2 e = next;
       if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(irrTexelCount)];
@@ -217,6 +261,10 @@ void main() {
       if (k >= probesHere) break;
       if (sInside[k]) continue;
       ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
+      if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
+        if (isnan(irrSum[k].x + irrWeight[k] + open[k] + occWeight[k])) changes[firstRequest + k] = 1.0f;
+        continue;
+      }
       if (irrWeight[k] > 0.0f) {
         int i = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
         vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
@@ -239,6 +287,25 @@ void main() {
       [[unroll]] for (int k = 0; k < K; ++k) m1[k] = m2[k] = depthWeight[k] = 0.0f;
       uvec2 h = taps[irrTexelCount + t];
       uvec2 next = h.x > 0u ? taps[h.y] : uvec2(0u);
+      if (kVariant == 9) {  // timing experiment: the same sums, probe k in component k
+        vec4 s1 = vec4(0.0f), s2 = vec4(0.0f), sw = vec4(0.0f);
+        for (uint j = 0u; j < h.x; ++j) {
+          uvec2 e = next;
+          if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(depthTexelCount)];
+          float w = uintBitsToFloat(e.y);
+          int ray = int(e.x);
+          vec4 dist = vec4(sDepth[ray], sDepth[rowStride + ray], sDepth[2 * rowStride + ray], sDepth[3 * rowStride + ray]);
+          s1 += w * dist;
+          s2 += w * dist * dist;
+          sw += w;
+        }
+        [[unroll]] for (int k = 0; k < K; ++k) {
+          m1[k] = s1[k];
+          m2[k] = s2[k];
+          depthWeight[k] = sw[k];
+        }
+        h.x = 0u;
+      }
       for (uint j = 0u; j < h.x; ++j) {
         uvec2 e = next;
         if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(depthTexelCount)];
@@ -255,13 +322,21 @@ void main() {
       [[unroll]] for (int k = 0; k < K; ++k) {
         if (k >= probesHere) break;
         if (sInside[k] || !(depthWeight[k] > 0.0f)) continue;
+        if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
+          if (isnan(m1[k] + m2[k])) changes[firstRequest + k] = 1.0f;
+          continue;
+        }
         int i = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
         depthTexels[i] = mix(m1[k] / depthWeight[k], depthTexels[i], sAlpha[k]);
         depthTexels[i + 1] = mix(m2[k] / depthWeight[k], depthTexels[i + 1], sAlpha[k]);
       }
     }
   }
-  memoryBarrierBuffer();
+  if (kVariant == 11) {  // timing experiment: workgroup scope suffices for the borders
+    groupMemoryBarrier();
+  } else {
+    memoryBarrierBuffer();
+  }
   barrier();
 
   // ---- 3. borders: each border texel copies its interior source (pcBorderSource) ----
@@ -269,7 +344,7 @@ void main() {
   // columns: 4 (s - 1) of them per channel.
   const int si = ni + 2, sd = nd + 2, so = no + 2;
   const int bi = 4 * (si - 1), bd = 4 * (sd - 1), bo = 4 * (so - 1);
-  for (int item = tid; item < probesHere * (bi + bd + bo); item += PC_BLEND_THREADS) {
+  for (int item = tid; item < (kVariant == 4 ? 0 : probesHere * (bi + bd + bo)); item += PC_BLEND_THREADS) {
     int k = item / (bi + bd + bo), b = item % (bi + bd + bo);
     if (sInside[k]) continue;
     int s, n;

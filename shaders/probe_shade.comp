@@ -15,6 +15,12 @@
 
 layout(local_size_x = PC_SHADE_THREADS) in;
 
+// Timing experiments only (PC_SHADE_VARIANT, read by server/vulkan_tracer.cpp): a nonzero value
+// drops one step so that the pass's GPU time can be attributed; the fields it gives are wrong.
+// 0, the default, is the shading itself. 1 no field sampling (indirect 0), 2 no shadow-ray
+// requests (every slot written empty, nothing appended), 3 no textures, 4 all of 1-3.
+layout(constant_id = 0) const int kVariant = 0;
+
 layout(std430, set = 0, binding = PC_BIND_PARAMS) readonly buffer Params { UpdateParams params; };
 layout(std430, set = 0, binding = PC_BIND_RAY_DIRS) readonly buffer RayDirs { vec4 rayDirs[]; };
 layout(std430, set = 0, binding = PC_BIND_HITS) readonly buffer Hits { GpuHit hits[]; };
@@ -258,14 +264,19 @@ void shadeHit(GpuHit hit, vec3 dir) {
   bool sampled = false;
   if (mesh.material >= 0) {
     GpuMaterial m = materials[mesh.material];
-    albedo = m.baseColor * textureRgb(m.baseColorTexture, uv);
+    bool textured = kVariant != 3 && kVariant != 4;  // timing experiment
+    albedo = m.baseColor * (textured ? textureRgb(m.baseColorTexture, uv) : vec3(1.0f));
     if (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f)
-      emission = m.emissive * textureRgb(m.emissiveTexture, uv);
+      emission = m.emissive * (textured ? textureRgb(m.emissiveTexture, uv) : vec3(1.0f));
     sampled = m.sampled != 0;
   }
-  directRequests(P, N);
+  if (kVariant == 2 || kVariant == 4) {  // timing experiment
+    for (int slot = 0; slot < params.shadowSlots; ++slot) noRequest(slot);
+  } else {
+    directRequests(P, N);
+  }
   vec3 indirect = vec3(0.0f);
-  if ((params.shading & 1) == 0) {
+  if ((params.shading & 1) == 0 && kVariant != 1 && kVariant != 4) {
     float coverage = 0.0f;
     indirect = pcSampleField(field, P, N, -dir, PC_SAMPLE_NO_OCCLUSION, coverage).xyz;
   }
