@@ -839,7 +839,7 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   f.exposure = scene.exposure;
   f.lightCount = lightCount;
   f.viewCount = options_.views;
-  f.fieldPresent = field_->present() ? 1 : 0;
+  f.fieldPresent = field_->present() && options_.sampleField ? 1 : 0;
   f.sampleFlags = options_.sampleFlags;
   f.overlayLines = int(std::min<std::size_t>(input.overlay.size(), gpu::PC_OVERLAY_MAX_LINES));
   f.drawCount = int(draws.size());
@@ -1108,6 +1108,7 @@ void Renderer::recordComputeRaster(VkCommandBuffer cmd, Slot& slot) {
   // shader strides over the rest).
   const std::uint64_t groups =
       (gpuScene_->packed().triangleIds + gpu::PC_RASTER_GROUP - 1) / gpu::PC_RASTER_GROUP;
+  stats_.triangles += gpuScene_->packed().triangleIds * std::uint64_t(options_.views);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, rasterPipeline_.get());
   vkCmdDispatch(cmd, std::uint32_t(std::clamp<std::uint64_t>(groups, 1, gpu::PC_RASTER_MAX_GROUPS)),
                 std::uint32_t(options_.views), 1);

@@ -56,6 +56,9 @@ struct RendererOptions {
   // where fragments are dear (H100, sauer-pandora 1080p 4x: main pass 3.42 ms with it, 3.94
   // without).
   bool depthPrepass = true;
+  // false: the lighting pass skips the field and uses the ambient term (the bench times the
+  // probe sampling as the difference).
+  bool sampleField = true;
   // Who draws the visibility buffer: compute shaders (client_raster*.comp) or the
   // fixed-function pipeline (with VK_KHR_multiview for stereo). Auto takes compute where the
   // device has 64-bit buffer atomics: it was faster everywhere it was measured (H100 1080p

@@ -3,8 +3,9 @@
 // against the path-traced reference; the stereo left eye against a mono render of the same
 // pose. Speed at --speed-width x --speed-height (1920x1080): GPU time per frame and per pass
 // from timestamp queries, median over the measured frames. The field is sampled in the
-// lighting pass (compute), together with the direct light; probe_pass_ms is that whole pass,
-// so it bounds the probe sampling's cost from above.
+// lighting pass (compute), together with the direct light and the surface rebuild:
+// probe_pass_ms is that pass's time minus its time with the field switched off (ambient),
+// lighting_pass_ms the whole pass.
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -35,6 +36,7 @@ Benchmark addClient(CLI::App& app) {
   static int speedWidth = 1920, speedHeight = 1080, frames = 5, areaLights = 16;
   static bool validation = false, speedOnly = false, noPrepass = false;
   static std::string raster = "auto";
+  static int cascades = 0;
   static double dt = 0.0;
   static int msaa = 4;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
@@ -43,6 +45,8 @@ Benchmark addClient(CLI::App& app) {
   cmd->add_option("--speed-width", speedWidth, "width of the timed frames");
   cmd->add_option("--speed-height", speedHeight, "height of the timed frames");
   cmd->add_option("--frames", frames, "timed frames (after 2 warm-up frames)");
+  cmd->add_option("--cascades", cascades,
+                  "cascades: the scene's first volume and coarser ones around it (0: the scene's)");
   cmd->add_option("--area-lights", areaLights, "virtual point lights standing in for emitters");
   cmd->add_flag("--validation", validation, "Vulkan validation layer on");
   cmd->add_flag("--speed-only", speedOnly, "skip the quality comparisons (no CPU renders)");
@@ -75,7 +79,7 @@ Benchmark addClient(CLI::App& app) {
           return 2;
         }
         double bakeSeconds = 0;
-        auto field = bakeSceneField(*scene, setup.updates, &bakeSeconds);
+        auto field = bakeSceneField(*scene, setup.updates, &bakeSeconds, cascades);
         if (!field) {
           std::printf("client: %s\n", field.error().message.c_str());
           return 1;
@@ -158,43 +162,70 @@ Benchmark addClient(CLI::App& app) {
         ro.views = 1;
         ro.width = speedWidth;
         ro.height = speedHeight;
-        auto big = client::Renderer::create(**ctx, *scene, mirror, ro);
-        if (!big) {
-          std::printf("client: renderer: %s\n", big.error().message.c_str());
-          return 1;
-        }
-        areaLightCount = (*big)->areaLightCount();
-        const client::Rasterizer rasterizerUsed = (*big)->options().rasterizer;
-        std::vector<double> frameMs, probeMs, shadowMs, mainMs, uploadMs, tonemapMs, redrawn;
-        client::FrameStats stats;
+        struct Timed {
+          std::vector<double> frameMs, probeMs, shadowMs, mainMs, uploadMs, tonemapMs, redrawn;
+          client::FrameStats stats;
+          client::Rasterizer rasterizer = client::Rasterizer::Auto;
+          int areaLights = 0;
+          double wallMsPerFrame = 0;
+        };
         // Frames are pipelined (no wait, no readback), as in a window: a GPU left idle between
         // frames lowers its clocks and inflates every timing. A frame's timings arrive when
         // its slot comes round again, client::kFrameSlots frames later.
-        const auto wallStart = std::chrono::steady_clock::now();
-        const int timedFrames = frames + 2 + client::kFrameSlots;
-        for (int f = 0; f < timedFrames; ++f) {
-          input.time = f * dt;
-          Status r = (*big)->renderFrame(input);
-          stats = (*big)->lastStats();
-          if (!r) {
-            std::printf("client: frame failed: %s\n", r.error().message.c_str());
-            return 1;
+        auto timeFrames = [&](const client::RendererOptions& options) -> Result<Timed> {
+          auto big = client::Renderer::create(**ctx, *scene, mirror, options);
+          if (!big) return Error{"renderer: " + big.error().message};
+          Timed out;
+          out.areaLights = (*big)->areaLightCount();
+          out.rasterizer = (*big)->options().rasterizer;
+          const auto wallStart = std::chrono::steady_clock::now();
+          const int timedFrames = frames + 2 + client::kFrameSlots;
+          for (int f = 0; f < timedFrames; ++f) {
+            input.time = f * dt;
+            Status r = (*big)->renderFrame(input);
+            out.stats = (*big)->lastStats();
+            if (!r) return Error{"frame failed: " + r.error().message};
+            const client::FrameTimings& t = (*big)->lastTimings();
+            if (f < 2 + client::kFrameSlots || !t.valid) continue;  // warm-up: caches, uploads
+            out.frameMs.push_back(t.frameMs());
+            out.probeMs.push_back(t.probeMs);
+            out.shadowMs.push_back(t.shadowMs);
+            out.mainMs.push_back(t.mainMs);
+            out.uploadMs.push_back(t.uploadMs);
+            out.tonemapMs.push_back(t.tonemapMs);
+            out.redrawn.push_back(out.stats.shadowViewsDrawn);
           }
-          const client::FrameTimings& t = (*big)->lastTimings();
-          if (f < 2 + client::kFrameSlots || !t.valid) continue;  // warm-up: caches, first uploads
-          frameMs.push_back(t.frameMs());
-          probeMs.push_back(t.probeMs);
-          shadowMs.push_back(t.shadowMs);
-          mainMs.push_back(t.mainMs);
-          uploadMs.push_back(t.uploadMs);
-          tonemapMs.push_back(t.tonemapMs);
-          redrawn.push_back(stats.shadowViewsDrawn);
+          (*big)->waitIdle();
+          out.wallMsPerFrame = std::chrono::duration<double, std::milli>(
+                                   std::chrono::steady_clock::now() - wallStart)
+                                   .count() /
+                               timedFrames;
+          return out;
+        };
+        auto timed = timeFrames(ro);
+        if (!timed) {
+          std::printf("client: %s\n", timed.error().message.c_str());
+          return 1;
         }
-        (*big)->waitIdle();
-        const double wallMsPerFrame =
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wallStart)
-                .count() / timedFrames;
-        big->reset();
+        // The probe sampling runs inside the lighting pass (with direct light and the surface
+        // rebuild); its cost is the lighting pass's time with the field minus without it.
+        client::RendererOptions noField = ro;
+        noField.sampleField = false;
+        auto timedNoField = timeFrames(noField);
+        if (!timedNoField) {
+          std::printf("client: %s\n", timedNoField.error().message.c_str());
+          return 1;
+        }
+        const std::vector<double>& frameMs = timed->frameMs;
+        const std::vector<double>& probeMs = timed->probeMs;
+        const std::vector<double>& shadowMs = timed->shadowMs;
+        const std::vector<double>& mainMs = timed->mainMs;
+        const std::vector<double>& uploadMs = timed->uploadMs;
+        const std::vector<double>& tonemapMs = timed->tonemapMs;
+        const std::vector<double>& redrawn = timed->redrawn;
+        const client::FrameStats& stats = timed->stats;
+        areaLightCount = timed->areaLights;
+        const double samplingMs = median(probeMs) - median(timedNoField->probeMs);
 
         std::printf("device: %s\nmachine: %s\n", (*ctx)->deviceName().c_str(),
                     machineDescription().c_str());
@@ -221,10 +252,12 @@ Benchmark addClient(CLI::App& app) {
         std::printf("%-34s %10.3f\n", "  shadow maps", median(shadowMs));
         std::printf("%-34s %10.3f\n", "  main pass (visibility buffer)", median(mainMs));
         std::printf("%-34s %10.3f\n", "  lighting pass (direct + field)", median(probeMs));
+        std::printf("%-34s %10.3f\n", "    without the field (ambient)", median(timedNoField->probeMs));
+        std::printf("%-34s %10.3f\n", "    probe sampling (difference)", samplingMs);
         std::printf("%-34s %10.3f\n", "  field uploads", median(uploadMs));
         std::printf("%-34s %10.3f\n", "  tone mapping", median(tonemapMs));
-        std::printf("%-34s %10.3f\n", "wall clock per frame (CPU + GPU)", wallMsPerFrame);
-        std::printf("%-34s %10s\n", "rasterizer", client::rasterizerName(rasterizerUsed));
+        std::printf("%-34s %10.3f\n", "wall clock per frame (CPU + GPU)", timed->wallMsPerFrame);
+        std::printf("%-34s %10s\n", "rasterizer", client::rasterizerName(timed->rasterizer));
         std::printf(
             "per frame (%s): %d draw calls, %llu triangles (all passes), %d lights per "
             "fragment, %d shadow layers (%g redrawn, median), %dx MSAA\n",
@@ -238,7 +271,8 @@ Benchmark addClient(CLI::App& app) {
           figure("psnr_stereo_left_vs_mono", stereoDb, "dB");
         }
         figure("frame_ms", median(frameMs), "ms");
-        figure("probe_pass_ms", median(probeMs), "ms");
+        figure("probe_pass_ms", samplingMs, "ms");
+        figure("lighting_pass_ms", median(probeMs), "ms");
         return 0;
       }};
 }

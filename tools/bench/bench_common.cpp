@@ -55,8 +55,19 @@ std::vector<std::string> sharedSceneFiles() {
   return files;
 }
 
-Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds) {
+Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, int cascades) {
   std::vector<ProbeVolume> volumes = scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes;
+  if (cascades > 1) {
+    const ProbeVolume base = volumes.front();
+    const glm::vec3 centre = base.origin + 0.5f * base.spacing * glm::vec3(base.counts - 1);
+    volumes = {base};
+    for (int k = 1; k < cascades; ++k) {
+      ProbeVolume v = base;
+      v.spacing = base.spacing * float(1 << k);
+      v.origin = centre - 0.5f * v.spacing * glm::vec3(v.counts - 1);
+      volumes.push_back(v);
+    }
+  }
   Field field = Field::create(volumes, FieldSettings{});
   field.sceneHash = scene.hash;
   auto tracer = makeEmbreeTracer(scene);

@@ -38,7 +38,11 @@ struct Comparison {
 // Writes probe_lit.png/.exr, reference.png/.exr and diff.png into `outDir` when not empty.
 Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& setup,
                                         const std::string& outDir);
-Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds = nullptr);
+// cascades > 1: the first volume plus coarser ones around the same centre, each with twice
+// the spacing of the one before and the same counts (nested cascades, as a camera-centred
+// field would hold).
+Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds = nullptr,
+                             int cascades = 0);
 
 // Path-traced reference, from the cache when an identical render is there.
 struct Reference {
