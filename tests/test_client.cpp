@@ -138,6 +138,33 @@ TEST(ClientComputeRaster, MatchesTheHardwareRasterizer) {
   EXPECT_GE(monoDb, 50.0);
 }
 
+// Walls that pass behind the eye and run far past the screen's edges: the compute
+// rasterizer clips them against the near plane and its guard band, and must cover what the
+// fixed-function clipper covers.
+TEST(ClientComputeRaster, ClipsTrianglesThatCrossTheNearPlaneLikeTheFixedFunctionPath) {
+  const Scene scene = builtinScene();
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  const Field field = bakeQuickly(scene, 8);
+  const glm::vec3 lo = scene.boundsMin, hi = scene.boundsMax, size = hi - lo;
+  // A hair inside a corner, looking along one wall at a grazing angle and slightly down, with
+  // a wide field of view: the wall and floor start behind the eye and reach far beyond the
+  // frame.
+  Camera camera;
+  camera.position = glm::vec3(lo.x + 0.002f * size.x, lo.y + 0.3f * size.y, lo.z + 0.002f * size.z);
+  camera.forward = glm::normalize(glm::vec3(0.15f, -0.1f, 1.0f));
+  camera.yfov = 1.6f;
+  const ClientFrame fixed =
+      renderClientFrame(*ctx, scene, &field, camera, nullptr, kWidth, kHeight, {}, Rasterizer::FixedFunction);
+  const ClientFrame compute =
+      renderClientFrame(*ctx, scene, &field, camera, nullptr, kWidth, kHeight, {}, Rasterizer::Compute);
+  ASSERT_EQ(fixed.display.size(), 1u);
+  ASSERT_EQ(compute.display.size(), 1u);
+  const double db = psnr8(compute.display[0], fixed.display[0]);
+  std::printf("near-plane view, compute vs fixed-function rasterizer: %.2f dB\n", db);
+  EXPECT_GE(db, 40.0);
+}
+
 TEST(ClientStereo, SideBySideHoldsBothEyesOfTheLayeredRender) {
   const Scene scene = builtinScene();
   auto ctx = validatingContext();
