@@ -40,7 +40,7 @@ float farthestCorner(const Bounds& b, glm::vec3 p) {
 // emitter's normal) are left out since nothing there receives light.
 void addCube(LightSet& set, gpu::GpuLight& light, int array, glm::vec3 position, float nearPlane,
              float farPlane, int size, const glm::vec3* front) {
-  int& layers = array == 0 ? set.largeLayers : set.smallLayers;
+  int& layers = set.layers[array];
   light.shadowArray = array;
   light.shadowLayer = layers;
   light.shadowMatrix = int(set.matrices.size());
@@ -72,7 +72,7 @@ void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const Shad
   farPlane = std::max(farPlane, 2.0f * nearPlane);
   if (l.type == LightType::Point) {
     g.type = gpu::PC_LIGHT_POINT;
-    addCube(set, g, 0, l.position, nearPlane, farPlane, s.largeSize, nullptr);
+    addCube(set, g, kPointShadowArray, l.position, nearPlane, farPlane, s.pointSize, nullptr);
   } else if (l.type == LightType::Spot) {
     g.type = gpu::PC_LIGHT_SPOT;
     const float fov = std::min(2.0f * l.outerConeAngle + 0.05f, glm::radians(170.0f));
@@ -80,8 +80,8 @@ void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const Shad
     if (std::abs(glm::dot(up, g.direction)) > 0.99f) up = glm::vec3(1.0f, 0.0f, 0.0f);
     const glm::mat4 m = glm::perspectiveRH_ZO(fov, 1.0f, nearPlane, farPlane) *
                         glm::lookAtRH(l.position, l.position + g.direction, up);
-    g.shadowArray = 0;
-    g.shadowLayer = set.largeLayers++;
+    g.shadowArray = kLargeShadowArray;
+    g.shadowLayer = set.layers[kLargeShadowArray]++;
     g.shadowMatrix = int(set.matrices.size());
     g.shadowTexel = 1.0f / float(s.largeSize);
     g.normalOffset = kNormalOffsetTexels * 2.0f * std::tan(0.5f * fov) / float(s.largeSize);
@@ -102,8 +102,8 @@ void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const Shad
     }
     // View space looks down -z: near and far are the negated z extremes.
     const glm::mat4 m = glm::orthoRH_ZO(lo.x, hi.x, lo.y, hi.y, -hi.z, -lo.z) * view;
-    g.shadowArray = 0;
-    g.shadowLayer = set.largeLayers++;
+    g.shadowArray = kLargeShadowArray;
+    g.shadowLayer = set.layers[kLargeShadowArray]++;
     g.shadowMatrix = int(set.matrices.size());
     g.shadowTexel = 1.0f / float(s.largeSize);
     g.normalOffset = kNormalOffsetTexels * std::max(hi.x - lo.x, hi.y - lo.y) / float(s.largeSize);
@@ -125,7 +125,7 @@ void addAreaLight(LightSet& set, glm::vec3 position, glm::vec3 normal, glm::vec3
   g.range = patchArea;  // squared distance where the patch stops brightening (see the shader)
   const float nearPlane = 1e-3f * diag;
   const float farPlane = farthestCorner(bounds, g.position) * 1.01f + nearPlane;
-  addCube(set, g, 1, g.position, nearPlane, farPlane, s.smallSize, &normal);
+  addCube(set, g, kSmallShadowArray, g.position, nearPlane, farPlane, s.smallSize, &normal);
   set.lights.push_back(g);
   ++set.areaLightCount;
 }

@@ -20,12 +20,20 @@
 namespace pc::client {
 
 struct ShadowSettings {
-  int largeSize = 2048;  // sun, spot and point light maps (texels per side)
+  int largeSize = 2048;  // sun and spot light maps (texels per side)
   int smallSize = 512;   // the emitters' virtual point lights
+  // Point lights' cube faces: a face spans 90 degrees, so 1024 texels give about the angular
+  // resolution of a 1080p view with a 60-degree field of view, and a moving point light
+  // redraws six faces a frame (a quarter of the texels of 2048^2 faces).
+  int pointSize = 1024;
   int areaLights = 16;   // about this many virtual point lights for all emitters together
 };
 
-// One shadow map layer to render: the array (0 large, 1 small), its layer, the light's
+// Shadow map arrays: sun and spots, the emitters' virtual point lights, point-light cube faces.
+inline constexpr int kLargeShadowArray = 0, kSmallShadowArray = 1, kPointShadowArray = 2;
+inline constexpr int kShadowArrays = 3;
+
+// One shadow map layer to render: the array (k*ShadowArray), its layer, the light's
 // view-projection (Vulkan depth 0..1).
 struct ShadowView {
   int array = 0;
@@ -37,7 +45,7 @@ struct LightSet {
   std::vector<gpu::GpuLight> lights;
   std::vector<glm::mat4> matrices;  // indexed by GpuLight::shadowMatrix (+ cube face)
   std::vector<ShadowView> views;    // the layers to render
-  int largeLayers = 0, smallLayers = 0;
+  int layers[kShadowArrays] = {0, 0, 0};  // per shadow array
   int areaLightCount = 0;
 };
 

@@ -292,10 +292,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
       buildLights(scene, state0, EmissiveLights::build(scene, state0), options.shadows);
   r->lightCount_ = int(lights0.lights.size());
   r->matrixCount_ = int(lights0.matrices.size());
-  r->largeLayers_ = lights0.largeLayers;
-  r->smallLayers_ = lights0.smallLayers;
+  for (int a = 0; a < kShadowArrays; ++a) r->shadowLayers_[a] = lights0.layers[a];
   r->areaLights_ = lights0.areaLightCount;
-  r->shadowCache_.reset(r->largeLayers_, r->smallLayers_);
+  r->shadowCache_.reset(r->shadowLayers_);
   // Object-space bounds of every draw's mesh: which shadow layers a moving instance can touch.
   {
     const PackedScene& packed = r->gpuScene_->packed();
@@ -322,10 +321,17 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   if (!shadow) return shadow.error();
   r->shadowSampler_ = std::move(shadow).value();
 
-  // Shadow maps: at least one layer each, so the descriptors are always valid.
-  auto shadowArray = [&](VkFormat format, int size, int layers, vk::Image& image,
-                         vk::UniqueImageView& arrayView,
-                         std::vector<vk::UniqueImageView>& layerViews) -> Status {
+  // Shadow maps: at least one layer each, so the descriptors are always valid. Emitter maps
+  // are many and small: D16 halves their memory.
+  auto shadowArray = [&](int a, int size, bool large) -> Status {
+    ShadowArray& sa = r->shadowArrays_[a];
+    sa.size = size;
+    sa.large = large;
+    const VkFormat format = large ? kLargeShadowFormat : kSmallShadowFormat;
+    const int layers = r->shadowLayers_[a];
+    vk::Image& image = sa.image;
+    vk::UniqueImageView& arrayView = sa.view;
+    std::vector<vk::UniqueImageView>& layerViews = sa.layerViews;
     vk::ImageDesc d;
     d.format = format;
     d.width = d.height = std::uint32_t(size);
@@ -346,11 +352,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
     }
     return Status::success();
   };
-  Status s = shadowArray(kLargeShadowFormat, options.shadows.largeSize, r->largeLayers_,
-                         r->largeShadows_, r->largeShadowView_, r->largeLayerViews_);
+  Status s = shadowArray(kLargeShadowArray, options.shadows.largeSize, true);
   if (!s) return s.error();
-  s = shadowArray(kSmallShadowFormat, options.shadows.smallSize, r->smallLayers_, r->smallShadows_,
-                  r->smallShadowView_, r->smallLayerViews_);
+  s = shadowArray(kSmallShadowArray, options.shadows.smallSize, false);
+  if (!s) return s.error();
+  s = shadowArray(kPointShadowArray, options.shadows.pointSize, true);
   if (!s) return s.error();
 
   auto pool = vk::CommandPool::create(ctx);
@@ -404,7 +410,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2 * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 11 * kFrameSlots},
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, (7 + textures) * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, (8 + textures) * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1 * kFrameSlots}};
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pi.maxSets = kFrameSlots;
@@ -500,7 +506,7 @@ Status Renderer::createPipelines() {
       {gpu::PC_BIND_IRRADIANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
       {gpu::PC_BIND_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
       {gpu::PC_BIND_OCCLUSION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_SHADOW_MAPS, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2},
+      {gpu::PC_BIND_SHADOW_MAPS, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, kShadowArrays},
       {gpu::PC_BIND_TEXTURES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, textures},
       {gpu::PC_BIND_G_VISIBILITY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
       {gpu::PC_BIND_VERTICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
@@ -652,9 +658,10 @@ Result<VkPipeline> Renderer::tonemapPipeline(VkFormat format) {
 
 Status Renderer::writeDescriptors() {
   const VkSampler linear = linearSampler_.get();
-  const VkDescriptorImageInfo shadows[2] = {
-      {shadowSampler_.get(), largeShadowView_.get(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-      {shadowSampler_.get(), smallShadowView_.get(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}};
+  VkDescriptorImageInfo shadows[kShadowArrays];
+  for (int a = 0; a < kShadowArrays; ++a)
+    shadows[a] = {shadowSampler_.get(), shadowArrays_[a].view.get(),
+                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const std::vector<VkDescriptorImageInfo> textures = gpuScene_->textureInfos();
   const VkDescriptorImageInfo irradiance = field_->irradiance(linear);
   const VkDescriptorImageInfo depth = field_->depth(linear);
@@ -722,7 +729,7 @@ Status Renderer::writeDescriptors() {
     image(gpu::PC_BIND_IRRADIANCE, cis, &irradiance, 1);
     image(gpu::PC_BIND_DEPTH, cis, &depth, 1);
     image(gpu::PC_BIND_OCCLUSION, cis, &occlusion, 1);
-    image(gpu::PC_BIND_SHADOW_MAPS, cis, shadows, 2);
+    image(gpu::PC_BIND_SHADOW_MAPS, cis, shadows, kShadowArrays);
     image(gpu::PC_BIND_TEXTURES, cis, textures.data(), std::uint32_t(textures.size()));
     image(gpu::PC_BIND_G_VISIBILITY, cis, &gVisibility, 1);
     image(gpu::PC_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, &hdrImage, 1);
@@ -795,7 +802,7 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   if (matrixCount > 0) slot.matrices.write(lights.matrices.data(), matrixCount * sizeof(glm::mat4));
   std::vector<ShadowView> views;
   for (const ShadowView& v : lights.views) {
-    if (v.layer < (v.array == 0 ? largeLayers_ : smallLayers_)) views.push_back(v);
+    if (v.layer < shadowLayers_[v.array]) views.push_back(v);
   }
   std::vector<glm::mat4> models(draws.size());
   slot.boxLo.resize(draws.size());
@@ -931,11 +938,10 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
       barriers.push_back(b);
     };
     if (slot.shadowsFresh) {
-      add(largeShadows_.get(), 0, VK_REMAINING_ARRAY_LAYERS);
-      add(smallShadows_.get(), 0, VK_REMAINING_ARRAY_LAYERS);
+      for (const ShadowArray& sa : shadowArrays_) add(sa.image.get(), 0, VK_REMAINING_ARRAY_LAYERS);
     } else {
       for (const ShadowView& v : slot.shadowViews)
-        add(v.array == 0 ? largeShadows_.get() : smallShadows_.get(), std::uint32_t(v.layer), 1);
+        add(shadowArrays_[v.array].image.get(), std::uint32_t(v.layer), 1);
     }
     if (barriers.empty()) return;
     VkDependencyInfo di{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
@@ -945,11 +951,11 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   };
   shadowBarriers(true);
   for (const ShadowView& v : slot.shadowViews) {
-    const bool large = v.array == 0;
-    const std::uint32_t size =
-        std::uint32_t(large ? options_.shadows.largeSize : options_.shadows.smallSize);
+    const ShadowArray& sa = shadowArrays_[v.array];
+    const bool large = sa.large;
+    const std::uint32_t size = std::uint32_t(sa.size);
     VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    depth.imageView = (large ? largeLayerViews_ : smallLayerViews_)[std::size_t(v.layer)].get();
+    depth.imageView = sa.layerViews[std::size_t(v.layer)].get();
     depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;

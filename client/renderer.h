@@ -168,7 +168,7 @@ class Renderer {
   std::optional<GpuScene> gpuScene_;
   std::optional<FieldGpu> field_;
   int areaLights_ = 0;
-  int largeLayers_ = 0, smallLayers_ = 0;
+  int shadowLayers_[kShadowArrays] = {0, 0, 0};
   int lightCount_ = 0, matrixCount_ = 0;
   float nearPlane_ = 0.01f;
   glm::vec3 ambient_{0.0f};
@@ -179,9 +179,14 @@ class Renderer {
     vk::UniqueImageView arrayView;
   };
   Target visibility_, depth_, hdr_, offscreen_;
-  vk::Image largeShadows_, smallShadows_;
-  vk::UniqueImageView largeShadowView_, smallShadowView_;
-  std::vector<vk::UniqueImageView> largeLayerViews_, smallLayerViews_;
+  struct ShadowArray {
+    vk::Image image;
+    vk::UniqueImageView view;                     // all layers, sampled
+    std::vector<vk::UniqueImageView> layerViews;  // one per layer, rendered to
+    int size = 0;                                 // texels per side
+    bool large = true;                            // D32 (else D16)
+  };
+  ShadowArray shadowArrays_[kShadowArrays];
 
   vk::UniqueSampler linearSampler_, nearestSampler_, shadowSampler_;
   vk::UniqueDescriptorSetLayout setLayout_;

@@ -32,9 +32,11 @@ void worldBox(const glm::mat4& m, const LocalBounds& b, glm::vec3& lo, glm::vec3
   }
 }
 
-void ShadowCache::reset(int largeLayers, int smallLayers) {
-  layers_[0].assign(std::size_t(std::max(0, largeLayers)), Layer{});
-  layers_[1].assign(std::size_t(std::max(0, smallLayers)), Layer{});
+void ShadowCache::reset(std::span<const int> layersPerArray) {
+  for (int a = 0; a < kShadowArrays; ++a) {
+    const int layers = a < int(layersPerArray.size()) ? layersPerArray[std::size_t(a)] : 0;
+    layers_[a].assign(std::size_t(std::max(0, layers)), Layer{});
+  }
   models_.clear();
   fresh_ = true;
 }
@@ -58,7 +60,7 @@ std::vector<ShadowView> ShadowCache::select(const std::vector<ShadowView>& views
   }
   std::vector<ShadowView> draw;
   for (const ShadowView& v : views) {
-    auto& list = layers_[v.array == 0 ? 0 : 1];
+    auto& list = layers_[v.array];
     if (v.layer < 0 || std::size_t(v.layer) >= list.size()) continue;
     Layer& layer = list[std::size_t(v.layer)];
     bool redraw = !sameDraws || !layer.valid || layer.viewProj != v.viewProj;

@@ -27,7 +27,7 @@ void worldBox(const glm::mat4& m, const LocalBounds& b, glm::vec3& lo, glm::vec3
 class ShadowCache {
  public:
   // Forgets everything: the next frame draws every layer.
-  void reset(int largeLayers, int smallLayers);
+  void reset(std::span<const int> layersPerArray);
   // The views of `views` that must be drawn this frame, for draws at `models` (one per draw;
   // `bounds` per draw too). Assumes the caller draws them: they count as current afterwards.
   std::vector<ShadowView> select(const std::vector<ShadowView>& views,
@@ -41,7 +41,7 @@ class ShadowCache {
     bool valid = false;
     glm::mat4 viewProj{0.0f};
   };
-  std::vector<Layer> layers_[2];   // [array][layer]
+  std::vector<Layer> layers_[kShadowArrays];  // [array][layer]
   std::vector<glm::mat4> models_;  // the previous frame's draw transforms
   bool fresh_ = true;
 };

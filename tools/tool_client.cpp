@@ -53,7 +53,8 @@ int main(int argc, char** argv) {
   std::string raster = "auto";
   app.add_option("--raster", raster,
                  "visibility buffer: auto, fixed (fixed-function, multiview) or compute");
-  app.add_option("--shadow-size", c.shadows.largeSize, "sun, spot and point shadow maps, texels");
+  app.add_option("--shadow-size", c.shadows.largeSize, "sun and spot shadow maps, texels");
+  app.add_option("--point-shadow-size", c.shadows.pointSize, "point-light cube faces, texels");
   app.add_option("--area-shadow-size", c.shadows.smallSize, "emitter light shadow maps, texels");
   app.add_option("--area-lights", c.shadows.areaLights, "virtual point lights for emitters");
   app.add_option("--sample-flags", c.sampleFlags, "field sampling flags (1: no visibility)");

@@ -8,7 +8,7 @@ layout(set = 0, binding = PC_BIND_LIGHTS, std430) readonly buffer LightBlock { G
 layout(set = 0, binding = PC_BIND_SHADOW_MATRICES, std430) readonly buffer ShadowBlock {
   mat4 shadowMatrices[];
 };
-layout(set = 0, binding = PC_BIND_SHADOW_MAPS) uniform sampler2DArrayShadow shadowMaps[2];
+layout(set = 0, binding = PC_BIND_SHADOW_MAPS) uniform sampler2DArrayShadow shadowMaps[3];
 
 float rangeWindow(float distance, float range) {
   if (range <= 0.0) return 1.0;

@@ -19,7 +19,7 @@ PC_CONST int PC_BIND_PROBES = 5;           // buffer vec4[]: relocation offset x
 PC_CONST int PC_BIND_IRRADIANCE = 6;       // sampler2D, linear
 PC_CONST int PC_BIND_DEPTH = 7;            // sampler2D, linear
 PC_CONST int PC_BIND_OCCLUSION = 8;        // sampler2D, linear
-PC_CONST int PC_BIND_SHADOW_MAPS = 9;      // sampler2DArrayShadow[2]: large maps, small maps
+PC_CONST int PC_BIND_SHADOW_MAPS = 9;      // sampler2DArrayShadow[3]: large maps, small maps, point-light cube faces
 PC_CONST int PC_BIND_TEXTURES = 10;        // sampler2D[textureCount]
 PC_CONST int PC_BIND_G_VISIBILITY = 11;    // usampler2DMSArray: draw's triangleBase + primitive + 1, 0: sky
 PC_CONST int PC_BIND_VERTICES = 12;        // buffer float[]: the packed Vertex records (8 floats)
@@ -103,7 +103,7 @@ struct GpuLight {
   // -- 48
   float cosInner;
   int shadowLayer;     // first layer in its shadow array (6 for cube faces), -1: no shadow
-  int shadowArray;     // 0: large maps (sun, spots, points), 1: small maps (area lights)
+  int shadowArray;     // 0: large maps (sun, spots), 1: small maps (area lights), 2: point-light cubes
   float normalOffset;  // world units per unit of distance (perspective) or absolute (sun)
   // -- 64
   int shadowMatrix;   // index of its first matrix in the shadow matrix buffer
