@@ -128,6 +128,7 @@ struct VulkanTracer::Impl {
   // PC_SHADE_VARIANT pick a variant that drops one step; 0, the default, is the real pass.
   int blendVariant = 0;
   int shadeVariant = 0;
+  bool forceShadowLaunchBound = false;  // VulkanTracerOptions::boundedShadowLaunch
   SceneAccel accel;
   bool tlasDirty = true;
   std::vector<vk::Image> textures;
@@ -146,7 +147,7 @@ struct VulkanTracer::Impl {
   vk::Buffer params, rayDirs, requests, changes, counters, countersReadback;
   // The wavefront's per-ray records (gpu_trace.h), for probeCapacity x rayCapacity rays and
   // slotCapacity shadow slots each; the compacted shadow list holds at most one ray per slot.
-  vk::Buffer hits, rays, rayShading, shadowLight, shadowRays;
+  vk::Buffer hits, rays, shadowMask, shadowLight, shadowRays;
   int slotCapacity = -1;
   vk::Buffer tapsUpload, taps;  // blend taps: host-written, copied to device memory per update
   std::size_t tapBytes = 0;     // of this update's taps
@@ -209,6 +210,7 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   co.rayTracing = true;
   co.allowCpuDevice = vulkan.allowCpuDevice;
   co.deviceNameFilter = vulkan.deviceNameFilter;
+  forceShadowLaunchBound = vulkan.boundedShadowLaunch;
   auto c = vk::Context::create(co);
   if (!c) return c.error();
   ctx = std::move(c).value();
@@ -222,6 +224,14 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   VkFence f = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateFence(ctx->device(), &fci, nullptr, &f));
   fence = vk::UniqueFence(ctx->device(), f);
+  // The shade pass appends shadow rays a subgroup at a time (ballot).
+  VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+  VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  props2.pNext = &subgroup;
+  vkGetPhysicalDeviceProperties2(ctx->physicalDevice(), &props2);
+  if (!(subgroup.supportedOperations & VK_SUBGROUP_FEATURE_BALLOT_BIT) ||
+      !(subgroup.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT))
+    return Error{"the Vulkan device lacks subgroup ballot in compute shaders"};
   auto t = vk::GpuTimer::create(*ctx, 16);
   if (!t) return t.error();
   timer = std::move(t).value();
@@ -547,8 +557,8 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   requests = orDie(vk::Buffer::create(*ctx, probeCapacity * 8, kHostInput, MemoryUsage::Upload), "requests");
   hits = orDie(vk::Buffer::create(*ctx, rayRecords * sizeof(GpuHit), kStorage, MemoryUsage::DeviceLocal), "hits");
   rays = orDie(vk::Buffer::create(*ctx, rayRecords * 16, kStorage, MemoryUsage::DeviceLocal), "ray results");
-  rayShading = orDie(vk::Buffer::create(*ctx, rayRecords * sizeof(GpuRayShading), kStorage, MemoryUsage::DeviceLocal),
-                     "ray shading");
+  const std::size_t maskWords = std::max<std::size_t>(rayRecords * std::size_t(pcShadowMaskWords(slotCapacity)), 1);
+  shadowMask = orDie(vk::Buffer::create(*ctx, maskWords * 4, kStorage, MemoryUsage::DeviceLocal), "shadow masks");
   const std::size_t slotRecords = std::max<std::size_t>(rayRecords * std::size_t(slotCapacity), 1);
   shadowLight = orDie(vk::Buffer::create(*ctx, slotRecords * sizeof(GpuShadowLight), kStorage, MemoryUsage::DeviceLocal),
                       "shadow light");
@@ -556,7 +566,8 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
                      "shadow rays");
   changes = orDie(vk::Buffer::create(*ctx, probeCapacity * 4, kStorage, MemoryUsage::DeviceLocal), "changes");
   counters = orDie(vk::Buffer::create(*ctx, PC_COUNTER_WORDS * 4,
-                                      kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                      kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                          VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
                                       MemoryUsage::DeviceLocal),
                    "counters");
   countersReadback = orDie(vk::Buffer::create(*ctx, PC_COUNTER_WORDS * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
@@ -658,7 +669,7 @@ void VulkanTracer::Impl::writeDescriptors() {
   buffers[PC_BIND_COUNTERS] = &counters;
   buffers[PC_BIND_TAPS] = &taps;
   buffers[PC_BIND_HITS] = &hits;
-  buffers[PC_BIND_RAY_SHADING] = &rayShading;
+  buffers[PC_BIND_SHADOW_MASK] = &shadowMask;
   buffers[PC_BIND_SHADOW_RAYS] = &shadowRays;
   buffers[PC_BIND_SHADOW_LIGHT] = &shadowLight;
   std::vector<VkWriteDescriptorSet> writes;
@@ -854,14 +865,23 @@ void VulkanTracer::Impl::recordShade(int probeCount, int rayCount) {
   dispatchRows((rays + PC_SHADE_THREADS - 1) / PC_SHADE_THREADS);
 }
 
-// The shadow list's length is known only on the GPU (counters[0]): the launch covers the most
-// it can hold and the ray-generation shader returns past its end. (vkCmdTraceRaysIndirectKHR
-// could read the length from the counters, laid out for it, but needs the
-// rayTracingPipelineTraceRaysIndirect feature, which the device is not created with.)
+// The shadow list's length is known only on the GPU (counters[0], laid out as a
+// VkTraceRaysIndirectCommandKHR). Where the device launches from a buffer and the longest list
+// fits one launch, the launch is exactly the list: every launch index is a real ray. Elsewhere
+// the launch covers the most the list can hold and the ray-generation shader returns past its
+// end; with one slot per light most of those invocations do nothing, at a cost per invocation.
 void VulkanTracer::Impl::recordShadowTrace(std::uint64_t requests) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
   const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
+  if (ctx->rt().cmdTraceRaysIndirect && requests <= maxWidth && !forceShadowLaunchBound) {
+    const TracePush push{0, int(requests)};
+    vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                       sizeof push, &push);
+    ctx->rt().cmdTraceRaysIndirect(cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit,
+                                   &shadowTable.callable, counters.address());
+    return;
+  }
   for (std::uint64_t first = 0; first < requests; first += maxWidth) {
     const TracePush push{int(first), int(std::min(requests - first, maxWidth))};
     vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
@@ -1019,7 +1039,10 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   m.timer.begin(cmd, "shade");
   m.recordShade(n, rayCount);
   m.timer.end(cmd);
-  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kRayStage | kComputeStage, kShaderRW);
+  // The shadow launch may read its size from the counters the shade pass appended to: an
+  // indirect-command read, which a plain shader-read barrier does not cover.
+  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                    kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
 
   const int slots = m.shadowSlots();
   if (slots > 0) {

@@ -24,6 +24,10 @@ struct VulkanTracerOptions {
   bool validation = false;      // Khronos validation layer; errors are counted (tests fail on any)
   bool allowCpuDevice = false;  // lavapipe
   std::string deviceNameFilter;
+  // Launch the shadow rays over the most the list can hold even where the device could launch
+  // exactly the list from a buffer (vkCmdTraceRaysIndirectKHR): the fallback path, for tests
+  // and for measuring what the exact launch saves.
+  bool boundedShadowLaunch = false;
 };
 
 class VulkanTracer final : public Tracer {

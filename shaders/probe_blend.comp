@@ -8,8 +8,8 @@
 // and records the largest change of an encoded irradiance texel for change detection.
 //
 // A workgroup takes pcBlendProbes consecutive requests (interop/gpu_trace.h). Their rays are
-// read once, into shared memory, with the visible shadow-ray contributions added (the last
-// step of the shade wavefront). The lobe weights come from the update's tap lists
+// read once, into shared memory, with the light of their visible shadow slots added (the
+// last step of the shade wavefront). The lobe weights come from the update's tap lists
 // (PC_BIND_TAPS), the CPU's own, so each texel sums the same rays with the same weights in
 // the same order as the CPU; each tap loaded serves every probe of the group.
 //
@@ -29,7 +29,7 @@ layout(local_size_x = PC_BLEND_THREADS) in;
 // drops or changes one step so that a per-pass GPU time can be attributed to it; the fields it
 // gives may be wrong. 0, the default, is the blend itself. The variants:
 //   1 no tiles (step 2 skipped)          2 no irradiance/occlusion texels  3 no depth texels
-//   4 no borders (step 3 skipped)        5 rays without shading/shadow light (rays[] only)
+//   4 no borders (step 3 skipped)        5 rays without their shadow slots' light (rays[] only)
 //   6 no ray reads (step 0 from constants)  7 no classification/relocation (step 1 skipped)
 //   8 tile sums without atlas reads/writes  9 tile sums in vec4 registers (one lane per probe)
 //  10 one probe per workgroup (the host dispatches one group per request)
@@ -40,7 +40,7 @@ layout(std430, set = 0, binding = PC_BIND_PARAMS) readonly buffer Params { Updat
 layout(std430, set = 0, binding = PC_BIND_REQUESTS) readonly buffer Requests { ivec2 requests[]; };
 layout(std430, set = 0, binding = PC_BIND_RAY_DIRS) readonly buffer RayDirs { vec4 rayDirs[]; };
 layout(std430, set = 0, binding = PC_BIND_RAYS) readonly buffer Rays { vec4 rays[]; };
-layout(std430, set = 0, binding = PC_BIND_RAY_SHADING) readonly buffer RayShading { GpuRayShading rayShading[]; };
+layout(std430, set = 0, binding = PC_BIND_SHADOW_MASK) readonly buffer ShadowMask { uint shadowMask[]; };
 layout(std430, set = 0, binding = PC_BIND_SHADOW_LIGHT) readonly buffer ShadowLight { GpuShadowLight shadowLight[]; };
 layout(std430, set = 0, binding = PC_BIND_CHANGES) writeonly buffer Changes { float changes[]; };
 layout(std430, set = 0, binding = PC_BIND_TAPS) readonly buffer Taps { uvec2 taps[]; };
@@ -69,25 +69,19 @@ shared uint sMaxChange[K];  // float bits; non-negative floats order like their 
 bool closer(float d, int i, float bestD, int bestI) { return d < bestD || (d == bestD && i < bestI); }
 
 // Radiance toward the probe of the ray at launch index i: what the shade pass left, with the
-// light of its visible shadow requests, summed in the order the CPU sums them.
-vec3 radianceOf(uint i, vec3 emitted) {
-  GpuRayShading s = rayShading[i];
+// light of its visible shadow slots added in slot order (lights, then emissive samples, as the
+// CPU sums them). Only the set bits' records are read.
+vec3 radianceOf(uint i, vec3 base) {
   uint stride = uint(params.probeCount) * uint(params.rayCount);
-  vec3 direct = vec3(0.0f);
-  for (int slot = 0; slot < params.lightCount; ++slot) {
-    GpuShadowLight l = shadowLight[uint(slot) * stride + i];
-    if (l.visible != 0u) direct += l.irradiance;
-  }
-  int samples = params.shadowSlots - params.lightCount;
-  if (samples > 0) {
-    vec3 sum = vec3(0.0f);
-    for (int slot = params.lightCount; slot < params.shadowSlots; ++slot) {
-      GpuShadowLight l = shadowLight[uint(slot) * stride + i];
-      if (l.visible != 0u) sum += l.irradiance;
+  vec3 radiance = base;
+  int words = pcShadowMaskWords(params.shadowSlots);
+  for (int w = 0; w < words; ++w) {
+    for (uint m = shadowMask[uint(w) * stride + i]; m != 0u; m &= m - 1u) {
+      uint slot = uint(w) * 32u + uint(findLSB(m));
+      radiance += shadowLight[slot * stride + i].radiance;
     }
-    direct = direct + sum / float(samples);
   }
-  return emitted + s.albedoOverPi * (direct + s.indirect);
+  return radiance;
 }
 
 void main() {

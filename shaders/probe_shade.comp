@@ -3,10 +3,11 @@
 // the Embree backend does (server/embree_tracer.cpp, cpu/embree_scene.cpp, cpu/lighting.cpp):
 // direct light from punctual lights and light-sampled emissive triangles, emission when not
 // light-sampled, indirect light from the previous field through the shared sampling code.
-// Direct light needs shadow rays: this pass writes each slot's contribution (what the light
-// adds if visible) in its fixed place, and appends each real shadow ray to the compacted
-// shadow list, a subgroup at a time (interop/gpu_trace.h); probe_shadow.rgen traces the list
-// and marks the visible slots, and the blend adds them. Backface hits report a negative
+// Direct light needs shadow rays: for each slot with a real shadow ray this pass writes what
+// the light adds to the ray's radiance if visible (albedo / pi x irradiance) in the slot's
+// fixed place, and appends the ray to the compacted shadow list, a subgroup at a time
+// (interop/gpu_trace.h); probe_shadow.rgen traces the list and sets the visible slots' bits
+// in the ray's mask, cleared here, and the blend adds them. Backface hits report a negative
 // distance and no light. One invocation per ray, in launch order.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_nonuniform_qualifier : require
@@ -25,7 +26,7 @@ layout(std430, set = 0, binding = PC_BIND_PARAMS) readonly buffer Params { Updat
 layout(std430, set = 0, binding = PC_BIND_RAY_DIRS) readonly buffer RayDirs { vec4 rayDirs[]; };
 layout(std430, set = 0, binding = PC_BIND_HITS) readonly buffer Hits { GpuHit hits[]; };
 layout(std430, set = 0, binding = PC_BIND_RAYS) writeonly buffer Rays { vec4 rays[]; };
-layout(std430, set = 0, binding = PC_BIND_RAY_SHADING) writeonly buffer RayShading { GpuRayShading rayShading[]; };
+layout(std430, set = 0, binding = PC_BIND_SHADOW_MASK) writeonly buffer ShadowMask { uint shadowMask[]; };
 layout(std430, set = 0, binding = PC_BIND_SHADOW_RAYS) writeonly buffer ShadowRays { GpuShadowRay shadowRays[]; };
 layout(std430, set = 0, binding = PC_BIND_SHADOW_LIGHT) writeonly buffer ShadowLight { GpuShadowLight shadowLight[]; };
 layout(std430, set = 0, binding = PC_BIND_VERTICES) readonly buffer Vertices { GpuVertex vertices[]; };
@@ -48,17 +49,20 @@ float rnd() {
   return pcHashToFloat(rngState);
 }
 
-// This ray's launch index and the stride between its slots' records.
+// This ray's launch index, the stride between its slots' records, and its albedo / pi (what
+// a light's irradiance is scaled by on its way to the probe).
 uint launchIndex;
 uint slotStride;
+vec3 albedoOverPi;
 // The shadow ray of the slot last requested, until appendRequest lists it (tmax 0: none).
 GpuShadowRay pending;
 
-// Slot `slot`'s request: a shadow ray that adds `irradiance` when nothing blocks it. tmax 0
-// leaves the slot empty. appendRequest then lists the ray.
+// Slot `slot`'s request: a shadow ray that adds albedo / pi x `irradiance` to the ray's
+// radiance when nothing blocks it. tmax 0 leaves the slot empty (nothing is written: its mask
+// bit stays clear). appendRequest then lists the ray.
 void request(int slot, vec3 origin, vec3 dir, float tmax, vec3 irradiance) {
   uint light = uint(slot) * slotStride + launchIndex;
-  shadowLight[light] = GpuShadowLight(irradiance, 0u);
+  if (tmax > 0.0f) shadowLight[light] = GpuShadowLight(albedoOverPi * irradiance, 0.0f);
   pending = GpuShadowRay(origin, tmax, dir, light);
 }
 void noRequest(int slot) { request(slot, vec3(0.0f), vec3(0.0f), 0.0f, vec3(0.0f)); }
@@ -193,7 +197,7 @@ void emissiveRequest(int s, int samples, vec3 P, vec3 N) {
   vec3 target = offsetRayOrigin(Q, tri.normal);
   float shadowFar = length(target - P) * kShadowFarScale;
   float pdfArea = pTriangle / tri.area;
-  request(slot, P, wi, shadowFar, tri.radiance * (cosSurface * cosLight / (d2 * pdfArea)));
+  request(slot, P, wi, shadowFar, tri.radiance * (cosSurface * cosLight / (d2 * pdfArea)) / float(samples));
 }
 
 // Every slot's request for a lit surface point.
@@ -214,16 +218,11 @@ vec3 textureRgb(int t, vec2 uv) {
   return textureLod(textures[nonuniformEXT(t)], uv, 0.0f).rgb;
 }
 
-// A ray with no light to add: misses and backface hits.
-void unlit(vec3 radiance, float distance) {
+// The ray's record and a clear visibility mask (the shadow pass sets the visible bits).
+void finish(vec3 radiance, float distance) {
   rays[launchIndex] = vec4(radiance, distance);
-  GpuRayShading s;
-  s.albedoOverPi = vec3(0.0f);
-  s.pad0 = 0.0f;
-  s.indirect = vec3(0.0f);
-  s.pad1 = 0.0f;
-  rayShading[launchIndex] = s;
-  for (int slot = 0; slot < params.shadowSlots; ++slot) noRequest(slot);
+  int words = pcShadowMaskWords(params.shadowSlots);
+  for (int w = 0; w < words; ++w) shadowMask[uint(w) * slotStride + launchIndex] = 0u;
 }
 
 // Rays, shading record and shadow requests of a hit (cpu/embree_scene.cpp surface()).
@@ -244,8 +243,8 @@ void shadeHit(GpuHit hit, vec3 dir) {
   vec3 ng = inst.side * cross(p1 - p0, p2 - p0);
   float ngLength = length(ng);
   ng = ngLength > 0.0f ? ng / ngLength : -dir;
-  if (dot(dir, ng) > 0.0f) {
-    unlit(vec3(0.0f), -hit.t);
+  if (dot(dir, ng) > 0.0f) {  // backface: no light
+    finish(vec3(0.0f), -hit.t);
     return;
   }
 
@@ -270,23 +269,15 @@ void shadeHit(GpuHit hit, vec3 dir) {
       emission = m.emissive * (textured ? textureRgb(m.emissiveTexture, uv) : vec3(1.0f));
     sampled = m.sampled != 0;
   }
-  if (kVariant == 2 || kVariant == 4) {  // timing experiment
-    for (int slot = 0; slot < params.shadowSlots; ++slot) noRequest(slot);
-  } else {
-    directRequests(P, N);
-  }
+  albedoOverPi = albedo * (1.0f / PC_PI);
+  if (kVariant != 2 && kVariant != 4) directRequests(P, N);  // else a timing experiment
   vec3 indirect = vec3(0.0f);
   if ((params.shading & 1) == 0 && kVariant != 1 && kVariant != 4) {
     float coverage = 0.0f;
     indirect = pcSampleField(field, P, N, -dir, PC_SAMPLE_NO_OCCLUSION, coverage).xyz;
   }
-  rays[launchIndex] = vec4(sampled ? vec3(0.0f) : emission, hit.t);
-  GpuRayShading s;
-  s.albedoOverPi = albedo * (1.0f / PC_PI);
-  s.pad0 = 0.0f;
-  s.indirect = indirect;
-  s.pad1 = 0.0f;
-  rayShading[launchIndex] = s;
+  // The CPU's emitted + albedo / pi (direct + indirect), with the direct part left to the blend.
+  finish((sampled ? vec3(0.0f) : emission) + albedoOverPi * indirect, hit.t);
 }
 
 void main() {
@@ -301,7 +292,7 @@ void main() {
   vec3 dir = rayDirs[pr.y].xyz;
   GpuHit hit = hits[launchIndex];
   if (hit.instance < 0) {
-    unlit(skyRadiance(dir), PC_MISS_DISTANCE);
+    finish(skyRadiance(dir), PC_MISS_DISTANCE);
   } else {
     shadeHit(hit, dir);
   }

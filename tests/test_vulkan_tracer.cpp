@@ -158,6 +158,39 @@ TEST(VulkanTracer, OnlyRequestedProbesChangeAndHostEditsReachTheGpu) {
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
 }
 
+// Where the device launches from a buffer, the shadow rays are launched exactly as many as the
+// shade pass listed; the fallback launches the most the list can hold. Each shadow ray sets only
+// its own bit and the blend sums the set bits in slot order, so both give the same field to the
+// bit, whatever order the list was appended in.
+TEST(VulkanTracer, ExactShadowLaunchMatchesTheBoundedOne) {
+  const Scene scene = builtinScene();
+  std::string why;
+  auto exact = makeGpu(scene, &why);
+  if (!exact) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  if (!exact->context().rt().cmdTraceRaysIndirect) GTEST_SKIP() << "the device cannot launch rays from a buffer";
+  VulkanTracerOptions vo;
+  vo.validation = true;
+  vo.allowCpuDevice = true;
+  vo.boundedShadowLaunch = true;
+  auto bounded = VulkanTracer::create(scene, {}, vo);
+  ASSERT_TRUE(bounded) << bounded.error().message;
+
+  Field fe = Field::create(scene.volumes, FieldSettings{});
+  Field fb = Field::create(scene.volumes, FieldSettings{});
+  BakeOptions bake;
+  bake.updates = 3;
+  const BakeStats se = bakeField(fe, *exact, bake);
+  const BakeStats sb = bakeField(fb, **bounded, bake);
+  EXPECT_GT(se.shadowRays, 0u);
+  EXPECT_EQ(se.shadowRays, sb.shadowRays);
+  EXPECT_TRUE(fe.irradiance.texels == fb.irradiance.texels);
+  EXPECT_TRUE(fe.depth.texels == fb.depth.texels);
+  EXPECT_TRUE(fe.occlusion.texels == fb.occlusion.texels);
+  expectSameBrickVersions(fe, fb);
+  EXPECT_EQ(exact->validationErrorCount(), 0u);
+  EXPECT_EQ((*bounded)->validationErrorCount(), 0u);
+}
+
 }  // namespace
 }  // namespace pc
 

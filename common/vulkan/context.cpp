@@ -326,6 +326,7 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   if (options.rayTracing) {
     enable.as.accelerationStructure = VK_TRUE;
     enable.rt.rayTracingPipeline = VK_TRUE;
+    enable.rt.rayTracingPipelineTraceRaysIndirect = supported.rt.rayTracingPipelineTraceRaysIndirect;
   }
   const std::vector<const char*> ext = requiredDeviceExtensions(options);
   const float priority = 1.0f;
@@ -357,6 +358,8 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
     f.getRayTracingShaderGroupHandles =
         load<PFN_vkGetRayTracingShaderGroupHandlesKHR>(d, "vkGetRayTracingShaderGroupHandlesKHR");
     f.cmdTraceRays = load<PFN_vkCmdTraceRaysKHR>(d, "vkCmdTraceRaysKHR");
+    if (enable.rt.rayTracingPipelineTraceRaysIndirect)
+      f.cmdTraceRaysIndirect = load<PFN_vkCmdTraceRaysIndirectKHR>(d, "vkCmdTraceRaysIndirectKHR");
     if (!f.createAccelerationStructure || !f.destroyAccelerationStructure || !f.getAccelerationStructureBuildSizes ||
         !f.getAccelerationStructureDeviceAddress || !f.cmdBuildAccelerationStructures ||
         !f.createRayTracingPipelines || !f.getRayTracingShaderGroupHandles || !f.cmdTraceRays) {

@@ -50,6 +50,9 @@ struct RayTracingFunctions {
   PFN_vkCreateRayTracingPipelinesKHR createRayTracingPipelines = nullptr;
   PFN_vkGetRayTracingShaderGroupHandlesKHR getRayTracingShaderGroupHandles = nullptr;
   PFN_vkCmdTraceRaysKHR cmdTraceRays = nullptr;
+  // Null unless the device has rayTracingPipelineTraceRaysIndirect: launches whose size only
+  // the GPU knows (the server's compacted shadow-ray list) read it from a buffer.
+  PFN_vkCmdTraceRaysIndirectKHR cmdTraceRaysIndirect = nullptr;
 };
 
 class Context {

@@ -6,17 +6,20 @@
 //
 // An update runs as a wavefront of passes, each over every probe ray of the update:
 //   trace   (probe_trace.rgen)   closest hit of each probe ray -> GpuHit
-//   shade   (probe_shade.comp)   material, emission, previous field at the hit -> rays and
-//                                GpuRayShading; one GpuShadowLight per shadow slot (what the
-//                                light adds), and each real shadow ray appended to a compacted
-//                                list of GpuShadowRay
-//   shadow  (probe_shadow.rgen)  any-hit test of each listed ray -> its slot's `visible` flag
-//   blend   (probe_blend.comp)   adds the visible contributions, blends into the tiles
+//   shade   (probe_shade.comp)   material, emission, previous field at the hit -> `rays`
+//                                (radiance toward the probe without direct light, distance);
+//                                for each shadow slot with a real shadow ray, what the light adds
+//                                to that radiance (GpuShadowLight), and the ray appended to a
+//                                compacted list of GpuShadowRay
+//   shadow  (probe_shadow.rgen)  any-hit test of each listed ray -> a bit in its ray's mask
+//   blend   (probe_blend.comp)   adds the visible slots' light, blends into the tiles
 // Per-ray records are stored in launch order (pcLaunchProbeRay below), so every pass reads
 // and writes them coalesced. The shadow list is appended a subgroup at a time, so each
 // subgroup's rays stay together in launch order (neighbouring probes, one direction, one
 // light); the order of the subgroups' runs varies from run to run, which changes nothing:
-// each ray writes only its own slot's flag, and the blend sums the slots in a fixed order.
+// each ray sets only its own bit, and the blend sums the visible slots in slot order.
+// Only what a ray needs travels: a miss or a backface hit leaves 16 bytes and a mask word,
+// and the blend reads a slot's light only where its bit is set.
 #ifndef PC_GPU_TRACE_H
 #define PC_GPU_TRACE_H
 
@@ -34,7 +37,7 @@ PC_CONST int PC_BIND_OCCLUSION = 5;   // float[] (r)
 PC_CONST int PC_BIND_PROBES = 6;      // GpuProbeRecord[], field-wide slot index
 PC_CONST int PC_BIND_REQUESTS = 7;    // ivec2[]: (cascade, slot) of each probe to update
 PC_CONST int PC_BIND_RAY_DIRS = 8;    // vec4[]: this update's ray directions (xyz)
-PC_CONST int PC_BIND_RAYS = 9;        // vec4[] per ray, launch order: emitted radiance, signed distance
+PC_CONST int PC_BIND_RAYS = 9;        // vec4[] per ray, launch order: radiance without direct light, signed distance
 PC_CONST int PC_BIND_VERTICES = 10;   // GpuVertex[]
 PC_CONST int PC_BIND_INDICES = 11;    // uint[], mesh-local
 PC_CONST int PC_BIND_MESHES = 12;     // GpuMesh[]
@@ -49,7 +52,7 @@ PC_CONST int PC_BIND_PACKED = 20;       // float[]: changed bricks' tile rows, f
 PC_CONST int PC_BIND_COUNTERS = 21;     // uint[PC_COUNTER_WORDS]: shadow list length, 1, 1, 0
 PC_CONST int PC_BIND_TAPS = 22;         // uvec2[]: this update's blend taps (see below)
 PC_CONST int PC_BIND_HITS = 23;         // GpuHit[] per ray, launch order
-PC_CONST int PC_BIND_RAY_SHADING = 24;  // GpuRayShading[] per ray, launch order
+PC_CONST int PC_BIND_SHADOW_MASK = 24;  // uint[]: visible shadow slots, [word * (rays of the update) + launch index]
 PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: the compacted list of real shadow rays
 PC_CONST int PC_BIND_SHADOW_LIGHT = 26; // GpuShadowLight[]: [slot * rays of the update + launch index]
 PC_CONST int PC_BIND_TEXTURES = 27;     // sampler2D[]: base colour and emissive textures; the
@@ -57,7 +60,8 @@ PC_CONST int PC_BIND_TEXTURES = 27;     // sampler2D[]: base colour and emissive
 PC_CONST int PC_BINDING_COUNT = 28;
 
 // The counters (PC_BIND_COUNTERS): the shadow list's length (the shadow rays traced), then
-// 1, 1: a VkTraceRaysIndirectCommandKHR for the shadow launch.
+// 1, 1: a VkTraceRaysIndirectCommandKHR for the shadow launch, which covers exactly the list
+// where the device can launch from a buffer.
 PC_CONST int PC_COUNTER_WORDS = 4;
 PC_CONST int PC_BRICK_LIST_HEADER = 3;  // uints of dispatch arguments before the brick list
 PC_CONST int PC_DISPATCH_ROWS = 32768;  // workgroups per row of a 2D compute dispatch
@@ -114,6 +118,8 @@ PC_FN uint pcProbeRayLaunchIndex(int probe, int ray, int probeCount, int rayCoun
 PC_FN int pcShadowSlots(int lightCount, int emissiveCount, int emissiveSamples) {
   return lightCount + (emissiveCount > 0 && emissiveSamples > 0 ? emissiveSamples : 0);
 }
+// Words of a ray's visibility mask (PC_BIND_SHADOW_MASK): bit s % 32 of word s / 32 is slot s.
+PC_FN int pcShadowMaskWords(int slots) { return (slots + 31) / 32; }
 
 // Misses report this distance instead of +infinity: shader compilers may assume finite
 // floats. Above every comparison the update makes.
@@ -228,18 +234,6 @@ struct GpuHit {
   // -- 24
 };
 
-// What the shade pass leaves for the blend besides `rays` (emitted radiance, distance): the
-// radiance toward the probe is emitted + albedoOverPi * (direct + indirect), direct being the
-// sum of the ray's visible shadow requests (lights, then emissive samples / their count).
-struct GpuRayShading {
-  vec3 albedoOverPi;  // zero for misses and backface hits
-  float pad0;
-  // -- 16
-  vec3 indirect;  // irradiance from the previous field
-  float pad1;
-  // -- 32
-};
-
 // One real shadow ray of the compacted list (probe_shade.comp -> probe_shadow.rgen).
 struct GpuShadowRay {
   vec3 origin;
@@ -250,11 +244,13 @@ struct GpuShadowRay {
   // -- 32
 };
 
-// What a shadow slot adds when its ray reaches the light (probe_shade.comp ->
-// probe_blend.comp); empty slots add zero and are never visible.
+// What a shadow slot adds to its ray's radiance toward the probe when its shadow ray reaches
+// the light: albedo / pi x the light's irradiance (divided by the sample count for emissive
+// samples). Written by the shade pass for real shadow rays only; the blend reads it where
+// the slot's mask bit is set.
 struct GpuShadowLight {
-  vec3 irradiance;
-  uint visible;  // 0 from the shade pass; the shadow pass sets 1
+  vec3 radiance;
+  float pad0;
   // -- 16
 };
 
@@ -305,7 +301,6 @@ static_assert(sizeof(pc::gpu::GpuEmissiveTriangle) == 80);
 static_assert(sizeof(pc::gpu::GpuProbeRecord) == 32);
 static_assert(sizeof(pc::gpu::TracePush) == 8);
 static_assert(sizeof(pc::gpu::GpuHit) == 24);
-static_assert(sizeof(pc::gpu::GpuRayShading) == 32);
 static_assert(sizeof(pc::gpu::GpuShadowRay) == 32);
 static_assert(sizeof(pc::gpu::GpuShadowLight) == 16);
 static_assert(sizeof(pc::gpu::UpdateParams) == 96);

@@ -43,7 +43,7 @@ Benchmark addGpuTrace(CLI::App& app) {
   static std::string scenePath = "builtin", sidecar, device;
   static int updates = 8, rays = 256;
   static std::vector<int> counts;
-  static bool gpuOnly = false, skipEmbree = false, skipQuality = false;
+  static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false;
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
@@ -54,6 +54,8 @@ Benchmark addGpuTrace(CLI::App& app) {
   cmd->add_flag("--gpu-only", gpuOnly, "refuse CPU Vulkan implementations (lavapipe)");
   cmd->add_flag("--no-embree", skipEmbree, "skip the Embree run (and the field comparison)");
   cmd->add_flag("--no-quality", skipQuality, "skip the probe-lit renders and the reference");
+  cmd->add_flag("--bounded-shadow-launch", boundedShadowLaunch,
+                "launch shadow rays over the most the list can hold, not from the list's length on the GPU");
   addRenderOptions(*cmd, setup);
   return {cmd, [] {
             auto scene = loadBenchScene(scenePath, sidecar);
@@ -67,6 +69,7 @@ Benchmark addGpuTrace(CLI::App& app) {
             VulkanTracerOptions vo;
             vo.allowCpuDevice = !gpuOnly;
             vo.deviceNameFilter = device;
+            vo.boundedShadowLaunch = boundedShadowLaunch;
             auto gpu = VulkanTracer::create(*scene, {}, vo);
             if (!gpu) {
               std::fprintf(stderr, "gpu-trace: %s\n", gpu.error().message.c_str());
