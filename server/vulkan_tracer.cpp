@@ -211,6 +211,9 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   co.allowCpuDevice = vulkan.allowCpuDevice;
   co.deviceNameFilter = vulkan.deviceNameFilter;
   forceShadowLaunchBound = vulkan.boundedShadowLaunch;
+  // Diagnostics: PC_PIPELINE_STATS=1 logs each pipeline's compiler statistics (registers,
+  // shared memory, ...) where the driver reports them.
+  co.pipelineStatistics = std::getenv("PC_PIPELINE_STATS") != nullptr;
   auto c = vk::Context::create(co);
   if (!c) return c.error();
   ctx = std::move(c).value();
@@ -439,6 +442,10 @@ Status VulkanTracer::Impl::createPipelines() {
   PC_VK_TRY(vkCreatePipelineLayout(ctx->device(), &plci, nullptr, &pl));
   pipelineLayout = vk::UniquePipelineLayout(ctx->device(), pl);
 
+  auto logStatistics = [&](const char* name, VkPipeline p) {
+    for (const std::string& line : ctx->pipelineStatistics(p)) logInfo(std::string(name) + " " + line);
+  };
+
   // ---- ray tracing: stages raygen, miss..., closest hit; groups in the same order ----
   auto makeRayPipeline = [&](const char* raygen, std::vector<const char*> misses) -> Result<vk::UniquePipeline> {
     std::vector<vk::UniqueShaderModule> modules;
@@ -476,8 +483,10 @@ Status VulkanTracer::Impl::createPipelines() {
     rci.pGroups = groups.data();
     rci.maxPipelineRayRecursionDepth = 1;  // every ray leaves from ray generation
     rci.layout = pl;
+    if (ctx->capturesStatistics()) rci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
     VkPipeline p = VK_NULL_HANDLE;
     PC_VK_TRY(ctx->rt().createRayTracingPipelines(ctx->device(), VK_NULL_HANDLE, VK_NULL_HANDLE, 1, &rci, nullptr, &p));
+    logStatistics(raygen, p);
     return vk::UniquePipeline(ctx->device(), p);
   };
   auto trace = makeRayPipeline("probe_trace.rgen.spv", {"probe_trace.rmiss.spv"});
@@ -514,8 +523,10 @@ Status VulkanTracer::Impl::createPipelines() {
     const VkSpecializationInfo spec{1, &entry, sizeof(int), &variant};
     if (variant != 0) cci.stage.pSpecializationInfo = &spec;  // constant_id 0: kVariant
     cci.layout = pl;
+    if (ctx->capturesStatistics()) cci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
     VkPipeline p = VK_NULL_HANDLE;
     PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
+    logStatistics(name, p);
     return vk::UniquePipeline(ctx->device(), p);
   };
   auto shade = makeCompute("probe_shade.comp.spv", shadeVariant);
@@ -1054,7 +1065,10 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
 
   m.timer.begin(cmd, "blend");
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
-  const int groupProbes = m.blendVariant == 10 ? 1 : pcBlendProbes(rayCount);  // 10: a timing experiment
+  // Variants 10 and 12 are timing experiments (probe_blend.comp).
+  const int groupProbes = m.blendVariant == 10   ? 1
+                          : m.blendVariant == 12 ? std::min(2, pcBlendProbes(rayCount))
+                                                 : pcBlendProbes(rayCount);
   m.dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
   m.timer.end(cmd);
   vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);

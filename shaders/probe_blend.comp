@@ -34,6 +34,7 @@ layout(local_size_x = PC_BLEND_THREADS) in;
 //   8 tile sums without atlas reads/writes  9 tile sums in vec4 registers (one lane per probe)
 //  10 one probe per workgroup (the host dispatches one group per request)
 //  11 workgroup-scope barrier before the borders instead of memoryBarrierBuffer
+//  12 at most two probes per workgroup (the host dispatches accordingly)
 layout(constant_id = 0) const int kVariant = 0;
 
 layout(std430, set = 0, binding = PC_BIND_PARAMS) readonly buffer Params { UpdateParams params; };
@@ -88,7 +89,7 @@ void main() {
   const int ni = PC_IRRADIANCE_TEXELS, nd = PC_DEPTH_TEXELS, no = PC_OCCLUSION_TEXELS;
   int tid = int(gl_LocalInvocationIndex);
   int rayCount = params.rayCount;
-  int groupProbes = kVariant == 10 ? 1 : pcBlendProbes(rayCount);
+  int groupProbes = kVariant == 10 ? 1 : kVariant == 12 ? min(2, pcBlendProbes(rayCount)) : pcBlendProbes(rayCount);
   int firstRequest = (int(gl_WorkGroupID.y) * PC_DISPATCH_ROWS + int(gl_WorkGroupID.x)) * groupProbes;
   if (firstRequest >= params.probeCount) return;  // uniform across the workgroup
   int probesHere = min(groupProbes, params.probeCount - firstRequest);

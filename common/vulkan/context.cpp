@@ -328,7 +328,17 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
     enable.rt.rayTracingPipeline = VK_TRUE;
     enable.rt.rayTracingPipelineTraceRaysIndirect = supported.rt.rayTracingPipelineTraceRaysIndirect;
   }
-  const std::vector<const char*> ext = requiredDeviceExtensions(options);
+  std::vector<const char*> ext = requiredDeviceExtensions(options);
+  VkPhysicalDevicePipelineExecutablePropertiesFeaturesKHR executableInfo{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PIPELINE_EXECUTABLE_PROPERTIES_FEATURES_KHR};
+  const bool statistics = options.pipelineStatistics &&
+                          hasExtension(deviceExtensions(best), VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
+  if (statistics) {
+    ext.push_back(VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
+    executableInfo.pipelineExecutableInfo = VK_TRUE;
+    executableInfo.pNext = enable.base.pNext;
+    enable.base.pNext = &executableInfo;
+  }
   const float priority = 1.0f;
   VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
   qci.queueFamilyIndex = ctx->queueFamily_;
@@ -342,6 +352,13 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   dci2.ppEnabledExtensionNames = ext.data();
   PC_VK_TRY(vkCreateDevice(best, &dci2, nullptr, &ctx->device_));
   vkGetDeviceQueue(ctx->device_, ctx->queueFamily_, 0, &ctx->queue_);
+  if (statistics) {
+    ctx->getExecutableProperties_ =
+        load<PFN_vkGetPipelineExecutablePropertiesKHR>(ctx->device_, "vkGetPipelineExecutablePropertiesKHR");
+    ctx->getExecutableStatistics_ =
+        load<PFN_vkGetPipelineExecutableStatisticsKHR>(ctx->device_, "vkGetPipelineExecutableStatisticsKHR");
+    if (!ctx->getExecutableProperties_) ctx->getExecutableStatistics_ = nullptr;
+  }
 
   if (options.rayTracing) {
     RayTracingFunctions& f = ctx->rt_;
@@ -372,6 +389,42 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   pci.queueFamilyIndex = ctx->queueFamily_;
   PC_VK_TRY(vkCreateCommandPool(ctx->device_, &pci, nullptr, &ctx->oneShotPool_));
   return ctx;
+}
+
+std::vector<std::string> Context::pipelineStatistics(VkPipeline pipeline) const {
+  std::vector<std::string> lines;
+  if (!getExecutableStatistics_) return lines;
+  VkPipelineInfoKHR info{VK_STRUCTURE_TYPE_PIPELINE_INFO_KHR};
+  info.pipeline = pipeline;
+  std::uint32_t count = 0;
+  if (getExecutableProperties_(device_, &info, &count, nullptr) != VK_SUCCESS) return lines;
+  std::vector<VkPipelineExecutablePropertiesKHR> executables(count, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_PROPERTIES_KHR});
+  if (getExecutableProperties_(device_, &info, &count, executables.data()) != VK_SUCCESS) return lines;
+  for (std::uint32_t e = 0; e < count; ++e) {
+    VkPipelineExecutableInfoKHR ei{VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_INFO_KHR};
+    ei.pipeline = pipeline;
+    ei.executableIndex = e;
+    std::uint32_t n = 0;
+    if (getExecutableStatistics_(device_, &ei, &n, nullptr) != VK_SUCCESS) continue;
+    std::vector<VkPipelineExecutableStatisticKHR> stats(n, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_STATISTIC_KHR});
+    if (getExecutableStatistics_(device_, &ei, &n, stats.data()) != VK_SUCCESS) continue;
+    std::string line = std::string(executables[e].name) + " (subgroup " +
+                       std::to_string(executables[e].subgroupSize) + "):";
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const VkPipelineExecutableStatisticKHR& st = stats[i];
+      std::string value;
+      switch (st.format) {
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_BOOL32_KHR: value = st.value.b32 ? "yes" : "no"; break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_INT64_KHR: value = std::to_string(st.value.i64); break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_UINT64_KHR: value = std::to_string(st.value.u64); break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_FLOAT64_KHR: value = std::to_string(st.value.f64); break;
+        default: value = "?";
+      }
+      line += std::string(i ? ", " : " ") + st.name + " " + value;
+    }
+    lines.push_back(line);
+  }
+  return lines;
 }
 
 Context::~Context() {

@@ -38,6 +38,9 @@ struct ContextOptions {
   bool allowCpuDevice = false;
   std::string deviceNameFilter;  // substring of the device name; empty: any
   bool multiview = false;        // VK_KHR_multiview (core 1.1 feature) for stereo rendering
+  // VK_KHR_pipeline_executable_properties where the device has it (never required): the
+  // compiler's statistics of a pipeline (registers, shared memory, ...), for diagnostics.
+  bool pipelineStatistics = false;
 };
 
 // Extension entry points that the loader does not export; loaded per device.
@@ -80,6 +83,12 @@ class Context {
   // Tests fail on any.
   std::uint32_t validationErrorCount() const { return validationErrors_.load(); }
 
+  // With ContextOptions::pipelineStatistics on a device that has it: pipelines created with
+  // VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR (capturesStatistics()) report their
+  // compiler statistics, one line per executable ("stage: name value, ..."). Empty otherwise.
+  bool capturesStatistics() const { return getExecutableStatistics_ != nullptr; }
+  std::vector<std::string> pipelineStatistics(VkPipeline pipeline) const;
+
   // Index of a memory type with `required` flags among `typeBits`, preferring one that also has
   // `preferred`; -1 when none.
   int findMemoryType(std::uint32_t typeBits, VkMemoryPropertyFlags required,
@@ -108,6 +117,8 @@ class Context {
   VkPhysicalDeviceMemoryProperties memory_{};
   VkPhysicalDeviceRayTracingPipelinePropertiesKHR rtProperties_{};
   RayTracingFunctions rt_;
+  PFN_vkGetPipelineExecutablePropertiesKHR getExecutableProperties_ = nullptr;
+  PFN_vkGetPipelineExecutableStatisticsKHR getExecutableStatistics_ = nullptr;
   std::atomic<std::uint32_t> validationErrors_{0};
 };
 
