@@ -281,6 +281,61 @@ TEST(VulkanTracer, MirroredAndSharedStaticInstancesMatchEmbree) {
 namespace pc {
 namespace {
 
+// More shadow slots than one 32-bit mask word holds: 40 lights (points, spots and a sun, most
+// of them dim) in the built-in room. The sun, the brightest, is slot 39, in each ray's second
+// mask word: a blend that read only the first word measured 4.9e-2 here.
+TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
+  Scene scene = builtinScene();
+  const glm::vec3 lo = scene.boundsMin, hi = scene.boundsMax;
+  for (int i = 0; i < 39; ++i) {
+    Light l;
+    l.name = "extra-" + std::to_string(i);
+    l.type = i % 3 == 2 ? LightType::Spot : LightType::Point;
+    const float u = float(i % 7) / 6.0f, v = float((i / 7) % 3) / 2.0f, w = float(i % 5) / 4.0f;
+    l.position = glm::mix(lo, hi, glm::vec3(0.15f + 0.7f * u, 0.3f + 0.5f * v, 0.15f + 0.7f * w));
+    l.direction = glm::normalize(glm::vec3(u - 0.5f, -1.0f, w - 0.5f));
+    l.color = glm::vec3(0.4f + 0.6f * u, 0.7f, 1.0f - 0.5f * w);
+    l.intensity = 0.05f;
+    l.range = i % 2 == 0 ? 0.0f : 0.6f * glm::length(hi - lo);
+    scene.lights.push_back(l);
+  }
+  Light sun;
+  sun.name = "sun";
+  sun.type = LightType::Directional;
+  sun.direction = glm::normalize(glm::vec3(0.3f, -1.0f, 0.2f));
+  sun.intensity = 0.5f;
+  scene.lights.push_back(sun);
+  ASSERT_GT(scene.lights.size(), 32u);
+  std::string why;
+  auto gpu = makeGpu(scene, &why);
+  if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  auto cpu = makeEmbreeTracer(scene);
+  ASSERT_TRUE(cpu) << cpu.error().message;
+  FieldSettings settings;
+  settings.raysPerProbe = 32;
+  Field fg = Field::create(scene.volumes, settings);
+  Field fc = Field::create(scene.volumes, settings);
+  UpdateRequest request;
+  request.probes = allProbes(fc);
+  std::uint64_t shadowRays = 0;
+  for (int i = 0; i < 2; ++i) {
+    request.rotationSeed = 900u + std::uint32_t(i);
+    const UpdateStats ug = gpu->update(fg, request);
+    const UpdateStats uc = (*cpu)->update(fc, request);
+    EXPECT_NEAR(double(ug.shadowRays), double(uc.shadowRays), 0.01 * double(uc.shadowRays));
+    shadowRays += ug.shadowRays;
+  }
+  const FieldDifference d = compareFields(fg, fc);
+  std::printf("builtin + 40 lights: %llu shadow rays, irradiance rel diff %.2e, depth rel diff %.2e\n",
+              static_cast<unsigned long long>(shadowRays), d.irradiance, d.depth);
+  // Probe rays ask for most of the 40 lights' shadow rays (24 per probe ray on average here).
+  EXPECT_GT(shadowRays, 2u * 32u * std::uint64_t(request.probes.size()) * 32u / 2u);
+  EXPECT_GT(d.probes, 100);
+  EXPECT_LE(d.irradiance, 0.01);
+  EXPECT_LE(d.depth, 0.01);
+  EXPECT_EQ(gpu->validationErrorCount(), 0u);
+}
+
 // The wavefront's passes find a ray's records by launch index (gpu_trace.h): the blend maps
 // (request, ray) back to it, so the two mappings must be inverses over whole and partial tiles.
 TEST(VulkanTracer, LaunchOrderMapsBothWays) {
