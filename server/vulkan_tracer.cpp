@@ -24,6 +24,8 @@ static_assert(PC_MAX_RAYS_PER_PROBE == kMaxRaysPerProbe, "the blend's shared scr
 // power-of-two share of them per probe of a group for the reductions.
 static_assert(PC_IRRADIANCE_TEXELS == PC_OCCLUSION_TEXELS, "irradiance and occlusion share their taps");
 static_assert(PC_BLEND_THREADS > PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS);
+// probe_blend.comp's default scratch (a literal there).
+static_assert(PC_MAX_RAYS_PER_PROBE + PC_BLEND_MAX_PROBES == 1028);
 static_assert(PC_BLEND_THREADS % PC_BLEND_MAX_PROBES == 0 && PC_TRACE_TILE_PROBES % PC_BLEND_MAX_PROBES == 0);
 // A brick's probes must lie in one atlas tile row for the packed row runs (gpu_trace.h).
 static_assert(PC_ATLAS_TILES_PER_ROW % PC_PROBES_PER_BRICK == 0);
@@ -141,6 +143,7 @@ struct VulkanTracer::Impl {
   VkDescriptorSet set = VK_NULL_HANDLE;
   vk::UniquePipelineLayout pipelineLayout;
   vk::UniquePipeline tracePipeline, shadowPipeline, shadePipeline, blendPipeline, changesPipeline, packPipeline;
+  int blendScratch = 0;  // shared scratch entries the blend pipeline was made with
   BindingTable traceTable, shadowTable;
 
   // ---- per-update buffers ----
@@ -186,6 +189,13 @@ struct VulkanTracer::Impl {
   Status init(const VulkanTracerOptions& vulkan);
   Status uploadScene();
   Status createPipelines();
+  // A compute pipeline of `name` with its specialization constants (constant_id i = value i;
+  // none when empty).
+  Result<vk::UniquePipeline> computePipeline(const char* name, const std::vector<int>& constants);
+  // The blend pipeline for `rayCount` rays per probe: its shared scratch is sized for the
+  // group (blendGroupProbes) at that ray count, rebuilt when the count changes.
+  int blendGroupProbes(int rayCount) const;
+  Status ensureBlendPipeline(int rayCount);
   void writeDescriptors();
   int shadowSlots() const;
   void ensureRequestCapacity(std::size_t probes, int rayCount, int slots);
@@ -511,36 +521,53 @@ Status VulkanTracer::Impl::createPipelines() {
   };
   blendVariant = variantOf("PC_BLEND_VARIANT");
   shadeVariant = variantOf("PC_SHADE_VARIANT");
-  auto makeCompute = [&](const char* name, int variant = 0) -> Result<vk::UniquePipeline> {
-    auto m = vk::loadShader(*ctx, name);
-    if (!m) return m.error();
-    VkComputePipelineCreateInfo cci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-    cci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-    cci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    cci.stage.module = m->get();
-    cci.stage.pName = "main";
-    const VkSpecializationMapEntry entry{0, 0, sizeof(int)};
-    const VkSpecializationInfo spec{1, &entry, sizeof(int), &variant};
-    if (variant != 0) cci.stage.pSpecializationInfo = &spec;  // constant_id 0: kVariant
-    cci.layout = pl;
-    if (ctx->capturesStatistics()) cci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
-    VkPipeline p = VK_NULL_HANDLE;
-    PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
-    logStatistics(name, p);
-    return vk::UniquePipeline(ctx->device(), p);
-  };
-  auto shade = makeCompute("probe_shade.comp.spv", shadeVariant);
+  auto shade = computePipeline("probe_shade.comp.spv", {shadeVariant});  // constant_id 0: kVariant
   if (!shade) return shade.error();
   shadePipeline = std::move(shade).value();
-  auto blend = makeCompute("probe_blend.comp.spv", blendVariant);
-  if (!blend) return blend.error();
-  blendPipeline = std::move(blend).value();
-  auto ch = makeCompute("brick_changes.comp.spv");
+  auto ch = computePipeline("brick_changes.comp.spv", {});
   if (!ch) return ch.error();
   changesPipeline = std::move(ch).value();
-  auto pk = makeCompute("brick_pack.comp.spv");
+  auto pk = computePipeline("brick_pack.comp.spv", {});
   if (!pk) return pk.error();
   packPipeline = std::move(pk).value();
+  return ensureBlendPipeline(FieldSettings{}.raysPerProbe);
+}
+
+Result<vk::UniquePipeline> VulkanTracer::Impl::computePipeline(const char* name, const std::vector<int>& constants) {
+  auto m = vk::loadShader(*ctx, name);
+  if (!m) return m.error();
+  VkComputePipelineCreateInfo cci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  cci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  cci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  cci.stage.module = m->get();
+  cci.stage.pName = "main";
+  std::vector<VkSpecializationMapEntry> entries;
+  for (std::size_t i = 0; i < constants.size(); ++i)
+    entries.push_back({std::uint32_t(i), std::uint32_t(i * sizeof(int)), sizeof(int)});
+  const VkSpecializationInfo spec{std::uint32_t(entries.size()), entries.data(), constants.size() * sizeof(int),
+                                  constants.data()};
+  if (!constants.empty()) cci.stage.pSpecializationInfo = &spec;
+  cci.layout = pipelineLayout.get();
+  if (ctx->capturesStatistics()) cci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
+  VkPipeline p = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
+  for (const std::string& line : ctx->pipelineStatistics(p)) logInfo(std::string(name) + " " + line);
+  return vk::UniquePipeline(ctx->device(), p);
+}
+
+int VulkanTracer::Impl::blendGroupProbes(int rayCount) const {
+  // Variants 10 and 12 are timing experiments (probe_blend.comp).
+  return blendVariant == 10 ? 1 : blendVariant == 12 ? std::min(2, pcBlendProbes(rayCount)) : pcBlendProbes(rayCount);
+}
+
+Status VulkanTracer::Impl::ensureBlendPipeline(int rayCount) {
+  const int scratch = pcBlendScratch(blendGroupProbes(rayCount), rayCount);
+  if (blendPipeline && scratch == blendScratch) return Status::success();
+  // constant_id 0: kVariant, 1: the shared scratch's entries.
+  auto blend = computePipeline("probe_blend.comp.spv", {blendVariant, scratch});
+  if (!blend) return blend.error();
+  blendPipeline = std::move(blend).value();
+  blendScratch = scratch;
   return Status::success();
 }
 
@@ -1016,6 +1043,10 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   const int rayCount = field.settings.raysPerProbe;
   const int n = int(request.probes.size());
   if (n == 0) return stats;
+  if (Status s = m.ensureBlendPipeline(rayCount); !s) {  // as buffers the update cannot do without
+    logError("vulkan tracer: blend pipeline: " + s.error().message);
+    std::abort();
+  }
   m.writeUpdateInputs(field, request, true);
   std::vector<vk::Buffer> staging;
 
@@ -1065,10 +1096,7 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
 
   m.timer.begin(cmd, "blend");
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
-  // Variants 10 and 12 are timing experiments (probe_blend.comp).
-  const int groupProbes = m.blendVariant == 10   ? 1
-                          : m.blendVariant == 12 ? std::min(2, pcBlendProbes(rayCount))
-                                                 : pcBlendProbes(rayCount);
+  const int groupProbes = m.blendGroupProbes(rayCount);
   m.dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
   m.timer.end(cmd);
   vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);

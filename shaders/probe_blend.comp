@@ -36,6 +36,10 @@ layout(local_size_x = PC_BLEND_THREADS) in;
 //  11 workgroup-scope barrier before the borders instead of memoryBarrierBuffer
 //  12 at most two probes per workgroup (the host dispatches accordingly)
 layout(constant_id = 0) const int kVariant = 0;
+// Rays the shared scratch holds: pcBlendScratch for this pipeline's ray count (the host
+// always specializes it; the default, a literal as specialization constants need, is the
+// most any ray count needs: PC_MAX_RAYS_PER_PROBE + PC_BLEND_MAX_PROBES).
+layout(constant_id = 1) const int kScratch = 1028;
 
 layout(std430, set = 0, binding = PC_BIND_PARAMS) readonly buffer Params { UpdateParams params; };
 layout(std430, set = 0, binding = PC_BIND_REQUESTS) readonly buffer Requests { ivec2 requests[]; };
@@ -51,7 +55,6 @@ const int K = PC_BLEND_MAX_PROBES;
 
 // The group's rays, a padded row per probe ([k * (rayCount + 1) + ray]): radiance and signed
 // distance, and the distance the depth moments use.
-const int kScratch = PC_MAX_RAYS_PER_PROBE + PC_BLEND_MAX_PROBES;
 shared vec4 sRay[kScratch];
 shared float sDepth[kScratch];
 // Reductions, PC_BLEND_THREADS / groupProbes threads per probe: backface count and the closest

@@ -78,6 +78,10 @@ PC_CONST int PC_BLEND_MAX_PROBES = 4;
 PC_FN int pcBlendProbes(int rayCount) {
   return rayCount * 4 <= PC_MAX_RAYS_PER_PROBE ? 4 : rayCount * 2 <= PC_MAX_RAYS_PER_PROBE ? 2 : 1;
 }
+// The blend's shared ray scratch, in rays (a padded row of rayCount + 1 per probe of the
+// group): the pipeline is specialized with it (constant_id 1), so a group holds no more shared
+// memory than its rays need.
+PC_FN int pcBlendScratch(int groupProbes, int rayCount) { return groupProbes * (rayCount + 1); }
 
 // Blend taps (PC_BIND_TAPS), built on the host from the update's ray directions exactly as the
 // CPU's BlendTaps: which rays feed which texel, with what lobe weight. Irradiance and occlusion
