@@ -130,7 +130,7 @@ struct VulkanTracer::Impl {
   // PC_SHADE_VARIANT pick a variant that drops one step; 0, the default, is the real pass.
   int blendVariant = 0;
   int shadeVariant = 0;
-  bool forceShadowLaunchBound = false;  // VulkanTracerOptions::boundedShadowLaunch
+  bool boundedShadowLaunch = false;  // VulkanTracerOptions::boundedShadowLaunch
   SceneAccel accel;
   bool tlasDirty = true;
   std::vector<vk::Image> textures;
@@ -192,6 +192,8 @@ struct VulkanTracer::Impl {
   // A compute pipeline of `name` with its specialization constants (constant_id i = value i;
   // none when empty).
   Result<vk::UniquePipeline> computePipeline(const char* name, const std::vector<int>& constants);
+  // The compiler's statistics of a pipeline, logged where the context captures them.
+  void logStatistics(const char* name, VkPipeline pipeline) const;
   // The blend pipeline for `rayCount` rays per probe: its shared scratch is sized for the
   // group (blendGroupProbes) at that ray count, rebuilt when the count changes.
   int blendGroupProbes(int rayCount) const;
@@ -220,7 +222,7 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   co.rayTracing = true;
   co.allowCpuDevice = vulkan.allowCpuDevice;
   co.deviceNameFilter = vulkan.deviceNameFilter;
-  forceShadowLaunchBound = vulkan.boundedShadowLaunch;
+  boundedShadowLaunch = vulkan.boundedShadowLaunch;
   // Diagnostics: PC_PIPELINE_STATS=1 logs each pipeline's compiler statistics (registers,
   // shared memory, ...) where the driver reports them.
   co.pipelineStatistics = std::getenv("PC_PIPELINE_STATS") != nullptr;
@@ -452,10 +454,6 @@ Status VulkanTracer::Impl::createPipelines() {
   PC_VK_TRY(vkCreatePipelineLayout(ctx->device(), &plci, nullptr, &pl));
   pipelineLayout = vk::UniquePipelineLayout(ctx->device(), pl);
 
-  auto logStatistics = [&](const char* name, VkPipeline p) {
-    for (const std::string& line : ctx->pipelineStatistics(p)) logInfo(std::string(name) + " " + line);
-  };
-
   // ---- ray tracing: stages raygen, miss..., closest hit; groups in the same order ----
   auto makeRayPipeline = [&](const char* raygen, std::vector<const char*> misses) -> Result<vk::UniquePipeline> {
     std::vector<vk::UniqueShaderModule> modules;
@@ -551,8 +549,12 @@ Result<vk::UniquePipeline> VulkanTracer::Impl::computePipeline(const char* name,
   if (ctx->capturesStatistics()) cci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
   VkPipeline p = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
-  for (const std::string& line : ctx->pipelineStatistics(p)) logInfo(std::string(name) + " " + line);
+  logStatistics(name, p);
   return vk::UniquePipeline(ctx->device(), p);
+}
+
+void VulkanTracer::Impl::logStatistics(const char* name, VkPipeline pipeline) const {
+  for (const std::string& line : ctx->pipelineStatistics(pipeline)) logInfo(std::string(name) + " " + line);
 }
 
 int VulkanTracer::Impl::blendGroupProbes(int rayCount) const {
@@ -912,7 +914,7 @@ void VulkanTracer::Impl::recordShadowTrace(std::uint64_t requests) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
   const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
-  if (ctx->rt().cmdTraceRaysIndirect && requests <= maxWidth && !forceShadowLaunchBound) {
+  if (ctx->rt().cmdTraceRaysIndirect && requests <= maxWidth && !boundedShadowLaunch) {
     const TracePush push{0, int(requests)};
     vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof push, &push);
