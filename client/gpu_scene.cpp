@@ -1,8 +1,13 @@
 #include "gpu_scene.h"
 
+#include <algorithm>
+#include <span>
+
+#include "texture_mips.h"
+
 namespace pc::client {
 
-Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene) {
+Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene, bool mipmaps) {
   GpuScene g;
   g.packed_ = packScene(scene);
   if (g.packed_.indices.empty()) return Error{"scene has no triangles to draw"};
@@ -17,14 +22,18 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene) {
   if (!ib) return ib.error();
   g.indices_ = std::move(ib).value();
 
-  auto addTexture = [&](int width, int height, const std::uint8_t* rgba) -> Status {
+  // Full mip chains (texture_mips.h) unless asked for level 0 alone; 1x1 stand-ins have one.
+  auto addTexture = [&](int width, int height, std::span<const std::uint8_t> rgba) -> Status {
+    MipChain chain = mipmaps ? buildSrgbMipChain(width, height, rgba)
+                             : MipChain{1, {rgba.begin(), rgba.begin() + std::size_t(width) * height * 4}};
     vk::ImageDesc d;
     d.format = VK_FORMAT_R8G8B8A8_SRGB;  // decoded to linear by the sampler, as the CPU's LUT
     d.width = std::uint32_t(width);
     d.height = std::uint32_t(height);
+    d.mipLevels = std::uint32_t(chain.levels);
     auto image = vk::Image::create(ctx, d);
     if (!image) return image.error();
-    Status s = image->upload(rgba, std::size_t(width) * height * 4);
+    Status s = image->upload(chain.rgba.data(), chain.rgba.size());
     if (!s) return s;
     g.textures_.push_back(std::move(image).value());
     return Status::success();
@@ -33,7 +42,7 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene) {
   for (const Texture& t : scene.textures) {
     const bool valid =
         t.width > 0 && t.height > 0 && t.rgba.size() >= std::size_t(t.width) * t.height * 4;
-    Status s = valid ? addTexture(t.width, t.height, t.rgba.data()) : addTexture(1, 1, white);
+    Status s = valid ? addTexture(t.width, t.height, t.rgba) : addTexture(1, 1, white);
     if (!s) return s.error();
   }
   if (g.textures_.empty()) {
@@ -41,11 +50,19 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene) {
     if (!s) return s.error();
   }
 
+  // Trilinear, and anisotropic where the device has it: the lighting pass gives each lookup
+  // its pixel's texture-space footprint, as a fragment shader's derivatives would.
+  VkPhysicalDeviceFeatures features{};
+  vkGetPhysicalDeviceFeatures(ctx.physicalDevice(), &features);
   VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
   si.magFilter = si.minFilter = VK_FILTER_LINEAR;
-  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
   si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT;
-  si.maxLod = 0.0f;
+  si.maxLod = VK_LOD_CLAMP_NONE;
+  if (mipmaps && features.samplerAnisotropy) {
+    si.anisotropyEnable = VK_TRUE;
+    si.maxAnisotropy = std::min(kMaxAnisotropy, ctx.properties().limits.maxSamplerAnisotropy);
+  }
   VkSampler sampler = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateSampler(ctx.device(), &si, nullptr, &sampler));
   g.sampler_ = vk::UniqueSampler(ctx.device(), sampler);

@@ -1,9 +1,10 @@
 // The scene's geometry and textures on the GPU: one vertex and one index buffer for every
 // mesh (scene_pack.h; the lighting pass reads them as storage buffers too), the base-color and
-// emissive textures as sRGB images, and the sampler that reads them the way Texture::sample
-// does (bilinear, repeating, no mipmaps).
+// emissive textures as sRGB images with their mip chains, and the sampler that reads them:
+// bilinear and repeating like Texture::sample, with trilinear (and anisotropic) minification.
 #pragma once
 
+#include <span>
 #include <vector>
 
 #include "common/result.h"
@@ -15,7 +16,10 @@ namespace pc::client {
 
 class GpuScene {
  public:
-  static Result<GpuScene> create(const vk::Context& ctx, const Scene& scene);
+  // Anisotropic filtering goes up to this many taps where the device has it.
+  static constexpr float kMaxAnisotropy = 16.0f;
+  // mipmaps false: level 0 alone, each lookup a bilinear tap as on the CPU (a baseline).
+  static Result<GpuScene> create(const vk::Context& ctx, const Scene& scene, bool mipmaps);
 
   const PackedScene& packed() const { return packed_; }
   VkBuffer vertices() const { return vertices_.get(); }

@@ -37,6 +37,7 @@ int runHeadless(const ClientConfig& config) {
   ro.views = config.stereo ? 2 : 1;
   ro.msaa = config.msaa;
   ro.rasterizer = config.rasterizer;
+  ro.textureMipmaps = config.textureMipmaps;
   ro.shadows = config.shadows;
   ro.sampleFlags = config.sampleFlags;
   auto renderer = Renderer::create(**ctx, *scene, mirror, ro);

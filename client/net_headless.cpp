@@ -42,6 +42,7 @@ Result<std::unique_ptr<Renderer>> makeRenderer(const vk::Context& ctx, const Sce
   ro.views = config.stereo ? 2 : 1;
   ro.msaa = config.msaa;
   ro.rasterizer = config.rasterizer;
+  ro.textureMipmaps = config.textureMipmaps;
   ro.shadows = config.shadows;
   ro.sampleFlags = config.sampleFlags;
   return Renderer::create(ctx, scene, mirror, ro);

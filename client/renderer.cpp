@@ -244,7 +244,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
     r->ambient_ = sky.isBlack() ? glm::vec3(0.1f) : 3.14159265f * mean;
   }
 
-  auto gpuScene = GpuScene::create(ctx, scene);
+  auto gpuScene = GpuScene::create(ctx, scene, options.textureMipmaps);
   if (!gpuScene) return gpuScene.error();
   r->gpuScene_.emplace(std::move(gpuScene).value());
   // Visibility ids are 32-bit with 0 for the sky (client_frame.h, DrawData).

@@ -65,6 +65,10 @@ struct RendererOptions {
   // 4x: 0.37 against 2.80 ms on sauer-pandora; lavapipe too), most where graphics units are
   // few next to compute. The depth pre-pass applies to the fixed-function path only.
   Rasterizer rasterizer = Rasterizer::Auto;
+  // Textures with mip chains, each lookup filtered over its pixel's footprint (trilinear,
+  // anisotropic where the device has it). false: one bilinear tap of level 0 per sample, as
+  // the CPU renders take per ray (minified textures alias).
+  bool textureMipmaps = true;
 };
 
 struct FrameInput {

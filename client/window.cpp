@@ -125,6 +125,7 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
     ro.height = int(swapchain.extent().height);
     ro.msaa = config.msaa;
     ro.rasterizer = config.rasterizer;
+    ro.textureMipmaps = config.textureMipmaps;
     ro.shadows = config.shadows;
     ro.sampleFlags = config.sampleFlags;
     ro.fieldFadeSeconds = kFieldFadeSeconds;

@@ -4,6 +4,7 @@
 // the sidecar's unit scale.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -14,6 +15,9 @@
 #include "result.h"
 
 namespace pc {
+
+// The linear value of each 8-bit sRGB code (what Texture::sample decodes texels with).
+const std::array<float, 256>& srgbDecodeTable();
 
 struct Texture {
   std::string name;

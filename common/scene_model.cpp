@@ -23,16 +23,6 @@ namespace pc {
 
 namespace {
 
-// 8-bit sRGB to linear, built once: sampling is on hot paths (ray hits).
-const std::array<float, 256>& srgbTable() {
-  static const std::array<float, 256> table = [] {
-    std::array<float, 256> t{};
-    for (int i = 0; i < 256; ++i) t[i] = scene_detail::srgbToLinear(float(i) / 255.0f);
-    return t;
-  }();
-  return table;
-}
-
 int wrapIndex(int i, int n) {
   int r = i % n;
   return r < 0 ? r + n : r;
@@ -45,6 +35,16 @@ float srgbToLinear(float v) {
   return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
 }
 }  // namespace scene_detail
+
+// Built once: sampling is on hot paths (ray hits).
+const std::array<float, 256>& srgbDecodeTable() {
+  static const std::array<float, 256> table = [] {
+    std::array<float, 256> t{};
+    for (int i = 0; i < 256; ++i) t[i] = scene_detail::srgbToLinear(float(i) / 255.0f);
+    return t;
+  }();
+  return table;
+}
 
 glm::vec4 Texture::sample(glm::vec2 uv) const {
   if (width <= 0 || height <= 0 || rgba.size() < std::size_t(width) * height * 4)
@@ -59,7 +59,7 @@ glm::vec4 Texture::sample(glm::vec2 uv) const {
   int x0 = wrapIndex(int(std::fmod(fx0, float(width))), width);
   int y0 = wrapIndex(int(std::fmod(fy0, float(height))), height);
   int x1 = (x0 + 1) % width, y1 = (y0 + 1) % height;
-  const auto& lut = srgbTable();
+  const auto& lut = srgbDecodeTable();
   auto texel = [&](int px, int py) {
     const std::uint8_t* p = &rgba[(std::size_t(py) * width + px) * 4];
     return glm::vec4(lut[p[0]], lut[p[1]], lut[p[2]], float(p[3]) / 255.0f);

@@ -59,7 +59,8 @@ struct ClientFrame {
 inline ClientFrame renderClientFrame(vk::Context& ctx, const Scene& scene, const Field* field,
                                      const Camera& left, const Camera* right, int width, int height,
                                      ShadowSettings shadows = {},
-                                     Rasterizer rasterizer = Rasterizer::Auto) {
+                                     Rasterizer rasterizer = Rasterizer::Auto,
+                                     bool textureMipmaps = true) {
   FieldMirror mirror;
   if (field) mirror.reset(*field, 0.0);
   RendererOptions ro;
@@ -68,6 +69,7 @@ inline ClientFrame renderClientFrame(vk::Context& ctx, const Scene& scene, const
   ro.views = right ? 2 : 1;
   ro.shadows = shadows;
   ro.rasterizer = rasterizer;
+  ro.textureMipmaps = textureMipmaps;
   auto renderer = Renderer::create(ctx, scene, mirror, ro);
   EXPECT_TRUE(renderer.ok()) << (renderer ? "" : renderer.error().message);
   if (!renderer) return {};

@@ -53,6 +53,8 @@ int main(int argc, char** argv) {
   std::string raster = "auto";
   app.add_option("--raster", raster,
                  "visibility buffer: auto, fixed (fixed-function, multiview) or compute");
+  bool noMipmaps = false;
+  app.add_flag("--no-mipmaps", noMipmaps, "textures: one level-0 tap per sample (aliases)");
   app.add_option("--shadow-size", c.shadows.largeSize, "sun and spot shadow maps, texels");
   app.add_option("--point-shadow-size", c.shadows.pointSize, "point-light cube faces, texels");
   app.add_option("--area-shadow-size", c.shadows.smallSize, "emitter light shadow maps, texels");
@@ -74,6 +76,7 @@ int main(int argc, char** argv) {
   app.add_option("--save-every", net.saveEvery, "--connect: write every Nth frame (0: last only)");
   app.add_option("--summary", net.summary, "--connect: write a JSON summary here");
   CLI11_PARSE(app, argc, argv);
+  c.textureMipmaps = !noMipmaps;
   if (auto r = pc::client::parseRasterizer(raster)) {
     c.rasterizer = *r;
   } else {

@@ -253,8 +253,8 @@ class Image {
                   VkPipelineStageFlags2 dstStage = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT,
                   VkAccessFlags2 dstAccess = VK_ACCESS_2_MEMORY_READ_BIT |
                                              VK_ACCESS_2_MEMORY_WRITE_BIT);
-  // Uploads tightly packed texels of mip 0 of every layer (layer after layer) and leaves the
-  // image in SHADER_READ_ONLY_OPTIMAL.
+  // Uploads every level's tightly packed texels, level 0 first, each level's layers one after
+  // another, and leaves the image in SHADER_READ_ONLY_OPTIMAL. `bytes` must be their exact sum.
   Status upload(const void* data, std::size_t bytes);
 
  private:

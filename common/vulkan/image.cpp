@@ -1,3 +1,7 @@
+#include <algorithm>
+#include <string>
+#include <vector>
+
 #include "context.h"
 
 namespace pc::vk {
@@ -126,15 +130,30 @@ void Image::transition(VkCommandBuffer cmd, VkImageLayout newLayout, VkPipelineS
 }
 
 Status Image::upload(const void* data, std::size_t bytes) {
+  const std::size_t texel = formatTexelBytes(desc_.format);
+  if (texel == 0) return Error{"Image::upload: the image's format has no known texel size"};
+  std::vector<VkBufferImageCopy> copies;
+  std::size_t offset = 0;
+  for (std::uint32_t level = 0; level < desc_.mipLevels; ++level) {
+    const std::uint32_t w = std::max(1u, desc_.width >> level);
+    const std::uint32_t h = std::max(1u, desc_.height >> level);
+    VkBufferImageCopy copy{};
+    copy.bufferOffset = offset;
+    copy.imageSubresource = {aspect(), level, 0, desc_.layers};
+    copy.imageExtent = {w, h, 1};
+    copies.push_back(copy);
+    offset += std::size_t(w) * h * desc_.layers * texel;
+  }
+  if (bytes != offset)
+    return Error{"Image::upload: " + std::to_string(bytes) + " bytes given for an image of " +
+                 std::to_string(offset)};
   auto staging = Buffer::create(*ctx_, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload);
   if (!staging) return staging.error();
   staging->write(data, bytes);
   return ctx_->submitAndWait([&](VkCommandBuffer cmd) {
     transition(cmd, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
-    VkBufferImageCopy copy{};
-    copy.imageSubresource = {aspect(), 0, 0, desc_.layers};
-    copy.imageExtent = {desc_.width, desc_.height, 1};
-    vkCmdCopyBufferToImage(cmd, staging->get(), image_, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &copy);
+    vkCmdCopyBufferToImage(cmd, staging->get(), image_, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                           std::uint32_t(copies.size()), copies.data());
     transition(cmd, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
   });
 }

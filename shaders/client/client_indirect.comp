@@ -66,6 +66,12 @@ vec3 fieldIrradiance(vec3 P, vec3 N, vec3 V) {
   return mix(frame.ambient.rgb, s.rgb, coverage);
 }
 
+// A point on the view's ray through `ndc` (between the near and far planes).
+vec3 pointOnRay(ClientView view, vec2 ndc) {
+  vec4 p = view.invViewProj * vec4(ndc, 0.5, 1.0);
+  return p.xyz / p.w;
+}
+
 void main() {
   ivec3 id = ivec3(gl_GlobalInvocationID);
   ivec2 size = ivec2(frame.viewport);
@@ -75,8 +81,11 @@ void main() {
 
   // The pixel-centre ray, on which every sample's surface point lies (client_surface.glsl).
   vec2 ndc = (vec2(id.xy) + 0.5) / vec2(size) * 2.0 - 1.0;
-  vec4 far = view.invViewProj * vec4(ndc, 0.5, 1.0);
-  vec3 ray = normalize(far.xyz / far.w - eye);
+  vec3 ray = normalize(pointOnRay(view, ndc) - eye);
+  // The next pixels' centre rays, for the texture footprint.
+  vec2 pixel = 2.0 / vec2(size);
+  vec3 rayDx = pointOnRay(view, ndc + vec2(pixel.x, 0.0)) - eye;
+  vec3 rayDy = pointOnRay(view, ndc + vec2(0.0, pixel.y)) - eye;
 
   uint ids[SAMPLES];
   vec3 shaded[SAMPLES];
@@ -102,7 +111,7 @@ void main() {
     } else if (visibility == 0u) {
       shaded[s] = skyRadiance(ray);  // no geometry: the sky through the pixel centre
     } else {
-      Surface f = surfaceOf(visibility, eye, ray);
+      Surface f = surfaceOf(visibility, eye, ray, rayDx, rayDy);
       vec3 V = -ray;
       shaded[s] = f.emission + f.albedo * (1.0 / PC_PI) *
                                    (directIrradiance(f.position, f.normal) +

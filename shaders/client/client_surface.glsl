@@ -19,15 +19,31 @@ struct Surface {
   float distance;  // along the ray from the eye
 };
 
-vec3 textureRgb(int index, vec2 uv) {
+// `dx`, `dy`: how uv changes to the next pixel across and down (the footprint a fragment
+// shader's derivatives would give), which picks the mip level and anisotropy.
+vec3 textureRgb(int index, vec2 uv, vec2 dx, vec2 dy) {
   if (index < 0 || index >= TEXTURE_COUNT) return vec3(1.0);
-  // The scene's textures have one level (gpu_scene.h), so level 0 is what the fragment
-  // shader's implicit-derivative lookup read.
-  return textureLod(textures[nonuniformEXT(index)], uv, 0.0).rgb;
+  return textureGrad(textures[nonuniformEXT(index)], uv, dx, dy).rgb;
 }
 
-// `id`: a non-zero visibility value; `eye`, `ray` (unit): the pixel-centre ray of its view.
-Surface surfaceOf(uint id, vec3 eye, vec3 ray) {
+// Ray against the plane of the triangle p0 + b1 e1 + b2 e2 (Moller-Trumbore without the inside
+// test; tv = eye - p0, qv = cross(tv, e1)): (b1, b2, distance along `ray`). A triangle seen
+// exactly edge-on covers no sample centre of its own; the guard keeps the division finite
+// for the rare sample that still names one (and gives a neighbour's ray along the plane a
+// huge footprint, as a surface seen edge-on has).
+vec3 planeHit(vec3 ray, vec3 e1, vec3 e2, vec3 tv, vec3 qv) {
+  vec3 pv = cross(ray, e2);
+  float det = dot(e1, pv);
+  if (abs(det) < 1e-30) det = det < 0.0 ? -1e-30 : 1e-30;
+  return vec3(dot(tv, pv), dot(ray, qv), dot(e2, qv)) / det;
+}
+
+// Clamps a uv difference to a finite footprint (1e4 texture repeats: the coarsest level).
+vec2 footprint(vec2 d) { return clamp(d, vec2(-1e4), vec2(1e4)); }
+
+// `id`: a non-zero visibility value; `eye`, `ray` (unit): the pixel-centre ray of its view;
+// `rayDx`, `rayDy`: the next pixel's centre rays across and down (any length).
+Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   uint triangle = id - 1u;
   DrawData d = draws[drawOfTriangle(triangle)];
   uint i0, i1, i2;
@@ -37,21 +53,14 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray) {
   vec3 e1 = (d.model * vec4(v1.position, 1.0)).xyz - p0;
   vec3 e2 = (d.model * vec4(v2.position, 1.0)).xyz - p0;
 
-  // Ray against the triangle's plane (Moller-Trumbore without the inside test): barycentrics
-  // (b1, b2) and the distance. A triangle seen exactly edge-on covers no sample centre of
-  // its own; the guard keeps the division finite for the rare sample that still names one.
-  vec3 pv = cross(ray, e2);
-  float det = dot(e1, pv);
-  if (abs(det) < 1e-30) det = det < 0.0 ? -1e-30 : 1e-30;
-  float inv = 1.0 / det;
   vec3 tv = eye - p0;
   vec3 qv = cross(tv, e1);
-  float b1 = dot(tv, pv) * inv;
-  float b2 = dot(ray, qv) * inv;
+  vec3 hit = planeHit(ray, e1, e2, tv, qv);
+  float b1 = hit.x, b2 = hit.y;
   float b0 = 1.0 - b1 - b2;
 
   Surface s;
-  s.distance = max(dot(e2, qv) * inv, 0.0);
+  s.distance = max(hit.z, 0.0);
   s.position = eye + ray * s.distance;
   vec3 cross12 = cross(e1, e2);
   float area = length(cross12);
@@ -66,7 +75,13 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray) {
   s.normal = dot(ns, ng) < 0.0 ? -ns : ns;
 
   vec2 uv = b0 * v0.uv + b1 * v1.uv + b2 * v2.uv;
-  s.albedo = d.baseColor.rgb * textureRgb(d.textures.x, uv);
-  s.emission = front ? d.emissive.rgb * textureRgb(d.textures.y, uv) : vec3(0.0);
+  // The neighbouring pixels' rays on the same plane: uv there minus uv here.
+  vec2 du1 = v1.uv - v0.uv, du2 = v2.uv - v0.uv;
+  vec2 bx = planeHit(rayDx, e1, e2, tv, qv).xy - hit.xy;
+  vec2 by = planeHit(rayDy, e1, e2, tv, qv).xy - hit.xy;
+  vec2 dx = footprint(bx.x * du1 + bx.y * du2);
+  vec2 dy = footprint(by.x * du1 + by.y * du2);
+  s.albedo = d.baseColor.rgb * textureRgb(d.textures.x, uv, dx, dy);
+  s.emission = front ? d.emissive.rgb * textureRgb(d.textures.y, uv, dx, dy) : vec3(0.0);
   return s;
 }
