@@ -366,6 +366,11 @@ class GltfReader {
       mat.emissive *= float(strength->second.Get("emissiveStrength").GetNumberAsDouble());
     // An emissive texture without a factor means nothing in glTF (factor defaults to 0).
     if (mat.isEmissive()) mat.emissiveTexture = textureFor(gm.emissiveTexture.index);
+    // Cut-outs and transparency are not modelled: every renderer and tracer treats the
+    // surface as opaque, consistently. Said once per material so the user knows.
+    if (gm.alphaMode == "MASK" || gm.alphaMode == "BLEND")
+      scene_.warnings.push_back("material '" + mat.name + "': alphaMode " + gm.alphaMode +
+                                " ignored; drawn opaque");
     int out = int(scene_.materials.size());
     scene_.materials.push_back(mat);
     materialCache_[gltfMaterial] = out;

@@ -68,6 +68,10 @@ class ObjBuilder {
         if (noKd)
           mat.baseColor = glm::vec3(mat.baseColorTexture >= 0 ? 1.0f : kMissingTextureAlbedo);
       }
+      // Cut-outs (foliage, grilles) are not modelled: every renderer and tracer treats the
+      // surface as opaque, consistently. Said once per material so the user knows.
+      if (!m.alpha_texname.empty())
+        scene_.warnings.push_back("material '" + m.name + "': alpha map (map_d) ignored; drawn opaque");
       scene_.materials.push_back(mat);
     }
   }

@@ -274,6 +274,23 @@ TEST(GltfLoad, QuadWithMaterialEmissionAndGeneratedNormals) {
   EXPECT_EQ(s.instances[0].name, "quad");
 }
 
+TEST(GltfLoad, CutOutMaterialsLoadOpaqueWithAWarning) {
+  TempDir dir;
+  writeBytes(dir / "quad.bin", quadBuffer());
+  std::string json = quadGltf("quad.bin");
+  const std::string name = R"("name": "mat",)";
+  ASSERT_NE(json.find(name), std::string::npos);
+  json.replace(json.find(name), name.size(), name + R"( "alphaMode": "MASK", "alphaCutoff": 0.5,)");
+  writeFile(dir / "quad.gltf", json);
+  auto r = pc::loadScene(dir / "quad.gltf", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->triangleCount(), 2u);
+  bool warned = false;
+  for (const std::string& w : r->warnings)
+    warned = warned || (w.find("'mat'") != std::string::npos && w.find("MASK") != std::string::npos);
+  EXPECT_TRUE(warned) << "no warning names the material and its alpha mode";
+}
+
 TEST(GltfLoad, GlbWithHierarchyLightsCameraAndTexture) {
   TempDir dir;
   // A 2x1 RGBA PNG: red, blue.
