@@ -33,8 +33,21 @@ struct Material {
   int baseColorTexture = -1;     // index into Scene::textures
   glm::vec3 emissive{0.0f};      // linear emitted radiance, multiplied by the texture
   int emissiveTexture = -1;
+  // Cut-outs (foliage cards, grilles): the surface exists where baseAlpha x the alpha texture's
+  // channel (bilinear, as Texture::sample gives it: colour channels decoded from sRGB, alpha
+  // linear) is at least alphaCutoff. alphaCutoff 0: opaque everywhere, no test. Every tracer
+  // and renderer applies the same test (coveredAt; the shaders through GpuMaterial and the
+  // client's DrawData).
+  float alphaCutoff = 0.0f;
+  float baseAlpha = 1.0f;
+  int alphaTexture = -1;  // index into Scene::textures, -1: baseAlpha alone
+  int alphaChannel = 3;   // 0-3: which channel of alphaTexture (glTF: 3; OBJ map_d: 0)
   bool isEmissive() const { return emissive.x > 0 || emissive.y > 0 || emissive.z > 0; }
+  bool isCutOut() const { return alphaCutoff > 0.0f; }
 };
+
+// Whether `material`'s surface exists at `uv` (always, unless it is a cut-out).
+bool coveredAt(const Material& material, const std::vector<Texture>& textures, glm::vec2 uv);
 
 struct Mesh {
   std::string name;

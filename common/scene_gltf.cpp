@@ -366,11 +366,21 @@ class GltfReader {
       mat.emissive *= float(strength->second.Get("emissiveStrength").GetNumberAsDouble());
     // An emissive texture without a factor means nothing in glTF (factor defaults to 0).
     if (mat.isEmissive()) mat.emissiveTexture = textureFor(gm.emissiveTexture.index);
-    // Cut-outs and transparency are not modelled: every renderer and tracer treats the
-    // surface as opaque, consistently. Said once per material so the user knows.
-    if (gm.alphaMode == "MASK" || gm.alphaMode == "BLEND")
-      scene_.warnings.push_back("material '" + mat.name + "': alphaMode " + gm.alphaMode +
-                                " ignored; drawn opaque");
+    // MASK: a cut-out at alphaCutoff. BLEND (partial transparency) is not modelled; it is
+    // drawn as a cut-out at 0.5 (every tracer and renderer alike), which keeps mostly
+    // transparent surfaces such as glass from blocking light, and said once per material.
+    if (gm.alphaMode == "MASK" || gm.alphaMode == "BLEND") {
+      const bool mask = gm.alphaMode == "MASK";
+      mat.alphaCutoff = mask ? std::max(float(gm.alphaCutoff), 1e-6f) : 0.5f;
+      mat.baseAlpha = bc.size() >= 4 ? float(bc[3]) : 1.0f;
+      mat.alphaTexture = mat.baseColorTexture;
+      mat.alphaChannel = 3;
+      // Without a texture the test has one answer everywhere: opaque needs no test.
+      if (mat.alphaTexture < 0 && mat.baseAlpha >= mat.alphaCutoff) mat.alphaCutoff = 0.0f;
+      if (!mask)
+        scene_.warnings.push_back("material '" + mat.name +
+                                  "': alphaMode BLEND drawn as a cut-out at alpha 0.5");
+    }
     int out = int(scene_.materials.size());
     scene_.materials.push_back(mat);
     materialCache_[gltfMaterial] = out;

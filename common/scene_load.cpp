@@ -189,6 +189,13 @@ std::uint64_t hashScene(const Scene& scene) {
     h.i32(m.baseColorTexture);
     h.vec(m.emissive);
     h.i32(m.emissiveTexture);
+    // Only cut-outs add these, so opaque scenes keep the hashes baked files were made with.
+    if (m.isCutOut()) {
+      h.f32(m.alphaCutoff);
+      h.f32(m.baseAlpha);
+      h.i32(m.alphaTexture);
+      h.i32(m.alphaChannel);
+    }
   }
   h.u64(scene.textures.size());
   for (const Texture& t : scene.textures) {

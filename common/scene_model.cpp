@@ -69,6 +69,15 @@ glm::vec4 Texture::sample(glm::vec2 uv) const {
   return glm::mix(top, bottom, ty);
 }
 
+bool coveredAt(const Material& material, const std::vector<Texture>& textures, glm::vec2 uv) {
+  if (!material.isCutOut()) return true;
+  float alpha = material.baseAlpha;
+  const int t = material.alphaTexture;
+  if (t >= 0 && std::size_t(t) < textures.size())
+    alpha *= textures[t].sample(uv)[std::clamp(material.alphaChannel, 0, 3)];
+  return alpha >= material.alphaCutoff;
+}
+
 glm::vec3 Sky::radiance(glm::vec3 dir) const {
   float len = glm::length(dir);
   float y = len > 0.0f ? std::clamp(dir.y / len, -1.0f, 1.0f) : 0.0f;

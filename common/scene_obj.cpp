@@ -68,10 +68,21 @@ class ObjBuilder {
         if (noKd)
           mat.baseColor = glm::vec3(mat.baseColorTexture >= 0 ? 1.0f : kMissingTextureAlbedo);
       }
-      // Cut-outs (foliage, grilles) are not modelled: every renderer and tracer treats the
-      // surface as opaque, consistently. Said once per material so the user knows.
-      if (!m.alpha_texname.empty())
-        scene_.warnings.push_back("material '" + m.name + "': alpha map (map_d) ignored; drawn opaque");
+      // map_d: a cut-out where the map is below one half: its alpha where the image has
+      // one (often map_d names the colour texture itself), else its first channel (masks
+      // are grey images). A map that cannot be read leaves the surface opaque (texture()
+      // warns).
+      if (!m.alpha_texname.empty()) {
+        const int alpha = texture(dir / m.alpha_texname);
+        if (alpha >= 0) {
+          const std::vector<std::uint8_t>& rgba = scene_.textures[alpha].rgba;
+          bool hasAlpha = false;
+          for (std::size_t i = 3; i < rgba.size() && !hasAlpha; i += 4) hasAlpha = rgba[i] < 255;
+          mat.alphaCutoff = 0.5f;
+          mat.alphaTexture = alpha;
+          mat.alphaChannel = hasAlpha ? 3 : 0;
+        }
+      }
       scene_.materials.push_back(mat);
     }
   }

@@ -58,6 +58,26 @@ RTCRay makeRay(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar) {
 
 glm::vec3 rgb(glm::vec4 v) { return glm::vec3(v.x, v.y, v.z); }
 
+// Intersection and occlusion filter of cut-out geometries: a candidate hit whose material is
+// not covered there (coveredAt) is refused, and the ray goes on.
+void cutOutFilter(const RTCFilterFunctionNArguments* args) {
+  const auto* cut = static_cast<const EmbreeScene::CutOut*>(args->geometryUserPtr);
+  const auto* index = static_cast<const std::uint32_t*>(
+      rtcGetGeometryBufferData(cut->geometry, RTC_BUFFER_TYPE_INDEX, 0));
+  const Mesh& mesh = *cut->mesh;
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    glm::vec2 uv(0.0f);
+    if (mesh.uvs.size() == mesh.positions.size()) {
+      const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+      const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
+      uv = (1.0f - u - v) * mesh.uvs[index[3 * prim]] + u * mesh.uvs[index[3 * prim + 1]] +
+           v * mesh.uvs[index[3 * prim + 2]];
+    }
+    if (!coveredAt(*cut->material, *cut->textures, uv)) args->valid[i] = 0;
+  }
+}
+
 }  // namespace
 
 Result<std::unique_ptr<EmbreeScene>> EmbreeScene::create(const Scene& scene) {
@@ -83,6 +103,7 @@ Result<std::unique_ptr<EmbreeScene>> EmbreeScene::create(const Scene& scene) {
 
   const std::size_t count = scene.instances.size();
   self->geometries_.assign(count, nullptr);
+  self->cutOuts_.assign(count, CutOut{});  // never resized again: filters point into it
   self->worldNormals_.resize(count);
   self->transforms_.resize(count);
   for (std::size_t i = 0; i < count; ++i) {
@@ -119,6 +140,13 @@ Result<std::unique_ptr<EmbreeScene>> EmbreeScene::create(const Scene& scene) {
       for (std::size_t t = 0; t < triangles; ++t) std::swap(index[3 * t + 1], index[3 * t + 2]);
     }
     self->transformInstance(i, inst.transform);
+    if (mesh.material >= 0 && std::size_t(mesh.material) < scene.materials.size() &&
+        scene.materials[mesh.material].isCutOut()) {
+      self->cutOuts_[i] = CutOut{geom, &mesh, &scene.materials[mesh.material], &scene.textures};
+      rtcSetGeometryUserData(geom, &self->cutOuts_[i]);
+      rtcSetGeometryIntersectFilterFunction(geom, cutOutFilter);
+      rtcSetGeometryOccludedFilterFunction(geom, cutOutFilter);
+    }
     rtcCommitGeometry(geom);
     rtcAttachGeometryByID(self->rtcScene_, geom, static_cast<unsigned>(i));
   }

@@ -1,5 +1,6 @@
 // The scene in Embree 3: one triangle geometry per instance, in world space. Animated
 // instances get their vertices re-transformed on update(); the scene is committed again.
+// Cut-out materials get intersection and occlusion filters that refuse uncovered hits.
 // Owns the Embree device and scene (RAII). Thread-safe for queries after update().
 #pragma once
 
@@ -54,6 +55,14 @@ class EmbreeScene {
   const Scene& scene() const { return *scene_; }
   RTCScene handle() const { return rtcScene_; }
 
+  // What the filter of a cut-out instance's geometry reads (Material::isCutOut).
+  struct CutOut {
+    RTCGeometry geometry = nullptr;
+    const Mesh* mesh = nullptr;
+    const Material* material = nullptr;
+    const std::vector<Texture>* textures = nullptr;
+  };
+
  private:
   EmbreeScene() = default;
   // Writes instance i's world-space vertices and normals for `transform`.
@@ -63,6 +72,7 @@ class EmbreeScene {
   RTCDevice device_ = nullptr;
   RTCScene rtcScene_ = nullptr;
   std::vector<RTCGeometry> geometries_;                // per instance
+  std::vector<CutOut> cutOuts_;                        // per instance (unused when opaque)
   std::vector<std::vector<glm::vec3>> worldNormals_;  // per instance, per vertex
   std::vector<glm::mat4> transforms_;
   bool dynamic_ = false;  // any animated instance

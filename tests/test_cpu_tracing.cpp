@@ -127,6 +127,54 @@ TEST(EmbreeScene, MirroredInstanceKeepsItsFrontFace) {
   EXPECT_NEAR(sp.normal.z, 1.0f, 1e-6f);
 }
 
+// A unit quad in z = 0 (uv = xy) whose material is cut out where a 2x1 texture's left texel
+// (alpha 255) gives way to its right one (alpha 0): covered for u < 0.5 with bilinear
+// filtering and wrapping, open beyond. Behind it, at z = -1, an opaque floor.
+Scene cutOutQuadScene(bool mirrored) {
+  Scene scene;
+  Texture mask;
+  mask.width = 2;
+  mask.height = 1;
+  mask.rgba = {255, 255, 255, 255, 255, 255, 255, 0};
+  scene.textures.push_back(mask);
+  Mesh quad;
+  addQuad(quad, {0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0});
+  for (glm::vec3 p : quad.positions) quad.uvs.push_back({p.x, p.y});
+  Material cut = diffuse(0.5f);
+  cut.alphaCutoff = 0.5f;
+  cut.alphaTexture = 0;
+  addObject(scene, quad, cut);
+  if (mirrored)  // x -> 1 - x: the open half moves to the left, winding swapped inside
+    scene.instances[0].transform = glm::mat4(glm::vec4(-1, 0, 0, 0), glm::vec4(0, 1, 0, 0),
+                                             glm::vec4(0, 0, 1, 0), glm::vec4(1, 0, 0, 1));
+  Mesh floor;
+  addQuad(floor, {-1, -1, -1}, {2, -1, -1}, {2, 2, -1}, {-1, 2, -1});
+  addObject(scene, floor, diffuse(0.5f));
+  return scene;
+}
+
+TEST(EmbreeScene, CutOutMaterialsLetRaysThroughTheirOpenTexels) {
+  for (bool mirrored : {false, true}) {
+    const Scene scene = cutOutQuadScene(mirrored);
+    auto embree = build(scene);
+    const glm::vec3 down(0, 0, -1);
+    // u = 0.25 is the left texel's centre (alpha 1), u = 0.75 the right one's (alpha 0).
+    const float covered = mirrored ? 0.75f : 0.25f, open = mirrored ? 0.25f : 0.75f;
+    Hit hit;
+    ASSERT_TRUE(embree->intersect({covered, 0.5f, 1.0f}, down, 0.0f, INFINITY, hit));
+    EXPECT_EQ(hit.instance, 0u) << "mirrored " << mirrored;
+    EXPECT_NEAR(hit.t, 1.0f, 1e-5f);
+    ASSERT_TRUE(embree->intersect({open, 0.5f, 1.0f}, down, 0.0f, INFINITY, hit));
+    EXPECT_EQ(hit.instance, 1u) << "the ray should pass the open half to the floor";
+    EXPECT_NEAR(hit.t, 2.0f, 1e-5f);
+    // Shadow rays: blocked by the covered half, not by the open one (the floor is past tfar).
+    EXPECT_TRUE(embree->occluded({covered, 0.5f, 1.0f}, down, 0.0f, 1.5f));
+    EXPECT_FALSE(embree->occluded({open, 0.5f, 1.0f}, down, 0.0f, 1.5f));
+    EXPECT_TRUE(coveredAt(scene.materials[0], scene.textures, {0.25f, 0.5f}));
+    EXPECT_FALSE(coveredAt(scene.materials[0], scene.textures, {0.75f, 0.5f}));
+  }
+}
+
 TEST(EmbreeScene, IntersectsABox) {
   Scene scene;
   addObject(scene, boxMesh(glm::vec3(-0.5f), glm::vec3(0.5f), false), diffuse(0.5f));

@@ -80,6 +80,15 @@ std::string quadGltf(const std::string& uri, const std::string& extra = "",
          extra + "\n}\n";
 }
 
+// A 2x1 RGBA PNG, both texels opaque: red, blue.
+std::vector<unsigned char> redBluePng() {
+  return {0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44,
+          0x52, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00, 0x00, 0xf4,
+          0x22, 0x7f, 0x8a, 0x00, 0x00, 0x00, 0x0e, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0xf8,
+          0xcf, 0xc0, 0x00, 0x42, 0xff, 0x01, 0x0f, 0xf9, 0x03, 0xfd, 0x85, 0x11, 0x99, 0x76, 0x00,
+          0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+}
+
 // A .glb holding `json` and `bin` (chunks padded to 4 bytes as the format requires).
 std::vector<unsigned char> makeGlb(std::string json, std::vector<unsigned char> bin) {
   while (json.size() % 4) json += ' ';
@@ -274,32 +283,48 @@ TEST(GltfLoad, QuadWithMaterialEmissionAndGeneratedNormals) {
   EXPECT_EQ(s.instances[0].name, "quad");
 }
 
-TEST(GltfLoad, CutOutMaterialsLoadOpaqueWithAWarning) {
-  TempDir dir;
+// quad.gltf with `members` (JSON) added to its one material and `alpha` as its base colour
+// factor's alpha.
+pc::Result<Scene> loadQuadWithMaterial(const TempDir& dir, const std::string& members,
+                                       const std::string& alpha = "1") {
   writeBytes(dir / "quad.bin", quadBuffer());
   std::string json = quadGltf("quad.bin");
-  const std::string name = R"("name": "mat",)";
-  ASSERT_NE(json.find(name), std::string::npos);
-  json.replace(json.find(name), name.size(), name + R"( "alphaMode": "MASK", "alphaCutoff": 0.5,)");
+  const std::string name = R"("name": "mat",)", factor = "[0.5, 0.25, 1, 1]";
+  json.replace(json.find(name), name.size(), name + " " + members + ",");
+  json.replace(json.find(factor), factor.size(), "[0.5, 0.25, 1, " + alpha + "]");
   writeFile(dir / "quad.gltf", json);
-  auto r = pc::loadScene(dir / "quad.gltf", emptySidecar(dir));
+  return pc::loadScene(dir / "quad.gltf", emptySidecar(dir));
+}
+
+TEST(GltfLoad, AlphaModesBecomeCutOuts) {
+  TempDir dir;
+  // MASK with a base alpha under the cutoff and no texture: nothing of the quad exists.
+  auto r = loadQuadWithMaterial(
+      dir, R"("alphaMode": "MASK", "alphaCutoff": 0.75)", "0.5");
   ASSERT_TRUE(r.ok()) << r.error().message;
-  EXPECT_EQ(r->triangleCount(), 2u);
+  const pc::Material& masked = r->materials[r->meshes[0].material];
+  EXPECT_TRUE(masked.isCutOut());
+  EXPECT_FLOAT_EQ(masked.alphaCutoff, 0.75f);
+  EXPECT_FLOAT_EQ(masked.baseAlpha, 0.5f);
+  EXPECT_FALSE(pc::coveredAt(masked, r->textures, {0.5f, 0.5f}));
+  // Over the cutoff and no texture: the same answer everywhere, so no test at all.
+  r = loadQuadWithMaterial(dir, R"("alphaMode": "MASK", "alphaCutoff": 0.25)");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_FALSE(r->materials[r->meshes[0].material].isCutOut());
+  // BLEND is drawn as a cut-out at one half, and said so.
+  r = loadQuadWithMaterial(
+      dir, R"("alphaMode": "BLEND")", "0.2");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_FLOAT_EQ(r->materials[r->meshes[0].material].alphaCutoff, 0.5f);
   bool warned = false;
   for (const std::string& w : r->warnings)
-    warned = warned || (w.find("'mat'") != std::string::npos && w.find("MASK") != std::string::npos);
+    warned = warned || (w.find("'mat'") != std::string::npos && w.find("BLEND") != std::string::npos);
   EXPECT_TRUE(warned) << "no warning names the material and its alpha mode";
 }
 
 TEST(GltfLoad, GlbWithHierarchyLightsCameraAndTexture) {
   TempDir dir;
-  // A 2x1 RGBA PNG: red, blue.
-  const std::vector<unsigned char> png = {
-      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44,
-      0x52, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00, 0x00, 0xf4,
-      0x22, 0x7f, 0x8a, 0x00, 0x00, 0x00, 0x0e, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0xf8,
-      0xcf, 0xc0, 0x00, 0x42, 0xff, 0x01, 0x0f, 0xf9, 0x03, 0xfd, 0x85, 0x11, 0x99, 0x76, 0x00,
-      0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+  const std::vector<unsigned char> png = redBluePng();
   std::vector<unsigned char> bin = quadBuffer();
   const std::size_t pngOffset = bin.size();
   bin.insert(bin.end(), png.begin(), png.end());
@@ -404,6 +429,31 @@ TEST(ObjLoad, SplitsByMaterialLoadsKdKeAndWarnsOnMissingTexture) {
   // OBJ v is flipped to the glTF convention (row 0 at the top).
   ASSERT_EQ(s.meshes[2].uvs.size(), 3u);
   EXPECT_FLOAT_EQ(s.meshes[2].uvs[2].y, 0.0f);
+}
+
+TEST(ObjLoad, AlphaMapMakesACutOut) {
+  TempDir dir;
+  // An opaque image as map_d: its first channel is the mask (red 1, blue 0).
+  writeBytes(dir / "mask.png", redBluePng());
+  writeFile(dir / "leaf.mtl", "newmtl leaf\nKd 0.3 0.6 0.2\nmap_d mask.png\n"
+                              "newmtl lost\nKd 0.5 0.5 0.5\nmap_d missing_mask.png\n");
+  writeFile(dir / "leaf.obj",
+            "mtllib leaf.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\n"
+            "usemtl leaf\nf 1/1 2/2 3/3\nusemtl lost\nf 1/1 3/3 2/2\n");
+  auto r = pc::loadScene(dir / "leaf.obj", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  ASSERT_EQ(r->meshes.size(), 2u);
+  const pc::Material& leaf = r->materials[r->meshes[0].material];
+  EXPECT_TRUE(leaf.isCutOut());
+  EXPECT_EQ(leaf.alphaChannel, 0);
+  EXPECT_TRUE(pc::coveredAt(leaf, r->textures, {0.25f, 0.5f}));
+  EXPECT_FALSE(pc::coveredAt(leaf, r->textures, {0.75f, 0.5f}));
+  // A mask that cannot be read leaves the surface opaque, with a warning naming it.
+  EXPECT_FALSE(r->materials[r->meshes[1].material].isCutOut());
+  bool warned = false;
+  for (const std::string& w : r->warnings)
+    warned = warned || w.find("missing_mask.png") != std::string::npos;
+  EXPECT_TRUE(warned);
 }
 
 TEST(ObjLoad, SmoothSurfacesShareNormals) {
