@@ -90,7 +90,8 @@ Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices, std
     for (const MeshRange& r : jobs[j].ranges) {
       VkAccelerationStructureGeometryKHR g{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
       g.geometryType = VK_GEOMETRY_TYPE_TRIANGLES_KHR;
-      g.flags = VK_GEOMETRY_OPAQUE_BIT_KHR;  // no any-hit shaders: every triangle occludes
+      // Opaque: every triangle occludes, no any-hit shader runs. Cut-outs leave it to theirs.
+      g.flags = r.cutOut ? 0 : VK_GEOMETRY_OPAQUE_BIT_KHR;
       auto& t = g.geometry.triangles;
       t = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_TRIANGLES_DATA_KHR};
       t.vertexFormat = VK_FORMAT_R32G32B32_SFLOAT;

@@ -45,6 +45,9 @@ class AccelerationStructure {
 struct MeshRange {
   std::uint32_t firstVertex = 0, vertexCount = 0;
   std::uint32_t firstIndex = 0, triangleCount = 0;
+  // A cut-out material's triangles: built without the opaque flag, so that the any-hit shader
+  // (probe_cutout.rahit) decides each candidate hit.
+  bool cutOut = false;
 };
 
 // One record of the top level: the static structure (mesh < 0, identity transform) or the

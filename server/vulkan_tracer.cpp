@@ -274,6 +274,7 @@ Status VulkanTracer::Impl::uploadScene() {
     bool valid = true;
     for (std::uint32_t i : m.indices) valid = valid && i < m.positions.size();
     r.triangleCount = valid ? std::uint32_t(m.triangleCount()) : 0;
+    r.cutOut = gm.material >= 0 && s.materials[gm.material].isCutOut();
     if (!valid) return Error{"mesh '" + m.name + "' has an index past its vertices"};
     const bool normals = m.normals.size() == m.positions.size();
     const bool uvs = m.uvs.size() == m.positions.size();
@@ -398,7 +399,8 @@ Status VulkanTracer::Impl::createPipelines() {
     VkDescriptorSetLayoutBinding lb{};
     lb.binding = std::uint32_t(b);
     lb.descriptorCount = 1;
-    lb.stageFlags = VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT;
+    // Any-hit: cut-outs read the scene's records and textures (probe_cutout.rahit).
+    lb.stageFlags = VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_ANY_HIT_BIT_KHR;
     lb.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
     VkDescriptorBindingFlags f = 0;
     if (b == PC_BIND_TLAS) lb.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
@@ -454,12 +456,15 @@ Status VulkanTracer::Impl::createPipelines() {
   PC_VK_TRY(vkCreatePipelineLayout(ctx->device(), &plci, nullptr, &pl));
   pipelineLayout = vk::UniquePipelineLayout(ctx->device(), pl);
 
-  // ---- ray tracing: stages raygen, miss..., closest hit; groups in the same order ----
+  // ---- ray tracing: stages raygen, miss..., closest hit, any hit; groups: raygen, the
+  // misses, then one triangle hit group of the last two ----
   auto makeRayPipeline = [&](const char* raygen, std::vector<const char*> misses) -> Result<vk::UniquePipeline> {
     std::vector<vk::UniqueShaderModule> modules;
     std::vector<const char*> names = {raygen};
     names.insert(names.end(), misses.begin(), misses.end());
     names.push_back("probe_trace.rchit.spv");
+    names.push_back("probe_cutout.rahit.spv");
+    const std::size_t closestHit = names.size() - 2, anyHit = names.size() - 1;
     std::vector<VkPipelineShaderStageCreateInfo> stages;
     std::vector<VkRayTracingShaderGroupCreateInfoKHR> groups;
     for (std::size_t i = 0; i < names.size(); ++i) {
@@ -468,16 +473,19 @@ Status VulkanTracer::Impl::createPipelines() {
       modules.push_back(std::move(m).value());
       VkPipelineShaderStageCreateInfo st{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
       st.stage = i == 0 ? VK_SHADER_STAGE_RAYGEN_BIT_KHR
-                 : i + 1 == names.size() ? VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR
-                                         : VK_SHADER_STAGE_MISS_BIT_KHR;
+                 : i == closestHit ? VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR
+                 : i == anyHit ? VK_SHADER_STAGE_ANY_HIT_BIT_KHR
+                               : VK_SHADER_STAGE_MISS_BIT_KHR;
       st.module = modules.back().get();
       st.pName = "main";
       stages.push_back(st);
+      if (i == anyHit) continue;  // in the closest hit's group
       VkRayTracingShaderGroupCreateInfoKHR g{VK_STRUCTURE_TYPE_RAY_TRACING_SHADER_GROUP_CREATE_INFO_KHR};
       g.generalShader = g.closestHitShader = g.anyHitShader = g.intersectionShader = VK_SHADER_UNUSED_KHR;
-      if (i + 1 == names.size()) {
+      if (i == closestHit) {
         g.type = VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR;
-        g.closestHitShader = std::uint32_t(i);
+        g.closestHitShader = std::uint32_t(closestHit);
+        g.anyHitShader = std::uint32_t(anyHit);
       } else {
         g.type = VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR;
         g.generalShader = std::uint32_t(i);
@@ -1021,6 +1029,10 @@ void VulkanTracer::setState(const SceneState& state) {
     g.emissive = s.emissive;
     g.emissiveTexture = tex(s.emissiveTexture);
     g.sampled = emissive.sampled(int(i)) ? 1 : 0;
+    g.alphaTexture = tex(s.alphaTexture);
+    g.alphaChannel = std::clamp(s.alphaChannel, 0, 3);
+    g.alphaCutoff = s.isCutOut() ? s.alphaCutoff : 0.0f;
+    g.baseAlpha = s.baseAlpha;
     mat[i] = g;
   }
   // Sized exactly so the parameter counts follow from the sizes; replaced only when they change.

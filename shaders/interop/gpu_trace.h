@@ -179,10 +179,17 @@ struct GpuMaterial {
   int emissiveTexture;
   // -- 32
   int sampled;  // 1: emission is light-sampled (EmissiveLights), so hits must not add it
+  // Cut-outs (Material::isCutOut, pc::coveredAt): a hit counts where baseAlpha x channel
+  // alphaChannel of texture alphaTexture (-1: none) reaches alphaCutoff; 0: opaque, no test.
+  int alphaTexture;
+  int alphaChannel;
+  float alphaCutoff;
+  // -- 48
+  float baseAlpha;
   int pad0;
   int pad1;
   int pad2;
-  // -- 48
+  // -- 64
 };
 
 struct GpuLight {
@@ -299,7 +306,7 @@ PC_END
 static_assert(sizeof(pc::gpu::GpuVertex) == 32);
 static_assert(sizeof(pc::gpu::GpuMesh) == 16);
 static_assert(sizeof(pc::gpu::GpuInstance) == 144);
-static_assert(sizeof(pc::gpu::GpuMaterial) == 48);
+static_assert(sizeof(pc::gpu::GpuMaterial) == 64);
 static_assert(sizeof(pc::gpu::GpuLight) == 64);
 static_assert(sizeof(pc::gpu::GpuEmissiveTriangle) == 80);
 static_assert(sizeof(pc::gpu::GpuProbeRecord) == 32);
