@@ -247,6 +247,13 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   auto gpuScene = GpuScene::create(ctx, scene, options.textureMipmaps);
   if (!gpuScene) return gpuScene.error();
   r->gpuScene_.emplace(std::move(gpuScene).value());
+  for (const Instance& inst : scene.instances) {
+    const int mesh = inst.mesh, mat = mesh >= 0 && std::size_t(mesh) < scene.meshes.size()
+                                          ? scene.meshes[std::size_t(mesh)].material
+                                          : -1;
+    if (mat >= 0 && std::size_t(mat) < scene.materials.size() && scene.materials[std::size_t(mat)].isCutOut())
+      r->hasCutOuts_ = true;
+  }
   // Visibility ids are 32-bit with 0 for the sky (client_frame.h, DrawData).
   if (r->gpuScene_->packed().triangleIds >= 0xFFFFFFFFull)
     return Error{"scene has too many triangles over its instances for 32-bit visibility ids"};
@@ -551,19 +558,38 @@ Status Renderer::createPipelines() {
   if (!sceneFrag) return sceneFrag.error();
   auto shadowVert = load("client_shadow.vert.spv");
   if (!shadowVert) return shadowVert.error();
+  auto shadowFrag = load("client_shadow.frag.spv");
+  if (!shadowFrag) return shadowFrag.error();
   auto indirect = load("client_indirect.comp.spv");
   if (!indirect) return indirect.error();
+
+  // Specialization constants the client's shaders share (those a shader lacks are ignored):
+  // 0 samples per pixel, 1 the scene's texture count, 2 whether the visibility ids come from
+  // the compute rasterizer's buffer, 3 whether the scene has cut-outs (client_surface.glsl).
+  struct Constants {
+    std::int32_t samples, textures;
+    VkBool32 visBuffer, cutOuts;
+  } const constants{options_.msaa, std::int32_t(textures), computeRaster() ? VK_TRUE : VK_FALSE,
+                    hasCutOuts_ ? VK_TRUE : VK_FALSE};
+  const VkSpecializationMapEntry entries[4] = {
+      {0, offsetof(Constants, samples), sizeof(std::int32_t)},
+      {1, offsetof(Constants, textures), sizeof(std::int32_t)},
+      {2, offsetof(Constants, visBuffer), sizeof(VkBool32)},
+      {3, offsetof(Constants, cutOuts), sizeof(VkBool32)}};
+  const VkSpecializationInfo spec{4, entries, sizeof constants, &constants};
 
   const std::uint32_t viewMask = options_.views == 2 ? 0b11u : 0u;
   GraphicsDesc scene;
   scene.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, sceneVert->get()},
-                             {VK_SHADER_STAGE_FRAGMENT_BIT, sceneFrag->get()}});
+                             {VK_SHADER_STAGE_FRAGMENT_BIT, sceneFrag->get(), &spec}});
   scene.colorFormats = {kVisibilityFormat};
   scene.depthFormat = kDepthFormat;
   scene.depthCompare = VK_COMPARE_OP_GREATER;  // reversed depth: nearer is larger
   scene.samples = static_cast<VkSampleCountFlagBits>(options_.msaa);
   scene.viewMask = viewMask;
-  if (options_.depthPrepass && !computeRaster()) {
+  // Without a fragment shader the pre-pass cannot leave cut-outs' open texels out of depth:
+  // scenes with cut-outs draw the visibility pass alone.
+  if (options_.depthPrepass && !computeRaster() && !hasCutOuts_) {
     // Same vertex shader (invariant position), no fragment shader, no color writes.
     GraphicsDesc prepass = scene;
     prepass.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, sceneVert->get()}});
@@ -579,7 +605,10 @@ Status Renderer::createPipelines() {
   scenePipeline_ = std::move(scenePipeline).value();
 
   GraphicsDesc shadow;
-  shadow.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, shadowVert->get()}});
+  shadow.stages = hasCutOuts_
+                      ? stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, shadowVert->get(), &spec},
+                                    {VK_SHADER_STAGE_FRAGMENT_BIT, shadowFrag->get(), &spec}})
+                      : stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, shadowVert->get(), &spec}});
   shadow.depthCompare = VK_COMPARE_OP_LESS_OR_EQUAL;
   shadow.depthBias = true;
   shadow.depthFormat = kLargeShadowFormat;
@@ -601,31 +630,18 @@ Status Renderer::createPipelines() {
     out = vk::UniquePipeline(ctx_->device(), compute);
     return Status::success();
   };
-  // Lighting pass constants: samples per pixel, the scene's texture count, and where the
-  // visibility ids come from.
-  struct LightingConstants {
-    std::int32_t samples, textures;
-    VkBool32 visBuffer;
-  } const lightingConstants{options_.msaa, std::int32_t(textures),
-                            computeRaster() ? VK_TRUE : VK_FALSE};
-  const VkSpecializationMapEntry entries[3] = {
-      {0, offsetof(LightingConstants, samples), sizeof(std::int32_t)},
-      {1, offsetof(LightingConstants, textures), sizeof(std::int32_t)},
-      {2, offsetof(LightingConstants, visBuffer), sizeof(VkBool32)}};
-  const VkSpecializationInfo lightingSpec{3, entries, sizeof lightingConstants, &lightingConstants};
-  Status s = computePipeline(indirect->get(), &lightingSpec, indirectPipeline_);
+  Status s = computePipeline(indirect->get(), &spec, indirectPipeline_);
   if (!s) return s;
   if (computeRaster()) {
-    const VkSpecializationInfo sampleSpec{1, entries, sizeof(std::int32_t), &lightingConstants.samples};
     auto raster = load("client_raster.comp.spv");
     if (!raster) return raster.error();
     auto args = load("client_raster_args.comp.spv");
     if (!args) return args.error();
     auto tiles = load("client_raster_tiles.comp.spv");
     if (!tiles) return tiles.error();
-    for (Status st : {computePipeline(raster->get(), &sampleSpec, rasterPipeline_),
+    for (Status st : {computePipeline(raster->get(), &spec, rasterPipeline_),
                       computePipeline(args->get(), nullptr, rasterArgsPipeline_),
-                      computePipeline(tiles->get(), &sampleSpec, rasterTilesPipeline_)}) {
+                      computePipeline(tiles->get(), &spec, rasterTilesPipeline_)}) {
       if (!st) return st;
     }
   }

@@ -1,5 +1,7 @@
 #include "scene_pack.h"
 
+#include <algorithm>
+
 namespace pc::client {
 
 PackedScene packScene(const Scene& scene) {
@@ -48,7 +50,7 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
                                                                : inst.transform;
     d.normalMatrix = glm::transpose(glm::inverse(d.model));
     const int mat = scene.meshes[inst.mesh].material;
-    d.textures = glm::ivec4(-1, -1, 0, 0);
+    d.textures = glm::ivec4(-1, -1, 0, -1);
     const MeshRange& range = packed.meshes[std::size_t(inst.mesh)];
     d.geometry = glm::ivec4(std::int32_t(range.firstIndex), range.vertexOffset,
                             std::int32_t(packed.triangleBases[k]),
@@ -61,6 +63,13 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
       const int textures = int(scene.textures.size());
       d.textures.x = m.baseColorTexture < textures ? m.baseColorTexture : -1;
       d.textures.y = m.emissiveTexture < textures ? m.emissiveTexture : -1;
+      if (m.isCutOut()) {  // client_surface.glsl reads these three
+        d.baseColor.w = m.baseAlpha;
+        d.emissive.w = m.alphaCutoff;
+        d.textures.w = m.alphaTexture >= 0 && m.alphaTexture < textures
+                           ? m.alphaTexture * 4 + std::clamp(m.alphaChannel, 0, 3)
+                           : -1;
+      }
     }
     draws.push_back(d);
   }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <initializer_list>
 
 #include <glm/glm.hpp>
 
@@ -38,6 +39,49 @@ inline Mesh boxMesh(glm::vec3 lo, glm::vec3 hi, bool inward) {
     }
   }
   return mesh;
+}
+
+// The built-in room with a cut-out grille under the light: a quad across the room at y = 1.2
+// whose alpha is a checker of 1-texel cells (uv repeating 3 times across), so that about half
+// of the light reaches the floor through it. `cutOut` false: the same grille, opaque.
+inline Scene grilleRoom(bool cutOut) {
+  Scene scene = builtinScene();
+  Texture checker;
+  checker.name = "grille";
+  checker.width = checker.height = 8;
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x)
+      checker.rgba.insert(checker.rgba.end(), {200, 200, 200, std::uint8_t((x + y) % 2 ? 255 : 0)});
+  scene.textures.push_back(checker);
+  Material grille{.name = "grille", .baseColor = glm::vec3(0.6f)};
+  if (cutOut) {
+    // Not 0.5: between a 0 and a 1 texel bilinear alpha is exactly 0.5 along whole lines,
+    // where the CPU's float and the GPU sampler's fixed-point weights round either way.
+    grille.alphaCutoff = 0.4f;
+    grille.alphaTexture = int(scene.textures.size()) - 1;
+  }
+  scene.materials.push_back(grille);
+  // Two faces back to back, 0.01 apart, so that probes on either side see fronts (backfaces
+  // would mark the probes below as inside geometry).
+  Mesh quad{.name = "grille", .material = int(scene.materials.size()) - 1};
+  const float h = 0.9f;
+  for (float y : {1.205f, 1.195f}) {
+    const float up = y > 1.2f ? 1.0f : -1.0f;
+    const auto base = std::uint32_t(quad.positions.size());
+    const glm::vec3 corners[4] = {{-h, y, h}, {h, y, h}, {h, y, -h}, {-h, y, -h}};
+    for (glm::vec3 c : corners) {
+      quad.positions.push_back(c);
+      quad.normals.push_back({0, up, 0});
+      quad.uvs.push_back(glm::vec2(c.x + h, c.z + h) / (2.0f * h) * 3.0f);
+    }
+    if (up > 0)
+      quad.indices.insert(quad.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+    else
+      quad.indices.insert(quad.indices.end(), {base, base + 2, base + 1, base, base + 3, base + 2});
+  }
+  scene.meshes.push_back(quad);
+  scene.instances.push_back({.name = "grille", .mesh = int(scene.meshes.size()) - 1});
+  return scene;
 }
 
 }  // namespace pc::testmesh

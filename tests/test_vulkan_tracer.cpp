@@ -20,6 +20,7 @@
 #include "server/field_compare.h"
 #include "server/vulkan_tracer.h"
 #include "shaders/interop/gpu_trace.h"
+#include "test_meshes.h"
 
 namespace pc {
 namespace {
@@ -336,60 +337,17 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
 }
 
-// The built-in room with a cut-out grille under the light: a quad across the room at y = 1.2
-// whose alpha is a checker of 1-texel cells (uv repeating 3 times across), so that about half
-// of the light reaches the floor through it. `cutOut` false: the same grille, opaque.
-Scene grilleRoom(bool cutOut) {
-  Scene scene = builtinScene();
-  Texture checker;
-  checker.name = "grille";
-  checker.width = checker.height = 8;
-  for (int y = 0; y < 8; ++y)
-    for (int x = 0; x < 8; ++x)
-      checker.rgba.insert(checker.rgba.end(), {200, 200, 200, std::uint8_t((x + y) % 2 ? 255 : 0)});
-  scene.textures.push_back(checker);
-  Material grille{.name = "grille", .baseColor = glm::vec3(0.6f)};
-  if (cutOut) {
-    // Not 0.5: between a 0 and a 1 texel bilinear alpha is exactly 0.5 along whole lines,
-    // where the CPU's float and the GPU sampler's fixed-point weights round either way.
-    grille.alphaCutoff = 0.4f;
-    grille.alphaTexture = int(scene.textures.size()) - 1;
-  }
-  scene.materials.push_back(grille);
-  // Two faces back to back, 0.01 apart, so that probes on either side see fronts (backfaces
-  // would mark the probes below as inside geometry).
-  Mesh quad{.name = "grille", .material = int(scene.materials.size()) - 1};
-  const float h = 0.9f;
-  for (float y : {1.205f, 1.195f}) {
-    const float up = y > 1.2f ? 1.0f : -1.0f;
-    const auto base = std::uint32_t(quad.positions.size());
-    const glm::vec3 corners[4] = {{-h, y, h}, {h, y, h}, {h, y, -h}, {-h, y, -h}};
-    for (glm::vec3 c : corners) {
-      quad.positions.push_back(c);
-      quad.normals.push_back({0, up, 0});
-      quad.uvs.push_back(glm::vec2(c.x + h, c.z + h) / (2.0f * h) * 3.0f);
-    }
-    if (up > 0)
-      quad.indices.insert(quad.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-    else
-      quad.indices.insert(quad.indices.end(), {base, base + 2, base + 1, base, base + 3, base + 2});
-  }
-  scene.meshes.push_back(quad);
-  scene.instances.push_back({.name = "grille", .mesh = int(scene.meshes.size()) - 1});
-  return scene;
-}
-
 // Cut-outs: the GPU's any-hit shader must let probe and shadow rays through the grille's open
 // texels as Embree's filters do. The same grille opaque gives a field far from both, so a
 // backend that ignored the cut-out would fail.
 TEST(VulkanTracer, CutOutGrilleMatchesEmbree) {
-  const Scene scene = grilleRoom(true);
+  const Scene scene = testmesh::grilleRoom(true);
   std::string why;
   auto gpu = makeGpu(scene, &why);
   if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
   auto cpu = makeEmbreeTracer(scene);
   ASSERT_TRUE(cpu) << cpu.error().message;
-  const Scene solid = grilleRoom(false);
+  const Scene solid = testmesh::grilleRoom(false);
   auto opaque = makeEmbreeTracer(solid);
   ASSERT_TRUE(opaque) << opaque.error().message;
   FieldSettings settings;

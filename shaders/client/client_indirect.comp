@@ -66,12 +66,6 @@ vec3 fieldIrradiance(vec3 P, vec3 N, vec3 V) {
   return mix(frame.ambient.rgb, s.rgb, coverage);
 }
 
-// A point on the view's ray through `ndc` (between the near and far planes).
-vec3 pointOnRay(ClientView view, vec2 ndc) {
-  vec4 p = view.invViewProj * vec4(ndc, 0.5, 1.0);
-  return p.xyz / p.w;
-}
-
 void main() {
   ivec3 id = ivec3(gl_GlobalInvocationID);
   ivec2 size = ivec2(frame.viewport);
@@ -80,12 +74,11 @@ void main() {
   vec3 eye = view.position.xyz;
 
   // The pixel-centre ray, on which every sample's surface point lies (client_surface.glsl).
-  vec2 ndc = (vec2(id.xy) + 0.5) / vec2(size) * 2.0 - 1.0;
-  vec3 ray = normalize(pointOnRay(view, ndc) - eye);
+  vec2 centre = vec2(id.xy) + 0.5;
+  vec3 ray = normalize(pointUnderPixel(id.z, centre) - eye);
   // The next pixels' centre rays, for the texture footprint.
-  vec2 pixel = 2.0 / vec2(size);
-  vec3 rayDx = pointOnRay(view, ndc + vec2(pixel.x, 0.0)) - eye;
-  vec3 rayDy = pointOnRay(view, ndc + vec2(0.0, pixel.y)) - eye;
+  vec3 rayDx = pointUnderPixel(id.z, centre + vec2(1.0, 0.0)) - eye;
+  vec3 rayDy = pointUnderPixel(id.z, centre + vec2(0.0, 1.0)) - eye;
 
   uint ids[SAMPLES];
   vec3 shaded[SAMPLES];

@@ -9,7 +9,9 @@
 
 layout(local_size_x = PC_RASTER_GROUP) in;
 layout(constant_id = 0) const int SAMPLES = 4;
-#include "client_geometry.glsl"
+layout(constant_id = 1) const int TEXTURE_COUNT = 1;
+layout(constant_id = 3) const bool CUT_OUTS = false;  // any cut-out material in the scene
+#include "client_surface.glsl"
 #include "client_raster.glsl"
 
 layout(set = 0, binding = PC_BIND_RASTER_TRIANGLES, std430) writeonly buffer TriangleBlock {
@@ -32,7 +34,7 @@ float planeDistance(vec4 v, int k) {
 
 const int kMaxPolygon = 9;  // 3 corners + one per clip plane
 
-void emitTriangle(vec4 c0, vec4 c1, vec4 c2, uint id, int view) {
+void emitTriangle(vec4 c0, vec4 c1, vec4 c2, uint id, int view, int cutOutDraw) {
   vec2 size = frame.viewport;
   vec4 corners[3] = vec4[](c0, c1, c2);
   ivec2 p[3];
@@ -56,6 +58,7 @@ void emitTriangle(vec4 c0, vec4 c1, vec4 c2, uint id, int view) {
   t.invArea = 1.0 / float(area);
   t.id = id;
   t.view = view;
+  t.cutOutDraw = cutOutDraw;
   ivec2 lo, hi;
   pixelBounds(t, lo, hi);
   if (any(lessThan(hi, lo))) return;
@@ -93,8 +96,10 @@ void emitTriangle(vec4 c0, vec4 c1, vec4 c2, uint id, int view) {
 }
 
 void rasterize(uint triangle, int view) {
-  DrawData d = draws[drawOfTriangle(triangle)];
+  int drawIndex = drawOfTriangle(triangle);
+  DrawData d = draws[drawIndex];
   if ((d.textures.z & (1 << view)) == 0) return;  // the draw is outside this view
+  int cutOutDraw = CUT_OUTS && drawIsCutOut(d) ? drawIndex : -1;
   uint i0, i1, i2;
   triangleVertices(d, triangle, i0, i1, i2);
   mat4 toClip = frame.views[view].viewProj * d.model;
@@ -121,7 +126,7 @@ void rasterize(uint triangle, int view) {
     for (int i = 0; i < count; ++i) polygon[i] = clipped[i];
   }
   uint id = triangle + 1u;
-  for (int i = 1; i + 1 < count; ++i) emitTriangle(polygon[0], polygon[i], polygon[i + 1], id, view);
+  for (int i = 1; i + 1 < count; ++i) emitTriangle(polygon[0], polygon[i], polygon[i + 1], id, view, cutOutDraw);
 }
 
 void main() {

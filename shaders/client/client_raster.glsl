@@ -1,8 +1,9 @@
 // The compute rasterizer's coverage test (client_frame.h, PC_RASTER_*): watertight edge
 // functions on fixed-point screen positions, evaluated at the standard multisample positions,
 // depth interpolated linearly in screen space (reversed depth: near / w), and depth with the
-// visibility id written by one 64-bit atomic max per covered sample. Needs client_common.glsl
-// first and SAMPLES declared.
+// visibility id written by one 64-bit atomic max per covered sample; a cut-out's sample also
+// needs its material covered where the sample's ray meets the triangle (client_surface.glsl).
+// Needs client_common.glsl and client_surface.glsl first, and SAMPLES and CUT_OUTS declared.
 #ifndef PC_CLIENT_RASTER_GLSL
 #define PC_CLIENT_RASTER_GLSL
 
@@ -44,7 +45,16 @@ struct ScreenTriangle {
   float invArea;  // 1 / edgeFunction(a, b, c)
   uint id;
   int view;
+  int cutOutDraw;  // the draw when its material is a cut-out, else -1
 };
+
+// Draw index of triangle id `id` when its material is a cut-out, else -1 (and always -1 in
+// scenes without cut-outs, at no cost).
+int cutOutDrawOf(uint id) {
+  if (!CUT_OUTS) return -1;
+  int d = drawOfTriangle(id - 1u);
+  return drawIsCutOut(draws[d]) ? d : -1;
+}
 
 // Covers the samples of `pixel` inside `t`.
 void coverPixel(ScreenTriangle t, ivec2 pixel) {
@@ -58,6 +68,11 @@ void coverPixel(ScreenTriangle t, ivec2 pixel) {
     int64_t wc = edgeFunction(t.a, t.b, p);
     if (wa < 0 || wb < 0 || wc < 0) continue;
     if ((wa == 0 && !ownA) || (wb == 0 && !ownB) || (wc == 0 && !ownC)) continue;
+    if (CUT_OUTS && t.cutOutDraw >= 0) {
+      vec3 eye = frame.views[t.view].position.xyz;
+      vec3 ray = pointUnderPixel(t.view, vec2(p) / float(PC_RASTER_SUBPIXEL)) - eye;
+      if (!coveredOnRay(draws[t.cutOutDraw], t.id - 1u, eye, ray)) continue;
+    }
     float depth = (float(wa) * t.depth.x + float(wb) * t.depth.y + float(wc) * t.depth.z) * t.invArea;
     uint64_t value = (uint64_t(floatBitsToUint(depth)) << 32) | uint64_t(t.id);
     atomicMax(visSamples[base + uint(s)], value);

@@ -6,6 +6,9 @@
 
 layout(local_size_x = PC_RASTER_TILE_GROUP) in;
 layout(constant_id = 0) const int SAMPLES = 4;
+layout(constant_id = 1) const int TEXTURE_COUNT = 1;
+layout(constant_id = 3) const bool CUT_OUTS = false;  // any cut-out material in the scene
+#include "client_surface.glsl"
 #include "client_raster.glsl"
 
 layout(set = 0, binding = PC_BIND_RASTER_TRIANGLES, std430) readonly buffer TriangleBlock {
@@ -30,6 +33,7 @@ void main() {
   t.view = r.cIdView.w;
   t.depth = r.depth.xyz;
   t.invArea = r.depth.w;
+  t.cutOutDraw = cutOutDrawOf(t.id);
   ivec2 lo, hi;
   pixelBounds(t, lo, hi);
   ivec2 tile = ivec2(int(entry.y & 0xFFFFu), int(entry.y >> 16)) * PC_RASTER_TILE;

@@ -6,6 +6,9 @@
 // diffuse surfaces whose shading normal is turned to the viewer's side, one-sided emitters
 // whose front is the mesh's counter-clockwise side. Needs client_common.glsl first, and
 // TEXTURE_COUNT declared.
+#ifndef PC_CLIENT_SURFACE_GLSL
+#define PC_CLIENT_SURFACE_GLSL
+
 #extension GL_EXT_nonuniform_qualifier : require
 #include "client_geometry.glsl"
 
@@ -43,15 +46,31 @@ vec2 footprint(vec2 d) { return clamp(d, vec2(-1e4), vec2(1e4)); }
 
 // `id`: a non-zero visibility value; `eye`, `ray` (unit): the pixel-centre ray of its view;
 // `rayDx`, `rayDy`: the next pixel's centre rays across and down (any length).
+// Triangle id `triangle` of draw `d`: its corners' records, and its first corner and edges
+// in world space.
+struct WorldTriangle {
+  VertexRecord v0, v1, v2;
+  vec3 p0, e1, e2;
+};
+WorldTriangle worldTriangle(DrawData d, uint triangle) {
+  uint i0, i1, i2;
+  triangleVertices(d, triangle, i0, i1, i2);
+  WorldTriangle w;
+  w.v0 = vertexAt(i0);
+  w.v1 = vertexAt(i1);
+  w.v2 = vertexAt(i2);
+  w.p0 = (d.model * vec4(w.v0.position, 1.0)).xyz;
+  w.e1 = (d.model * vec4(w.v1.position, 1.0)).xyz - w.p0;
+  w.e2 = (d.model * vec4(w.v2.position, 1.0)).xyz - w.p0;
+  return w;
+}
+
 Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   uint triangle = id - 1u;
   DrawData d = draws[drawOfTriangle(triangle)];
-  uint i0, i1, i2;
-  triangleVertices(d, triangle, i0, i1, i2);
-  VertexRecord v0 = vertexAt(i0), v1 = vertexAt(i1), v2 = vertexAt(i2);
-  vec3 p0 = (d.model * vec4(v0.position, 1.0)).xyz;
-  vec3 e1 = (d.model * vec4(v1.position, 1.0)).xyz - p0;
-  vec3 e2 = (d.model * vec4(v2.position, 1.0)).xyz - p0;
+  WorldTriangle w = worldTriangle(d, triangle);
+  VertexRecord v0 = w.v0, v1 = w.v1, v2 = w.v2;
+  vec3 p0 = w.p0, e1 = w.e1, e2 = w.e2;
 
   vec3 tv = eye - p0;
   vec3 qv = cross(tv, e1);
@@ -85,3 +104,36 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   s.emission = front ? d.emissive.rgb * textureRgb(d.textures.y, uv, dx, dy) : vec3(0.0);
   return s;
 }
+
+// ---- cut-outs (Material::isCutOut, pc::coveredAt) ----
+// DrawData carries the base alpha in baseColor.w, the cutoff in emissive.w (0: opaque) and the
+// alpha texture in textures.w (4 x index + channel; -1: none). The test reads level 0
+// bilinearly, as the CPU's Texture::sample, so every renderer and tracer cuts the same holes.
+
+bool drawIsCutOut(DrawData d) { return d.emissive.w > 0.0; }
+
+bool coveredAtUv(DrawData d, vec2 uv) {
+  float alpha = d.baseColor.w;
+  int t = d.textures.w;
+  if (t >= 0 && (t >> 2) < TEXTURE_COUNT)
+    alpha *= textureLod(textures[nonuniformEXT(t >> 2)], uv, 0.0)[t & 3];
+  return alpha >= d.emissive.w;
+}
+
+// Whether triangle id `triangle` of draw `d` exists where `ray` from `eye` meets its plane.
+bool coveredOnRay(DrawData d, uint triangle, vec3 eye, vec3 ray) {
+  WorldTriangle w = worldTriangle(d, triangle);
+  vec3 tv = eye - w.p0;
+  vec3 hit = planeHit(ray, w.e1, w.e2, tv, cross(tv, w.e1));
+  return coveredAtUv(d, (1.0 - hit.x - hit.y) * w.v0.uv + hit.x * w.v1.uv + hit.y * w.v2.uv);
+}
+
+// The point of view `view` under window position `pixel` (in pixels from the top left corner;
+// pixel centres at + 0.5): the ray through it starts at the view's eye.
+vec3 pointUnderPixel(int view, vec2 pixel) {
+  vec2 ndc = pixel / frame.viewport * 2.0 - 1.0;
+  vec4 p = frame.views[view].invViewProj * vec4(ndc, 0.5, 1.0);
+  return p.xyz / p.w;
+}
+
+#endif

@@ -80,10 +80,11 @@ struct FrameUniforms {
 struct DrawData {
   mat4 model;         // object -> world
   mat4 normalMatrix;  // inverse transpose of model (upper 3x3 used)
-  vec4 baseColor;     // linear albedo factor, w unused
-  vec4 emissive;      // linear emitted radiance factor, w unused
+  vec4 baseColor;     // linear albedo factor; w: cut-outs' base alpha
+  vec4 emissive;      // linear emitted radiance factor; w: cut-outs' alpha cutoff (0: opaque)
   ivec4 textures;     // x: base color texture (-1 none), y: emissive texture (-1 none),
-                      // z: bit v set when the draw's bounds touch view v's frustum
+                      // z: bit v set when the draw's bounds touch view v's frustum,
+                      // w: cut-outs' alpha texture x 4 + channel (-1 none)
   // x: first index in the packed index buffer, y: vertex offset, z: triangleBase,
   // w: +1 or -1, the sign of the model's determinant (a mirroring transform keeps the mesh's
   // own front faces, as the CPU renders do)
