@@ -62,7 +62,9 @@ inline Scene grilleRoom(bool cutOut) {
   }
   scene.materials.push_back(grille);
   // Two faces back to back, 0.01 apart, so that probes on either side see fronts (backfaces
-  // would mark the probes below as inside geometry).
+  // would mark the probes below as inside geometry). Neither is coplanar with the tall block's
+  // top (y = 1.2, between them): rays reaching coplanar faces at one distance pick either, and
+  // the backends break such ties differently.
   Mesh quad{.name = "grille", .material = int(scene.materials.size()) - 1};
   const float h = 0.9f;
   for (float y : {1.205f, 1.195f}) {
