@@ -247,13 +247,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   auto gpuScene = GpuScene::create(ctx, scene, options.textureMipmaps);
   if (!gpuScene) return gpuScene.error();
   r->gpuScene_.emplace(std::move(gpuScene).value());
-  for (const Instance& inst : scene.instances) {
-    const int mesh = inst.mesh, mat = mesh >= 0 && std::size_t(mesh) < scene.meshes.size()
-                                          ? scene.meshes[std::size_t(mesh)].material
-                                          : -1;
-    if (mat >= 0 && std::size_t(mat) < scene.materials.size() && scene.materials[std::size_t(mat)].isCutOut())
-      r->hasCutOuts_ = true;
-  }
+  r->hasCutOuts_ = scene.hasCutOuts();
   // Visibility ids are 32-bit with 0 for the sky (client_frame.h, DrawData).
   if (r->gpuScene_->packed().triangleIds >= 0xFFFFFFFFull)
     return Error{"scene has too many triangles over its instances for 32-bit visibility ids"};

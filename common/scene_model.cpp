@@ -97,12 +97,25 @@ std::size_t Scene::triangleCount() const {
   return n;
 }
 
+const Material* Scene::materialOf(const Instance& inst) const {
+  if (inst.mesh < 0 || std::size_t(inst.mesh) >= meshes.size()) return nullptr;
+  const int m = meshes[inst.mesh].material;
+  return m >= 0 && std::size_t(m) < materials.size() ? &materials[m] : nullptr;
+}
+
 bool Scene::hasLights() const {
   if (!lights.empty()) return true;
   for (const Instance& inst : instances) {
-    if (inst.mesh < 0 || std::size_t(inst.mesh) >= meshes.size()) continue;
-    int m = meshes[inst.mesh].material;
-    if (m >= 0 && std::size_t(m) < materials.size() && materials[m].isEmissive()) return true;
+    const Material* m = materialOf(inst);
+    if (m && m->isEmissive()) return true;
+  }
+  return false;
+}
+
+bool Scene::hasCutOuts() const {
+  for (const Instance& inst : instances) {
+    const Material* m = materialOf(inst);
+    if (m && m->isCutOut()) return true;
   }
   return false;
 }
