@@ -456,15 +456,22 @@ Status VulkanTracer::Impl::createPipelines() {
   PC_VK_TRY(vkCreatePipelineLayout(ctx->device(), &plci, nullptr, &pl));
   pipelineLayout = vk::UniquePipelineLayout(ctx->device(), pl);
 
-  // ---- ray tracing: stages raygen, miss..., closest hit, any hit; groups: raygen, the
-  // misses, then one triangle hit group of the last two ----
+  // ---- ray tracing: stages raygen, miss..., closest hit, and in scenes with cut-outs any
+  // hit; groups: raygen, the misses, then one triangle hit group of the hit shaders. Scenes
+  // without cut-outs keep the pipelines they had before cut-outs existed: no any-hit shader,
+  // opaque ray flags (specialization constant 0 of the ray generation shaders). ----
+  const bool cutOuts = scene->hasCutOuts();
+  const VkBool32 cutOutsSpec = cutOuts ? VK_TRUE : VK_FALSE;
+  const VkSpecializationMapEntry cutOutsEntry{0, 0, sizeof(VkBool32)};
+  const VkSpecializationInfo raygenSpec{1, &cutOutsEntry, sizeof cutOutsSpec, &cutOutsSpec};
   auto makeRayPipeline = [&](const char* raygen, std::vector<const char*> misses) -> Result<vk::UniquePipeline> {
     std::vector<vk::UniqueShaderModule> modules;
     std::vector<const char*> names = {raygen};
     names.insert(names.end(), misses.begin(), misses.end());
     names.push_back("probe_trace.rchit.spv");
-    names.push_back("probe_cutout.rahit.spv");
-    const std::size_t closestHit = names.size() - 2, anyHit = names.size() - 1;
+    const std::size_t closestHit = names.size() - 1;
+    if (cutOuts) names.push_back("probe_cutout.rahit.spv");
+    const std::size_t anyHit = cutOuts ? names.size() - 1 : names.size();
     std::vector<VkPipelineShaderStageCreateInfo> stages;
     std::vector<VkRayTracingShaderGroupCreateInfoKHR> groups;
     for (std::size_t i = 0; i < names.size(); ++i) {
@@ -478,6 +485,7 @@ Status VulkanTracer::Impl::createPipelines() {
                                : VK_SHADER_STAGE_MISS_BIT_KHR;
       st.module = modules.back().get();
       st.pName = "main";
+      if (i == 0) st.pSpecializationInfo = &raygenSpec;
       stages.push_back(st);
       if (i == anyHit) continue;  // in the closest hit's group
       VkRayTracingShaderGroupCreateInfoKHR g{VK_STRUCTURE_TYPE_RAY_TRACING_SHADER_GROUP_CREATE_INFO_KHR};
@@ -485,7 +493,7 @@ Status VulkanTracer::Impl::createPipelines() {
       if (i == closestHit) {
         g.type = VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR;
         g.closestHitShader = std::uint32_t(closestHit);
-        g.anyHitShader = std::uint32_t(anyHit);
+        if (cutOuts) g.anyHitShader = std::uint32_t(anyHit);
       } else {
         g.type = VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR;
         g.generalShader = std::uint32_t(i);
