@@ -25,7 +25,7 @@ namespace {
 // (ior and specular only shape specular reflection, which diffuse GI does not use.)
 const std::set<std::string> kSupportedExtensions = {
     "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization",
-    "KHR_materials_ior",   "KHR_materials_specular",
+    "KHR_materials_ior",   "KHR_materials_specular", "KHR_texture_transform",
 };
 
 // Thrown inside this file only, turned into an Error at loadGltf's boundary.
@@ -279,6 +279,57 @@ class GltfReader {
     for (std::size_t i = 0; i < a.count; ++i) f(buf.data.data() + start + i * stride, i);
   }
 
+  // Where a material's textures take their coordinates from: a TEXCOORD set and, with
+  // KHR_texture_transform, an affine map (scale, then rotation about the origin, then offset,
+  // as the extension specifies). Meshes keep one set of coordinates, so the map is applied on
+  // load: the base colour texture's (else the emissive texture's); when the two differ, the
+  // emissive texture follows the base colour's, with a warning.
+  struct UvSource {
+    int set = 0;
+    glm::vec2 offset{0.0f}, scale{1.0f};
+    float rotation = 0.0f;
+    bool operator==(const UvSource&) const = default;
+    glm::vec2 apply(glm::vec2 uv) const {
+      const glm::vec2 s = uv * scale;
+      const float c = std::cos(rotation), n = std::sin(rotation);
+      return glm::vec2(c * s.x - n * s.y, n * s.x + c * s.y) + offset;
+    }
+  };
+
+  static UvSource uvSourceOf(const tinygltf::TextureInfo& info) {
+    UvSource uv;
+    uv.set = std::max(info.texCoord, 0);
+    auto ext = info.extensions.find("KHR_texture_transform");
+    if (ext == info.extensions.end() || !ext->second.IsObject()) return uv;
+    const tinygltf::Value& t = ext->second;
+    auto vec2 = [&](const char* key, glm::vec2& out) {
+      if (!t.Has(key) || !t.Get(key).IsArray() || t.Get(key).ArrayLen() != 2) return;
+      for (int i = 0; i < 2; ++i)
+        if (t.Get(key).Get(i).IsNumber()) out[i] = float(t.Get(key).Get(i).GetNumberAsDouble());
+    };
+    vec2("offset", uv.offset);
+    vec2("scale", uv.scale);
+    if (t.Has("rotation") && t.Get("rotation").IsNumber())
+      uv.rotation = float(t.Get("rotation").GetNumberAsDouble());
+    if (t.Has("texCoord") && t.Get("texCoord").IsInt()) uv.set = std::max(t.Get("texCoord").GetNumberAsInt(), 0);
+    return uv;
+  }
+
+  UvSource uvSourceOf(int gltfMaterial) {
+    if (gltfMaterial < 0 || std::size_t(gltfMaterial) >= m_.materials.size()) return {};
+    const tinygltf::Material& gm = m_.materials[gltfMaterial];
+    const tinygltf::TextureInfo& base = gm.pbrMetallicRoughness.baseColorTexture;
+    const tinygltf::TextureInfo& emissive = gm.emissiveTexture;
+    if (base.index < 0) return emissive.index < 0 ? UvSource{} : uvSourceOf(emissive);
+    const UvSource uv = uvSourceOf(base);
+    if (emissive.index >= 0 && !(uvSourceOf(emissive) == uv) && uvWarned_.insert(gltfMaterial).second)
+      scene_.warnings.push_back("material '" + gm.name +
+                                "': its emissive texture's coordinates (set or "
+                                "KHR_texture_transform) differ from its base colour texture's; "
+                                "the base colour's are used for both");
+    return uv;
+  }
+
   // False for primitives that hold no triangles (points, lines).
   bool readPrimitive(const tinygltf::Primitive& prim, Mesh& mesh) {
     int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
@@ -299,11 +350,13 @@ class GltfReader {
           mesh.normals[i] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
       }
     }
-    if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) {
-      std::vector<float> v = readFloats(it->second, 2, "TEXCOORD_0");
+    const UvSource uv = uvSourceOf(prim.material);
+    const std::string uvName = "TEXCOORD_" + std::to_string(uv.set);
+    if (auto it = prim.attributes.find(uvName); it != prim.attributes.end()) {
+      std::vector<float> v = readFloats(it->second, 2, uvName.c_str());
       if (v.size() == 2 * n) {
         mesh.uvs.resize(n);
-        for (std::size_t i = 0; i < n; ++i) mesh.uvs[i] = {v[2 * i], v[2 * i + 1]};
+        for (std::size_t i = 0; i < n; ++i) mesh.uvs[i] = uv.apply({v[2 * i], v[2 * i + 1]});
       }
     }
     std::vector<std::uint32_t> idx;
@@ -437,6 +490,7 @@ class GltfReader {
   std::map<int, std::vector<int>> meshCache_;
   std::map<int, int> materialCache_;
   std::map<int, int> imageCache_;
+  std::set<int> uvWarned_;  // materials whose texture coordinates' conflict was reported
   int defaultMaterial_ = -1;
 };
 

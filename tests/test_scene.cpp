@@ -322,6 +322,55 @@ TEST(GltfLoad, AlphaModesBecomeCutOuts) {
   EXPECT_TRUE(warned) << "no warning names the material and its alpha mode";
 }
 
+TEST(GltfLoad, TextureCoordinateSetsAndTransformsAreApplied) {
+  TempDir dir;
+  // A quad with two coordinate sets; the base colour texture reads set 1 through
+  // KHR_texture_transform (scale, then rotation about the origin, then offset).
+  const float pos[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const float uv0[8] = {9, 9, 9, 9, 9, 9, 9, 9};
+  const float uv1[8] = {0, 0, 1, 0, 1, 1, 0, 1};
+  const std::uint16_t idx[6] = {0, 1, 2, 0, 2, 3};
+  std::vector<unsigned char> bin(sizeof pos + sizeof uv0 + sizeof uv1 + sizeof idx);
+  std::memcpy(bin.data(), pos, sizeof pos);
+  std::memcpy(bin.data() + 48, uv0, sizeof uv0);
+  std::memcpy(bin.data() + 80, uv1, sizeof uv1);
+  std::memcpy(bin.data() + 112, idx, sizeof idx);
+  writeBytes(dir / "quad.bin", bin);
+  writeBytes(dir / "t.png", redBluePng());
+  writeFile(dir / "quad.gltf", R"({
+  "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0}],
+  "extensionsUsed": ["KHR_texture_transform"], "extensionsRequired": ["KHR_texture_transform"],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "TEXCOORD_1": 2},
+                              "indices": 3, "material": 0}]}],
+  "materials": [{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0,
+    "texCoord": 1, "extensions": {"KHR_texture_transform":
+      {"offset": [0.5, 0.25], "scale": [2, 3], "rotation": 1.5707963}}}}}],
+  "images": [{"uri": "t.png"}], "textures": [{"source": 0}],
+  "buffers": [{"uri": "quad.bin", "byteLength": 124}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                  {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                  {"buffer": 0, "byteOffset": 80, "byteLength": 32},
+                  {"buffer": 0, "byteOffset": 112, "byteLength": 12}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                 "min": [0, 0, 0], "max": [1, 1, 0]},
+                {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+                {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+                {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}]
+})");
+  auto r = pc::loadScene(dir / "quad.gltf", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  ASSERT_EQ(r->meshes.size(), 1u);
+  const std::vector<glm::vec2>& uvs = r->meshes[0].uvs;
+  ASSERT_EQ(uvs.size(), 4u);
+  // (u, v) of set 1 -> (0.5 - 3 v, 0.25 + 2 u).
+  for (int i = 0; i < 4; ++i) {
+    const glm::vec2 expected(0.5f - 3.0f * uv1[2 * i + 1], 0.25f + 2.0f * uv1[2 * i]);
+    EXPECT_NEAR(uvs[i].x, expected.x, 1e-5f) << "vertex " << i;
+    EXPECT_NEAR(uvs[i].y, expected.y, 1e-5f) << "vertex " << i;
+  }
+}
+
 TEST(GltfLoad, GlbWithHierarchyLightsCameraAndTexture) {
   TempDir dir;
   const std::vector<unsigned char> png = redBluePng();
