@@ -51,28 +51,26 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene, bo
   }
 
   // Trilinear, and anisotropic where the device has it: the lighting pass gives each lookup
-  // its pixel's texture-space footprint, as a fragment shader's derivatives would.
-  VkPhysicalDeviceFeatures features{};
-  vkGetPhysicalDeviceFeatures(ctx.physicalDevice(), &features);
-  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
-  si.magFilter = si.minFilter = VK_FILTER_LINEAR;
-  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
-  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT;
-  si.maxLod = VK_LOD_CLAMP_NONE;
-  if (mipmaps && features.samplerAnisotropy) {
-    si.anisotropyEnable = VK_TRUE;
-    si.maxAnisotropy = std::min(kMaxAnisotropy, ctx.properties().limits.maxSamplerAnisotropy);
+  // its pixel's texture-space footprint, as a fragment shader's derivatives would. Each
+  // texture reads with its own wrap modes.
+  g.samplers_.emplace(ctx, vk::TextureSamplerDesc{mipmaps, mipmaps ? kMaxAnisotropy : 0.0f});
+  for (const Texture& t : scene.textures) {
+    auto sampler = g.samplers_->forTexture(t);
+    if (!sampler) return sampler.error();
+    g.textureSamplers_.push_back(*sampler);
   }
-  VkSampler sampler = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreateSampler(ctx.device(), &si, nullptr, &sampler));
-  g.sampler_ = vk::UniqueSampler(ctx.device(), sampler);
+  while (g.textureSamplers_.size() < g.textures_.size()) {  // the stand-in white texel
+    auto sampler = g.samplers_->repeating();
+    if (!sampler) return sampler.error();
+    g.textureSamplers_.push_back(*sampler);
+  }
   return g;
 }
 
 std::vector<VkDescriptorImageInfo> GpuScene::textureInfos() const {
   std::vector<VkDescriptorImageInfo> infos;
-  for (const vk::Image& t : textures_)
-    infos.push_back({sampler_.get(), t.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+  for (std::size_t i = 0; i < textures_.size(); ++i)
+    infos.push_back({textureSamplers_[i], textures_[i].view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
   return infos;
 }
 

@@ -1,15 +1,18 @@
 // The scene's geometry and textures on the GPU: one vertex and one index buffer for every
 // mesh (scene_pack.h; the lighting pass reads them as storage buffers too), the base-color and
-// emissive textures as sRGB images with their mip chains, and the sampler that reads them:
-// bilinear and repeating like Texture::sample, with trilinear (and anisotropic) minification.
+// emissive textures as sRGB images with their mip chains, and the samplers that read them:
+// bilinear with each texture's wrap modes like Texture::sample, with trilinear (and
+// anisotropic) minification.
 #pragma once
 
+#include <optional>
 #include <span>
 #include <vector>
 
 #include "common/result.h"
 #include "common/scene.h"
 #include "common/vulkan/context.h"
+#include "common/vulkan/texture_samplers.h"
 #include "scene_pack.h"
 
 namespace pc::client {
@@ -33,7 +36,8 @@ class GpuScene {
   PackedScene packed_;
   vk::Buffer vertices_, indices_;
   std::vector<vk::Image> textures_;
-  vk::UniqueSampler sampler_;
+  std::optional<vk::TextureSamplers> samplers_;
+  std::vector<VkSampler> textureSamplers_;  // per texture (owned by samplers_)
 };
 
 }  // namespace pc::client

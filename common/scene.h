@@ -19,11 +19,16 @@ namespace pc {
 // The linear value of each 8-bit sRGB code (what Texture::sample decodes texels with).
 const std::array<float, 256>& srgbDecodeTable();
 
+// What a texture lookup outside [0, 1] reads, per axis (Vulkan's and glTF's address modes).
+enum class TextureWrap : std::uint8_t { Repeat, ClampToEdge, MirroredRepeat };
+
 struct Texture {
   std::string name;
   int width = 0, height = 0;
   std::vector<std::uint8_t> rgba;  // 8-bit sRGB, row 0 at the top
-  // Bilinear, wrapping, returns linear RGB (alpha linear).
+  TextureWrap wrapU = TextureWrap::Repeat, wrapV = TextureWrap::Repeat;
+  // Bilinear with the texture's wrap modes, as a Vulkan sampler with linear filtering reads
+  // level 0; returns linear RGB (alpha linear).
   glm::vec4 sample(glm::vec2 uv) const;
 };
 

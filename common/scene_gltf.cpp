@@ -13,6 +13,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <tuple>
 
 #include "common/scene_loaders.h"
 
@@ -448,7 +449,16 @@ class GltfReader {
     int source = m_.textures[index].source;
     if (source < 0) return -1;
     check(source, m_.images.size(), "image");
-    auto it = imageCache_.find(source);
+    // The sampler's wrap modes (glTF's default: repeat); its filters are not read, as every
+    // renderer filters the same way.
+    TextureWrap wrapU = TextureWrap::Repeat, wrapV = TextureWrap::Repeat;
+    if (int sampler = m_.textures[index].sampler; sampler >= 0) {
+      check(sampler, m_.samplers.size(), "sampler");
+      wrapU = wrapMode(m_.samplers[sampler].wrapS);
+      wrapV = wrapMode(m_.samplers[sampler].wrapT);
+    }
+    const auto key = std::make_tuple(source, wrapU, wrapV);
+    auto it = imageCache_.find(key);
     if (it != imageCache_.end()) return it->second;
     const tinygltf::Image& img = m_.images[source];
     std::string label = img.uri.empty() ? "image " + std::to_string(source) : img.uri;
@@ -463,6 +473,8 @@ class GltfReader {
       tex.name = img.name.empty() ? label : img.name;
       tex.width = img.width;
       tex.height = img.height;
+      tex.wrapU = wrapU;
+      tex.wrapV = wrapV;
       tex.rgba.resize(texels * 4);
       for (std::size_t t = 0; t < texels; ++t) {
         std::uint8_t c[4] = {0, 0, 0, 255};
@@ -481,15 +493,26 @@ class GltfReader {
       out = int(scene_.textures.size());
       scene_.textures.push_back(std::move(tex));
     }
-    imageCache_[source] = out;
+    imageCache_[key] = out;
     return out;
+  }
+
+  static TextureWrap wrapMode(int gltf) {
+    switch (gltf) {
+      case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE:
+        return TextureWrap::ClampToEdge;
+      case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT:
+        return TextureWrap::MirroredRepeat;
+      default:
+        return TextureWrap::Repeat;
+    }
   }
 
   const tinygltf::Model& m_;
   Scene& scene_;
   std::map<int, std::vector<int>> meshCache_;
   std::map<int, int> materialCache_;
-  std::map<int, int> imageCache_;
+  std::map<std::tuple<int, TextureWrap, TextureWrap>, int> imageCache_;  // image and wrap modes
   std::set<int> uvWarned_;  // materials whose texture coordinates' conflict was reported
   int defaultMaterial_ = -1;
 };

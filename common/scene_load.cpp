@@ -202,6 +202,12 @@ std::uint64_t hashScene(const Scene& scene) {
     h.i32(t.width);
     h.i32(t.height);
     h.bytes(t.rgba.data(), t.rgba.size());
+    // Only other wrap modes add these, so repeating textures keep the hashes baked files
+    // were made with.
+    if (t.wrapU != TextureWrap::Repeat || t.wrapV != TextureWrap::Repeat) {
+      h.i32(int(t.wrapU));
+      h.i32(int(t.wrapV));
+    }
   }
   h.u64(scene.instances.size());
   for (const Instance& inst : scene.instances) {

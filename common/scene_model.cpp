@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <utility>
 
 #include "common/scene.h"
 #include "common/scene_loaders.h"
@@ -26,6 +27,26 @@ namespace {
 int wrapIndex(int i, int n) {
   int r = i % n;
   return r < 0 ? r + n : r;
+}
+
+// The texels that whole texel coordinates f and f + 1 read on an axis of `n` texels (the two
+// a bilinear lookup blends). Reduced in float before converting, so huge coordinates (tiling
+// far from the origin) cannot overflow int.
+std::pair<int, int> texelPair(float f, int n, TextureWrap wrap) {
+  auto mirrored = [n](float g) {
+    const int k = wrapIndex(int(std::fmod(g, 2.0f * float(n))), 2 * n);
+    return k < n ? k : 2 * n - 1 - k;
+  };
+  switch (wrap) {
+    case TextureWrap::ClampToEdge:
+      return {int(std::clamp(f, 0.0f, float(n - 1))), int(std::clamp(f + 1.0f, 0.0f, float(n - 1)))};
+    case TextureWrap::MirroredRepeat:
+      return {mirrored(f), mirrored(f + 1.0f)};
+    case TextureWrap::Repeat:
+      break;
+  }
+  const int i = wrapIndex(int(std::fmod(f, float(n))), n);
+  return {i, (i + 1) % n};
 }
 
 }  // namespace
@@ -55,10 +76,8 @@ glm::vec4 Texture::sample(glm::vec2 uv) const {
   float y = uv.y * float(height) - 0.5f;
   float fx0 = std::floor(x), fy0 = std::floor(y);
   float tx = x - fx0, ty = y - fy0;
-  // Reduce before converting so huge uvs (tiling far from the origin) cannot overflow int.
-  int x0 = wrapIndex(int(std::fmod(fx0, float(width))), width);
-  int y0 = wrapIndex(int(std::fmod(fy0, float(height))), height);
-  int x1 = (x0 + 1) % width, y1 = (y0 + 1) % height;
+  const auto [x0, x1] = texelPair(fx0, width, wrapU);
+  const auto [y0, y1] = texelPair(fy0, height, wrapV);
   const auto& lut = srgbDecodeTable();
   auto texel = [&](int px, int py) {
     const std::uint8_t* p = &rgba[(std::size_t(py) * width + px) * 4];

@@ -64,7 +64,7 @@ class ObjBuilder {
         // MTL files often give map_Kd without Kd (tinyobj then reports Kd = 0): the texture
         // is the colour.
         bool noKd = mat.baseColor == glm::vec3(0.0f);
-        mat.baseColorTexture = texture(dir / m.diffuse_texname);
+        mat.baseColorTexture = texture(dir / m.diffuse_texname, m.diffuse_texopt.clamp);
         if (noKd)
           mat.baseColor = glm::vec3(mat.baseColorTexture >= 0 ? 1.0f : kMissingTextureAlbedo);
       }
@@ -73,7 +73,7 @@ class ObjBuilder {
       // are grey images). A map that cannot be read leaves the surface opaque (texture()
       // warns).
       if (!m.alpha_texname.empty()) {
-        const int alpha = texture(dir / m.alpha_texname);
+        const int alpha = texture(dir / m.alpha_texname, m.alpha_texopt.clamp);
         if (alpha >= 0) {
           const std::vector<std::uint8_t>& rgba = scene_.textures[alpha].rgba;
           bool hasAlpha = false;
@@ -166,18 +166,21 @@ class ObjBuilder {
     }
   }
 
-  int texture(const std::filesystem::path& file) {
-    auto it = textureCache_.find(file.string());
+  // `clamp`: the MTL's "-clamp on" (texture coordinates clamped to the edge texels).
+  int texture(const std::filesystem::path& file, bool clamp = false) {
+    const std::string key = file.string() + (clamp ? "#clamp" : "");
+    auto it = textureCache_.find(key);
     if (it != textureCache_.end()) return it->second;
     Texture tex;
     int index = -1;
     if (Status s = loadImageFile(file, tex); s) {
+      if (clamp) tex.wrapU = tex.wrapV = TextureWrap::ClampToEdge;
       index = int(scene_.textures.size());
       scene_.textures.push_back(std::move(tex));
     } else {
       scene_.warnings.push_back(s.error().message);
     }
-    textureCache_[file.string()] = index;
+    textureCache_[key] = index;
     return index;
   }
 

@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "../common/log.h"
+#include "../common/vulkan/texture_samplers.h"
 #include "../cpu/lighting.h"
 #include "../shaders/interop/gpu_trace.h"
 #include "embree_tracer.h"
@@ -134,7 +135,8 @@ struct VulkanTracer::Impl {
   SceneAccel accel;
   bool tlasDirty = true;
   std::vector<vk::Image> textures;
-  vk::UniqueSampler sampler;
+  std::optional<vk::TextureSamplers> samplers;
+  std::vector<VkSampler> textureSamplers;  // per texture (owned by `samplers`)
   SceneState state;
 
   // ---- pipelines ----
@@ -369,15 +371,18 @@ Status VulkanTracer::Impl::uploadScene() {
     if (Status st = img->upload(white, 4); !st) return st;
     textures.push_back(std::move(img).value());
   }
-  VkSamplerCreateInfo sci{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
-  sci.magFilter = VK_FILTER_LINEAR;
-  sci.minFilter = VK_FILTER_LINEAR;
-  sci.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
-  sci.addressModeU = sci.addressModeV = sci.addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT;
-  sci.maxLod = 0.0f;
-  VkSampler smp = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreateSampler(ctx->device(), &sci, nullptr, &smp));
-  sampler = vk::UniqueSampler(ctx->device(), smp);
+  // Level 0, bilinear, each texture with its wrap modes, as Texture::sample reads it.
+  samplers.emplace(*ctx, vk::TextureSamplerDesc{});
+  for (const Texture& t : s.textures) {
+    auto smp = samplers->forTexture(t);
+    if (!smp) return smp.error();
+    textureSamplers.push_back(*smp);
+  }
+  if (textureSamplers.empty()) {
+    auto smp = samplers->repeating();
+    if (!smp) return smp.error();
+    textureSamplers.push_back(*smp);
+  }
 
   // Materials; `sampled` is filled per state (the emissive rule depends on the geometry).
   auto mat = vk::Buffer::create(*ctx, std::max<std::size_t>(s.materials.size(), 1) * sizeof(GpuMaterial), kHostInput,
@@ -752,8 +757,8 @@ void VulkanTracer::Impl::writeDescriptors() {
   w.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
   writes.push_back(w);
   std::vector<VkDescriptorImageInfo> images;
-  for (const vk::Image& t : textures)
-    images.push_back({sampler.get(), t.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+  for (std::size_t i = 0; i < textures.size(); ++i)
+    images.push_back({textureSamplers[i], textures[i].view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
   VkWriteDescriptorSet tw{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
   tw.dstSet = set;
   tw.dstBinding = PC_BIND_TEXTURES;

@@ -43,8 +43,10 @@ inline Mesh boxMesh(glm::vec3 lo, glm::vec3 hi, bool inward) {
 
 // The built-in room with a cut-out grille under the light: a quad across the room at y = 1.2
 // whose alpha is a checker of 1-texel cells (uv repeating 3 times across), so that about half
-// of the light reaches the floor through it. `cutOut` false: the same grille, opaque.
-inline Scene grilleRoom(bool cutOut) {
+// of the light reaches the floor through it. `cutOut` false: the same grille, opaque. `wrapU`
+// and `wrapV`: the grille texture's wrap modes.
+inline Scene grilleRoom(bool cutOut, TextureWrap wrapU = TextureWrap::Repeat,
+                        TextureWrap wrapV = TextureWrap::Repeat) {
   Scene scene = builtinScene();
   Texture checker;
   checker.name = "grille";
@@ -52,6 +54,8 @@ inline Scene grilleRoom(bool cutOut) {
   for (int y = 0; y < 8; ++y)
     for (int x = 0; x < 8; ++x)
       checker.rgba.insert(checker.rgba.end(), {200, 200, 200, std::uint8_t((x + y) % 2 ? 255 : 0)});
+  checker.wrapU = wrapU;
+  checker.wrapV = wrapV;
   scene.textures.push_back(checker);
   Material grille{.name = "grille", .baseColor = glm::vec3(0.6f)};
   if (cutOut) {

@@ -264,6 +264,26 @@ TEST(SceneState, LightFollowsClosedPathAndBlockRotatesAboutPivot) {
 // ---------------------------------------------------------------------------------------------
 // glTF features
 
+TEST(TextureSample, WrapModesPickTheTexelsAVulkanSamplerWould) {
+  // Two texels, red then blue; u = 1.25 and -0.25 land on texel centres past either edge.
+  pc::Texture t;
+  t.width = 2;
+  t.height = 1;
+  t.rgba = {255, 0, 0, 255, 0, 0, 255, 255};
+  auto red = [&](float u) { return t.sample({u, 0.5f}).r; };
+  EXPECT_NEAR(red(1.25f), 1.0f, 1e-6f);  // repeat: past the right edge is the left texel
+  EXPECT_NEAR(red(-0.25f), 0.0f, 1e-6f);
+  t.wrapU = pc::TextureWrap::ClampToEdge;
+  EXPECT_NEAR(red(1.25f), 0.0f, 1e-6f);
+  EXPECT_NEAR(red(-0.25f), 1.0f, 1e-6f);
+  EXPECT_NEAR(red(1e9f), 0.0f, 1e-6f);
+  t.wrapU = pc::TextureWrap::MirroredRepeat;
+  EXPECT_NEAR(red(1.25f), 0.0f, 1e-6f);   // the right texel again, mirrored
+  EXPECT_NEAR(red(-0.25f), 1.0f, 1e-6f);  // the left texel again
+  EXPECT_NEAR(red(2.25f), 1.0f, 1e-6f);   // a whole period on: as at 0.25
+  EXPECT_NEAR(red(1.0f), 0.0f, 1e-6f);    // between the mirrored pair: blue on both sides
+}
+
 TEST(GltfLoad, QuadWithMaterialEmissionAndGeneratedNormals) {
   TempDir dir;
   auto r = pc::loadScene(writeQuadGltf(dir), emptySidecar(dir));
@@ -322,7 +342,7 @@ TEST(GltfLoad, AlphaModesBecomeCutOuts) {
   EXPECT_TRUE(warned) << "no warning names the material and its alpha mode";
 }
 
-TEST(GltfLoad, TextureCoordinateSetsAndTransformsAreApplied) {
+TEST(GltfLoad, TextureCoordinateSetsTransformsAndWrapModesAreRead) {
   TempDir dir;
   // A quad with two coordinate sets; the base colour texture reads set 1 through
   // KHR_texture_transform (scale, then rotation about the origin, then offset).
@@ -346,7 +366,8 @@ TEST(GltfLoad, TextureCoordinateSetsAndTransformsAreApplied) {
   "materials": [{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0,
     "texCoord": 1, "extensions": {"KHR_texture_transform":
       {"offset": [0.5, 0.25], "scale": [2, 3], "rotation": 1.5707963}}}}}],
-  "images": [{"uri": "t.png"}], "textures": [{"source": 0}],
+  "images": [{"uri": "t.png"}], "textures": [{"source": 0, "sampler": 0}],
+  "samplers": [{"wrapS": 33071, "wrapT": 33648}],
   "buffers": [{"uri": "quad.bin", "byteLength": 124}],
   "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
                   {"buffer": 0, "byteOffset": 48, "byteLength": 32},
@@ -363,6 +384,10 @@ TEST(GltfLoad, TextureCoordinateSetsAndTransformsAreApplied) {
   ASSERT_EQ(r->meshes.size(), 1u);
   const std::vector<glm::vec2>& uvs = r->meshes[0].uvs;
   ASSERT_EQ(uvs.size(), 4u);
+  // The sampler's wrap modes: clamp to edge across, mirrored repeat down.
+  ASSERT_EQ(r->textures.size(), 1u);
+  EXPECT_EQ(r->textures[0].wrapU, pc::TextureWrap::ClampToEdge);
+  EXPECT_EQ(r->textures[0].wrapV, pc::TextureWrap::MirroredRepeat);
   // (u, v) of set 1 -> (0.5 - 3 v, 0.25 + 2 u).
   for (int i = 0; i < 4; ++i) {
     const glm::vec2 expected(0.5f - 3.0f * uv1[2 * i + 1], 0.25f + 2.0f * uv1[2 * i]);
