@@ -32,7 +32,7 @@ struct ClientConfig {
   bool overlay = true;
   int msaa = 4;
   Rasterizer rasterizer = Rasterizer::Auto;  // RendererOptions::rasterizer
-  bool textureMipmaps = true;                 // RendererOptions::textureMipmaps
+  bool textureMipmaps = true;                // RendererOptions::textureMipmaps
   ShadowSettings shadows;
   int sampleFlags = 0;
   std::string readyFile;  // windowed: written after half the frames (tests take a screenshot)

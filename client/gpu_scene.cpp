@@ -24,8 +24,9 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene, bo
 
   // Full mip chains (texture_mips.h) unless asked for level 0 alone; 1x1 stand-ins have one.
   auto addTexture = [&](int width, int height, std::span<const std::uint8_t> rgba) -> Status {
-    MipChain chain = mipmaps ? buildSrgbMipChain(width, height, rgba)
-                             : MipChain{1, {rgba.begin(), rgba.begin() + std::size_t(width) * height * 4}};
+    MipChain chain =
+        mipmaps ? buildSrgbMipChain(width, height, rgba)
+                : MipChain{1, {rgba.begin(), rgba.begin() + std::size_t(width) * height * 4}};
     vk::ImageDesc d;
     d.format = VK_FORMAT_R8G8B8A8_SRGB;  // decoded to linear by the sampler, as the CPU's LUT
     d.width = std::uint32_t(width);
@@ -70,7 +71,8 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene, bo
 std::vector<VkDescriptorImageInfo> GpuScene::textureInfos() const {
   std::vector<VkDescriptorImageInfo> infos;
   for (std::size_t i = 0; i < textures_.size(); ++i)
-    infos.push_back({textureSamplers_[i], textures_[i].view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+    infos.push_back(
+        {textureSamplers_[i], textures_[i].view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
   return infos;
 }
 

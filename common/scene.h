@@ -149,8 +149,8 @@ struct Scene {
 
   glm::vec3 boundsMin{0.0f}, boundsMax{0.0f};  // world, at time 0
   std::size_t triangleCount() const;  // over instances (a mesh drawn twice counts twice)
-  bool hasLights() const;   // any light or emissive material
-  bool hasCutOuts() const;  // any drawn material that is a cut-out (Material::isCutOut)
+  bool hasLights() const;             // any light or emissive material
+  bool hasCutOuts() const;            // any drawn material that is a cut-out (Material::isCutOut)
   // The material instance `inst` is drawn with, or null when its mesh or material is invalid.
   const Material* materialOf(const Instance& inst) const;
 };

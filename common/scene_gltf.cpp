@@ -26,7 +26,7 @@ namespace {
 // (ior and specular only shape specular reflection, which diffuse GI does not use.)
 const std::set<std::string> kSupportedExtensions = {
     "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization",
-    "KHR_materials_ior",   "KHR_materials_specular", "KHR_texture_transform",
+    "KHR_materials_ior",   "KHR_materials_specular",          "KHR_texture_transform",
 };
 
 // Thrown inside this file only, turned into an Error at loadGltf's boundary.
@@ -312,7 +312,8 @@ class GltfReader {
     vec2("scale", uv.scale);
     if (t.Has("rotation") && t.Get("rotation").IsNumber())
       uv.rotation = float(t.Get("rotation").GetNumberAsDouble());
-    if (t.Has("texCoord") && t.Get("texCoord").IsInt()) uv.set = std::max(t.Get("texCoord").GetNumberAsInt(), 0);
+    if (t.Has("texCoord") && t.Get("texCoord").IsInt())
+      uv.set = std::max(t.Get("texCoord").GetNumberAsInt(), 0);
     return uv;
   }
 
@@ -323,7 +324,8 @@ class GltfReader {
     const tinygltf::TextureInfo& emissive = gm.emissiveTexture;
     if (base.index < 0) return emissive.index < 0 ? UvSource{} : uvSourceOf(emissive);
     const UvSource uv = uvSourceOf(base);
-    if (emissive.index >= 0 && !(uvSourceOf(emissive) == uv) && uvWarned_.insert(gltfMaterial).second)
+    if (emissive.index >= 0 && !(uvSourceOf(emissive) == uv) &&
+        uvWarned_.insert(gltfMaterial).second)
       scene_.warnings.push_back("material '" + gm.name +
                                 "': its emissive texture's coordinates (set or "
                                 "KHR_texture_transform) differ from its base colour texture's; "

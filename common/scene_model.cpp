@@ -39,7 +39,8 @@ std::pair<int, int> texelPair(float f, int n, TextureWrap wrap) {
   };
   switch (wrap) {
     case TextureWrap::ClampToEdge:
-      return {int(std::clamp(f, 0.0f, float(n - 1))), int(std::clamp(f + 1.0f, 0.0f, float(n - 1)))};
+      return {int(std::clamp(f, 0.0f, float(n - 1))),
+              int(std::clamp(f + 1.0f, 0.0f, float(n - 1)))};
     case TextureWrap::MirroredRepeat:
       return {mirrored(f), mirrored(f + 1.0f)};
     case TextureWrap::Repeat:

@@ -405,7 +405,8 @@ Status VulkanTracer::Impl::createPipelines() {
     lb.binding = std::uint32_t(b);
     lb.descriptorCount = 1;
     // Any-hit: cut-outs read the scene's records and textures (probe_cutout.rahit).
-    lb.stageFlags = VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_ANY_HIT_BIT_KHR;
+    lb.stageFlags = VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT |
+                    VK_SHADER_STAGE_ANY_HIT_BIT_KHR;
     lb.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
     VkDescriptorBindingFlags f = 0;
     if (b == PC_BIND_TLAS) lb.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
@@ -484,10 +485,10 @@ Status VulkanTracer::Impl::createPipelines() {
       if (!m) return m.error();
       modules.push_back(std::move(m).value());
       VkPipelineShaderStageCreateInfo st{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-      st.stage = i == 0 ? VK_SHADER_STAGE_RAYGEN_BIT_KHR
+      st.stage = i == 0            ? VK_SHADER_STAGE_RAYGEN_BIT_KHR
                  : i == closestHit ? VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR
-                 : i == anyHit ? VK_SHADER_STAGE_ANY_HIT_BIT_KHR
-                               : VK_SHADER_STAGE_MISS_BIT_KHR;
+                 : i == anyHit     ? VK_SHADER_STAGE_ANY_HIT_BIT_KHR
+                                   : VK_SHADER_STAGE_MISS_BIT_KHR;
       st.module = modules.back().get();
       st.pName = "main";
       if (i == 0) st.pSpecializationInfo = &raygenSpec;
@@ -758,7 +759,8 @@ void VulkanTracer::Impl::writeDescriptors() {
   writes.push_back(w);
   std::vector<VkDescriptorImageInfo> images;
   for (std::size_t i = 0; i < textures.size(); ++i)
-    images.push_back({textureSamplers[i], textures[i].view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+    images.push_back(
+        {textureSamplers[i], textures[i].view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
   VkWriteDescriptorSet tw{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
   tw.dstSet = set;
   tw.dstBinding = PC_BIND_TEXTURES;

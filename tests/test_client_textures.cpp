@@ -48,8 +48,8 @@ TEST(TextureMips, TexelsAverageTheirParentsInLinearLight) {
   const std::vector<std::uint8_t> rgba = {0, 0, 0, 0, 255, 255, 255, 255};
   const MipChain chain = buildSrgbMipChain(2, 1, rgba);
   ASSERT_EQ(chain.rgba.size(), 12u);
-  const std::uint8_t half = std::uint8_t(std::lround(
-      255.0f * (1.055f * std::pow(0.5f, 1.0f / 2.4f) - 0.055f)));
+  const std::uint8_t half =
+      std::uint8_t(std::lround(255.0f * (1.055f * std::pow(0.5f, 1.0f / 2.4f) - 0.055f)));
   EXPECT_EQ(half, 188);
   EXPECT_EQ(chain.rgba[8], half);
   EXPECT_EQ(chain.rgba[9], half);
@@ -106,9 +106,10 @@ TEST(ClientTextures, MipmapsBringMinifiedTexturesToTheSupersampledAverage) {
   ASSERT_FALSE(cpu8.rgb.empty());
   const double withMips = psnr8(mipmapped.display[0], cpu8);
   const double without = psnr8(levelZero.display[0], cpu8);
-  std::printf("checkered room vs CPU probe-lit (64 rays per pixel): mipmapped %.2f dB, level 0 "
-              "only %.2f dB\n",
-              withMips, without);
+  std::printf(
+      "checkered room vs CPU probe-lit (64 rays per pixel): mipmapped %.2f dB, level 0 "
+      "only %.2f dB\n",
+      withMips, without);
   const std::filesystem::path dir = std::filesystem::path(PC_BUILD_DIR) / "test-client" / "mipmaps";
   std::filesystem::create_directories(dir);
   writePng(dir / "client_mipmapped.png", mipmapped.display[0]);
@@ -131,8 +132,8 @@ TEST(ClientTextures, CutOutsMatchTheCpuInBothRasterizersAndTheirShadows) {
   ASSERT_TRUE(camera.ok());
   camera->forward = glm::normalize(glm::vec3(0.0f, -0.35f, -1.0f));  // grille above, floor below
   const Field field = bakeQuickly(scene, 4);
-  const ClientFrame compute =
-      renderClientFrame(*ctx, scene, &field, *camera, nullptr, kWidth, kHeight, {}, Rasterizer::Auto);
+  const ClientFrame compute = renderClientFrame(*ctx, scene, &field, *camera, nullptr, kWidth,
+                                                kHeight, {}, Rasterizer::Auto);
   const ClientFrame fixed = renderClientFrame(*ctx, scene, &field, *camera, nullptr, kWidth,
                                               kHeight, {}, Rasterizer::FixedFunction);
   ASSERT_EQ(compute.display.size(), 1u);
@@ -145,10 +146,12 @@ TEST(ClientTextures, CutOutsMatchTheCpuInBothRasterizersAndTheirShadows) {
   const double vsCpu = psnr8(compute.display[0], cpu8);
   const double fixedVsCpu = psnr8(fixed.display[0], cpu8);
   const double vsSolid = psnr8(compute.display[0], solid8);
-  std::printf("grille room: client vs CPU %.2f dB (fixed-function %.2f dB); against the CPU's "
-              "opaque grille %.2f dB\n",
-              vsCpu, fixedVsCpu, vsSolid);
-  const std::filesystem::path dir = std::filesystem::path(PC_BUILD_DIR) / "test-client" / "cut-outs";
+  std::printf(
+      "grille room: client vs CPU %.2f dB (fixed-function %.2f dB); against the CPU's "
+      "opaque grille %.2f dB\n",
+      vsCpu, fixedVsCpu, vsSolid);
+  const std::filesystem::path dir =
+      std::filesystem::path(PC_BUILD_DIR) / "test-client" / "cut-outs";
   std::filesystem::create_directories(dir);
   writePng(dir / "client_compute.png", compute.display[0]);
   writePng(dir / "client_fixed.png", fixed.display[0]);
@@ -164,16 +167,17 @@ TEST(ClientTextures, CutOutsMatchTheCpuInBothRasterizersAndTheirShadows) {
   const Scene wrapped =
       testmesh::grilleRoom(true, TextureWrap::ClampToEdge, TextureWrap::MirroredRepeat);
   const Field wrappedField = bakeQuickly(wrapped, 4);
-  const ClientFrame wrappedClient = renderClientFrame(*ctx, wrapped, &wrappedField, *camera,
-                                                      nullptr, kWidth, kHeight, {}, Rasterizer::Auto);
+  const ClientFrame wrappedClient = renderClientFrame(
+      *ctx, wrapped, &wrappedField, *camera, nullptr, kWidth, kHeight, {}, Rasterizer::Auto);
   ASSERT_EQ(wrappedClient.display.size(), 1u);
   const Image8 wrappedCpu = cpuProbeLit(wrapped, wrappedField, *camera, 16);
   ASSERT_FALSE(wrappedCpu.rgb.empty());
   const double wrappedVsCpu = psnr8(wrappedClient.display[0], wrappedCpu);
   const double wrappedVsRepeat = psnr8(wrappedClient.display[0], cpu8);
-  std::printf("grille room, clamp x mirror: client vs CPU %.2f dB; against the CPU's repeating "
-              "grille %.2f dB\n",
-              wrappedVsCpu, wrappedVsRepeat);
+  std::printf(
+      "grille room, clamp x mirror: client vs CPU %.2f dB; against the CPU's repeating "
+      "grille %.2f dB\n",
+      wrappedVsCpu, wrappedVsRepeat);
   writePng(dir / "client_clamp_mirror.png", wrappedClient.display[0]);
   writePng(dir / "cpu_clamp_mirror.png", wrappedCpu);
   EXPECT_GT(wrappedVsCpu, 31.0);

@@ -319,8 +319,7 @@ pc::Result<Scene> loadQuadWithMaterial(const TempDir& dir, const std::string& me
 TEST(GltfLoad, AlphaModesBecomeCutOuts) {
   TempDir dir;
   // MASK with a base alpha under the cutoff and no texture: nothing of the quad exists.
-  auto r = loadQuadWithMaterial(
-      dir, R"("alphaMode": "MASK", "alphaCutoff": 0.75)", "0.5");
+  auto r = loadQuadWithMaterial(dir, R"("alphaMode": "MASK", "alphaCutoff": 0.75)", "0.5");
   ASSERT_TRUE(r.ok()) << r.error().message;
   const pc::Material& masked = r->materials[r->meshes[0].material];
   EXPECT_TRUE(masked.isCutOut());
@@ -332,13 +331,13 @@ TEST(GltfLoad, AlphaModesBecomeCutOuts) {
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_FALSE(r->materials[r->meshes[0].material].isCutOut());
   // BLEND is drawn as a cut-out at one half, and said so.
-  r = loadQuadWithMaterial(
-      dir, R"("alphaMode": "BLEND")", "0.2");
+  r = loadQuadWithMaterial(dir, R"("alphaMode": "BLEND")", "0.2");
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_FLOAT_EQ(r->materials[r->meshes[0].material].alphaCutoff, 0.5f);
   bool warned = false;
   for (const std::string& w : r->warnings)
-    warned = warned || (w.find("'mat'") != std::string::npos && w.find("BLEND") != std::string::npos);
+    warned =
+        warned || (w.find("'mat'") != std::string::npos && w.find("BLEND") != std::string::npos);
   EXPECT_TRUE(warned) << "no warning names the material and its alpha mode";
 }
 
@@ -509,8 +508,9 @@ TEST(ObjLoad, AlphaMapMakesACutOut) {
   TempDir dir;
   // An opaque image as map_d: its first channel is the mask (red 1, blue 0).
   writeBytes(dir / "mask.png", redBluePng());
-  writeFile(dir / "leaf.mtl", "newmtl leaf\nKd 0.3 0.6 0.2\nmap_d mask.png\n"
-                              "newmtl lost\nKd 0.5 0.5 0.5\nmap_d missing_mask.png\n");
+  writeFile(dir / "leaf.mtl",
+            "newmtl leaf\nKd 0.3 0.6 0.2\nmap_d mask.png\n"
+            "newmtl lost\nKd 0.5 0.5 0.5\nmap_d missing_mask.png\n");
   writeFile(dir / "leaf.obj",
             "mtllib leaf.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\n"
             "usemtl leaf\nf 1/1 2/2 3/3\nusemtl lost\nf 1/1 3/3 2/2\n");

@@ -36,7 +36,8 @@ std::unique_ptr<VulkanTracer> makeGpu(const Scene& scene, std::string* why, bool
     *why = t.error().message;
     // Only a missing driver or device is a reason to skip; anything else (a shader missing
     // from the build, a failed pipeline) is a failure.
-    if (why->rfind("no Vulkan", 0) != 0) ADD_FAILURE() << "the GPU tracer failed to start: " << *why;
+    if (why->rfind("no Vulkan", 0) != 0)
+      ADD_FAILURE() << "the GPU tracer failed to start: " << *why;
     return nullptr;
   }
   return std::move(t).value();
@@ -348,9 +349,9 @@ TEST(VulkanTracer, CutOutGrilleMatchesEmbree) {
     const char* name;
   };
   std::optional<Field> repeating;  // the first variant's Embree field
-  for (const Variant& variant : {Variant{TextureWrap::Repeat, TextureWrap::Repeat, "repeat"},
-                                 Variant{TextureWrap::ClampToEdge, TextureWrap::MirroredRepeat,
-                                         "clamp x mirror"}}) {
+  for (const Variant& variant :
+       {Variant{TextureWrap::Repeat, TextureWrap::Repeat, "repeat"},
+        Variant{TextureWrap::ClampToEdge, TextureWrap::MirroredRepeat, "clamp x mirror"}}) {
     const Scene scene = testmesh::grilleRoom(true, variant.u, variant.v);
     std::string why;
     auto gpu = makeGpu(scene, &why);
@@ -375,9 +376,10 @@ TEST(VulkanTracer, CutOutGrilleMatchesEmbree) {
     }
     const FieldDifference d = compareFields(fg, fc);
     const FieldDifference o = compareFields(fo, fc);
-    std::printf("grille room (%s): GPU vs Embree irradiance rel diff %.2e, depth %.2e; opaque "
-                "grille vs cut-out %.2e, %.2e\n",
-                variant.name, d.irradiance, d.depth, o.irradiance, o.depth);
+    std::printf(
+        "grille room (%s): GPU vs Embree irradiance rel diff %.2e, depth %.2e; opaque "
+        "grille vs cut-out %.2e, %.2e\n",
+        variant.name, d.irradiance, d.depth, o.irradiance, o.depth);
     EXPECT_GT(d.probes, 100);
     EXPECT_LE(d.irradiance, 0.01) << variant.name;
     EXPECT_LE(d.depth, 0.01) << variant.name;

@@ -25,7 +25,9 @@ Result<VkSampler> TextureSamplers::forTexture(const Texture& texture) {
   return get(texture.wrapU, texture.wrapV);
 }
 
-Result<VkSampler> TextureSamplers::repeating() { return get(TextureWrap::Repeat, TextureWrap::Repeat); }
+Result<VkSampler> TextureSamplers::repeating() {
+  return get(TextureWrap::Repeat, TextureWrap::Repeat);
+}
 
 Result<VkSampler> TextureSamplers::get(TextureWrap u, TextureWrap v) {
   auto it = samplers_.find({u, v});
@@ -42,7 +44,8 @@ Result<VkSampler> TextureSamplers::get(TextureWrap u, TextureWrap v) {
     vkGetPhysicalDeviceFeatures(ctx_->physicalDevice(), &features);
     if (features.samplerAnisotropy) {
       si.anisotropyEnable = VK_TRUE;
-      si.maxAnisotropy = std::min(desc_.maxAnisotropy, ctx_->properties().limits.maxSamplerAnisotropy);
+      si.maxAnisotropy =
+          std::min(desc_.maxAnisotropy, ctx_->properties().limits.maxSamplerAnisotropy);
     }
   }
   VkSampler sampler = VK_NULL_HANDLE;

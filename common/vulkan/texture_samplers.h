@@ -14,7 +14,7 @@
 namespace pc::vk {
 
 struct TextureSamplerDesc {
-  bool mipmaps = false;       // false: level 0 only
+  bool mipmaps = false;        // false: level 0 only
   float maxAnisotropy = 0.0f;  // 0: off; else capped by the device's limit (if it has the feature)
 };
 

@@ -126,7 +126,8 @@ void rasterize(uint triangle, int view) {
     for (int i = 0; i < count; ++i) polygon[i] = clipped[i];
   }
   uint id = triangle + 1u;
-  for (int i = 1; i + 1 < count; ++i) emitTriangle(polygon[0], polygon[i], polygon[i + 1], id, view, cutOutDraw);
+  for (int i = 1; i + 1 < count; ++i)
+    emitTriangle(polygon[0], polygon[i], polygon[i + 1], id, view, cutOutDraw);
 }
 
 void main() {

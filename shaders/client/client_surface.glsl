@@ -44,8 +44,6 @@ vec3 planeHit(vec3 ray, vec3 e1, vec3 e2, vec3 tv, vec3 qv) {
 // Clamps a uv difference to a finite footprint (1e4 texture repeats: the coarsest level).
 vec2 footprint(vec2 d) { return clamp(d, vec2(-1e4), vec2(1e4)); }
 
-// `id`: a non-zero visibility value; `eye`, `ray` (unit): the pixel-centre ray of its view;
-// `rayDx`, `rayDy`: the next pixel's centre rays across and down (any length).
 // Triangle id `triangle` of draw `d`: its corners' records, and its first corner and edges
 // in world space.
 struct WorldTriangle {
@@ -65,6 +63,8 @@ WorldTriangle worldTriangle(DrawData d, uint triangle) {
   return w;
 }
 
+// `id`: a non-zero visibility value; `eye`, `ray` (unit): the pixel-centre ray of its view;
+// `rayDx`, `rayDy`: the next pixel's centre rays across and down (any length).
 Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   uint triangle = id - 1u;
   DrawData d = draws[drawOfTriangle(triangle)];
