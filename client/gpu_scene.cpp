@@ -24,17 +24,18 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene, bo
 
   // Full mip chains (texture_mips.h) unless asked for level 0 alone; 1x1 stand-ins have one.
   auto addTexture = [&](int width, int height, std::span<const std::uint8_t> rgba) -> Status {
-    MipChain chain =
-        mipmaps ? buildSrgbMipChain(width, height, rgba)
-                : MipChain{1, {rgba.begin(), rgba.begin() + std::size_t(width) * height * 4}};
+    const MipChain chain = mipmaps ? buildSrgbMipChain(width, height, rgba) : MipChain{};
+    const std::span<const std::uint8_t> texels =
+        mipmaps ? std::span<const std::uint8_t>(chain.rgba)
+                : rgba.first(std::size_t(width) * height * 4);
     vk::ImageDesc d;
     d.format = VK_FORMAT_R8G8B8A8_SRGB;  // decoded to linear by the sampler, as the CPU's LUT
     d.width = std::uint32_t(width);
     d.height = std::uint32_t(height);
-    d.mipLevels = std::uint32_t(chain.levels);
+    d.mipLevels = mipmaps ? std::uint32_t(chain.levels) : 1u;
     auto image = vk::Image::create(ctx, d);
     if (!image) return image.error();
-    Status s = image->upload(chain.rgba.data(), chain.rgba.size());
+    Status s = image->upload(texels.data(), texels.size());
     if (!s) return s;
     g.textures_.push_back(std::move(image).value());
     return Status::success();

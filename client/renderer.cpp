@@ -247,7 +247,6 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   auto gpuScene = GpuScene::create(ctx, scene, options.textureMipmaps);
   if (!gpuScene) return gpuScene.error();
   r->gpuScene_.emplace(std::move(gpuScene).value());
-  r->hasCutOuts_ = scene.hasCutOuts();
   // Visibility ids are 32-bit with 0 for the sky (client_frame.h, DrawData).
   if (r->gpuScene_->packed().triangleIds >= 0xFFFFFFFFull)
     return Error{"scene has too many triangles over its instances for 32-bit visibility ids"};
@@ -557,6 +556,10 @@ Status Renderer::createPipelines() {
   auto indirect = load("client_indirect.comp.spv");
   if (!indirect) return indirect.error();
 
+  // Some drawn material is a cut-out (Material::isCutOut): the rasterizers and shadow maps
+  // test coverage (client_surface.glsl), and the fixed-function path drops its pre-pass.
+  const bool cutOuts = scene_->hasCutOuts();
+
   // Specialization constants the client's shaders share (those a shader lacks are ignored):
   // 0 samples per pixel, 1 the scene's texture count, 2 whether the visibility ids come from
   // the compute rasterizer's buffer, 3 whether the scene has cut-outs (client_surface.glsl).
@@ -564,7 +567,7 @@ Status Renderer::createPipelines() {
     std::int32_t samples, textures;
     VkBool32 visBuffer, cutOuts;
   } const constants{options_.msaa, std::int32_t(textures), computeRaster() ? VK_TRUE : VK_FALSE,
-                    hasCutOuts_ ? VK_TRUE : VK_FALSE};
+                    cutOuts ? VK_TRUE : VK_FALSE};
   const VkSpecializationMapEntry entries[4] = {
       {0, offsetof(Constants, samples), sizeof(std::int32_t)},
       {1, offsetof(Constants, textures), sizeof(std::int32_t)},
@@ -583,7 +586,7 @@ Status Renderer::createPipelines() {
   scene.viewMask = viewMask;
   // Without a fragment shader the pre-pass cannot leave cut-outs' open texels out of depth:
   // scenes with cut-outs draw the visibility pass alone.
-  if (options_.depthPrepass && !computeRaster() && !hasCutOuts_) {
+  if (options_.depthPrepass && !computeRaster() && !cutOuts) {
     // Same vertex shader (invariant position), no fragment shader, no color writes.
     GraphicsDesc prepass = scene;
     prepass.stages = stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, sceneVert->get()}});
@@ -599,7 +602,7 @@ Status Renderer::createPipelines() {
   scenePipeline_ = std::move(scenePipeline).value();
 
   GraphicsDesc shadow;
-  shadow.stages = hasCutOuts_
+  shadow.stages = cutOuts
                       ? stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, shadowVert->get(), &spec},
                                     {VK_SHADER_STAGE_FRAGMENT_BIT, shadowFrag->get(), &spec}})
                       : stageInfos({{VK_SHADER_STAGE_VERTEX_BIT, shadowVert->get(), &spec}});

@@ -169,9 +169,6 @@ class Renderer {
   const Scene* scene_ = nullptr;
   FieldMirror* mirror_ = nullptr;
   RendererOptions options_;
-  // Some drawn material is a cut-out (Material::isCutOut): the rasterizers and shadow maps
-  // test coverage (client_surface.glsl), and the fixed-function path drops its pre-pass.
-  bool hasCutOuts_ = false;
   std::optional<GpuScene> gpuScene_;
   std::optional<FieldGpu> field_;
   int areaLights_ = 0;

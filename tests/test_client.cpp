@@ -50,8 +50,7 @@ Golden measure(const std::string& file, int updates, int spp, const std::string&
   const Image8 cpu8 = tonemap(*cpu, scene->exposure);
   const Image8 ref8 = tonemap(reference->image, scene->exposure);
   Golden g{psnr8(client.display[0], cpu8), psnr8(client.display[0], ref8)};
-  const std::filesystem::path dir = std::filesystem::path(PC_BUILD_DIR) / "test-client" / slug;
-  std::filesystem::create_directories(dir);
+  const std::filesystem::path dir = testOutputDir(slug);
   writePng(dir / "client.png", client.display[0]);
   writePng(dir / "cpu_probe_lit.png", cpu8);
   writePng(dir / "reference.png", ref8);

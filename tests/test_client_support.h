@@ -23,6 +23,13 @@ inline std::filesystem::path scenePath(const std::string& relative) {
   return std::filesystem::path(PC_SCENES_DIR) / relative;
 }
 
+// build/test-client/<name>, created: where a test leaves its images for inspection.
+inline std::filesystem::path testOutputDir(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::path(PC_BUILD_DIR) / "test-client" / name;
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
 // A context with the validation layer on; null (and a message) without a Vulkan device.
 inline std::unique_ptr<vk::Context> validatingContext() {
   vk::ContextOptions o;

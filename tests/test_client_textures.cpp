@@ -110,8 +110,7 @@ TEST(ClientTextures, MipmapsBringMinifiedTexturesToTheSupersampledAverage) {
       "checkered room vs CPU probe-lit (64 rays per pixel): mipmapped %.2f dB, level 0 "
       "only %.2f dB\n",
       withMips, without);
-  const std::filesystem::path dir = std::filesystem::path(PC_BUILD_DIR) / "test-client" / "mipmaps";
-  std::filesystem::create_directories(dir);
+  const std::filesystem::path dir = testOutputDir("mipmaps");
   writePng(dir / "client_mipmapped.png", mipmapped.display[0]);
   writePng(dir / "client_level0.png", levelZero.display[0]);
   writePng(dir / "cpu_probe_lit_64.png", cpu8);
@@ -150,9 +149,7 @@ TEST(ClientTextures, CutOutsMatchTheCpuInBothRasterizersAndTheirShadows) {
       "grille room: client vs CPU %.2f dB (fixed-function %.2f dB); against the CPU's "
       "opaque grille %.2f dB\n",
       vsCpu, fixedVsCpu, vsSolid);
-  const std::filesystem::path dir =
-      std::filesystem::path(PC_BUILD_DIR) / "test-client" / "cut-outs";
-  std::filesystem::create_directories(dir);
+  const std::filesystem::path dir = testOutputDir("cut-outs");
   writePng(dir / "client_compute.png", compute.display[0]);
   writePng(dir / "client_fixed.png", fixed.display[0]);
   writePng(dir / "cpu_probe_lit.png", cpu8);

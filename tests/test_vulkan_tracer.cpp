@@ -43,6 +43,34 @@ std::unique_ptr<VulkanTracer> makeGpu(const Scene& scene, std::string* why, bool
   return std::move(t).value();
 }
 
+// Both backends on one scene, a field for each at `rays` per probe and a request for every
+// probe: what the comparisons below share. `gpu` is null where the GPU tracer did not start
+// (`why` says why; makeGpu fails the test unless no device is present).
+struct Backends {
+  std::unique_ptr<VulkanTracer> gpu;
+  std::unique_ptr<Tracer> cpu;
+  Field fg, fc;
+  UpdateRequest request;
+};
+
+Backends makeBackends(const Scene& scene, int rays, std::string* why) {
+  Backends b;
+  b.gpu = makeGpu(scene, why);
+  auto cpu = makeEmbreeTracer(scene);
+  if (!cpu) {
+    ADD_FAILURE() << "the Embree tracer failed to start: " << cpu.error().message;
+    b.gpu.reset();
+    return b;
+  }
+  b.cpu = std::move(cpu).value();
+  FieldSettings settings;
+  settings.raysPerProbe = rays;
+  b.fg = Field::create(scene.volumes, settings);
+  b.fc = Field::create(scene.volumes, settings);
+  b.request.probes = allProbes(b.fc);
+  return b;
+}
+
 void expectSameBrickVersions(const Field& gpu, const Field& cpu) {
   EXPECT_EQ(gpu.version, cpu.version);
   ASSERT_EQ(gpu.brickVersions.size(), cpu.brickVersions.size());
@@ -250,21 +278,14 @@ TEST(VulkanTracer, MirroredAndSharedStaticInstancesMatchEmbree) {
   mirrored = glm::scale(mirrored, {-0.3f, 0.5f, 0.3f});
   scene.instances.push_back({.name = "mirrored-block", .mesh = 3, .transform = mirrored});
   std::string why;
-  auto gpu = makeGpu(scene, &why);
-  if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
-  auto cpu = makeEmbreeTracer(scene);
-  ASSERT_TRUE(cpu) << cpu.error().message;
-  FieldSettings settings;
-  settings.raysPerProbe = 64;
-  Field fg = Field::create(scene.volumes, settings);
-  Field fc = Field::create(scene.volumes, settings);
-  UpdateRequest request;
-  request.probes = allProbes(fc);
+  Backends b = makeBackends(scene, 64, &why);
+  if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  auto& [gpu, cpu, fg, fc, request] = b;
   request.probes.pop_back();  // not a whole number of launch tiles
   for (int i = 0; i < 4; ++i) {
     request.rotationSeed = 700u + std::uint32_t(i);
     const UpdateStats ug = gpu->update(fg, request);
-    const UpdateStats uc = (*cpu)->update(fc, request);
+    const UpdateStats uc = cpu->update(fc, request);
     EXPECT_EQ(ug.bricksChanged, uc.bricksChanged);
   }
   const FieldDifference d = compareFields(fg, fc);
@@ -310,21 +331,14 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
   scene.lights.push_back(sun);
   ASSERT_GT(scene.lights.size(), 32u);
   std::string why;
-  auto gpu = makeGpu(scene, &why);
-  if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
-  auto cpu = makeEmbreeTracer(scene);
-  ASSERT_TRUE(cpu) << cpu.error().message;
-  FieldSettings settings;
-  settings.raysPerProbe = 32;
-  Field fg = Field::create(scene.volumes, settings);
-  Field fc = Field::create(scene.volumes, settings);
-  UpdateRequest request;
-  request.probes = allProbes(fc);
+  Backends b = makeBackends(scene, 32, &why);
+  if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  auto& [gpu, cpu, fg, fc, request] = b;
   std::uint64_t shadowRays = 0;
   for (int i = 0; i < 2; ++i) {
     request.rotationSeed = 900u + std::uint32_t(i);
     const UpdateStats ug = gpu->update(fg, request);
-    const UpdateStats uc = (*cpu)->update(fc, request);
+    const UpdateStats uc = cpu->update(fc, request);
     EXPECT_NEAR(double(ug.shadowRays), double(uc.shadowRays), 0.01 * double(uc.shadowRays));
     shadowRays += ug.shadowRays;
   }
@@ -354,24 +368,17 @@ TEST(VulkanTracer, CutOutGrilleMatchesEmbree) {
         Variant{TextureWrap::ClampToEdge, TextureWrap::MirroredRepeat, "clamp x mirror"}}) {
     const Scene scene = testmesh::grilleRoom(true, variant.u, variant.v);
     std::string why;
-    auto gpu = makeGpu(scene, &why);
-    if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
-    auto cpu = makeEmbreeTracer(scene);
-    ASSERT_TRUE(cpu) << cpu.error().message;
+    Backends b = makeBackends(scene, 64, &why);
+    if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+    auto& [gpu, cpu, fg, fc, request] = b;
     const Scene solid = testmesh::grilleRoom(false);
     auto opaque = makeEmbreeTracer(solid);
     ASSERT_TRUE(opaque) << opaque.error().message;
-    FieldSettings settings;
-    settings.raysPerProbe = 64;
-    Field fg = Field::create(scene.volumes, settings);
-    Field fc = Field::create(scene.volumes, settings);
-    Field fo = Field::create(solid.volumes, settings);
-    UpdateRequest request;
-    request.probes = allProbes(fc);
+    Field fo = Field::create(solid.volumes, fc.settings);
     for (int i = 0; i < 4; ++i) {
       request.rotationSeed = 1100u + std::uint32_t(i);
       gpu->update(fg, request);
-      (*cpu)->update(fc, request);
+      cpu->update(fc, request);
       (*opaque)->update(fo, request);
     }
     const FieldDifference d = compareFields(fg, fc);

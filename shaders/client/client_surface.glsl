@@ -94,12 +94,16 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   s.normal = dot(ns, ng) < 0.0 ? -ns : ns;
 
   vec2 uv = b0 * v0.uv + b1 * v1.uv + b2 * v2.uv;
-  // The neighbouring pixels' rays on the same plane: uv there minus uv here.
-  vec2 du1 = v1.uv - v0.uv, du2 = v2.uv - v0.uv;
-  vec2 bx = planeHit(rayDx, e1, e2, tv, qv).xy - hit.xy;
-  vec2 by = planeHit(rayDy, e1, e2, tv, qv).xy - hit.xy;
-  vec2 dx = footprint(bx.x * du1 + bx.y * du2);
-  vec2 dy = footprint(by.x * du1 + by.y * du2);
+  // The neighbouring pixels' rays on the same plane: uv there minus uv here (only where a
+  // texture is read; untextured surfaces skip the two extra plane intersections).
+  vec2 dx = vec2(0.0), dy = vec2(0.0);
+  if (d.textures.x >= 0 || d.textures.y >= 0) {
+    vec2 du1 = v1.uv - v0.uv, du2 = v2.uv - v0.uv;
+    vec2 bx = planeHit(rayDx, e1, e2, tv, qv).xy - hit.xy;
+    vec2 by = planeHit(rayDy, e1, e2, tv, qv).xy - hit.xy;
+    dx = footprint(bx.x * du1 + bx.y * du2);
+    dy = footprint(by.x * du1 + by.y * du2);
+  }
   s.albedo = d.baseColor.rgb * textureRgb(d.textures.x, uv, dx, dy);
   s.emission = front ? d.emissive.rgb * textureRgb(d.textures.y, uv, dx, dy) : vec3(0.0);
   return s;
