@@ -131,6 +131,7 @@ struct VulkanTracer::Impl {
   // PC_SHADE_VARIANT pick a variant that drops one step; 0, the default, is the real pass.
   int blendVariant = 0;
   int shadeVariant = 0;
+  int overlapVariant = 0;
   bool boundedShadowLaunch = false;  // VulkanTracerOptions::boundedShadowLaunch
   SceneAccel accel;
   bool tlasDirty = true;
@@ -150,6 +151,7 @@ struct VulkanTracer::Impl {
 
   // ---- per-update buffers ----
   vk::Buffer params, rayDirs, requests, changes, counters, countersReadback;
+  vk::Buffer countersInit;  // each slot's counters as an update starts: 0, 1, 1, 0
   // The wavefront's per-ray records (gpu_trace.h), for probeCapacity x rayCapacity rays and
   // slotCapacity shadow slots each; the compacted shadow list holds at most one ray per slot.
   vk::Buffer hits, rays, shadowMask, shadowLight, shadowRays;
@@ -211,7 +213,7 @@ struct VulkanTracer::Impl {
   std::uint64_t maxLaunchWidth() const;
   void recordTrace(int probeCount, int rayCount);
   void recordShade(int probeCount, int rayCount);
-  void recordShadowTrace(std::uint64_t requests);
+  void recordShadowTrace(int slots, std::uint64_t rayCount);
   void dispatchRows(std::uint64_t groups);
 };
 
@@ -541,6 +543,7 @@ Status VulkanTracer::Impl::createPipelines() {
   };
   blendVariant = variantOf("PC_BLEND_VARIANT");
   shadeVariant = variantOf("PC_SHADE_VARIANT");
+  overlapVariant = variantOf("PC_OVERLAP_VARIANT");
   auto shade = computePipeline("probe_shade.comp.spv", {shadeVariant});  // constant_id 0: kVariant
   if (!shade) return shade.error();
   shadePipeline = std::move(shade).value();
@@ -627,14 +630,28 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   shadowRays = orDie(vk::Buffer::create(*ctx, slotRecords * sizeof(GpuShadowRay), kStorage, MemoryUsage::DeviceLocal),
                      "shadow rays");
   changes = orDie(vk::Buffer::create(*ctx, probeCapacity * 4, kStorage, MemoryUsage::DeviceLocal), "changes");
-  counters = orDie(vk::Buffer::create(*ctx, PC_COUNTER_WORDS * 4,
-                                      kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
-                                          VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
-                                      MemoryUsage::DeviceLocal),
-                   "counters");
-  countersReadback = orDie(vk::Buffer::create(*ctx, PC_COUNTER_WORDS * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+  const std::size_t counterBytes =
+      std::size_t(PC_COUNTER_WORDS) * 4 * std::size_t(std::max(slotCapacity, 1));
+  counters = orDie(
+      vk::Buffer::create(*ctx, counterBytes,
+                         kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+                             VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
+                         MemoryUsage::DeviceLocal),
+      "counters");
+  countersReadback = orDie(vk::Buffer::create(*ctx, counterBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                               MemoryUsage::Readback),
                            "counter readback");
+  countersInit = orDie(
+      vk::Buffer::create(*ctx, counterBytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload),
+      "counter start");
+  {
+    std::vector<std::uint32_t> init(counterBytes / 4);
+    for (std::size_t s = 0; s < init.size() / PC_COUNTER_WORDS; ++s) {
+      init[s * PC_COUNTER_WORDS + 1] = 1;
+      init[s * PC_COUNTER_WORDS + 2] = 1;
+    }
+    countersInit.write(init.data(), counterBytes);
+  }
   // At most every ray feeds every texel: the bound of the tap table.
   const std::size_t tapCapacity = (PC_TAP_TEXELS + PC_TAP_TEXELS * rayCapacity) * sizeof(glm::uvec2);
   tapsUpload = orDie(vk::Buffer::create(*ctx, tapCapacity, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload),
@@ -928,29 +945,36 @@ void VulkanTracer::Impl::recordShade(int probeCount, int rayCount) {
   dispatchRows((rays + PC_SHADE_THREADS - 1) / PC_SHADE_THREADS);
 }
 
-// The shadow list's length is known only on the GPU (counters[0], laid out as a
-// VkTraceRaysIndirectCommandKHR). Where the device launches from a buffer and the longest list
-// fits one launch, the launch is exactly the list: every launch index is a real ray. Elsewhere
-// the launch covers the most the list can hold and the ray-generation shader returns past its
-// end; with one slot per light most of those invocations do nothing, at a cost per invocation.
-void VulkanTracer::Impl::recordShadowTrace(std::uint64_t requests) {
+// Each slot's shadow list (a light's, or an emissive sample's) has its length only on the GPU
+// (its counters, laid out as a VkTraceRaysIndirectCommandKHR). Where the device launches from
+// a buffer and the longest list fits one launch, each slot's launch is exactly its list: every
+// launch index is a real ray. Elsewhere the launches cover the most a list can hold and the
+// ray-generation shader returns past its end, at a cost per invocation. The launches do not
+// depend on each other, so nothing separates them.
+void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
   const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
-  if (ctx->rt().cmdTraceRaysIndirect && requests <= maxWidth && !boundedShadowLaunch) {
-    const TracePush push{0, int(requests)};
-    vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                       sizeof push, &push);
-    ctx->rt().cmdTraceRaysIndirect(cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit,
-                                   &shadowTable.callable, counters.address());
-    return;
-  }
-  for (std::uint64_t first = 0; first < requests; first += maxWidth) {
-    const TracePush push{int(first), int(std::min(requests - first, maxWidth))};
-    vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                       sizeof push, &push);
-    ctx->rt().cmdTraceRays(cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit, &shadowTable.callable,
-                           std::uint32_t(push.count), 1, 1);
+  for (int slot = 0; slot < slots; ++slot) {
+    const std::uint64_t listStart = std::uint64_t(slot) * rayCount;
+    if (ctx->rt().cmdTraceRaysIndirect && rayCount <= maxWidth && !boundedShadowLaunch) {
+      const TracePush push{int(listStart), int(rayCount)};
+      vkCmdPushConstants(cmd, pipelineLayout.get(),
+                         VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                         sizeof push, &push);
+      ctx->rt().cmdTraceRaysIndirect(
+          cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit, &shadowTable.callable,
+          counters.address() + VkDeviceAddress(slot) * PC_COUNTER_WORDS * 4);
+      continue;
+    }
+    for (std::uint64_t first = 0; first < rayCount; first += maxWidth) {
+      const TracePush push{int(listStart + first), int(std::min(rayCount - first, maxWidth))};
+      vkCmdPushConstants(cmd, pipelineLayout.get(),
+                         VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                         sizeof push, &push);
+      ctx->rt().cmdTraceRays(cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit,
+                             &shadowTable.callable, std::uint32_t(push.count), 1, 1);
+    }
   }
 }
 
@@ -1092,8 +1116,8 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   vkCmdFillBuffer(cmd, m.brickFlags.get(), 0, VK_WHOLE_SIZE, 0);
   const std::uint32_t header[PC_BRICK_LIST_HEADER] = {0, 1, 1};
   vkCmdUpdateBuffer(cmd, m.brickList.get(), 0, sizeof header, header);
-  const std::uint32_t counterInit[PC_COUNTER_WORDS] = {0, 1, 1, 0};
-  vkCmdUpdateBuffer(cmd, m.counters.get(), 0, sizeof counterInit, counterInit);
+  const VkBufferCopy counterCopy{0, 0, m.counters.size()};
+  vkCmdCopyBuffer(cmd, m.countersInit.get(), m.counters.get(), 1, &counterCopy);
   const VkBufferCopy tapCopy{0, 0, m.tapBytes};
   vkCmdCopyBuffer(cmd, m.tapsUpload.get(), m.taps.get(), 1, &tapCopy);
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT | VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
@@ -1102,33 +1126,63 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
 
   // The wavefront (gpu_trace.h): trace, shade, shadow rays, then the blend adds the visible
   // light and blends.
-  m.timer.begin(cmd, "trace");
-  m.recordTrace(n, rayCount);
-  m.timer.end(cmd);
-  vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
-
-  m.timer.begin(cmd, "shade");
-  m.recordShade(n, rayCount);
-  m.timer.end(cmd);
-  // The shadow launch may read its size from the counters the shade pass appended to: an
-  // indirect-command read, which a plain shader-read barrier does not cover.
-  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                    kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-
   const int slots = m.shadowSlots();
-  if (slots > 0) {
-    m.timer.begin(cmd, "shadow trace");
-    m.recordShadowTrace(std::uint64_t(slots) * std::uint64_t(n) * std::uint64_t(rayCount));
+  const int groupProbes = m.blendGroupProbes(rayCount);
+  auto recordBlend = [&] {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipelineLayout.get(), 0, 1,
+                            &m.set, 0, nullptr);
+    m.dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
+  };
+  if (m.overlapVariant != 0) {
+    // Timing experiment (PC_OVERLAP_VARIANT): one span over the passes, some barriers left
+    // out so that passes may run at once; fields are wrong. 8 every barrier, 1 trace with
+    // shade, 4 shadow trace with blend, 5 both, 16 trace with blend, 17 trace, shade and blend.
+    const int v = m.overlapVariant;
+    auto rtToCs = [&] { vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW); };
+    auto csToAll = [&] {
+      vk::memoryBarrier(cmd, kComputeStage | kRayStage, kShaderRW,
+                        kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                        kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+    };
+    m.timer.begin(cmd, "overlap span");
+    m.recordTrace(n, rayCount);
+    if (v & 16) recordBlend();
+    if (!(v & 1)) rtToCs();
+    m.recordShade(n, rayCount);
+    csToAll();
+    if (slots > 0) m.recordShadowTrace(slots, std::uint64_t(n) * std::uint64_t(rayCount));
+    if (!(v & 4)) rtToCs();
+    if (!(v & 16)) recordBlend();
+    m.timer.end(cmd);
+    vk::memoryBarrier(cmd, kComputeStage | kRayStage, kShaderRW, kComputeStage, kShaderRW);
+  } else {
+    m.timer.begin(cmd, "trace");
+    m.recordTrace(n, rayCount);
     m.timer.end(cmd);
     vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
-  }
 
-  m.timer.begin(cmd, "blend");
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
-  const int groupProbes = m.blendGroupProbes(rayCount);
-  m.dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
-  m.timer.end(cmd);
-  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
+    m.timer.begin(cmd, "shade");
+    m.recordShade(n, rayCount);
+    m.timer.end(cmd);
+    // The shadow launch may read its size from the counters the shade pass appended to: an
+    // indirect-command read, which a plain shader-read barrier does not cover.
+    vk::memoryBarrier(cmd, kComputeStage, kShaderRW,
+                      kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                      kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+
+    if (slots > 0) {
+      m.timer.begin(cmd, "shadow trace");
+      m.recordShadowTrace(slots, std::uint64_t(n) * std::uint64_t(rayCount));
+      m.timer.end(cmd);
+      vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+    }
+
+    m.timer.begin(cmd, "blend");
+    recordBlend();
+    m.timer.end(cmd);
+    vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
+  }
 
   m.timer.begin(cmd, "changes");
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.changesPipeline.get());
@@ -1145,7 +1199,6 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   vkCmdCopyBuffer(cmd, m.records.get(), m.recordsReadback.get(), 1, &recordCopy);
   const VkBufferCopy listCopy{0, 0, m.brickList.size()};
   vkCmdCopyBuffer(cmd, m.brickList.get(), m.brickListReadback.get(), 1, &listCopy);
-  const VkBufferCopy counterCopy{0, 0, m.counters.size()};
   vkCmdCopyBuffer(cmd, m.counters.get(), m.countersReadback.get(), 1, &counterCopy);
   m.timer.end(cmd);
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | kComputeStage, VK_ACCESS_2_TRANSFER_WRITE_BIT | kShaderRW,
@@ -1202,7 +1255,8 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   stats.readbackBytes = std::uint64_t(changed) * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float) +
                         m.records.size() + m.brickList.size() + m.counters.size();
   const auto* counts = m.countersReadback.as<std::uint32_t>();
-  stats.shadowRays = counts[0];  // the shadow list's length
+  for (int s = 0; s < m.shadowSlots(); ++s)
+    stats.shadowRays += counts[s * PC_COUNTER_WORDS];  // the lists' lengths
   const double hostMs = msSince(th);
 
   stats.gpuPasses = m.timer.results();

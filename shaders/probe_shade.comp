@@ -5,7 +5,7 @@
 // light-sampled, indirect light from the previous field through the shared sampling code.
 // Direct light needs shadow rays: for each slot with a real shadow ray this pass writes what
 // the light adds to the ray's radiance if visible (albedo / pi x irradiance) in the slot's
-// fixed place, and appends the ray to the compacted shadow list, a subgroup at a time
+// fixed place, and appends the ray to its slot's compacted shadow list, a subgroup at a time
 // (interop/gpu_trace.h); probe_shadow.rgen traces the list and sets the visible slots' bits
 // in the ray's mask, cleared here, and the blend adds them. Backface hits report a negative
 // distance and no light. One invocation per ray, in launch order.
@@ -67,17 +67,17 @@ void request(int slot, vec3 origin, vec3 dir, float tmax, vec3 irradiance) {
 }
 void noRequest(int slot) { request(slot, vec3(0.0f), vec3(0.0f), 0.0f, vec3(0.0f)); }
 
-// Appends the pending shadow rays of the subgroup's active invocations to the shadow list:
-// one atomic per subgroup, the rays in lane order (launch order). Called where the
-// invocations that made requests for a slot have reconverged.
-void appendRequest() {
+// Appends the pending shadow rays of the subgroup's active invocations to slot `slot`'s shadow
+// list: one atomic per subgroup, the rays in lane order (launch order). Called where the
+// invocations that made requests for the slot have reconverged.
+void appendRequest(int slot) {
   bool real = pending.tmax > 0.0f;
   uvec4 ballot = subgroupBallot(real);
   uint count = subgroupBallotBitCount(ballot);
   if (count == 0u) return;
   uint base = 0u;
-  if (subgroupElect()) base = atomicAdd(counters[0], count);
-  base = subgroupBroadcastFirst(base);
+  if (subgroupElect()) base = atomicAdd(counters[slot * PC_COUNTER_WORDS], count);
+  base = subgroupBroadcastFirst(base) + uint(slot) * slotStride;
   if (real) shadowRays[base + subgroupBallotExclusiveBitCount(ballot)] = pending;
   pending.tmax = 0.0f;
 }
@@ -204,12 +204,12 @@ void emissiveRequest(int s, int samples, vec3 P, vec3 N) {
 void directRequests(vec3 P, vec3 N) {
   for (int i = 0; i < params.lightCount; ++i) {
     punctualRequest(i, lights[i], P, N);
-    appendRequest();
+    appendRequest(i);
   }
   int samples = params.shadowSlots - params.lightCount;
   for (int s = 0; s < samples; ++s) {
     emissiveRequest(s, samples, P, N);
-    appendRequest();
+    appendRequest(params.lightCount + s);
   }
 }
 

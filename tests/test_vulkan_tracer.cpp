@@ -71,6 +71,37 @@ Backends makeBackends(const Scene& scene, int rays, std::string* why) {
   return b;
 }
 
+// Every border texel of every tile the update wrote (probes not inside geometry) holds exactly
+// its interior source (pcBorderSource), in each of the three atlases.
+void expectBordersCopyTheirSources(const Field& f) {
+  int checked = 0;
+  auto tile = [&](const Atlas& atlas, glm::ivec2 origin, int n) {
+    for (int by = 0; by < n + 2; ++by)
+      for (int bx = 0; bx < n + 2; ++bx) {
+        if (bx != 0 && by != 0 && bx != n + 1 && by != n + 1) continue;
+        const glm::ivec2 src = gpu::pcBorderSource(bx, by, n) + glm::ivec2(1);
+        const float* b = atlas.at(origin.x + bx, origin.y + by);
+        const float* s = atlas.at(origin.x + src.x, origin.y + src.y);
+        for (int ch = 0; ch < atlas.channels; ++ch)
+          ASSERT_EQ(b[ch], s[ch]) << "border " << bx << "," << by << " channel " << ch;
+        ++checked;
+      }
+  };
+  for (int k = 0; k < f.cascadeCount(); ++k) {
+    const gpu::CascadeDesc& c = f.cascade(k);
+    for (int s = 0; s < gpu::pcSlotCount(c); ++s) {
+      if (!gpu::pcSlotValid(c, s) || f.probe(k, s).state == gpu::PC_PROBE_INSIDE) continue;
+      tile(f.irradiance, gpu::pcAtlasTileOrigin(c, s, gpu::PC_IRRADIANCE_TEXELS + 2),
+           gpu::PC_IRRADIANCE_TEXELS);
+      tile(f.depth, gpu::pcAtlasTileOrigin(c, s, gpu::PC_DEPTH_TEXELS + 2), gpu::PC_DEPTH_TEXELS);
+      tile(f.occlusion, gpu::pcAtlasTileOrigin(c, s, gpu::PC_OCCLUSION_TEXELS + 2),
+           gpu::PC_OCCLUSION_TEXELS);
+      if (::testing::Test::HasFatalFailure()) return;
+    }
+  }
+  EXPECT_GT(checked, 0);
+}
+
 void expectSameBrickVersions(const Field& gpu, const Field& cpu) {
   EXPECT_EQ(gpu.version, cpu.version);
   ASSERT_EQ(gpu.brickVersions.size(), cpu.brickVersions.size());
@@ -108,6 +139,7 @@ TEST(VulkanTracer, BuiltinSceneMatchesEmbree) {
   EXPECT_LE(d.depth, 0.01);
   EXPECT_LE(d.stateMismatches, 2);
   expectSameBrickVersions(fg, fc);
+  expectBordersCopyTheirSources(fg);
 
   // Move the light and the turning block (TLAS rebuild), then a few more updates each.
   const SceneState later = evaluateScene(scene, 3.0);

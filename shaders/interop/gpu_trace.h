@@ -49,19 +49,22 @@ PC_CONST int PC_BIND_CHANGES = 17;    // float[] per requested probe: largest ir
 PC_CONST int PC_BIND_BRICK_FLAGS = 18;  // uint[] per field-wide brick: changed this update
 PC_CONST int PC_BIND_BRICK_LIST = 19;   // uint[]: dispatch args (x = count, 1, 1), then bricks
 PC_CONST int PC_BIND_PACKED = 20;       // float[]: changed bricks' tile rows, for the host
-PC_CONST int PC_BIND_COUNTERS = 21;     // uint[PC_COUNTER_WORDS]: shadow list length, 1, 1, 0
+PC_CONST int PC_BIND_COUNTERS = 21;  // uint[PC_COUNTER_WORDS per slot]: its list's length, 1, 1, 0
 PC_CONST int PC_BIND_TAPS = 22;         // uvec2[]: this update's blend taps (see below)
 PC_CONST int PC_BIND_HITS = 23;         // GpuHit[] per ray, launch order
 PC_CONST int PC_BIND_SHADOW_MASK = 24;  // uint[]: visible shadow slots, [word * (rays of the update) + launch index]
-PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: the compacted list of real shadow rays
+PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: [slot * rays of the update + i], each
+                                        // slot's compacted list of real shadow rays
 PC_CONST int PC_BIND_SHADOW_LIGHT = 26; // GpuShadowLight[]: [slot * rays of the update + launch index]
 PC_CONST int PC_BIND_TEXTURES = 27;     // sampler2D[]: base colour and emissive textures; the
                                         // variable-count binding, so it must stay the last
 PC_CONST int PC_BINDING_COUNT = 28;
 
-// The counters (PC_BIND_COUNTERS): the shadow list's length (the shadow rays traced), then
-// 1, 1: a VkTraceRaysIndirectCommandKHR for the shadow launch, which covers exactly the list
-// where the device can launch from a buffer.
+// The counters (PC_BIND_COUNTERS), PC_COUNTER_WORDS per shadow slot: the length of the slot's
+// shadow list (the shadow rays it traces), then 1, 1: a VkTraceRaysIndirectCommandKHR for the
+// slot's shadow launch, which covers exactly its list where the device can launch from a
+// buffer. Each slot (light, or emissive sample) has its own list, so the rays of a warp of the
+// shadow launch all head for the same light.
 PC_CONST int PC_COUNTER_WORDS = 4;
 PC_CONST int PC_BRICK_LIST_HEADER = 3;  // uints of dispatch arguments before the brick list
 PC_CONST int PC_DISPATCH_ROWS = 32768;  // workgroups per row of a 2D compute dispatch
