@@ -132,6 +132,9 @@ struct VulkanTracer::Impl {
   int blendVariant = 0;
   int shadeVariant = 0;
   int overlapVariant = 0;
+  // PC_SHADOW_SLOT_TIMES=1 (diagnostics): a timestamp pair per shadow slot's launch instead of
+  // one over them all, and each slot's shadow-ray count in the log.
+  bool shadowSlotTimes = false;
   bool boundedShadowLaunch = false;  // VulkanTracerOptions::boundedShadowLaunch
   SceneAccel accel;
   bool tlasDirty = true;
@@ -544,6 +547,7 @@ Status VulkanTracer::Impl::createPipelines() {
   blendVariant = variantOf("PC_BLEND_VARIANT");
   shadeVariant = variantOf("PC_SHADE_VARIANT");
   overlapVariant = variantOf("PC_OVERLAP_VARIANT");
+  shadowSlotTimes = std::getenv("PC_SHADOW_SLOT_TIMES") != nullptr;
   auto shade = computePipeline("probe_shade.comp.spv", {shadeVariant});  // constant_id 0: kVariant
   if (!shade) return shade.error();
   shadePipeline = std::move(shade).value();
@@ -957,6 +961,10 @@ void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount) {
   const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
   for (int slot = 0; slot < slots; ++slot) {
     const std::uint64_t listStart = std::uint64_t(slot) * rayCount;
+    if (shadowSlotTimes) {
+      timer.end(cmd);  // the previous slot's pair
+      timer.begin(cmd, "shadow slot " + std::to_string(slot));
+    }
     if (ctx->rt().cmdTraceRaysIndirect && rayCount <= maxWidth && !boundedShadowLaunch) {
       const TracePush push{int(listStart), int(rayCount)};
       vkCmdPushConstants(cmd, pipelineLayout.get(),
@@ -1255,8 +1263,10 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   stats.readbackBytes = std::uint64_t(changed) * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float) +
                         m.records.size() + m.brickList.size() + m.counters.size();
   const auto* counts = m.countersReadback.as<std::uint32_t>();
-  for (int s = 0; s < m.shadowSlots(); ++s)
+  for (int s = 0; s < m.shadowSlots(); ++s) {
     stats.shadowRays += counts[s * PC_COUNTER_WORDS];  // the lists' lengths
+    if (m.shadowSlotTimes) logInfo("shadow slot " + std::to_string(s) + ": " + std::to_string(counts[s * PC_COUNTER_WORDS]) + " rays");
+  }
   const double hostMs = msSince(th);
 
   stats.gpuPasses = m.timer.results();

@@ -20,6 +20,7 @@
 // front, instead of per texel and per border texel.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
+#extension GL_KHR_shader_subgroup_ballot : require
 #include "field_buffers.glsl"
 #include "interop/probe_update.h"
 
@@ -36,6 +37,7 @@ layout(local_size_x = PC_BLEND_THREADS) in;
 //  11 workgroup-scope barrier before the borders instead of memoryBarrierBuffer
 //  12 at most two probes per workgroup (the host dispatches accordingly)
 //  13 the rays only (step 0, then nothing)   14 steps 0 and 1 only
+//  15 every lane of a subgroup reads its first lane's tap ray (no shared-memory bank conflicts)
 layout(constant_id = 0) const int kVariant = 0;
 // Rays the shared scratch holds: pcBlendScratch for this pipeline's ray count (the host
 // always specializes it; the default, a literal as specialization constants need, is the
@@ -245,7 +247,7 @@ void main() {
         uvec2 e = next;
         if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(irrTexelCount)];
         float w = uintBitsToFloat(e.y);
-        int ray = int(e.x);
+        int ray = kVariant == 15 ? subgroupBroadcastFirst(int(e.x)) : int(e.x);  // 15: timing experiment
         vec4 r0 = sRay[ray], r1 = sRay[rowStride + ray], r2 = sRay[2 * rowStride + ray], r3 = sRay[3 * rowStride + ray];
         vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
         op += vec4(greaterThan(d, vec4(dmax))) * w;
@@ -316,7 +318,7 @@ void main() {
           uvec2 e = next;
           if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(depthTexelCount)];
           float w = uintBitsToFloat(e.y);
-          int ray = int(e.x);
+          int ray = kVariant == 15 ? subgroupBroadcastFirst(int(e.x)) : int(e.x);  // 15: timing experiment
           vec4 dist = vec4(sDepth[ray], sDepth[rowStride + ray], sDepth[2 * rowStride + ray], sDepth[3 * rowStride + ray]);
           s1 += w * dist;
           s2 += w * dist * dist;
@@ -333,7 +335,7 @@ void main() {
         uvec2 e = next;
         if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(depthTexelCount)];
         float w = uintBitsToFloat(e.y);
-        int ray = int(e.x);
+        int ray = kVariant == 15 ? subgroupBroadcastFirst(int(e.x)) : int(e.x);  // 15: timing experiment
         [[unroll]] for (int k = 0; k < K; ++k) {
           if (k >= probesHere) break;
           float dist = sDepth[k * rowStride + ray];
