@@ -1265,7 +1265,9 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   const auto* counts = m.countersReadback.as<std::uint32_t>();
   for (int s = 0; s < m.shadowSlots(); ++s) {
     stats.shadowRays += counts[s * PC_COUNTER_WORDS];  // the lists' lengths
-    if (m.shadowSlotTimes) logInfo("shadow slot " + std::to_string(s) + ": " + std::to_string(counts[s * PC_COUNTER_WORDS]) + " rays");
+    if (m.shadowSlotTimes)
+      logInfo("shadow slot " + std::to_string(s) + ": " +
+              std::to_string(counts[s * PC_COUNTER_WORDS]) + " rays");
   }
   const double hostMs = msSince(th);
 
