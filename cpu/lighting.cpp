@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include "../shaders/interop/shadow_roulette.h"
+
 namespace pc {
 namespace {
 
@@ -65,30 +67,33 @@ float spotFactor(const Light& light, glm::vec3 towardLight) {
   return t * t * (3.0f - 2.0f * t);
 }
 
-glm::vec3 punctualIrradiance(const EmbreeScene& scene, const Light& light, glm::vec3 P,
-                             glm::vec3 N, std::uint64_t& shadowRays) {
+// A punctual light's unshadowed irradiance at P and the shadow ray that decides it (far 0:
+// the light does not reach P).
+struct PunctualSample {
+  glm::vec3 irradiance{0.0f};
+  glm::vec3 wi{0.0f};
+  float far = 0.0f;
+};
+
+PunctualSample punctualSample(const Light& light, glm::vec3 P, glm::vec3 N) {
   const glm::vec3 power = light.color * light.intensity;
   if (light.type == LightType::Directional) {
     const glm::vec3 wi = -glm::normalize(light.direction);
     const float cosTheta = glm::dot(N, wi);
-    if (cosTheta <= 0.0f) return glm::vec3(0.0f);
-    ++shadowRays;
-    if (scene.occluded(P, wi, kShadowNear, INFINITY)) return glm::vec3(0.0f);
-    return power * cosTheta;
+    if (cosTheta <= 0.0f) return {};
+    return {power * cosTheta, wi, INFINITY};
   }
   const glm::vec3 toLight = light.position - P;
   const float d2 = glm::dot(toLight, toLight);
-  if (d2 <= 0.0f) return glm::vec3(0.0f);
+  if (d2 <= 0.0f) return {};
   const float d = std::sqrt(d2);
   const glm::vec3 wi = toLight / d;
   const float cosTheta = glm::dot(N, wi);
-  if (cosTheta <= 0.0f) return glm::vec3(0.0f);
+  if (cosTheta <= 0.0f) return {};
   float scale = cosTheta / d2 * rangeWindow(d, light.range);
   if (light.type == LightType::Spot) scale *= spotFactor(light, wi);
-  if (scale <= 0.0f) return glm::vec3(0.0f);
-  ++shadowRays;
-  if (scene.occluded(P, wi, kShadowNear, d * kShadowFarScale)) return glm::vec3(0.0f);
-  return power * scale;
+  if (scale <= 0.0f) return {};
+  return {power * scale, wi, d * kShadowFarScale};
 }
 
 }  // namespace
@@ -177,7 +182,28 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
       if (total) *total += local;
     }
   } count{shadowRays, options.shadowRayCount};
-  for (const Light& light : state.lights) E += punctualIrradiance(scene, light, P, N, shadowRays);
+  const std::size_t lightCount = state.lights.size();
+  // Up to kStackLights lights without a heap allocation per call.
+  constexpr std::size_t kStackLights = 16;
+  PunctualSample stackSamples[kStackLights];
+  std::vector<PunctualSample> heapSamples(lightCount > kStackLights ? lightCount : 0);
+  PunctualSample* samplesOf = lightCount > kStackLights ? heapSamples.data() : stackSamples;
+  float total = 0.0f;  // unshadowed punctual luminance, for the roulette
+  for (std::size_t i = 0; i < lightCount; ++i) {
+    samplesOf[i] = punctualSample(state.lights[i], P, N);
+    total += luminance(samplesOf[i].irradiance);
+  }
+  for (std::size_t i = 0; i < lightCount; ++i) {
+    const PunctualSample& ls = samplesOf[i];
+    if (ls.far <= 0.0f) continue;
+    const float weight =
+        gpu::pcShadowRouletteWeight(luminance(ls.irradiance), total, options.shadowRouletteShare,
+                                    options.shadowRouletteKey, int(i));
+    if (weight == 0.0f) continue;
+    ++shadowRays;
+    if (scene.occluded(P, ls.wi, kShadowNear, ls.far)) continue;
+    E += weight == 1.0f ? ls.irradiance : ls.irradiance * weight;
+  }
 
   const int samples = options.emissiveSamples;
   if (emissive.empty() || samples <= 0) return E;

@@ -47,6 +47,12 @@ struct DirectLightOptions {
   int emissiveSamples = 1;  // shadow rays toward emissive triangles per call
   // When set, incremented by the number of shadow rays traced (ray budgets and Mrays/s).
   std::uint64_t* shadowRayCount = nullptr;
+  // Russian roulette on the punctual lights' shadow rays (shaders/interop/shadow_roulette.h):
+  // the share of a hit's unshadowed punctual light below which a light's shadow ray is drawn
+  // at random (0: never), with the ray's key (pcShadowRouletteKey). Probe updates only:
+  // renders keep every shadow ray.
+  float shadowRouletteShare = 0.0f;
+  std::uint32_t shadowRouletteKey = 0;
 };
 
 // Irradiance E (W/m^2) arriving at P (normal N, unit) directly from lights, shadowed.

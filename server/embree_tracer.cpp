@@ -1,15 +1,16 @@
 #include "embree_tracer.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/enumerable_thread_specific.h>
-
 #include "../shaders/interop/probe_math.h"
+#include "../shaders/interop/shadow_roulette.h"
 #include "probe_blend.h"
 
 namespace pc {
@@ -118,6 +119,7 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
     DirectLightOptions lightOptions;
     lightOptions.emissiveSamples = options_.emissiveSamples;
     lightOptions.shadowRayCount = &shadows;
+    lightOptions.shadowRouletteShare = options_.shadowRouletteShare;
     for (std::size_t p = range.begin(); p != range.end(); ++p) {
       const ProbeRef ref = request.probes[p];
       const glm::vec3 origin = field.probePosition(ref.cascade, ref.slot);
@@ -135,6 +137,8 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
           out[i] = {glm::vec3(0.0f), -hit.t};
           continue;
         }
+        lightOptions.shadowRouletteKey = gpu::pcShadowRouletteKey(
+            request.rotationSeed, std::uint32_t(p * rayCount + std::size_t(i)));
         glm::vec3 irradiance =
             directIrradiance(*embree_, state_, emissive_, sp.position, sp.normal, rng, lightOptions);
         glm::vec3 emitted = emissive_.sampled(sp.material) ? glm::vec3(0.0f) : sp.emission;

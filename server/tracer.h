@@ -63,6 +63,10 @@ class Tracer {
 
 struct TracerOptions {
   int emissiveSamples = 1;  // light samples toward emissive triangles per hit
+  // Russian roulette on punctual lights' shadow rays (shaders/interop/shadow_roulette.h): a
+  // light below this share of a hit's unshadowed punctual light gets its shadow ray at random,
+  // weighted to keep the expected light. 0 traces every shadow ray.
+  float shadowRouletteShare = 0.0f;
 };
 
 Result<std::unique_ptr<Tracer>> makeEmbreeTracer(const Scene& scene, const TracerOptions& options = {});

@@ -846,6 +846,7 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
   p.changeThreshold = request.changeThreshold;
   p.brickTotal = brickTotal;
   p.shadowSlots = shadowSlots();
+  p.shadowRouletteShare = options.shadowRouletteShare;
   p.cascadeBrickOffset = glm::ivec4(brickOffset[0], brickOffset[1], brickOffset[2], brickOffset[3]);
   params.write(&p, sizeof p);
 

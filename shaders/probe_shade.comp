@@ -13,6 +13,7 @@
 #extension GL_EXT_nonuniform_qualifier : require
 #extension GL_KHR_shader_subgroup_ballot : require
 #include "field_sampling.glsl"
+#include "interop/shadow_roulette.h"
 
 layout(local_size_x = PC_SHADE_THREADS) in;
 
@@ -52,6 +53,7 @@ float rnd() {
 // This ray's launch index, the stride between its slots' records, and its albedo / pi (what
 // a light's irradiance is scaled by on its way to the probe).
 uint launchIndex;
+uint rayIndex;  // request x rays per probe + ray: the ray's random streams are keyed by it
 uint slotStride;
 vec3 albedoOverPi;
 // The shadow ray of the slot last requested, until appendRequest lists it (tmax 0: none).
@@ -102,39 +104,34 @@ float spotFactor(GpuLight light, vec3 towardLight) {
   return t * t * (3.0f - 2.0f * t);
 }
 
-// Light `slot`'s request.
-void punctualRequest(int slot, GpuLight light, vec3 P, vec3 N) {
+// A punctual light's unshadowed irradiance at P and the shadow ray that decides it (`far` 0:
+// the light does not reach P), as cpu/lighting.cpp punctualSample.
+vec3 punctualSample(GpuLight light, vec3 P, vec3 N, out vec3 wi, out float far) {
+  far = 0.0f;
+  wi = vec3(0.0f);
   if (light.type == PC_LIGHT_DIRECTIONAL) {
-    vec3 wi = -light.direction;
+    wi = -light.direction;
     float cosTheta = dot(N, wi);
-    if (cosTheta <= 0.0f) {
-      noRequest(slot);
-      return;
-    }
-    request(slot, P, wi, PC_MISS_DISTANCE, light.power * cosTheta);
-    return;
+    if (cosTheta <= 0.0f) return vec3(0.0f);
+    far = PC_MISS_DISTANCE;
+    return light.power * cosTheta;
   }
   vec3 toLight = light.position - P;
   float d2 = dot(toLight, toLight);
-  if (d2 <= 0.0f) {
-    noRequest(slot);
-    return;
-  }
+  if (d2 <= 0.0f) return vec3(0.0f);
   float d = sqrt(d2);
-  vec3 wi = toLight / d;
+  wi = toLight / d;
   float cosTheta = dot(N, wi);
-  if (cosTheta <= 0.0f) {
-    noRequest(slot);
-    return;
-  }
+  if (cosTheta <= 0.0f) return vec3(0.0f);
   float scale = cosTheta / d2 * rangeWindow(d, light.range);
   if (light.type == PC_LIGHT_SPOT) scale *= spotFactor(light, wi);
-  if (scale <= 0.0f) {
-    noRequest(slot);
-    return;
-  }
-  request(slot, P, wi, d * kShadowFarScale, light.power * scale);
+  if (scale <= 0.0f) return vec3(0.0f);
+  far = d * kShadowFarScale;
+  return light.power * scale;
 }
+
+// Rec. 709 luminance, as cpu/lighting.h luminance.
+float luminanceOf(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
 // A fixed number of float steps along the normal (cpu/lighting.cpp offsetRayOrigin).
 vec3 offsetRayOrigin(vec3 P, vec3 n) {
@@ -202,8 +199,21 @@ void emissiveRequest(int s, int samples, vec3 P, vec3 N) {
 
 // Every slot's request for a lit surface point.
 void directRequests(vec3 P, vec3 N) {
+  // The punctual lights' unshadowed luminance, for the shadow-ray roulette.
+  float total = 0.0f;
+  vec3 wi;
+  float far;
+  if (params.shadowRouletteShare > 0.0f)
+    for (int i = 0; i < params.lightCount; ++i) total += luminanceOf(punctualSample(lights[i], P, N, wi, far));
+  uint key = pcShadowRouletteKey(params.seed, rayIndex);
   for (int i = 0; i < params.lightCount; ++i) {
-    punctualRequest(i, lights[i], P, N);
+    vec3 irradiance = punctualSample(lights[i], P, N, wi, far);
+    float weight = far > 0.0f ? pcShadowRouletteWeight(luminanceOf(irradiance), total, params.shadowRouletteShare, key, i) : 0.0f;
+    if (weight > 0.0f) {
+      request(i, P, wi, far, weight == 1.0f ? irradiance : irradiance * weight);
+    } else {
+      noRequest(i);
+    }
     appendRequest(i);
   }
   int samples = params.shadowSlots - params.lightCount;
@@ -287,7 +297,7 @@ void main() {
   if (launchIndex >= slotStride) return;
   pending.tmax = 0.0f;
   ivec2 pr = pcLaunchProbeRay(launchIndex, params.probeCount, params.rayCount);
-  uint rayIndex = uint(pr.x) * uint(params.rayCount) + uint(pr.y);
+  rayIndex = uint(pr.x) * uint(params.rayCount) + uint(pr.y);
   rngState = pcHash(params.seed * 0x9E3779B9u ^ pcHash(rayIndex));
   vec3 dir = rayDirs[pr.y].xyz;
   GpuHit hit = hits[launchIndex];

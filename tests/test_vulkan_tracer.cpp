@@ -6,10 +6,9 @@
 // irradiance and depth over probes active in both.
 #include <gtest/gtest.h>
 
-#include <glm/gtc/matrix_transform.hpp>
-
 #include <cmath>
 #include <cstdio>
+#include <glm/gtc/matrix_transform.hpp>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -21,17 +20,20 @@
 #include "server/field_compare.h"
 #include "server/vulkan_tracer.h"
 #include "shaders/interop/gpu_trace.h"
+#include "shaders/interop/probe_update.h"
 #include "test_meshes.h"
 
 namespace pc {
 namespace {
 
-std::unique_ptr<VulkanTracer> makeGpu(const Scene& scene, std::string* why, bool boundedShadowLaunch = false) {
+std::unique_ptr<VulkanTracer> makeGpu(const Scene& scene, std::string* why,
+                                      bool boundedShadowLaunch = false,
+                                      const TracerOptions& options = {}) {
   VulkanTracerOptions vo;
   vo.validation = true;
   vo.allowCpuDevice = true;
   vo.boundedShadowLaunch = boundedShadowLaunch;
-  auto t = VulkanTracer::create(scene, {}, vo);
+  auto t = VulkanTracer::create(scene, options, vo);
   if (!t) {
     *why = t.error().message;
     // Only a missing driver or device is a reason to skip; anything else (a shader missing
@@ -53,10 +55,11 @@ struct Backends {
   UpdateRequest request;
 };
 
-Backends makeBackends(const Scene& scene, int rays, std::string* why) {
+Backends makeBackends(const Scene& scene, int rays, std::string* why,
+                      const TracerOptions& options = {}) {
   Backends b;
-  b.gpu = makeGpu(scene, why);
-  auto cpu = makeEmbreeTracer(scene);
+  b.gpu = makeGpu(scene, why, false, options);
+  auto cpu = makeEmbreeTracer(scene, options);
   if (!cpu) {
     ADD_FAILURE() << "the Embree tracer failed to start: " << cpu.error().message;
     b.gpu.reset();
@@ -340,7 +343,9 @@ namespace {
 // More shadow slots than one 32-bit mask word holds: 40 lights (points, spots and a sun, most
 // of them dim) in the built-in room. The sun, the brightest, is slot 39, in each ray's second
 // mask word: a blend that read only the first word measured 4.9e-2 here.
-TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
+// The built-in room with 40 lights: 39 dim point and spot lights over the room (half of them
+// with a range) and a sun.
+Scene manyLightsScene() {
   Scene scene = builtinScene();
   const glm::vec3 lo = scene.boundsMin, hi = scene.boundsMax;
   for (int i = 0; i < 39; ++i) {
@@ -361,6 +366,33 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
   sun.direction = glm::normalize(glm::vec3(0.3f, -1.0f, 0.2f));
   sun.intensity = 0.5f;
   scene.lights.push_back(sun);
+  return scene;
+}
+
+// Mean decoded irradiance over the field's active probes' texels.
+double meanIrradiance(const Field& f) {
+  double sum = 0;
+  std::size_t n = 0;
+  constexpr int ni = gpu::PC_IRRADIANCE_TEXELS;
+  for (int k = 0; k < f.cascadeCount(); ++k) {
+    const gpu::CascadeDesc& c = f.cascade(k);
+    for (int s = 0; s < gpu::pcSlotCount(c); ++s) {
+      if (!gpu::pcSlotValid(c, s) || f.probe(k, s).state != gpu::PC_PROBE_ACTIVE) continue;
+      const glm::ivec2 o = gpu::pcAtlasTileOrigin(c, s, ni + 2);
+      for (int y = 1; y <= ni; ++y)
+        for (int x = 1; x <= ni; ++x) {
+          const float* t = f.irradiance.at(o.x + x, o.y + y);
+          const glm::vec3 e = gpu::pcDecodeIrradiance(glm::vec3(t[0], t[1], t[2]));
+          sum += double(e.x + e.y + e.z) / 3.0;
+          ++n;
+        }
+    }
+  }
+  return n > 0 ? sum / double(n) : 0.0;
+}
+
+TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
+  Scene scene = manyLightsScene();
   ASSERT_GT(scene.lights.size(), 32u);
   std::string why;
   Backends b = makeBackends(scene, 32, &why);
@@ -382,6 +414,44 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
   EXPECT_GT(d.probes, 100);
   EXPECT_LE(d.irradiance, 0.01);
   EXPECT_LE(d.depth, 0.01);
+  EXPECT_EQ(gpu->validationErrorCount(), 0u);
+}
+
+// Shadow-ray roulette (interop/shadow_roulette.h): the GPU draws the same lights as Embree for
+// the same rays, traces far fewer shadow rays than without it, and keeps the mean light (the
+// weak lights that win the draw count 1/p times; without that weight most of the 40 dim lights'
+// light would be lost).
+TEST(VulkanTracer, ShadowRouletteMatchesEmbreeAndKeepsTheMeanLight) {
+  const Scene scene = manyLightsScene();
+  TracerOptions roulette;
+  roulette.shadowRouletteShare = 0.25f;
+  std::string why;
+  Backends b = makeBackends(scene, 32, &why, roulette);
+  if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  auto& [gpu, cpu, fg, fc, request] = b;
+  auto plain = makeEmbreeTracer(scene);
+  ASSERT_TRUE(plain) << plain.error().message;
+  Field fp = Field::create(scene.volumes, fc.settings);
+  std::uint64_t gpuRays = 0, cpuRays = 0, plainRays = 0;
+  for (int i = 0; i < 4; ++i) {
+    request.rotationSeed = 700u + std::uint32_t(i);
+    gpuRays += gpu->update(fg, request).shadowRays;
+    cpuRays += cpu->update(fc, request).shadowRays;
+    plainRays += (*plain)->update(fp, request).shadowRays;
+  }
+  const FieldDifference d = compareFields(fg, fc);
+  const double meanRoulette = meanIrradiance(fc), meanPlain = meanIrradiance(fp);
+  std::printf(
+      "roulette 0.25, 40 lights: shadow rays GPU %llu, Embree %llu, without roulette %llu; "
+      "GPU vs Embree irradiance %.2e, depth %.2e; mean irradiance %.5f against %.5f\n",
+      static_cast<unsigned long long>(gpuRays), static_cast<unsigned long long>(cpuRays),
+      static_cast<unsigned long long>(plainRays), d.irradiance, d.depth, meanRoulette, meanPlain);
+  EXPECT_NEAR(double(gpuRays), double(cpuRays), 0.01 * double(cpuRays));
+  EXPECT_LT(double(cpuRays), 0.6 * double(plainRays));
+  EXPECT_GT(d.probes, 100);
+  EXPECT_LE(d.irradiance, 0.01);
+  EXPECT_LE(d.depth, 0.01);
+  EXPECT_NEAR(meanRoulette, meanPlain, 0.02 * meanPlain);
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
 }
 

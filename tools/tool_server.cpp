@@ -56,6 +56,12 @@ int main(int argc, char** argv) {
   app.add_option("--sidecar", sidecar, "scene.json sidecar");
   app.add_option("--probes", probes, "start from this baked field (else a short warm-up bake)");
   app.add_option("--backend", backend, "tracer: auto, embree or vulkan");
+  pc::TracerOptions tracerOptions;
+  app.add_option(
+         "--shadow-roulette", tracerOptions.shadowRouletteShare,
+         "share of a hit's punctual light below which a light's shadow ray is drawn at random, "
+         "weighted to keep the expected light (0: every shadow ray; fewer rays with many lights)")
+      ->check(CLI::Range(0.0f, 1.0f));
   app.add_option("--rate", loop.rate, "field updates per second");
   app.add_option("--rays", rays, "rays per probe per update (without --probes)");
   app.add_option("--warmup", warmup, "warm-up updates without --probes");
@@ -132,7 +138,7 @@ int main(int argc, char** argv) {
   if (!scene) return pc::logError(scene.error().message), 1;
   for (const std::string& w : scene->warnings) pc::logWarn(w);
 
-  auto tracer = pc::makeTracer(*scene, backend);
+  auto tracer = pc::makeTracer(*scene, backend, tracerOptions);
   if (!tracer) return pc::logError("tracer: " + tracer.error().message), 1;
   pc::logInfo("tracer: " + (*tracer)->name());
 

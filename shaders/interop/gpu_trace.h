@@ -301,6 +301,9 @@ struct UpdateParams {
   // -- 80
   ivec4 cascadeBrickOffset;  // first field-wide brick of each cascade
   // -- 96
+  float shadowRouletteShare;  // TracerOptions::shadowRouletteShare (interop/shadow_roulette.h)
+  float pad1, pad2, pad3;
+  // -- 112
 };
 
 PC_END
@@ -317,7 +320,7 @@ static_assert(sizeof(pc::gpu::TracePush) == 8);
 static_assert(sizeof(pc::gpu::GpuHit) == 24);
 static_assert(sizeof(pc::gpu::GpuShadowRay) == 32);
 static_assert(sizeof(pc::gpu::GpuShadowLight) == 16);
-static_assert(sizeof(pc::gpu::UpdateParams) == 96);
+static_assert(sizeof(pc::gpu::UpdateParams) == 112);
 static_assert(pc::gpu::PC_MAX_CASCADES == 4);  // cascadeBrickOffset is an ivec4
 #endif
 

@@ -44,11 +44,15 @@ Benchmark addGpuTrace(CLI::App& app) {
   static int updates = 8, rays = 256;
   static std::vector<int> counts;
   static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false;
+  static float roulette = 0.0f;
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
   cmd->add_option("--measured", updates, "measured updates (after --updates bake updates of both backends)");
   cmd->add_option("--rays", rays, "rays per probe");
+  cmd->add_option("--shadow-roulette", roulette,
+                  "share of a hit's punctual light below which shadow rays are drawn at random (0: "
+                  "all traced)");
   cmd->add_option("--counts", counts, "probes per axis of a single cascade over the scene (x y z)")->expected(3);
   cmd->add_option("--device", device, "substring of the Vulkan device name");
   cmd->add_flag("--gpu-only", gpuOnly, "refuse CPU Vulkan implementations (lavapipe)");
@@ -70,14 +74,16 @@ Benchmark addGpuTrace(CLI::App& app) {
             vo.allowCpuDevice = !gpuOnly;
             vo.deviceNameFilter = device;
             vo.boundedShadowLaunch = boundedShadowLaunch;
-            auto gpu = VulkanTracer::create(*scene, {}, vo);
+            TracerOptions options;
+            options.shadowRouletteShare = roulette;
+            auto gpu = VulkanTracer::create(*scene, options, vo);
             if (!gpu) {
               std::fprintf(stderr, "gpu-trace: %s\n", gpu.error().message.c_str());
               return 1;
             }
             std::unique_ptr<EmbreeTracer> cpu;
             if (!skipEmbree) {
-              auto e = EmbreeTracer::create(*scene, {});
+              auto e = EmbreeTracer::create(*scene, options);
               if (!e) {
                 std::fprintf(stderr, "gpu-trace: %s\n", e.error().message.c_str());
                 return 1;

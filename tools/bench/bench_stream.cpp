@@ -70,6 +70,7 @@ struct StreamSetup {
   int aa = 2;
   bool breakdown = false;
   std::string cacheDir = "build/stream-cache";
+  float shadowRoulette = 0.0f;  // TracerOptions::shadowRouletteShare
   std::string outDir;
 };
 
@@ -173,6 +174,9 @@ Benchmark addStream(CLI::App& app) {
   cmd->add_option("--join-limit", s.joinLimit, "simulated seconds allowed for the join");
   cmd->add_option("--rate", s.rate, "field updates per simulated second");
   cmd->add_option("--rays", s.rays, "rays per probe per update");
+  cmd->add_option("--shadow-roulette", s.shadowRoulette,
+                  "share of a hit's punctual light below which shadow rays are drawn at random (0: "
+                  "all traced)");
   cmd->add_option("--budget", s.budget, "probes traced per update (0: every probe)");
   cmd->add_option("--bake-updates", s.bakeUpdates, "updates of the starting field's bake");
   cmd->add_option("--threshold", s.thresholds,
@@ -199,7 +203,9 @@ Benchmark addStream(CLI::App& app) {
               std::fprintf(stderr, "stream: %s\n", scene.error().message.c_str());
               return 1;
             }
-            auto tracer = makeEmbreeTracer(*scene);
+            TracerOptions options;
+            options.shadowRouletteShare = s.shadowRoulette;
+            auto tracer = makeEmbreeTracer(*scene, options);
             if (!tracer) {
               std::fprintf(stderr, "stream: %s\n", tracer.error().message.c_str());
               return 1;

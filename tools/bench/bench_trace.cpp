@@ -15,7 +15,11 @@ Benchmark addTrace(CLI::App& app) {
   static std::string scenePath = "builtin", sidecar;
   static int updates = 6, warmup = 4, rays = 256;
   static std::vector<int> counts;
+  static float roulette = 0.0f;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
+  cmd->add_option("--shadow-roulette", roulette,
+                  "share of a hit's punctual light below which shadow rays are drawn at random (0: "
+                  "all traced)");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
   cmd->add_option("--updates", updates, "measured updates");
   cmd->add_option("--warmup", warmup, "updates before measuring (states, indirect light)");
@@ -38,7 +42,9 @@ Benchmark addTrace(CLI::App& app) {
             FieldSettings settings;
             settings.raysPerProbe = rays;
             Field field = Field::create(volumes, settings);
-            auto tracer = EmbreeTracer::create(*scene, {});
+            TracerOptions options;
+            options.shadowRouletteShare = roulette;
+            auto tracer = EmbreeTracer::create(*scene, options);
             if (!tracer) {
               std::fprintf(stderr, "trace: %s\n", tracer.error().message.c_str());
               return 1;
