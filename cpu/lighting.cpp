@@ -188,10 +188,11 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
   PunctualSample stackSamples[kStackLights];
   std::vector<PunctualSample> heapSamples(lightCount > kStackLights ? lightCount : 0);
   PunctualSample* samplesOf = lightCount > kStackLights ? heapSamples.data() : stackSamples;
-  float total = 0.0f;  // unshadowed punctual luminance, for the roulette
+  const bool roulette = options.shadowRouletteShare > 0.0f;
+  float total = 0.0f;  // unshadowed punctual luminance, for the roulette only
   for (std::size_t i = 0; i < lightCount; ++i) {
     samplesOf[i] = punctualSample(state.lights[i], P, N);
-    total += luminance(samplesOf[i].irradiance);
+    if (roulette) total += luminance(samplesOf[i].irradiance);
   }
   for (std::size_t i = 0; i < lightCount; ++i) {
     const PunctualSample& ls = samplesOf[i];

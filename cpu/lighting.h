@@ -4,11 +4,11 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <vector>
 
-#include <glm/glm.hpp>
-
 #include "../common/scene.h"
+#include "../shaders/interop/probe_math.h"
 #include "embree_scene.h"
 #include "random.h"
 
@@ -65,7 +65,7 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
 glm::vec3 offsetRayOrigin(glm::vec3 P, glm::vec3 geometricNormal);
 
 // Rec. 709 luminance of linear RGB.
-inline float luminance(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+inline float luminance(glm::vec3 c) { return gpu::pcLuminance(c); }
 
 // Auto's rule: emitters are sampled as lights when they cover less than this share of the
 // scene's surface area (see lighting.cpp for why).

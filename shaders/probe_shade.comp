@@ -130,9 +130,6 @@ vec3 punctualSample(GpuLight light, vec3 P, vec3 N, out vec3 wi, out float far) 
   return light.power * scale;
 }
 
-// Rec. 709 luminance, as cpu/lighting.h luminance.
-float luminanceOf(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
-
 // A fixed number of float steps along the normal (cpu/lighting.cpp offsetRayOrigin).
 vec3 offsetRayOrigin(vec3 P, vec3 n) {
   const float kNearZero = 1.0f / 32.0f;
@@ -204,11 +201,11 @@ void directRequests(vec3 P, vec3 N) {
   vec3 wi;
   float far;
   if (params.shadowRouletteShare > 0.0f)
-    for (int i = 0; i < params.lightCount; ++i) total += luminanceOf(punctualSample(lights[i], P, N, wi, far));
+    for (int i = 0; i < params.lightCount; ++i) total += pcLuminance(punctualSample(lights[i], P, N, wi, far));
   uint key = pcShadowRouletteKey(params.seed, rayIndex);
   for (int i = 0; i < params.lightCount; ++i) {
     vec3 irradiance = punctualSample(lights[i], P, N, wi, far);
-    float weight = far > 0.0f ? pcShadowRouletteWeight(luminanceOf(irradiance), total, params.shadowRouletteShare, key, i) : 0.0f;
+    float weight = far > 0.0f ? pcShadowRouletteWeight(pcLuminance(irradiance), total, params.shadowRouletteShare, key, i) : 0.0f;
     if (weight > 0.0f) {
       request(i, P, wi, far, weight == 1.0f ? irradiance : irradiance * weight);
     } else {

@@ -75,6 +75,9 @@ PC_FN uint pcHash(uint v) {
 }
 PC_FN float pcHashToFloat(uint h) { return float(h >> 8u) * (1.0f / 16777216.0f); }
 
+// Rec. 709 luminance of linear RGB.
+PC_FN float pcLuminance(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
 // Uniformly random rotation (Shoemake's quaternion method) from a seed; one per update so
 // the fixed Fibonacci set covers the sphere over time.
 PC_FN mat3 pcRandomRotation(uint seed) {
