@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include <glm/gtc/packing.hpp>
+
 #include "../shaders/interop/probe_update.h"
 
 namespace pc {
@@ -49,7 +51,11 @@ TexelTaps TexelTaps::build(const std::vector<glm::vec3>& texelDirs, const glm::v
     for (int i = 0; i < rayCount; ++i) {
       float c = glm::dot(t, rayDirs[i]);
       if (c <= 0.0f) continue;
-      float w = exponent == 1.0f ? c : lobe(c);
+      // Weights are kept at half precision: the GPU blend reads each tap as one 32-bit word
+      // (ray index, weight's float16 bits), half the bytes of a full-precision tap, and both
+      // backends then sum the very same weights. Float16's 11 significant bits shape the lobe
+      // to within 0.05%, and each texel is normalized by the sum of these same weights.
+      float w = glm::unpackHalf1x16(glm::packHalf1x16(exponent == 1.0f ? c : lobe(c)));
       if (w <= minWeight) continue;
       taps.ray.push_back(std::uint16_t(i));
       taps.weight.push_back(w);

@@ -6,6 +6,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include <glm/gtc/packing.hpp>
+
 #include "../common/log.h"
 #include "../common/vulkan/texture_samplers.h"
 #include "../cpu/lighting.h"
@@ -657,7 +659,7 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
     countersInit.write(init.data(), counterBytes);
   }
   // At most every ray feeds every texel: the bound of the tap table.
-  const std::size_t tapCapacity = (PC_TAP_TEXELS + PC_TAP_TEXELS * rayCapacity) * sizeof(glm::uvec2);
+  const std::size_t tapCapacity = (2 * PC_TAP_TEXELS + PC_TAP_TEXELS * (rayCapacity + 3)) * sizeof(std::uint32_t);
   tapsUpload = orDie(vk::Buffer::create(*ctx, tapCapacity, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload),
                      "tap upload");
   taps = orDie(vk::Buffer::create(*ctx, tapCapacity, kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
@@ -808,25 +810,28 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
     // The CPU's taps for these directions, laid out for the blend shader (gpu_trace.h); the
     // occlusion taps are the irradiance taps (same tile size, same lobe).
     const BlendTaps bt = BlendTaps::build(dirs.data(), rayCount, field.settings.distanceExponent);
-    auto* out = tapsUpload.as<glm::uvec2>();
-    std::uint32_t texel = 0, next = PC_TAP_TEXELS;
+    auto* out = tapsUpload.as<std::uint32_t>();
+    std::uint32_t texel = 0, next = 2 * PC_TAP_TEXELS;
     for (const TexelTaps* tt : {&bt.irradiance, &bt.depth}) {
       const std::uint32_t texels = std::uint32_t(tt->begin.size() - 1);
       std::uint32_t most = 0;
       for (std::uint32_t t = 0; t < texels; ++t) most = std::max(most, tt->begin[t + 1] - tt->begin[t]);
+      const std::uint32_t blocks = (most + 3) / 4;
+      std::memset(out + next, 0, std::size_t(blocks) * 4 * texels * sizeof(std::uint32_t));
       for (std::uint32_t t = 0; t < texels; ++t) {
         const std::uint32_t first = tt->begin[t], count = tt->begin[t + 1] - first;
-        out[texel + t] = glm::uvec2(count, next + t);
+        out[2 * (texel + t)] = count;
+        out[2 * (texel + t) + 1] = next + 4 * t;
         for (std::uint32_t j = 0; j < count; ++j) {
-          std::uint32_t bits = 0;
-          std::memcpy(&bits, &tt->weight[first + j], 4);
-          out[next + t + j * texels] = glm::uvec2(tt->ray[first + j], bits);
+          // Exact: the CPU's weights are float16 values already.
+          const std::uint32_t half = glm::packHalf1x16(tt->weight[first + j]);
+          out[next + (j / 4) * 4 * texels + 4 * t + j % 4] = std::uint32_t(tt->ray[first + j]) | half << 16;
         }
       }
       texel += texels;
-      next += most * texels;
+      next += blocks * 4 * texels;
     }
-    tapBytes = std::size_t(next) * sizeof(glm::uvec2);
+    tapBytes = std::size_t(next) * sizeof(std::uint32_t);
   }
   auto* r = requests.as<glm::ivec2>();
   for (std::size_t i = 0; i < n; ++i) r[i] = glm::ivec2(request.probes[i].cascade, request.probes[i].slot);

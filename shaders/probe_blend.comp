@@ -38,6 +38,7 @@ layout(local_size_x = PC_BLEND_THREADS) in;
 //  12 at most two probes per workgroup (the host dispatches accordingly)
 //  13 the rays only (step 0, then nothing)   14 steps 0 and 1 only
 //  15 every lane of a subgroup reads its first lane's tap ray (no shared-memory bank conflicts)
+//  16 tap entries made up from the loop counter instead of loaded (no tap-list reads but the headers)
 layout(constant_id = 0) const int kVariant = 0;
 // Rays the shared scratch holds: pcBlendScratch for this pipeline's ray count (the host
 // always specializes it; the default, a literal as specialization constants need, is the
@@ -51,7 +52,7 @@ layout(std430, set = 0, binding = PC_BIND_RAYS) readonly buffer Rays { vec4 rays
 layout(std430, set = 0, binding = PC_BIND_SHADOW_MASK) readonly buffer ShadowMask { uint shadowMask[]; };
 layout(std430, set = 0, binding = PC_BIND_SHADOW_LIGHT) readonly buffer ShadowLight { GpuShadowLight shadowLight[]; };
 layout(std430, set = 0, binding = PC_BIND_CHANGES) writeonly buffer Changes { float changes[]; };
-layout(std430, set = 0, binding = PC_BIND_TAPS) readonly buffer Taps { uvec2 taps[]; };
+layout(std430, set = 0, binding = PC_BIND_TAPS) readonly buffer Taps { uvec4 taps[]; };  // blocks of four words
 
 const uint kInfinityBits = 0x7f800000u;
 const int K = PC_BLEND_MAX_PROBES;
@@ -72,6 +73,23 @@ shared float sMaxDistance[K];
 shared ivec2 sIrradianceOrigin[K], sDepthOrigin[K], sOcclusionOrigin[K];  // tile origins (bordered)
 shared bool sInside[K];
 shared uint sMaxChange[K];  // float bits; non-negative floats order like their bits
+
+// Texel t's tap count and first tap word (interop/gpu_trace.h).
+uvec2 tapHeader(int t) {
+  uvec4 pair = taps[t >> 1];
+  return (t & 1) == 0 ? pair.xy : pair.zw;
+}
+
+// The block of four taps starting at word `first` (a multiple of four); variant 16 (timing
+// experiment) makes one up instead of reading it.
+uvec4 tapBlock(uint first) {
+  if (kVariant == 16) return (uvec4(first) * uvec4(37u, 41u, 43u, 47u) & 255u) | 0x34000000u;
+  return taps[first >> 2];
+}
+
+// A tap word's ray and weight.
+int tapRay(uint word) { return int(word & 0xffffu); }
+float tapWeight(uint word) { return unpackHalf2x16(word).y; }
 
 bool closer(float d, int i, float bestD, int bestI) { return d < bestD || (d == bestD && i < bestI); }
 
@@ -238,25 +256,30 @@ void main() {
       irrSum[k] = vec3(0.0f);
       irrWeight[k] = open[k] = occWeight[k] = 0.0f;
     }
-    uvec2 h = taps[tid];
-    // The next tap is loaded while this one is summed.
-    uvec2 next = h.x > 0u ? taps[h.y] : uvec2(0u);
+    uvec2 h = tapHeader(tid);
+    // Taps come four at a time, the next block loaded while this one is summed.
+    const uint blockStride = 4u * uint(irrTexelCount);
+    uint blocks = (h.x + 3u) / 4u;
+    uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
     if (fourLanes) {  // the same sums, probe k in component k
       vec4 sr = vec4(0.0f), sg = vec4(0.0f), sb = vec4(0.0f), wi = vec4(0.0f), op = vec4(0.0f), wo = vec4(0.0f);
-      for (uint j = 0u; j < h.x; ++j) {
-        uvec2 e = next;
-        if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(irrTexelCount)];
-        float w = uintBitsToFloat(e.y);
-        int ray = kVariant == 15 ? subgroupBroadcastFirst(int(e.x)) : int(e.x);  // 15: timing experiment
-        vec4 r0 = sRay[ray], r1 = sRay[rowStride + ray], r2 = sRay[2 * rowStride + ray], r3 = sRay[3 * rowStride + ray];
-        vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
-        op += vec4(greaterThan(d, vec4(dmax))) * w;
-        wo += w;
-        vec4 lit = vec4(greaterThanEqual(d, vec4(0.0f))) * w;
-        sr += lit * vec4(r0.x, r1.x, r2.x, r3.x);
-        sg += lit * vec4(r0.y, r1.y, r2.y, r3.y);
-        sb += lit * vec4(r0.z, r1.z, r2.z, r3.z);
-        wi += lit;
+      for (uint b = 0u; b < blocks; ++b) {
+        uvec4 block = nextBlock;
+        if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+        [[unroll]] for (int u = 0; u < 4; ++u) {
+          if (4u * b + uint(u) >= h.x) break;
+          float w = tapWeight(block[u]);
+          int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
+          vec4 r0 = sRay[ray], r1 = sRay[rowStride + ray], r2 = sRay[2 * rowStride + ray], r3 = sRay[3 * rowStride + ray];
+          vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
+          op += vec4(greaterThan(d, vec4(dmax))) * w;
+          wo += w;
+          vec4 lit = vec4(greaterThanEqual(d, vec4(0.0f))) * w;
+          sr += lit * vec4(r0.x, r1.x, r2.x, r3.x);
+          sg += lit * vec4(r0.y, r1.y, r2.y, r3.y);
+          sb += lit * vec4(r0.z, r1.z, r2.z, r3.z);
+          wi += lit;
+        }
       }
       [[unroll]] for (int k = 0; k < K; ++k) {
         irrSum[k] = vec3(sr[k], sg[k], sb[k]);
@@ -264,21 +287,24 @@ void main() {
         open[k] = op[k];
         occWeight[k] = wo[k];
       }
-      h.x = 0u;
+      blocks = 0u;
     }
-    for (uint j = 0u; j < h.x; ++j) {
-      uvec2 e = next;
-      if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(irrTexelCount)];
-      float w = uintBitsToFloat(e.y);
-      int ray = int(e.x);
-      [[unroll]] for (int k = 0; k < K; ++k) {
-        if (k >= probesHere) break;
-        vec4 r = sRay[k * rowStride + ray];
-        open[k] += r.w > dmax ? w : 0.0f;
-        occWeight[k] += w;
-        if (r.w >= 0.0f) {  // backface hits carry no light
-          irrSum[k] += w * r.xyz;
-          irrWeight[k] += w;
+    for (uint b = 0u; b < blocks; ++b) {
+      uvec4 block = nextBlock;
+      if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+      [[unroll]] for (int u = 0; u < 4; ++u) {
+        if (4u * b + uint(u) >= h.x) break;
+        float w = tapWeight(block[u]);
+        int ray = tapRay(block[u]);
+        [[unroll]] for (int k = 0; k < K; ++k) {
+          if (k >= probesHere) break;
+          vec4 r = sRay[k * rowStride + ray];
+          open[k] += r.w > dmax ? w : 0.0f;
+          occWeight[k] += w;
+          if (r.w >= 0.0f) {  // backface hits carry no light
+            irrSum[k] += w * r.xyz;
+            irrWeight[k] += w;
+          }
         }
       }
     }
@@ -310,38 +336,46 @@ void main() {
     for (int t = tid - irrTexelCount; t < depthTexelCount; t += PC_BLEND_THREADS - irrTexelCount) {
       float m1[K], m2[K], depthWeight[K];
       [[unroll]] for (int k = 0; k < K; ++k) m1[k] = m2[k] = depthWeight[k] = 0.0f;
-      uvec2 h = taps[irrTexelCount + t];
-      uvec2 next = h.x > 0u ? taps[h.y] : uvec2(0u);
+      uvec2 h = tapHeader(irrTexelCount + t);
+      const uint blockStride = 4u * uint(depthTexelCount);
+      uint blocks = (h.x + 3u) / 4u;
+      uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
       if (fourLanes) {  // the same sums, probe k in component k
         vec4 s1 = vec4(0.0f), s2 = vec4(0.0f), sw = vec4(0.0f);
-        for (uint j = 0u; j < h.x; ++j) {
-          uvec2 e = next;
-          if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(depthTexelCount)];
-          float w = uintBitsToFloat(e.y);
-          int ray = kVariant == 15 ? subgroupBroadcastFirst(int(e.x)) : int(e.x);  // 15: timing experiment
-          vec4 dist = vec4(sDepth[ray], sDepth[rowStride + ray], sDepth[2 * rowStride + ray], sDepth[3 * rowStride + ray]);
-          s1 += w * dist;
-          s2 += w * dist * dist;
-          sw += w;
+        for (uint b = 0u; b < blocks; ++b) {
+          uvec4 block = nextBlock;
+          if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+          [[unroll]] for (int u = 0; u < 4; ++u) {
+            if (4u * b + uint(u) >= h.x) break;
+            float w = tapWeight(block[u]);
+            int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
+            vec4 dist = vec4(sDepth[ray], sDepth[rowStride + ray], sDepth[2 * rowStride + ray], sDepth[3 * rowStride + ray]);
+            s1 += w * dist;
+            s2 += w * dist * dist;
+            sw += w;
+          }
         }
         [[unroll]] for (int k = 0; k < K; ++k) {
           m1[k] = s1[k];
           m2[k] = s2[k];
           depthWeight[k] = sw[k];
         }
-        h.x = 0u;
+        blocks = 0u;
       }
-      for (uint j = 0u; j < h.x; ++j) {
-        uvec2 e = next;
-        if (j + 1u < h.x) next = taps[h.y + (j + 1u) * uint(depthTexelCount)];
-        float w = uintBitsToFloat(e.y);
-        int ray = kVariant == 15 ? subgroupBroadcastFirst(int(e.x)) : int(e.x);  // 15: timing experiment
-        [[unroll]] for (int k = 0; k < K; ++k) {
-          if (k >= probesHere) break;
-          float dist = sDepth[k * rowStride + ray];
-          m1[k] += w * dist;
-          m2[k] += w * dist * dist;
-          depthWeight[k] += w;
+      for (uint b = 0u; b < blocks; ++b) {
+        uvec4 block = nextBlock;
+        if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+        [[unroll]] for (int u = 0; u < 4; ++u) {
+          if (4u * b + uint(u) >= h.x) break;
+          float w = tapWeight(block[u]);
+          int ray = tapRay(block[u]);
+          [[unroll]] for (int k = 0; k < K; ++k) {
+            if (k >= probesHere) break;
+            float dist = sDepth[k * rowStride + ray];
+            m1[k] += w * dist;
+            m2[k] += w * dist * dist;
+            depthWeight[k] += w;
+          }
         }
       }
       [[unroll]] for (int k = 0; k < K; ++k) {

@@ -50,7 +50,7 @@ PC_CONST int PC_BIND_BRICK_FLAGS = 18;  // uint[] per field-wide brick: changed 
 PC_CONST int PC_BIND_BRICK_LIST = 19;   // uint[]: dispatch args (x = count, 1, 1), then bricks
 PC_CONST int PC_BIND_PACKED = 20;       // float[]: changed bricks' tile rows, for the host
 PC_CONST int PC_BIND_COUNTERS = 21;  // uint[PC_COUNTER_WORDS per slot]: its list's length, 1, 1, 0
-PC_CONST int PC_BIND_TAPS = 22;         // uvec2[]: this update's blend taps (see below)
+PC_CONST int PC_BIND_TAPS = 22;         // uint[]: this update's blend taps (see below)
 PC_CONST int PC_BIND_HITS = 23;         // GpuHit[] per ray, launch order
 PC_CONST int PC_BIND_SHADOW_MASK = 24;  // uint[]: visible shadow slots, [word * (rays of the update) + launch index]
 PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: [slot * rays of the update + i], each
@@ -90,9 +90,14 @@ PC_FN int pcBlendScratch(int groupProbes, int rayCount) { return groupProbes * (
 // CPU's BlendTaps: which rays feed which texel, with what lobe weight. Irradiance and occlusion
 // tiles have the same size and the same cosine lobe, so their taps are one list (the CPU builds
 // it twice). Texels are numbered irradiance/occlusion (n_i^2), then depth (n_d^2), each channel
-// row-major. Entry t < PC_TAP_TEXELS is texel t's (tap count, first tap); tap j of a texel of
-// a channel with N texels is at first + j * N (texels' taps interleave, so a warp's loads are
-// contiguous), as (ray index, weight's float bits).
+// row-major. Words 2t and 2t + 1 (t < PC_TAP_TEXELS) are texel t's tap count and first tap
+// word. A tap is one word: the ray index in the low 16 bits, the weight's float16 bits in the
+// high 16 (the CPU rounds its weights to float16, so both sum the same weights). A texel's
+// taps come in blocks of four consecutive words, and a channel with N texels interleaves its
+// texels' blocks: tap j of texel t is word first + (j / 4) * 4N + j % 4, with first = base +
+// 4t (a block's unused words are zero). So each thread loads four taps at once, and a warp's
+// loads are contiguous. Every workgroup reads the whole table: at two words a tap, one at a
+// time, those reads were a third of the blend's time on an H200.
 PC_CONST int PC_TAP_TEXELS = PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS + PC_DEPTH_TEXELS * PC_DEPTH_TEXELS;
 
 // Probe-ray launches are one-dimensional: a warp's 32 invocations trace the same ray direction
