@@ -550,7 +550,8 @@ Status VulkanTracer::Impl::createPipelines() {
   shadeVariant = variantOf("PC_SHADE_VARIANT");
   overlapVariant = variantOf("PC_OVERLAP_VARIANT");
   shadowSlotTimes = std::getenv("PC_SHADOW_SLOT_TIMES") != nullptr;
-  auto shade = computePipeline("probe_shade.comp.spv", {shadeVariant});  // constant_id 0: kVariant
+  // constant_id 0: kVariant, 1: kRoulette
+  auto shade = computePipeline("probe_shade.comp.spv", {shadeVariant, options.shadowRouletteShare > 0.0f ? 1 : 0});
   if (!shade) return shade.error();
   shadePipeline = std::move(shade).value();
   auto ch = computePipeline("brick_changes.comp.spv", {});
