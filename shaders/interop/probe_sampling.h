@@ -44,6 +44,9 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
     ivec3 logical = min(base + offset, c.counts - ivec3(1));
     int slot = pcProbeSlot(c, pcPhysicalCoord(c, logical));
     vec4 probe = pcFetchProbe(PC_FIELD_ARG cascade, slot);
+    // Fetched before the probe's state is known: it depends on the slot alone, so on a GPU its
+    // loads go out with the probe record's instead of a round trip after it.
+    vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, N);
     int state = int(probe.w);
     if (state == PC_PROBE_INSIDE || state == PC_PROBE_UNINITIALIZED) continue;
     vec3 probeP = pcProbeGridPosition(c, logical) + vec3(probe.x, probe.y, probe.z);
@@ -70,7 +73,6 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
     }
     weight *= trilinear;
 
-    vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, N);
     // Interpolate in a perceptual space (square root of irradiance) like RTXGI: the atlas
     // holds irradiance^(1/gamma), so raise to gamma/2 here and square the weighted mean.
     // e^(gamma/2) with gamma = 5 as two multiplies and a square root (pow is slow on CPUs).
