@@ -38,7 +38,7 @@ layout(local_size_x = PC_BLEND_THREADS) in;
 //  12 at most two probes per workgroup (the host dispatches accordingly)
 //  13 the rays only (step 0, then nothing)   14 steps 0 and 1 only
 //  15 every lane of a subgroup reads its first lane's tap ray (no shared-memory bank conflicts)
-//  16 tap entries made up from the loop counter instead of loaded (no tap-list reads but the headers)
+//  16 tap blocks made up from their index instead of loaded (no tap-list reads but the headers)
 layout(constant_id = 0) const int kVariant = 0;
 // Rays the shared scratch holds: pcBlendScratch for this pipeline's ray count (the host
 // always specializes it; the default, a literal as specialization constants need, is the

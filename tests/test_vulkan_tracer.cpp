@@ -395,7 +395,9 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
   Scene scene = manyLightsScene();
   ASSERT_GT(scene.lights.size(), 32u);
   std::string why;
-  Backends b = makeBackends(scene, 32, &why);
+  TracerOptions everyRay;  // every light's shadow ray, so that both mask words fill
+  everyRay.shadowRouletteShare = 0.0f;
+  Backends b = makeBackends(scene, 32, &why, everyRay);
   if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
   auto& [gpu, cpu, fg, fc, request] = b;
   std::uint64_t shadowRays = 0;
@@ -429,7 +431,9 @@ TEST(VulkanTracer, ShadowRouletteMatchesEmbreeAndKeepsTheMeanLight) {
   Backends b = makeBackends(scene, 32, &why, roulette);
   if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
   auto& [gpu, cpu, fg, fc, request] = b;
-  auto plain = makeEmbreeTracer(scene);
+  TracerOptions everyRay;
+  everyRay.shadowRouletteShare = 0.0f;
+  auto plain = makeEmbreeTracer(scene, everyRay);
   ASSERT_TRUE(plain) << plain.error().message;
   Field fp = Field::create(scene.volumes, fc.settings);
   std::uint64_t gpuRays = 0, cpuRays = 0, plainRays = 0;

@@ -61,7 +61,8 @@ int main(int argc, char** argv) {
          "--shadow-roulette", tracerOptions.shadowRouletteShare,
          "share of a hit's punctual light below which a light's shadow ray is drawn at random, "
          "weighted to keep the expected light (0: every shadow ray; fewer rays with many lights)")
-      ->check(CLI::Range(0.0f, 1.0f));
+      ->check(CLI::Range(0.0f, 1.0f))
+      ->capture_default_str();
   app.add_option("--rate", loop.rate, "field updates per second");
   app.add_option("--rays", rays, "rays per probe per update (without --probes)");
   app.add_option("--warmup", warmup, "warm-up updates without --probes");

@@ -44,7 +44,7 @@ Benchmark addGpuTrace(CLI::App& app) {
   static int updates = 8, rays = 256;
   static std::vector<int> counts;
   static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false;
-  static float roulette = 0.0f;
+  static float roulette = pc::TracerOptions{}.shadowRouletteShare;
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
@@ -52,7 +52,8 @@ Benchmark addGpuTrace(CLI::App& app) {
   cmd->add_option("--rays", rays, "rays per probe");
   cmd->add_option("--shadow-roulette", roulette,
                   "share of a hit's punctual light below which shadow rays are drawn at random (0: "
-                  "all traced)");
+                  "all traced)")
+      ->capture_default_str();
   cmd->add_option("--counts", counts, "probes per axis of a single cascade over the scene (x y z)")->expected(3);
   cmd->add_option("--device", device, "substring of the Vulkan device name");
   cmd->add_flag("--gpu-only", gpuOnly, "refuse CPU Vulkan implementations (lavapipe)");

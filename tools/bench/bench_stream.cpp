@@ -70,7 +70,7 @@ struct StreamSetup {
   int aa = 2;
   bool breakdown = false;
   std::string cacheDir = "build/stream-cache";
-  float shadowRoulette = 0.0f;  // TracerOptions::shadowRouletteShare
+  float shadowRoulette = pc::TracerOptions{}.shadowRouletteShare;
   std::string outDir;
 };
 
@@ -176,7 +176,8 @@ Benchmark addStream(CLI::App& app) {
   cmd->add_option("--rays", s.rays, "rays per probe per update");
   cmd->add_option("--shadow-roulette", s.shadowRoulette,
                   "share of a hit's punctual light below which shadow rays are drawn at random (0: "
-                  "all traced)");
+                  "all traced)")
+      ->capture_default_str();
   cmd->add_option("--budget", s.budget, "probes traced per update (0: every probe)");
   cmd->add_option("--bake-updates", s.bakeUpdates, "updates of the starting field's bake");
   cmd->add_option("--threshold", s.thresholds,

@@ -15,11 +15,12 @@ Benchmark addTrace(CLI::App& app) {
   static std::string scenePath = "builtin", sidecar;
   static int updates = 6, warmup = 4, rays = 256;
   static std::vector<int> counts;
-  static float roulette = 0.0f;
+  static float roulette = pc::TracerOptions{}.shadowRouletteShare;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
   cmd->add_option("--shadow-roulette", roulette,
                   "share of a hit's punctual light below which shadow rays are drawn at random (0: "
-                  "all traced)");
+                  "all traced)")
+      ->capture_default_str();
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
   cmd->add_option("--updates", updates, "measured updates");
   cmd->add_option("--warmup", warmup, "updates before measuring (states, indirect light)");
