@@ -150,7 +150,8 @@ struct VulkanTracer::Impl {
   vk::UniqueDescriptorPool descriptorPool;
   VkDescriptorSet set = VK_NULL_HANDLE;
   vk::UniquePipelineLayout pipelineLayout;
-  vk::UniquePipeline tracePipeline, shadowPipeline, shadePipeline, blendPipeline, changesPipeline, packPipeline;
+  vk::UniquePipeline tracePipeline, shadowPipeline, shadePipeline, resolvePipeline, blendPipeline,
+      changesPipeline, packPipeline;
   int blendScratch = 0;  // shared scratch entries the blend pipeline was made with
   BindingTable traceTable, shadowTable;
 
@@ -158,9 +159,13 @@ struct VulkanTracer::Impl {
   vk::Buffer params, rayDirs, requests, changes, counters, countersReadback;
   vk::Buffer countersInit;  // each slot's counters as an update starts: 0, 1, 1, 0
   // The wavefront's per-ray records (gpu_trace.h), for probeCapacity x rayCapacity rays and
-  // slotCapacity shadow slots each; the compacted shadow list holds at most one ray per slot.
+  // slotCapacity shadow slots each (a round's: pcShadowRounds); the compacted shadow list holds
+  // at most one ray per slot. Counters for counterSlotCapacity slots (every slot of an update).
   vk::Buffer hits, rays, shadowMask, shadowLight, shadowRays;
-  int slotCapacity = -1;
+  int slotCapacity = -1, counterSlotCapacity = -1;
+  int roundSlots = 1;                  // this update's shadow slots per round
+  std::size_t shadowMemoryBudget = 0;  // VulkanTracerOptions::shadowMemoryBudget
+  int loggedRounds = 1;                // the rounds last reported in the log
   vk::Buffer tapsUpload, taps;  // blend taps: host-written, copied to device memory per update
   std::size_t tapBytes = 0;     // of this update's taps
   std::size_t probeCapacity = 0, rayCapacity = 0;
@@ -217,8 +222,9 @@ struct VulkanTracer::Impl {
   void recordFieldSync(const Field& field, std::vector<vk::Buffer>& staging);
   std::uint64_t maxLaunchWidth() const;
   void recordTrace(int probeCount, int rayCount);
-  void recordShade(int probeCount, int rayCount);
-  void recordShadowTrace(int slots, std::uint64_t rayCount);
+  void recordShade(int probeCount, int rayCount, int slotBase);
+  void recordShadowTrace(int slots, std::uint64_t rayCount, int slotBase);
+  void recordResolve(int probeCount, int rayCount);
   void dispatchRows(std::uint64_t groups);
 };
 
@@ -261,6 +267,15 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   timer = std::move(t).value();
   if (Status s = uploadScene(); !s) return s;
   if (Status s = createPipelines(); !s) return s;
+  shadowMemoryBudget = vulkan.shadowMemoryBudget;
+  if (shadowMemoryBudget == 0) {
+    const VkPhysicalDeviceMemoryProperties& mp = ctx->memoryProperties();
+    VkDeviceSize largest = 0;
+    for (std::uint32_t h = 0; h < mp.memoryHeapCount; ++h)
+      if (mp.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
+        largest = std::max(largest, mp.memoryHeaps[h].size);
+    shadowMemoryBudget = std::size_t(std::min<VkDeviceSize>(largest / 4, VkDeviceSize(8) << 30));
+  }
   ensureRequestCapacity(1, 1, 0);
   return Status::success();
 }
@@ -557,6 +572,9 @@ Status VulkanTracer::Impl::createPipelines() {
   auto ch = computePipeline("brick_changes.comp.spv", {});
   if (!ch) return ch.error();
   changesPipeline = std::move(ch).value();
+  auto rs = computePipeline("probe_resolve.comp.spv", {});
+  if (!rs) return rs.error();
+  resolvePipeline = std::move(rs).value();
   auto pk = computePipeline("brick_pack.comp.spv", {});
   if (!pk) return pk.error();
   packPipeline = std::move(pk).value();
@@ -616,12 +634,21 @@ int VulkanTracer::Impl::shadowSlots() const {
 void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount, int slots) {
   probes = std::max<std::size_t>(probes, 1);
   const std::size_t rayTotal = probes * std::size_t(std::max(rayCount, 1));
+  // A round holds as many slots as the memory budget allows for the buffers' rays (at least
+  // one, at most every slot).
+  const std::size_t records =
+      std::max(probes, probeCapacity) * std::max<std::size_t>(std::size_t(rayCount), rayCapacity);
+  const std::size_t slotBytes = records * (sizeof(GpuShadowRay) + sizeof(GpuShadowLight));
+  roundSlots = std::max(
+      1, std::min(slots, int(std::min<std::size_t>(shadowMemoryBudget / slotBytes, 1u << 20))));
   if (probes <= probeCapacity && rayTotal <= probeCapacity * std::size_t(rayCapacity) &&
-      std::size_t(rayCount) <= std::size_t(rayCapacity) && slots <= slotCapacity)
+      std::size_t(rayCount) <= std::size_t(rayCapacity) && roundSlots <= slotCapacity &&
+      slots <= counterSlotCapacity)
     return;
   probeCapacity = std::max(probes, probeCapacity);
   rayCapacity = std::max<std::size_t>(std::size_t(rayCount), rayCapacity);
-  slotCapacity = std::max(slots, slotCapacity);
+  slotCapacity = roundSlots;  // not more: the budget is for these rays
+  counterSlotCapacity = std::max(slots, counterSlotCapacity);
   using vk::MemoryUsage;
   const std::size_t rayRecords = probeCapacity * rayCapacity;
   params = orDie(vk::Buffer::create(*ctx, sizeof(UpdateParams), kHostInput, MemoryUsage::Upload), "params");
@@ -638,7 +665,7 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
                      "shadow rays");
   changes = orDie(vk::Buffer::create(*ctx, probeCapacity * 4, kStorage, MemoryUsage::DeviceLocal), "changes");
   const std::size_t counterBytes =
-      std::size_t(PC_COUNTER_WORDS) * 4 * std::size_t(std::max(slotCapacity, 1));
+      std::size_t(PC_COUNTER_WORDS) * 4 * std::size_t(std::max(counterSlotCapacity, 1));
   counters = orDie(
       vk::Buffer::create(*ctx, counterBytes,
                          kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
@@ -853,6 +880,8 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
   p.brickTotal = brickTotal;
   p.shadowSlots = shadowSlots();
   p.shadowRouletteShare = options.shadowRouletteShare;
+  p.roundSlots = roundSlots;
+  p.lightsResolved = pcShadowRounds(p.shadowSlots, roundSlots) > 1 ? 1 : 0;
   p.cascadeBrickOffset = glm::ivec4(brickOffset[0], brickOffset[1], brickOffset[2], brickOffset[3]);
   params.write(&p, sizeof p);
 
@@ -934,7 +963,7 @@ void VulkanTracer::Impl::recordTrace(int probeCount, int rayCount) {
   const int maxProbes = std::max(PC_TRACE_TILE_PROBES, int(std::min<std::uint64_t>(maxLaunchWidth() / rays, 1u << 30)) /
                                                            PC_TRACE_TILE_PROBES * PC_TRACE_TILE_PROBES);
   for (int base = 0; base < probeCount; base += maxProbes) {
-    const TracePush push{base, std::min(probeCount - base, maxProbes)};
+    const TracePush push{base, std::min(probeCount - base, maxProbes), 0, 0};
     vkCmdPushConstants(cmd, pipelineLayout.get(), VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof push, &push);
     ctx->rt().cmdTraceRays(cmd, &traceTable.raygen, &traceTable.miss, &traceTable.hit, &traceTable.callable,
@@ -949,9 +978,21 @@ void VulkanTracer::Impl::dispatchRows(std::uint64_t groups) {
   vkCmdDispatch(cmd, std::uint32_t(std::min<std::uint64_t>(groups, PC_DISPATCH_ROWS)), std::uint32_t(rows), 1);
 }
 
-void VulkanTracer::Impl::recordShade(int probeCount, int rayCount) {
+void VulkanTracer::Impl::recordShade(int probeCount, int rayCount, int slotBase) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
+  const TracePush push{0, 0, slotBase, 0};
+  vkCmdPushConstants(cmd, pipelineLayout.get(),
+                     VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push,
+                     &push);
+  const std::uint64_t rays = std::uint64_t(probeCount) * std::uint64_t(rayCount);
+  dispatchRows((rays + PC_SHADE_THREADS - 1) / PC_SHADE_THREADS);
+}
+
+void VulkanTracer::Impl::recordResolve(int probeCount, int rayCount) {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, resolvePipeline.get());
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set, 0,
+                          nullptr);
   const std::uint64_t rays = std::uint64_t(probeCount) * std::uint64_t(rayCount);
   dispatchRows((rays + PC_SHADE_THREADS - 1) / PC_SHADE_THREADS);
 }
@@ -962,28 +1003,30 @@ void VulkanTracer::Impl::recordShade(int probeCount, int rayCount) {
 // launch index is a real ray. Elsewhere the launches cover the most a list can hold and the
 // ray-generation shader returns past its end, at a cost per invocation. The launches do not
 // depend on each other, so nothing separates them.
-void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount) {
+void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, int slotBase) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
   const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
   for (int slot = 0; slot < slots; ++slot) {
     const std::uint64_t listStart = std::uint64_t(slot) * rayCount;
-    if (shadowSlotTimes) {
+    if (shadowSlotTimes &&
+        roundSlots >= shadowSlots()) {  // single rounds only: spans nest otherwise
       timer.end(cmd);  // the previous slot's pair
-      timer.begin(cmd, "shadow slot " + std::to_string(slot));
+      timer.begin(cmd, "shadow slot " + std::to_string(slotBase + slot));
     }
     if (ctx->rt().cmdTraceRaysIndirect && rayCount <= maxWidth && !boundedShadowLaunch) {
-      const TracePush push{int(listStart), int(rayCount)};
+      const TracePush push{int(listStart), int(rayCount), slotBase, 0};
       vkCmdPushConstants(cmd, pipelineLayout.get(),
                          VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof push, &push);
       ctx->rt().cmdTraceRaysIndirect(
           cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit, &shadowTable.callable,
-          counters.address() + VkDeviceAddress(slot) * PC_COUNTER_WORDS * 4);
+          counters.address() + VkDeviceAddress(slotBase + slot) * PC_COUNTER_WORDS * 4);
       continue;
     }
     for (std::uint64_t first = 0; first < rayCount; first += maxWidth) {
-      const TracePush push{int(listStart + first), int(std::min(rayCount - first, maxWidth))};
+      const TracePush push{int(listStart + first), int(std::min(rayCount - first, maxWidth)),
+                           slotBase, 0};
       vkCmdPushConstants(cmd, pipelineLayout.get(),
                          VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof push, &push);
@@ -1140,8 +1183,20 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
                     kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
 
   // The wavefront (gpu_trace.h): trace, shade, shadow rays, then the blend adds the visible
-  // light and blends.
+  // light and blends; with more shadow slots than a round holds, shade and shadow rays once
+  // per round, each round's light added to the rays by the resolve pass.
   const int slots = m.shadowSlots();
+  const int rounds = pcShadowRounds(slots, m.roundSlots);
+  if (rounds != m.loggedRounds) {
+    if (rounds > 1)
+      logInfo("vulkan tracer: " + std::to_string(slots) +
+              " shadow slots (lights and emissive samples) in " + std::to_string(rounds) +
+              " rounds of " + std::to_string(m.roundSlots) + ": their records for " +
+              std::to_string(std::uint64_t(n) * std::uint64_t(rayCount)) +
+              " probe rays exceed the " + std::to_string(m.shadowMemoryBudget >> 20) +
+              " MiB shadow memory budget");
+    m.loggedRounds = std::max(rounds, 1);
+  }
   const int groupProbes = m.blendGroupProbes(rayCount);
   auto recordBlend = [&] {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
@@ -1149,7 +1204,7 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
                             &m.set, 0, nullptr);
     m.dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
   };
-  if (m.overlapVariant != 0) {
+  if (m.overlapVariant != 0 && rounds <= 1) {
     // Timing experiment (PC_OVERLAP_VARIANT): one span over the passes, some barriers left
     // out so that passes may run at once; fields are wrong. 8 every barrier, 1 trace with
     // shade, 4 shadow trace with blend, 5 both, 16 trace with blend, 17 trace, shade and blend.
@@ -1164,9 +1219,9 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
     m.recordTrace(n, rayCount);
     if (v & 16) recordBlend();
     if (!(v & 1)) rtToCs();
-    m.recordShade(n, rayCount);
+    m.recordShade(n, rayCount, 0);
     csToAll();
-    if (slots > 0) m.recordShadowTrace(slots, std::uint64_t(n) * std::uint64_t(rayCount));
+    if (slots > 0) m.recordShadowTrace(slots, std::uint64_t(n) * std::uint64_t(rayCount), 0);
     if (!(v & 4)) rtToCs();
     if (!(v & 16)) recordBlend();
     m.timer.end(cmd);
@@ -1177,21 +1232,35 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
     m.timer.end(cmd);
     vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
 
-    m.timer.begin(cmd, "shade");
-    m.recordShade(n, rayCount);
-    m.timer.end(cmd);
-    // The shadow launch may read its size from the counters the shade pass appended to: an
-    // indirect-command read, which a plain shader-read barrier does not cover.
-    vk::memoryBarrier(cmd, kComputeStage, kShaderRW,
-                      kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                      kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+    // Several rounds are timed as one span (the timer holds a bounded number of passes).
+    const bool roundTimes = rounds <= 1;
+    if (!roundTimes) m.timer.begin(cmd, "shadow rounds");
+    for (int round = 0; round < std::max(rounds, 1); ++round) {
+      const int slotBase = round * m.roundSlots;
+      if (roundTimes) m.timer.begin(cmd, "shade");
+      m.recordShade(n, rayCount, slotBase);
+      if (roundTimes) m.timer.end(cmd);
+      // The shadow launch may read its size from the counters the shade pass appended to: an
+      // indirect-command read, which a plain shader-read barrier does not cover.
+      vk::memoryBarrier(cmd, kComputeStage, kShaderRW,
+                        kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                        kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
 
-    if (slots > 0) {
-      m.timer.begin(cmd, "shadow trace");
-      m.recordShadowTrace(slots, std::uint64_t(n) * std::uint64_t(rayCount));
-      m.timer.end(cmd);
-      vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+      if (slots > 0) {
+        if (roundTimes) m.timer.begin(cmd, "shadow trace");
+        m.recordShadowTrace(std::min(m.roundSlots, slots - slotBase),
+                            std::uint64_t(n) * std::uint64_t(rayCount), slotBase);
+        if (roundTimes) m.timer.end(cmd);
+        vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+      }
+      if (rounds > 1) {
+        // The round's light into the rays, before the next round's shade pass reuses the
+        // slots' records (and the blend reads the rays).
+        m.recordResolve(n, rayCount);
+        vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
+      }
     }
+    if (!roundTimes) m.timer.end(cmd);
 
     m.timer.begin(cmd, "blend");
     recordBlend();
@@ -1282,7 +1351,7 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   for (const auto& [name, ms] : stats.gpuPasses) {
     stats.gpuMs += ms;
     if (name == "trace") stats.traceMs = ms;
-    if (name == "shade" || name == "shadow trace") stats.shadeMs += ms;
+    if (name == "shade" || name == "shadow trace" || name == "shadow rounds") stats.shadeMs += ms;
     if (name == "blend" || name == "changes") stats.blendMs += ms;
   }
   stats.gpuPasses.emplace_back("host unpack (CPU)", hostMs);

@@ -28,6 +28,12 @@ struct VulkanTracerOptions {
   // exactly the list from a buffer (vkCmdTraceRaysIndirectKHR): the fallback path, for tests
   // and for measuring what the exact launch saves.
   bool boundedShadowLaunch = false;
+  // The most bytes the shadow slots' per-ray records may take (each slot holds a shadow ray and
+  // its light for every probe ray of an update: 48 bytes a ray). An update with more lights
+  // and emissive samples than fit runs its shading and shadow rays in rounds of as many slots
+  // as fit, with the same field (gpu_trace.h: pcShadowRounds). 0: a quarter of the device's
+  // largest device-local memory heap, at most 8 GiB.
+  std::size_t shadowMemoryBudget = 0;
 };
 
 class VulkanTracer final : public Tracer {

@@ -9,7 +9,7 @@
 //
 // A workgroup takes pcBlendProbes consecutive requests (interop/gpu_trace.h). Their rays are
 // read once, into shared memory, with the light of their visible shadow slots added (the
-// last step of the shade wavefront). The lobe weights come from the update's tap lists
+// last step of the shade wavefront; with shadow rounds, the resolve passes added it before). The lobe weights come from the update's tap lists
 // (PC_BIND_TAPS), the CPU's own, so each texel sums the same rays with the same weights in
 // the same order as the CPU; each tap loaded serves every probe of the group.
 //
@@ -54,6 +54,8 @@ layout(std430, set = 0, binding = PC_BIND_SHADOW_LIGHT) readonly buffer ShadowLi
 layout(std430, set = 0, binding = PC_BIND_CHANGES) writeonly buffer Changes { float changes[]; };
 layout(std430, set = 0, binding = PC_BIND_TAPS) readonly buffer Taps { uvec4 taps[]; };  // blocks of four words
 
+#include "visible_light.glsl"
+
 const uint kInfinityBits = 0x7f800000u;
 const int K = PC_BLEND_MAX_PROBES;
 
@@ -93,23 +95,6 @@ float tapWeight(uint word) { return unpackHalf2x16(word).y; }
 
 bool closer(float d, int i, float bestD, int bestI) { return d < bestD || (d == bestD && i < bestI); }
 
-// Radiance toward the probe of the ray at launch index i: what the shade pass left, with the
-// light of its visible shadow slots added in slot order (lights, then emissive samples, as the
-// CPU sums them). Only the set bits' records are read. `mask0` is the ray's first mask word,
-// loaded by the caller with the ray.
-vec3 radianceOf(uint i, vec3 base, uint mask0) {
-  uint stride = uint(params.probeCount) * uint(params.rayCount);
-  vec3 radiance = base;
-  int words = pcShadowMaskWords(params.shadowSlots);
-  for (int w = 0; w < words; ++w) {
-    for (uint m = w == 0 ? mask0 : shadowMask[uint(w) * stride + i]; m != 0u; m &= m - 1u) {
-      uint slot = uint(w) * 32u + uint(findLSB(m));
-      radiance += shadowLight[slot * stride + i].radiance;
-    }
-  }
-  return radiance;
-}
-
 void main() {
   const int ni = PC_IRRADIANCE_TEXELS, nd = PC_DEPTH_TEXELS, no = PC_OCCLUSION_TEXELS;
   int tid = int(gl_LocalInvocationIndex);
@@ -135,6 +120,8 @@ void main() {
   // one ray of all of them are contiguous. kLoads items per thread at a time, their loads
   // issued together (then the dependent shadow-light loads), rather than one round trip per item ----
   const int kLoads = 4;
+  // No shadow slots, or the rounds' resolve passes added their light already.
+  const bool lightsInRays = params.shadowSlots == 0 || params.lightsResolved != 0;
   int items = probesHere * rayCount;
   for (int first = tid; first < items; first += kLoads * PC_BLEND_THREADS) {
     vec4 r[kLoads];
@@ -145,14 +132,14 @@ void main() {
       int k = item % probesHere, ray = item / probesHere;
       at[u] = pcProbeRayLaunchIndex(firstRequest + k, ray, params.probeCount, rayCount);
       r[u] = kVariant == 6 ? vec4(0.5f, 0.5f, 0.5f, float(ray % 7) - 1.0f) : rays[at[u]];  // timing experiment
-      mask0[u] = kVariant == 5 || kVariant == 6 || params.shadowSlots == 0 ? 0u : shadowMask[at[u]];
+      mask0[u] = kVariant == 5 || kVariant == 6 || lightsInRays ? 0u : shadowMask[at[u]];
     }
     [[unroll]] for (int u = 0; u < kLoads; ++u) {
       int item = first + u * PC_BLEND_THREADS;
       if (item >= items) break;
       int k = item % probesHere, ray = item / probesHere;
       float d = r[u].w;
-      sRay[k * rowStride + ray] = vec4(kVariant == 5 || kVariant == 6 ? r[u].xyz : radianceOf(at[u], r[u].xyz, mask0[u]), d);
+      sRay[k * rowStride + ray] = vec4(kVariant == 5 || kVariant == 6 || lightsInRays ? r[u].xyz : pcAddVisibleLight(at[u], r[u].xyz, mask0[u]), d);
       sDepth[k * rowStride + ray] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
     }
   }

@@ -42,6 +42,9 @@ layout(std430, set = 0, binding = PC_BIND_MATERIALS) readonly buffer Materials {
 layout(std430, set = 0, binding = PC_BIND_LIGHTS) readonly buffer Lights { GpuLight lights[]; };
 layout(std430, set = 0, binding = PC_BIND_EMISSIVE) readonly buffer Emissive { GpuEmissiveTriangle emissive[]; };
 layout(std430, set = 0, binding = PC_BIND_COUNTERS) buffer Counters { uint counters[]; };
+// push.slotBase: the first shadow slot of this round (pcShadowRounds). Every round requests
+// its own slots' shadow rays; only the first writes the rays' records.
+layout(push_constant) uniform Push { TracePush push; };
 layout(set = 0, binding = PC_BIND_TEXTURES) uniform sampler2D textures[];
 
 // Shadow rays stop a hair short of the light, like the CPU's (cpu/lighting.cpp); the near end
@@ -63,11 +66,16 @@ vec3 albedoOverPi;
 // The shadow ray of the slot last requested, until appendRequest lists it (tmax 0: none).
 GpuShadowRay pending;
 
+// Whether slot `slot` is in this round; its place in the round indexes its list and lights.
+bool inRound(int slot) { return slot >= push.slotBase && slot < push.slotBase + params.roundSlots; }
+
 // Slot `slot`'s request: a shadow ray that adds albedo / pi x `irradiance` to the ray's
 // radiance when nothing blocks it. tmax 0 leaves the slot empty (nothing is written: its mask
-// bit stays clear). appendRequest then lists the ray.
+// bit stays clear). appendRequest then lists the ray. Slots of other rounds are left alone
+// (their requests are computed all the same, so that the random streams stay in step).
 void request(int slot, vec3 origin, vec3 dir, float tmax, vec3 irradiance) {
-  uint light = uint(slot) * slotStride + launchIndex;
+  if (!inRound(slot)) return;
+  uint light = uint(slot - push.slotBase) * slotStride + launchIndex;
   if (tmax > 0.0f) shadowLight[light] = GpuShadowLight(albedoOverPi * irradiance, 0.0f);
   pending = GpuShadowRay(origin, tmax, dir, light);
 }
@@ -77,13 +85,14 @@ void noRequest(int slot) { request(slot, vec3(0.0f), vec3(0.0f), 0.0f, vec3(0.0f
 // list: one atomic per subgroup, the rays in lane order (launch order). Called where the
 // invocations that made requests for the slot have reconverged.
 void appendRequest(int slot) {
+  if (!inRound(slot)) return;  // uniform: the slot is the same for the whole subgroup
   bool real = pending.tmax > 0.0f;
   uvec4 ballot = subgroupBallot(real);
   uint count = subgroupBallotBitCount(ballot);
   if (count == 0u) return;
   uint base = 0u;
   if (subgroupElect()) base = atomicAdd(counters[slot * PC_COUNTER_WORDS], count);
-  base = subgroupBroadcastFirst(base) + uint(slot) * slotStride;
+  base = subgroupBroadcastFirst(base) + uint(slot - push.slotBase) * slotStride;
   if (real) shadowRays[base + subgroupBallotExclusiveBitCount(ballot)] = pending;
   pending.tmax = 0.0f;
 }
@@ -231,10 +240,11 @@ vec3 textureRgb(int t, vec2 uv) {
   return textureLod(textures[nonuniformEXT(t)], uv, 0.0f).rgb;
 }
 
-// The ray's record and a clear visibility mask (the shadow pass sets the visible bits).
+// The ray's record (first round) and a clear visibility mask for the round's slots (the
+// shadow pass sets the visible bits).
 void finish(vec3 radiance, float distance) {
-  rays[launchIndex] = vec4(radiance, distance);
-  int words = pcShadowMaskWords(params.shadowSlots);
+  if (push.slotBase == 0) rays[launchIndex] = vec4(radiance, distance);
+  int words = pcShadowMaskWords(params.roundSlots);
   for (int w = 0; w < words; ++w) shadowMask[uint(w) * slotStride + launchIndex] = 0u;
 }
 
@@ -285,7 +295,7 @@ void shadeHit(GpuHit hit, vec3 dir) {
   albedoOverPi = albedo * (1.0f / PC_PI);
   if (kVariant != 2 && kVariant != 4) directRequests(P, N);  // else a timing experiment
   vec3 indirect = vec3(0.0f);
-  if ((params.shading & 1) == 0 && kVariant != 1 && kVariant != 4) {
+  if ((params.shading & 1) == 0 && kVariant != 1 && kVariant != 4 && push.slotBase == 0) {
     float coverage = 0.0f;
     indirect = pcSampleField(field, P, N, -dir, PC_SAMPLE_NO_OCCLUSION, coverage).xyz;
   }

@@ -6,6 +6,7 @@
 // irradiance and depth over probes active in both.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <glm/gtc/matrix_transform.hpp>
@@ -26,13 +27,15 @@
 namespace pc {
 namespace {
 
-std::unique_ptr<VulkanTracer> makeGpu(const Scene& scene, std::string* why,
-                                      bool boundedShadowLaunch = false,
-                                      const TracerOptions& options = {}) {
+std::unique_ptr<VulkanTracer> makeGpu(
+    const Scene& scene, std::string* why, bool boundedShadowLaunch = false,
+    const TracerOptions& options = {},
+    std::size_t shadowMemoryBudget = VulkanTracerOptions{}.shadowMemoryBudget) {
   VulkanTracerOptions vo;
   vo.validation = true;
   vo.allowCpuDevice = true;
   vo.boundedShadowLaunch = boundedShadowLaunch;
+  vo.shadowMemoryBudget = shadowMemoryBudget;
   auto t = VulkanTracer::create(scene, options, vo);
   if (!t) {
     *why = t.error().message;
@@ -109,6 +112,14 @@ void expectSameBrickVersions(const Field& gpu, const Field& cpu) {
   EXPECT_EQ(gpu.version, cpu.version);
   ASSERT_EQ(gpu.brickVersions.size(), cpu.brickVersions.size());
   for (std::size_t k = 0; k < cpu.brickVersions.size(); ++k) EXPECT_EQ(gpu.brickVersions[k], cpu.brickVersions[k]);
+}
+
+// Two GPU fields that two ways of running the same updates must leave bit for bit the same.
+void expectIdenticalFields(const Field& a, const Field& b) {
+  EXPECT_TRUE(a.irradiance.texels == b.irradiance.texels);
+  EXPECT_TRUE(a.depth.texels == b.depth.texels);
+  EXPECT_TRUE(a.occlusion.texels == b.occlusion.texels);
+  expectSameBrickVersions(a, b);
 }
 
 TEST(VulkanTracer, BuiltinSceneMatchesEmbree) {
@@ -249,10 +260,7 @@ TEST(VulkanTracer, ExactShadowLaunchMatchesTheBoundedOne) {
   const BakeStats sb = bakeField(fb, *bounded, bake);
   EXPECT_GT(se.shadowRays, 0u);
   EXPECT_EQ(se.shadowRays, sb.shadowRays);
-  EXPECT_TRUE(fe.irradiance.texels == fb.irradiance.texels);
-  EXPECT_TRUE(fe.depth.texels == fb.depth.texels);
-  EXPECT_TRUE(fe.occlusion.texels == fb.occlusion.texels);
-  expectSameBrickVersions(fe, fb);
+  expectIdenticalFields(fe, fb);
   EXPECT_EQ(exact->validationErrorCount(), 0u);
   EXPECT_EQ(bounded->validationErrorCount(), 0u);
 }
@@ -417,6 +425,49 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
   EXPECT_LE(d.irradiance, 0.01);
   EXPECT_LE(d.depth, 0.01);
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
+}
+
+// Shadow rounds (gpu_trace.h, pcShadowRounds): with a shadow memory budget that holds 7 of the
+// 40 lights' records, the update shades and traces shadow rays in 6 rounds and must give the
+// very field of one round, with the same shadow rays.
+TEST(VulkanTracer, ShadowRoundsGiveTheFieldOfOneRound) {
+  const Scene scene = manyLightsScene();
+  TracerOptions everyRay;  // every light's shadow ray, so that every round has work
+  everyRay.shadowRouletteShare = 0.0f;
+  std::string why;
+  auto oneRound = makeGpu(scene, &why, false, everyRay);
+  if (!oneRound) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  FieldSettings settings;
+  settings.raysPerProbe = 32;
+  Field f1 = Field::create(scene.volumes, settings), fr = f1;
+  UpdateRequest request;
+  request.probes = allProbes(f1);
+  const std::size_t slotBytes =
+      request.probes.size() * 32 * (sizeof(gpu::GpuShadowRay) + sizeof(gpu::GpuShadowLight));
+  auto rounds = makeGpu(scene, &why, false, everyRay, 7 * slotBytes);
+  ASSERT_TRUE(rounds) << why;
+  std::uint64_t rays1 = 0, raysR = 0;
+  for (int i = 0; i < 2; ++i) {
+    request.rotationSeed = 910u + std::uint32_t(i);
+    rays1 += oneRound->update(f1, request).shadowRays;
+    const UpdateStats s = rounds->update(fr, request);
+    raysR += s.shadowRays;
+    // Where the device has timestamps, the rounds are one timed span.
+    auto has = [&](const char* pass) {
+      return std::any_of(s.gpuPasses.begin(), s.gpuPasses.end(),
+                         [&](const auto& p) { return p.first == pass; });
+    };
+    if (has("blend")) {
+      EXPECT_TRUE(has("shadow rounds"));
+    }
+  }
+  std::printf("40 lights in rounds of 7: %llu shadow rays, one round %llu\n",
+              static_cast<unsigned long long>(raysR), static_cast<unsigned long long>(rays1));
+  EXPECT_GT(rays1, 0u);
+  EXPECT_EQ(raysR, rays1);
+  expectIdenticalFields(fr, f1);
+  EXPECT_EQ(oneRound->validationErrorCount(), 0u);
+  EXPECT_EQ(rounds->validationErrorCount(), 0u);
 }
 
 // Shadow-ray roulette (interop/shadow_roulette.h): the GPU draws the same lights as Embree for

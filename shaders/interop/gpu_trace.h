@@ -55,7 +55,9 @@ PC_CONST int PC_BIND_HITS = 23;         // GpuHit[] per ray, launch order
 PC_CONST int PC_BIND_SHADOW_MASK = 24;  // uint[]: visible shadow slots, [word * (rays of the update) + launch index]
 PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: [slot * rays of the update + i], each
                                         // slot's compacted list of real shadow rays
-PC_CONST int PC_BIND_SHADOW_LIGHT = 26; // GpuShadowLight[]: [slot * rays of the update + launch index]
+PC_CONST int PC_BIND_SHADOW_LIGHT = 26;  // GpuShadowLight[]: [slot * rays of the update + launch
+                                         // index] (masks, lists and lights: the slot's place in its
+                                         // round, pcShadowRounds)
 PC_CONST int PC_BIND_TEXTURES = 27;     // sampler2D[]: base colour and emissive textures; the
                                         // variable-count binding, so it must stay the last
 PC_CONST int PC_BINDING_COUNT = 28;
@@ -132,6 +134,20 @@ PC_FN int pcShadowSlots(int lightCount, int emissiveCount, int emissiveSamples) 
 }
 // Words of a ray's visibility mask (PC_BIND_SHADOW_MASK): bit s % 32 of word s / 32 is slot s.
 PC_FN int pcShadowMaskWords(int slots) { return (slots + 31) / 32; }
+
+// Shadow rounds. A slot's shadow list and lights take a record per probe ray of the update, so
+// the memory of shadow slots grows with lights x probes x rays (48 bytes per ray and slot:
+// 200 MB a slot at 16,384 probes x 256 rays). The tracer holds at most `roundSlots` slots'
+// records (UpdateParams::roundSlots, from a memory budget) and, with more slots, runs shade
+// and shadow trace once per round of that many slots (TracePush::slotBase: the round's first
+// slot): the first round writes the rays' records, every round requests its own slots'
+// shadow rays, and a resolve pass (probe_resolve.comp) adds the visible light of the round's
+// slots to the rays in slot order, the order in which the blend adds them in a single round.
+// So the rounds give the very same field. Masks, lists and lights are indexed by the slot's
+// place in its round; counters by the slot itself.
+PC_FN int pcShadowRounds(int slots, int roundSlots) {
+  return slots <= 0 ? 0 : (slots + roundSlots - 1) / roundSlots;
+}
 
 // Misses report this distance instead of +infinity: shader compilers may assume finite
 // floats. Above every comparison the update makes.
@@ -236,10 +252,13 @@ struct GpuEmissiveTriangle {
 };
 
 // Push constants of the ray launches: the launch covers items [first, first + count), requests
-// for the probe-ray launch, shadow requests for the shadow launch.
+// for the probe-ray launch, shadow requests for the shadow launch. slotBase: the first shadow
+// slot of the round (the shade pass and the shadow launch; see pcShadowRounds).
 struct TracePush {
   int first;
   int count;
+  int slotBase;
+  int pad0;
 };
 
 // A probe ray's closest hit (probe_trace.rgen -> probe_shade.comp).
@@ -307,7 +326,9 @@ struct UpdateParams {
   ivec4 cascadeBrickOffset;  // first field-wide brick of each cascade
   // -- 96
   float shadowRouletteShare;  // TracerOptions::shadowRouletteShare (interop/shadow_roulette.h)
-  float pad1, pad2, pad3;
+  int roundSlots;             // shadow slots per round (pcShadowRounds)
+  int lightsResolved;         // 1: the rounds' resolve passes added the visible light to the rays
+  float pad3;
   // -- 112
 };
 
@@ -321,7 +342,7 @@ static_assert(sizeof(pc::gpu::GpuMaterial) == 64);
 static_assert(sizeof(pc::gpu::GpuLight) == 64);
 static_assert(sizeof(pc::gpu::GpuEmissiveTriangle) == 80);
 static_assert(sizeof(pc::gpu::GpuProbeRecord) == 32);
-static_assert(sizeof(pc::gpu::TracePush) == 8);
+static_assert(sizeof(pc::gpu::TracePush) == 16);
 static_assert(sizeof(pc::gpu::GpuHit) == 24);
 static_assert(sizeof(pc::gpu::GpuShadowRay) == 32);
 static_assert(sizeof(pc::gpu::GpuShadowLight) == 16);
