@@ -42,6 +42,7 @@ Benchmark addGpuTrace(CLI::App& app) {
   auto* cmd = app.add_subcommand("gpu-trace", "Vulkan ray tracing: speed per pass, raw ceiling, agreement with Embree, quality");
   static std::string scenePath = "builtin", sidecar, device;
   static int updates = 8, rays = 256;
+  static std::size_t shadowMemoryMiB = 0;
   static std::vector<int> counts;
   static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false;
   static float roulette = pc::TracerOptions{}.shadowRouletteShare;
@@ -61,6 +62,9 @@ Benchmark addGpuTrace(CLI::App& app) {
   cmd->add_flag("--no-quality", skipQuality, "skip the probe-lit renders and the reference");
   cmd->add_flag("--bounded-shadow-launch", boundedShadowLaunch,
                 "launch shadow rays over the most the list can hold, not from the list's length on the GPU");
+  cmd->add_option("--shadow-memory", shadowMemoryMiB,
+                  "MiB the shadow slots' records may take; more slots run in rounds (0: a quarter of the "
+                  "device-local heap, at most 8 GiB)");
   addRenderOptions(*cmd, setup);
   return {cmd, [] {
             auto scene = loadBenchScene(scenePath, sidecar);
@@ -75,6 +79,7 @@ Benchmark addGpuTrace(CLI::App& app) {
             vo.allowCpuDevice = !gpuOnly;
             vo.deviceNameFilter = device;
             vo.boundedShadowLaunch = boundedShadowLaunch;
+            vo.shadowMemoryBudget = shadowMemoryMiB << 20;
             TracerOptions options;
             options.shadowRouletteShare = roulette;
             auto gpu = VulkanTracer::create(*scene, options, vo);
@@ -145,7 +150,7 @@ Benchmark addGpuTrace(CLI::App& app) {
             // the acceleration-structure refit and the shadow rays). The whole update adds
             // packing the changed bricks for the host and the copies back.
             double traceShadeBlendMs = 0;
-            for (const char* pass : {"tlas", "trace", "shade", "shadow trace", "blend"})
+            for (const char* pass : {"tlas", "trace", "shade", "shadow trace", "shadow rounds", "blend"})
               if (passMs.count(pass)) traceShadeBlendMs += passMs[pass];
             const double raw = grays(probeRays, rawMs);
             const double probe = grays(probeRays, traceShadeBlendMs);
