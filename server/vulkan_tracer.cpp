@@ -1130,6 +1130,10 @@ void VulkanTracer::setState(const SceneState& state) {
     g.alphaChannel = std::clamp(s.alphaChannel, 0, 3);
     g.alphaCutoff = s.isCutOut() ? s.alphaCutoff : 0.0f;
     g.baseAlpha = s.baseAlpha;
+    if (g.alphaTexture >= 0) {
+      g.alphaWrapU = int(scene.textures[g.alphaTexture].wrapU);
+      g.alphaWrapV = int(scene.textures[g.alphaTexture].wrapV);
+    }
     mat[i] = g;
   }
   // Sized exactly so the parameter counts follow from the sizes; replaced only when they change.

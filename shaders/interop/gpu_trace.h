@@ -210,8 +210,8 @@ struct GpuMaterial {
   float alphaCutoff;
   // -- 48
   float baseAlpha;
-  int pad0;
-  int pad1;
+  int alphaWrapU;  // the alpha texture's wrap modes (TextureWrap: 0 repeat, 1 clamp to edge,
+  int alphaWrapV;  // 2 mirrored repeat), for the any-hit shader's own bilinear lookup
   int pad2;
   // -- 64
 };
