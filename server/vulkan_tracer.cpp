@@ -1007,10 +1007,12 @@ void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, in
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
   const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
+  // Per-slot timestamps (PC_SHADOW_SLOT_TIMES) in single rounds only: several rounds are one
+  // timed span, which they would cut.
+  const bool slotTimes = shadowSlotTimes && roundSlots >= shadowSlots();
   for (int slot = 0; slot < slots; ++slot) {
     const std::uint64_t listStart = std::uint64_t(slot) * rayCount;
-    if (shadowSlotTimes &&
-        roundSlots >= shadowSlots()) {  // single rounds only: spans nest otherwise
+    if (slotTimes) {
       timer.end(cmd);  // the previous slot's pair
       timer.begin(cmd, "shadow slot " + std::to_string(slotBase + slot));
     }
