@@ -703,7 +703,10 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
   const VkBufferUsageFlags rw = kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   auto bytes = [](const Atlas& a) { return a.texels.size() * sizeof(float); };
   fieldDesc = orDie(vk::Buffer::create(*ctx, sizeof(FieldDesc), kHostInput, MemoryUsage::Upload), "field desc");
-  irradiance = orDie(vk::Buffer::create(*ctx, bytes(field.irradiance), rw, MemoryUsage::DeviceLocal), "irradiance");
+  // The irradiance atlas holds a vec4 per texel on the GPU (field_buffers.glsl).
+  irradiance =
+      orDie(vk::Buffer::create(*ctx, bytes(field.irradiance) / 3 * 4, rw, MemoryUsage::DeviceLocal),
+            "irradiance");
   depth = orDie(vk::Buffer::create(*ctx, bytes(field.depth), rw, MemoryUsage::DeviceLocal), "depth");
   occlusion = orDie(vk::Buffer::create(*ctx, bytes(field.occlusion), rw, MemoryUsage::DeviceLocal), "occlusion");
   const std::size_t recordBytes = std::max<std::size_t>(field.probes.size(), 1) * sizeof(GpuProbeRecord);
@@ -935,7 +938,12 @@ void VulkanTracer::Impl::recordFieldSync(const Field& field, std::vector<vk::Buf
     staging.push_back(std::move(s));
   };
   if (atlases) {
-    upload(irradiance, field.irradiance.texels.data(), field.irradiance.texels.size() * sizeof(float));
+    // rgb texels widened to the GPU's vec4s (field_buffers.glsl).
+    const std::vector<float>& rgb = field.irradiance.texels;
+    std::vector<float> rgbw(rgb.size() / 3 * 4, 0.0f);
+    for (std::size_t t = 0; t < rgb.size() / 3; ++t)
+      std::memcpy(&rgbw[4 * t], &rgb[3 * t], 3 * sizeof(float));
+    upload(irradiance, rgbw.data(), rgbw.size() * sizeof(float));
     upload(depth, field.depth.texels.data(), field.depth.texels.size() * sizeof(float));
     upload(occlusion, field.occlusion.texels.data(), field.occlusion.texels.size() * sizeof(float));
   }

@@ -33,11 +33,11 @@ void main() {
   for (int e = int(gl_LocalInvocationIndex); e < total; e += 256) {
     float value;
     if (e < endI) {
-      int y = e / ri;
-      value = irradianceTexels[pcIrradianceIndex(oi + ivec2(0, y)) + (e - y * ri)];
+      int y = e / ri, x = e - y * ri;  // x: float in the row run, three per texel
+      value = irradianceTexels[pcIrradianceIndex(oi + ivec2(x / 3, y))][x % 3];
     } else if (e < endD) {
-      int f = e - endI, y = f / rd;
-      value = depthTexels[pcDepthIndex(od + ivec2(0, y)) + (f - y * rd)];
+      int f = e - endI, y = f / rd, x = f - y * rd;
+      value = depthTexels[pcDepthIndex(od + ivec2(x / 2, y))][x % 2];
     } else {
       int f = e - endD, y = f / ro;
       value = occlusionTexels[pcOcclusionIndex(oo + ivec2(0, y)) + (f - y * ro)];

@@ -14,14 +14,8 @@ void pcBilinearSetup(vec2 tc, int tileSize, out ivec2 t0, out vec2 a) {
   a = clamp(vec2(fx - float(t0.x), fy - float(t0.y)), vec2(0.0f), vec2(1.0f));
 }
 
-vec3 pcIrradianceTexel(ivec2 p) {
-  int i = pcIrradianceIndex(p);
-  return vec3(irradianceTexels[i], irradianceTexels[i + 1], irradianceTexels[i + 2]);
-}
-vec2 pcDepthTexel(ivec2 p) {
-  int i = pcDepthIndex(p);
-  return vec2(depthTexels[i], depthTexels[i + 1]);
-}
+vec3 pcIrradianceTexel(ivec2 p) { return irradianceTexels[pcIrradianceIndex(p)].xyz; }
+vec2 pcDepthTexel(ivec2 p) { return depthTexels[pcDepthIndex(p)]; }
 
 #define PC_FIELD_PARAM
 #define PC_FIELD_ARG

@@ -60,9 +60,10 @@ const uint kInfinityBits = 0x7f800000u;
 const int K = PC_BLEND_MAX_PROBES;
 
 // The group's rays, a padded row per probe ([k * (rayCount + 1) + ray]): radiance and signed
-// distance, and the distance the depth moments use.
+// distance. And the distance the depth moments use, at depthAt(k, ray): with four probes a
+// ray's four distances side by side, one 16-byte load per depth tap instead of four.
 shared vec4 sRay[kScratch];
-shared float sDepth[kScratch];
+shared vec4 sDepth[(kScratch + 3) / 4];
 // Reductions, PC_BLEND_THREADS / groupProbes threads per probe: backface count and the closest
 // back/front hits (distance, then ray index, so ties resolve to the first ray as on the CPU).
 shared uint sBackfaces[PC_BLEND_THREADS];
@@ -93,6 +94,9 @@ uvec4 tapBlock(uint first) {
 int tapRay(uint word) { return int(word & 0xffffu); }
 float tapWeight(uint word) { return unpackHalf2x16(word).y; }
 
+// Where probe k's depth-moment distance of `ray` lies in sDepth (in floats).
+int depthAt(bool fourLanes, int k, int ray, int rowStride) { return fourLanes ? 4 * ray + k : k * rowStride + ray; }
+
 bool closer(float d, int i, float bestD, int bestI) { return d < bestD || (d == bestD && i < bestI); }
 
 void main() {
@@ -104,6 +108,8 @@ void main() {
   if (firstRequest >= params.probeCount) return;  // uniform across the workgroup
   int probesHere = min(groupProbes, params.probeCount - firstRequest);
   int rowStride = rayCount + 1;  // of the shared ray rows
+  // Groups of four probes sum their tiles in vec4s (step 2).
+  const bool fourLanes = groupProbes == 4 && K == 4 && kVariant != 9;
 
   // ---- each probe's cascade: ray reach and tile origins ----
   if (tid < probesHere) {
@@ -140,7 +146,8 @@ void main() {
       int k = item % probesHere, ray = item / probesHere;
       float d = r[u].w;
       sRay[k * rowStride + ray] = vec4(kVariant == 5 || kVariant == 6 || lightsInRays ? r[u].xyz : pcAddVisibleLight(at[u], r[u].xyz, mask0[u]), d);
-      sDepth[k * rowStride + ray] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
+      int at = depthAt(fourLanes, k, ray, rowStride);
+      sDepth[at >> 2][at & 3] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
     }
   }
   barrier();
@@ -231,7 +238,6 @@ void main() {
   // (the other threads, several texels each); texels of inside probes are left alone. Groups
   // of four probes sum in vec4s, probe k in component k (the same sums in the same order as
   // the arrays that fewer probes use; the blend takes 0.62 ms on an H200, 0.71 with the arrays) ----
-  const bool fourLanes = groupProbes == 4 && K == 4 && kVariant != 9;
   const int irrTexelCount = ni * ni, depthTexelCount = nd * nd;
   if (kVariant == 1 || (kVariant == 2 && tid < irrTexelCount) || (kVariant == 3 && tid >= irrTexelCount)) {
     // timing experiments: no tiles, no irradiance/occlusion texels, no depth texels
@@ -306,13 +312,11 @@ void main() {
       if (irrWeight[k] > 0.0f) {
         int i = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
         vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
-        vec3 old = vec3(irradianceTexels[i], irradianceTexels[i + 1], irradianceTexels[i + 2]);
+        vec3 old = irradianceTexels[i].xyz;
         vec3 blended = mix(sample_, old, sAlpha[k]);
         vec3 delta = abs(blended - old);
         atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
-        irradianceTexels[i] = blended.x;
-        irradianceTexels[i + 1] = blended.y;
-        irradianceTexels[i + 2] = blended.z;
+        irradianceTexels[i] = vec4(blended, 0.0f);
       }
       if (occWeight[k] > 0.0f) {
         int i = pcOcclusionIndex(sOcclusionOrigin[k] + texel);
@@ -336,7 +340,7 @@ void main() {
             if (4u * b + uint(u) >= h.x) break;
             float w = tapWeight(block[u]);
             int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
-            vec4 dist = vec4(sDepth[ray], sDepth[rowStride + ray], sDepth[2 * rowStride + ray], sDepth[3 * rowStride + ray]);
+            vec4 dist = sDepth[ray];
             s1 += w * dist;
             s2 += w * dist * dist;
             sw += w;
@@ -358,7 +362,8 @@ void main() {
           int ray = tapRay(block[u]);
           [[unroll]] for (int k = 0; k < K; ++k) {
             if (k >= probesHere) break;
-            float dist = sDepth[k * rowStride + ray];
+            int at = depthAt(fourLanes, k, ray, rowStride);
+            float dist = sDepth[at >> 2][at & 3];
             m1[k] += w * dist;
             m2[k] += w * dist * dist;
             depthWeight[k] += w;
@@ -373,8 +378,7 @@ void main() {
           continue;
         }
         int i = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
-        depthTexels[i] = mix(m1[k] / depthWeight[k], depthTexels[i], sAlpha[k]);
-        depthTexels[i + 1] = mix(m2[k] / depthWeight[k], depthTexels[i + 1], sAlpha[k]);
+        depthTexels[i] = mix(vec2(m1[k], m2[k]) / depthWeight[k], depthTexels[i], sAlpha[k]);
       }
     }
   }
@@ -409,14 +413,9 @@ void main() {
     ivec2 src = pcBorderSource(bxy.x, bxy.y, n) + ivec2(1);
     ivec2 o = channel == 0 ? sIrradianceOrigin[k] : channel == 1 ? sDepthOrigin[k] : sOcclusionOrigin[k];
     if (channel == 0) {
-      int from = pcIrradianceIndex(o + src), to = pcIrradianceIndex(o + bxy);
-      irradianceTexels[to] = irradianceTexels[from];
-      irradianceTexels[to + 1] = irradianceTexels[from + 1];
-      irradianceTexels[to + 2] = irradianceTexels[from + 2];
+      irradianceTexels[pcIrradianceIndex(o + bxy)] = irradianceTexels[pcIrradianceIndex(o + src)];
     } else if (channel == 1) {
-      int from = pcDepthIndex(o + src), to = pcDepthIndex(o + bxy);
-      depthTexels[to] = depthTexels[from];
-      depthTexels[to + 1] = depthTexels[from + 1];
+      depthTexels[pcDepthIndex(o + bxy)] = depthTexels[pcDepthIndex(o + src)];
     } else {
       occlusionTexels[pcOcclusionIndex(o + bxy)] = occlusionTexels[pcOcclusionIndex(o + src)];
     }

@@ -580,4 +580,34 @@ TEST(VulkanTracer, LaunchOrderMapsBothWays) {
 }
 
 }  // namespace
+// Above 256 rays a blend workgroup holds two probes' rays, above 512 one (pcBlendProbes), and
+// sums them in per-probe arrays instead of the four-probe vec4 lanes: those layouts of the
+// shared ray scratch must blend as the CPU does too.
+TEST(VulkanTracer, BlendGroupsOfTwoAndOneProbeMatchEmbree) {
+  const Scene scene = builtinScene();
+  for (int rays : {512, 1024}) {
+    SCOPED_TRACE(rays);
+    std::string why;
+    Backends b = makeBackends(scene, rays, &why);
+    if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+    auto& [gpu, cpu, fg, fc, request] = b;
+    ASSERT_EQ(gpu::pcBlendProbes(rays), rays == 512 ? 2 : 1);
+    for (int i = 0; i < 2; ++i) {
+      request.rotationSeed = 900u + std::uint32_t(i);
+      gpu->update(fg, request);
+      cpu->update(fc, request);
+    }
+    const FieldDifference d = compareFields(fg, fc);
+    std::printf(
+        "builtin, %d rays: %d active probes, irradiance rel diff %.2e, depth rel diff %.2e\n", rays,
+        d.probes, d.irradiance, d.depth);
+    EXPECT_GT(d.probes, 100);
+    EXPECT_LE(d.irradiance, 0.01);
+    EXPECT_LE(d.depth, 0.01);
+    expectBordersCopyTheirSources(fg);
+    expectSameBrickVersions(fg, fc);
+    EXPECT_EQ(gpu->validationErrorCount(), 0u);
+  }
+}
+
 }  // namespace pc
