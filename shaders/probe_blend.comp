@@ -146,8 +146,8 @@ void main() {
       int k = item % probesHere, ray = item / probesHere;
       float d = r[u].w;
       sRay[k * rowStride + ray] = vec4(kVariant == 5 || kVariant == 6 || lightsInRays ? r[u].xyz : pcAddVisibleLight(at[u], r[u].xyz, mask0[u]), d);
-      int at = depthAt(fourLanes, k, ray, rowStride);
-      sDepth[at >> 2][at & 3] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
+      int slot = depthAt(fourLanes, k, ray, rowStride);
+      sDepth[slot >> 2][slot & 3] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
     }
   }
   barrier();
@@ -362,8 +362,8 @@ void main() {
           int ray = tapRay(block[u]);
           [[unroll]] for (int k = 0; k < K; ++k) {
             if (k >= probesHere) break;
-            int at = depthAt(fourLanes, k, ray, rowStride);
-            float dist = sDepth[at >> 2][at & 3];
+            int slot = depthAt(fourLanes, k, ray, rowStride);
+            float dist = sDepth[slot >> 2][slot & 3];
             m1[k] += w * dist;
             m2[k] += w * dist * dist;
             depthWeight[k] += w;
