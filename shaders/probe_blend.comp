@@ -29,7 +29,7 @@ layout(local_size_x = PC_BLEND_THREADS) in;
 // Timing experiments only (PC_BLEND_VARIANT, read by server/vulkan_tracer.cpp): a nonzero value
 // drops or changes one step so that a per-pass GPU time can be attributed to it; the fields it
 // gives may be wrong. 0, the default, is the blend itself. The variants:
-//   1 no tiles (step 2 skipped)          2 no irradiance/occlusion texels  3 no depth texels
+//   1 no tiles (step 2 skipped)          2 no irradiance texels  3 no occlusion or depth texels
 //   4 no borders (step 3 skipped)        5 rays without their shadow slots' light (rays[] only)
 //   6 no ray reads (step 0 from constants)  7 no classification/relocation (step 1 skipped)
 //   8 tile sums without atlas reads/writes  9 tile sums in arrays even for four probes
@@ -234,20 +234,20 @@ void main() {
   barrier();
   if (kVariant == 14) return;  // timing experiment: rays and classification alone
 
-  // ---- 2. tiles: irradiance and occlusion (one texel per thread of the first n_i^2), depth
-  // (the other threads, several texels each); texels of inside probes are left alone. Groups
-  // of four probes sum in vec4s, probe k in component k (the same sums in the same order as
-  // the arrays that fewer probes use; the blend takes 0.62 ms on an H200, 0.71 with the arrays) ----
+  // ---- 2. tiles: irradiance (one texel per thread of the first n_i^2), occlusion and depth
+  // (the other threads: one occlusion texel and several depth texels each); texels of inside
+  // probes are left alone. Groups of four probes sum in vec4s, probe k in component k (the
+  // same sums in the same order as the arrays that fewer probes use; the blend took 0.62 ms
+  // on an H200 so, 0.71 with the arrays) ----
   const int irrTexelCount = ni * ni, depthTexelCount = nd * nd;
   if (kVariant == 1 || (kVariant == 2 && tid < irrTexelCount) || (kVariant == 3 && tid >= irrTexelCount)) {
-    // timing experiments: no tiles, no irradiance/occlusion texels, no depth texels
+    // timing experiments: no tiles, no irradiance texels, no occlusion or depth texels
   } else if (tid < irrTexelCount) {
-    float dmax = field.occlusionDistance;
     vec3 irrSum[K];
-    float irrWeight[K], open[K], occWeight[K];
+    float irrWeight[K];
     [[unroll]] for (int k = 0; k < K; ++k) {
       irrSum[k] = vec3(0.0f);
-      irrWeight[k] = open[k] = occWeight[k] = 0.0f;
+      irrWeight[k] = 0.0f;
     }
     uvec2 h = tapHeader(tid);
     // Taps come four at a time, the next block loaded while this one is summed.
@@ -255,7 +255,7 @@ void main() {
     uint blocks = (h.x + 3u) / 4u;
     uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
     if (fourLanes) {  // the same sums, probe k in component k
-      vec4 sr = vec4(0.0f), sg = vec4(0.0f), sb = vec4(0.0f), wi = vec4(0.0f), op = vec4(0.0f), wo = vec4(0.0f);
+      vec4 sr = vec4(0.0f), sg = vec4(0.0f), sb = vec4(0.0f), wi = vec4(0.0f);
       for (uint b = 0u; b < blocks; ++b) {
         uvec4 block = nextBlock;
         if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
@@ -264,10 +264,7 @@ void main() {
           float w = tapWeight(block[u]);
           int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
           vec4 r0 = sRay[ray], r1 = sRay[rowStride + ray], r2 = sRay[2 * rowStride + ray], r3 = sRay[3 * rowStride + ray];
-          vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
-          op += vec4(greaterThan(d, vec4(dmax))) * w;
-          wo += w;
-          vec4 lit = vec4(greaterThanEqual(d, vec4(0.0f))) * w;
+          vec4 lit = vec4(greaterThanEqual(vec4(r0.w, r1.w, r2.w, r3.w), vec4(0.0f))) * w;
           sr += lit * vec4(r0.x, r1.x, r2.x, r3.x);
           sg += lit * vec4(r0.y, r1.y, r2.y, r3.y);
           sb += lit * vec4(r0.z, r1.z, r2.z, r3.z);
@@ -277,8 +274,6 @@ void main() {
       [[unroll]] for (int k = 0; k < K; ++k) {
         irrSum[k] = vec3(sr[k], sg[k], sb[k]);
         irrWeight[k] = wi[k];
-        open[k] = op[k];
-        occWeight[k] = wo[k];
       }
       blocks = 0u;
     }
@@ -292,8 +287,6 @@ void main() {
         [[unroll]] for (int k = 0; k < K; ++k) {
           if (k >= probesHere) break;
           vec4 r = sRay[k * rowStride + ray];
-          open[k] += r.w > dmax ? w : 0.0f;
-          occWeight[k] += w;
           if (r.w >= 0.0f) {  // backface hits carry no light
             irrSum[k] += w * r.xyz;
             irrWeight[k] += w;
@@ -301,29 +294,83 @@ void main() {
         }
       }
     }
+    // Every probe's old texel is loaded before any is stored: the compiler cannot tell that
+    // the stores miss the later loads, and would otherwise wait out one memory round trip per
+    // probe. The same below for occlusion and depth.
+    bool write[K];
+    int at[K];
+    vec3 old[K];
     [[unroll]] for (int k = 0; k < K; ++k) {
-      if (k >= probesHere) break;
-      if (sInside[k]) continue;
-      ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
-      if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
-        if (isnan(irrSum[k].x + irrWeight[k] + open[k] + occWeight[k])) changes[firstRequest + k] = 1.0f;
-        continue;
-      }
-      if (irrWeight[k] > 0.0f) {
-        int i = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
-        vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
-        vec3 old = irradianceTexels[i].xyz;
-        vec3 blended = mix(sample_, old, sAlpha[k]);
-        vec3 delta = abs(blended - old);
-        atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
-        irradianceTexels[i] = vec4(blended, 0.0f);
-      }
-      if (occWeight[k] > 0.0f) {
-        int i = pcOcclusionIndex(sOcclusionOrigin[k] + texel);
-        occlusionTexels[i] = mix(open[k] / occWeight[k], occlusionTexels[i], sAlpha[k]);
-      }
+      write[k] = k < probesHere && !sInside[k] && irrWeight[k] > 0.0f && kVariant != 8;
+      at[k] = pcIrradianceIndex(sIrradianceOrigin[k] + ivec2(1 + tid % ni, 1 + tid / ni));
+      old[k] = write[k] ? irradianceTexels[at[k]].xyz : vec3(0.0f);
+    }
+    [[unroll]] for (int k = 0; k < K; ++k) {
+      if (kVariant == 8 && k < probesHere && isnan(irrSum[k].x + irrWeight[k])) changes[firstRequest + k] = 1.0f;  // timing experiment: the sums without the atlas
+      if (!write[k]) continue;
+      vec3 blended = mix(pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]), old[k], sAlpha[k]);
+      vec3 delta = abs(blended - old[k]);
+      atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
+      irradianceTexels[at[k]] = vec4(blended, 0.0f);
     }
   } else {
+    // The occlusion texel tid - n_i^2: the share of its lobe's rays that pass d_max. Its taps
+    // are the irradiance texel's, but these threads take it, since their depth texels hold
+    // fewer taps in all than an irradiance texel's (the narrow cos^exponent lobe): that
+    // evens out the two halves of the group.
+    int ot = tid - irrTexelCount;
+    if (ot < no * no) {
+      float dmax = field.occlusionDistance;
+      float open[K], occWeight = 0.0f;
+      [[unroll]] for (int k = 0; k < K; ++k) open[k] = 0.0f;
+      uvec2 h = tapHeader(ot);  // the irradiance texel's taps
+      const uint blockStride = 4u * uint(irrTexelCount);
+      uint blocks = (h.x + 3u) / 4u;
+      uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
+      if (fourLanes) {  // the same sums, probe k in component k
+        vec4 op = vec4(0.0f);
+        for (uint b = 0u; b < blocks; ++b) {
+          uvec4 block = nextBlock;
+          if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+          [[unroll]] for (int u = 0; u < 4; ++u) {
+            if (4u * b + uint(u) >= h.x) break;
+            float w = tapWeight(block[u]);
+            int ray = tapRay(block[u]);
+            vec4 d = vec4(sRay[ray].w, sRay[rowStride + ray].w, sRay[2 * rowStride + ray].w, sRay[3 * rowStride + ray].w);
+            op += vec4(greaterThan(d, vec4(dmax))) * w;
+            occWeight += w;
+          }
+        }
+        [[unroll]] for (int k = 0; k < K; ++k) open[k] = op[k];
+        blocks = 0u;
+      }
+      for (uint b = 0u; b < blocks; ++b) {
+        uvec4 block = nextBlock;
+        if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+        [[unroll]] for (int u = 0; u < 4; ++u) {
+          if (4u * b + uint(u) >= h.x) break;
+          float w = tapWeight(block[u]);
+          int ray = tapRay(block[u]);
+          [[unroll]] for (int k = 0; k < K; ++k) {
+            if (k >= probesHere) break;
+            open[k] += sRay[k * rowStride + ray].w > dmax ? w : 0.0f;
+          }
+          occWeight += w;
+        }
+      }
+      bool write[K];
+      int at[K];
+      float old[K];
+      [[unroll]] for (int k = 0; k < K; ++k) {
+        write[k] = k < probesHere && !sInside[k] && occWeight > 0.0f && kVariant != 8;
+        at[k] = pcOcclusionIndex(sOcclusionOrigin[k] + ivec2(1 + ot % no, 1 + ot / no));
+        old[k] = write[k] ? occlusionTexels[at[k]] : 0.0f;
+      }
+      [[unroll]] for (int k = 0; k < K; ++k) {
+        if (kVariant == 8 && k < probesHere && isnan(open[k])) changes[firstRequest + k] = 1.0f;  // timing experiment
+        if (write[k]) occlusionTexels[at[k]] = mix(open[k] / occWeight, old[k], sAlpha[k]);
+      }
+    }
     for (int t = tid - irrTexelCount; t < depthTexelCount; t += PC_BLEND_THREADS - irrTexelCount) {
       float m1[K], m2[K], depthWeight[K];
       [[unroll]] for (int k = 0; k < K; ++k) m1[k] = m2[k] = depthWeight[k] = 0.0f;
@@ -370,15 +417,17 @@ void main() {
           }
         }
       }
+      bool write[K];
+      int at[K];
+      vec2 old[K];
       [[unroll]] for (int k = 0; k < K; ++k) {
-        if (k >= probesHere) break;
-        if (sInside[k] || !(depthWeight[k] > 0.0f)) continue;
-        if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
-          if (isnan(m1[k] + m2[k])) changes[firstRequest + k] = 1.0f;
-          continue;
-        }
-        int i = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
-        depthTexels[i] = mix(vec2(m1[k], m2[k]) / depthWeight[k], depthTexels[i], sAlpha[k]);
+        write[k] = k < probesHere && !sInside[k] && depthWeight[k] > 0.0f && kVariant != 8;
+        at[k] = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
+        old[k] = write[k] ? depthTexels[at[k]] : vec2(0.0f);
+      }
+      [[unroll]] for (int k = 0; k < K; ++k) {
+        if (kVariant == 8 && k < probesHere && isnan(m1[k] + m2[k])) changes[firstRequest + k] = 1.0f;  // timing experiment
+        if (write[k]) depthTexels[at[k]] = mix(vec2(m1[k], m2[k]) / depthWeight[k], old[k], sAlpha[k]);
       }
     }
   }
@@ -394,30 +443,42 @@ void main() {
   // columns: 4 (s - 1) of them per channel.
   const int si = ni + 2, sd = nd + 2, so = no + 2;
   const int bi = 4 * (si - 1), bd = 4 * (sd - 1), bo = 4 * (so - 1);
-  for (int item = tid; item < (kVariant == 4 ? 0 : probesHere * (bi + bd + bo)); item += PC_BLEND_THREADS) {
-    int k = item / (bi + bd + bo), b = item % (bi + bd + bo);
-    if (sInside[k]) continue;
-    int s, n;
-    int channel;  // 0 irradiance, 1 depth, 2 occlusion
-    if (b < bi) {
-      channel = 0, s = si, n = ni;
-    } else if (b < bi + bd) {
-      channel = 1, s = sd, n = nd, b -= bi;
-    } else {
-      channel = 2, s = so, n = no, b -= bi + bd;
-    }
+  // A thread's few items are all read before any is written (as the tiles' texels above).
+  const int kItems = (K * (bi + bd + bo) + PC_BLEND_THREADS - 1) / PC_BLEND_THREADS;
+  int borderItems = kVariant == 4 ? 0 : probesHere * (bi + bd + bo);
+  int channel[kItems], to[kItems];  // channel: 0 irradiance, 1 depth, 2 occlusion, -1 none
+  vec4 value[kItems];
+  [[unroll]] for (int j = 0; j < kItems; ++j) {
+    int item = tid + j * PC_BLEND_THREADS;
+    int k = min(item / (bi + bd + bo), K - 1), b = item % (bi + bd + bo);
+    channel[j] = item >= borderItems || sInside[k] ? -1 : b < bi ? 0 : b < bi + bd ? 1 : 2;
+    int s = channel[j] == 0 ? si : channel[j] == 1 ? sd : so;
+    int n = s - 2;
+    b -= channel[j] == 1 ? bi : channel[j] == 2 ? bi + bd : 0;
     ivec2 bxy = b < s ? ivec2(b, 0)
               : b < 2 * s ? ivec2(b - s, s - 1)
               : b < 3 * s - 2 ? ivec2(0, 1 + b - 2 * s)
               : ivec2(s - 1, 1 + b - (3 * s - 2));
     ivec2 src = pcBorderSource(bxy.x, bxy.y, n) + ivec2(1);
-    ivec2 o = channel == 0 ? sIrradianceOrigin[k] : channel == 1 ? sDepthOrigin[k] : sOcclusionOrigin[k];
-    if (channel == 0) {
-      irradianceTexels[pcIrradianceIndex(o + bxy)] = irradianceTexels[pcIrradianceIndex(o + src)];
-    } else if (channel == 1) {
-      depthTexels[pcDepthIndex(o + bxy)] = depthTexels[pcDepthIndex(o + src)];
-    } else {
-      occlusionTexels[pcOcclusionIndex(o + bxy)] = occlusionTexels[pcOcclusionIndex(o + src)];
+    ivec2 o = channel[j] == 0 ? sIrradianceOrigin[k] : channel[j] == 1 ? sDepthOrigin[k] : sOcclusionOrigin[k];
+    if (channel[j] == 0) {
+      to[j] = pcIrradianceIndex(o + bxy);
+      value[j] = irradianceTexels[pcIrradianceIndex(o + src)];
+    } else if (channel[j] == 1) {
+      to[j] = pcDepthIndex(o + bxy);
+      value[j] = vec4(depthTexels[pcDepthIndex(o + src)], 0.0f, 0.0f);
+    } else if (channel[j] == 2) {
+      to[j] = pcOcclusionIndex(o + bxy);
+      value[j] = vec4(occlusionTexels[pcOcclusionIndex(o + src)]);
+    }
+  }
+  [[unroll]] for (int j = 0; j < kItems; ++j) {
+    if (channel[j] == 0) {
+      irradianceTexels[to[j]] = value[j];
+    } else if (channel[j] == 1) {
+      depthTexels[to[j]] = value[j].xy;
+    } else if (channel[j] == 2) {
+      occlusionTexels[to[j]] = value[j].x;
     }
   }
   if (tid < probesHere && !sInside[tid]) changes[firstRequest + tid] = uintBitsToFloat(sMaxChange[tid]);
