@@ -23,11 +23,10 @@ namespace pc {
 using namespace pc::gpu;
 
 static_assert(PC_MAX_RAYS_PER_PROBE == kMaxRaysPerProbe, "the blend's shared scratch holds every ray");
-// The blend's threads: one per irradiance texel, the rest one occlusion texel each and a share
-// of the depth texels; a power-of-two share of them per probe of a group for the reductions.
+// The blend's threads: one per irradiance/occlusion texel, the rest share the depth texels; a
+// power-of-two share of them per probe of a group for the reductions.
 static_assert(PC_IRRADIANCE_TEXELS == PC_OCCLUSION_TEXELS, "irradiance and occlusion share their taps");
-static_assert(PC_BLEND_THREADS - PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS >=
-              PC_OCCLUSION_TEXELS * PC_OCCLUSION_TEXELS);
+static_assert(PC_BLEND_THREADS > PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS);
 // probe_blend.comp's default scratch (a literal there).
 static_assert(PC_MAX_RAYS_PER_PROBE + PC_BLEND_MAX_PROBES == 1028);
 static_assert(PC_BLEND_THREADS % PC_BLEND_MAX_PROBES == 0 && PC_TRACE_TILE_PROBES % PC_BLEND_MAX_PROBES == 0);

@@ -29,7 +29,7 @@ layout(local_size_x = PC_BLEND_THREADS) in;
 // Timing experiments only (PC_BLEND_VARIANT, read by server/vulkan_tracer.cpp): a nonzero value
 // drops or changes one step so that a per-pass GPU time can be attributed to it; the fields it
 // gives may be wrong. 0, the default, is the blend itself. The variants:
-//   1 no tiles (step 2 skipped)          2 no irradiance texels  3 no occlusion or depth texels
+//   1 no tiles (step 2 skipped)          2 no irradiance/occlusion texels  3 no depth texels
 //   4 no borders (step 3 skipped)        5 rays without their shadow slots' light (rays[] only)
 //   6 no ray reads (step 0 from constants)  7 no classification/relocation (step 1 skipped)
 //   8 tile sums without atlas reads/writes  9 tile sums in arrays even for four probes
@@ -234,20 +234,20 @@ void main() {
   barrier();
   if (kVariant == 14) return;  // timing experiment: rays and classification alone
 
-  // ---- 2. tiles: irradiance (one texel per thread of the first n_i^2), occlusion and depth
-  // (the other threads: one occlusion texel and several depth texels each); texels of inside
-  // probes are left alone. Groups of four probes sum in vec4s, probe k in component k (the
-  // same sums in the same order as the arrays that fewer probes use; the blend took 0.62 ms
-  // on an H200 so, 0.71 with the arrays) ----
+  // ---- 2. tiles: irradiance and occlusion (one texel per thread of the first n_i^2), depth
+  // (the other threads, several texels each); texels of inside probes are left alone. Groups
+  // of four probes sum in vec4s, probe k in component k (the same sums in the same order as
+  // the arrays that fewer probes use; the blend takes 0.62 ms on an H200, 0.71 with the arrays) ----
   const int irrTexelCount = ni * ni, depthTexelCount = nd * nd;
   if (kVariant == 1 || (kVariant == 2 && tid < irrTexelCount) || (kVariant == 3 && tid >= irrTexelCount)) {
-    // timing experiments: no tiles, no irradiance texels, no occlusion or depth texels
+    // timing experiments: no tiles, no irradiance/occlusion texels, no depth texels
   } else if (tid < irrTexelCount) {
+    float dmax = field.occlusionDistance;
     vec3 irrSum[K];
-    float irrWeight[K];
+    float irrWeight[K], open[K], occWeight[K];
     [[unroll]] for (int k = 0; k < K; ++k) {
       irrSum[k] = vec3(0.0f);
-      irrWeight[k] = 0.0f;
+      irrWeight[k] = open[k] = occWeight[k] = 0.0f;
     }
     uvec2 h = tapHeader(tid);
     // Taps come four at a time, the next block loaded while this one is summed.
@@ -255,7 +255,7 @@ void main() {
     uint blocks = (h.x + 3u) / 4u;
     uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
     if (fourLanes) {  // the same sums, probe k in component k
-      vec4 sr = vec4(0.0f), sg = vec4(0.0f), sb = vec4(0.0f), wi = vec4(0.0f);
+      vec4 sr = vec4(0.0f), sg = vec4(0.0f), sb = vec4(0.0f), wi = vec4(0.0f), op = vec4(0.0f), wo = vec4(0.0f);
       for (uint b = 0u; b < blocks; ++b) {
         uvec4 block = nextBlock;
         if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
@@ -264,7 +264,10 @@ void main() {
           float w = tapWeight(block[u]);
           int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
           vec4 r0 = sRay[ray], r1 = sRay[rowStride + ray], r2 = sRay[2 * rowStride + ray], r3 = sRay[3 * rowStride + ray];
-          vec4 lit = vec4(greaterThanEqual(vec4(r0.w, r1.w, r2.w, r3.w), vec4(0.0f))) * w;
+          vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
+          op += vec4(greaterThan(d, vec4(dmax))) * w;
+          wo += w;
+          vec4 lit = vec4(greaterThanEqual(d, vec4(0.0f))) * w;
           sr += lit * vec4(r0.x, r1.x, r2.x, r3.x);
           sg += lit * vec4(r0.y, r1.y, r2.y, r3.y);
           sb += lit * vec4(r0.z, r1.z, r2.z, r3.z);
@@ -274,6 +277,8 @@ void main() {
       [[unroll]] for (int k = 0; k < K; ++k) {
         irrSum[k] = vec3(sr[k], sg[k], sb[k]);
         irrWeight[k] = wi[k];
+        open[k] = op[k];
+        occWeight[k] = wo[k];
       }
       blocks = 0u;
     }
@@ -287,6 +292,8 @@ void main() {
         [[unroll]] for (int k = 0; k < K; ++k) {
           if (k >= probesHere) break;
           vec4 r = sRay[k * rowStride + ray];
+          open[k] += r.w > dmax ? w : 0.0f;
+          occWeight[k] += w;
           if (r.w >= 0.0f) {  // backface hits carry no light
             irrSum[k] += w * r.xyz;
             irrWeight[k] += w;
@@ -294,83 +301,35 @@ void main() {
         }
       }
     }
-    // Every probe's old texel is loaded before any is stored: the compiler cannot tell that
-    // the stores miss the later loads, and would otherwise wait out one memory round trip per
-    // probe. The same below for occlusion and depth.
-    bool write[K];
-    int at[K];
-    vec3 old[K];
+    // Every probe's old texels are loaded before any is stored: the compiler cannot tell that
+    // the stores miss the later loads, and would otherwise wait out a memory round trip per
+    // probe. The same for the depth texels below.
+    ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
+    bool writeIrr[K], writeOcc[K];
+    int atIrr[K], atOcc[K];
+    vec3 oldIrr[K];
+    float oldOcc[K];
     [[unroll]] for (int k = 0; k < K; ++k) {
-      write[k] = k < probesHere && !sInside[k] && irrWeight[k] > 0.0f && kVariant != 8;
-      at[k] = pcIrradianceIndex(sIrradianceOrigin[k] + ivec2(1 + tid % ni, 1 + tid / ni));
-      old[k] = write[k] ? irradianceTexels[at[k]].xyz : vec3(0.0f);
+      bool here = k < probesHere && !sInside[k] && kVariant != 8;
+      writeIrr[k] = here && irrWeight[k] > 0.0f;
+      writeOcc[k] = here && occWeight[k] > 0.0f;
+      atIrr[k] = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
+      atOcc[k] = pcOcclusionIndex(sOcclusionOrigin[k] + texel);
+      oldIrr[k] = writeIrr[k] ? irradianceTexels[atIrr[k]].xyz : vec3(0.0f);
+      oldOcc[k] = writeOcc[k] ? occlusionTexels[atOcc[k]] : 0.0f;
     }
     [[unroll]] for (int k = 0; k < K; ++k) {
-      if (kVariant == 8 && k < probesHere && isnan(irrSum[k].x + irrWeight[k])) changes[firstRequest + k] = 1.0f;  // timing experiment: the sums without the atlas
-      if (!write[k]) continue;
-      vec3 blended = mix(pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]), old[k], sAlpha[k]);
-      vec3 delta = abs(blended - old[k]);
-      atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
-      irradianceTexels[at[k]] = vec4(blended, 0.0f);
+      if (kVariant == 8 && k < probesHere && isnan(irrSum[k].x + irrWeight[k] + open[k] + occWeight[k]))
+        changes[firstRequest + k] = 1.0f;  // timing experiment: the sums without the atlas
+      if (writeIrr[k]) {
+        vec3 blended = mix(pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]), oldIrr[k], sAlpha[k]);
+        vec3 delta = abs(blended - oldIrr[k]);
+        atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
+        irradianceTexels[atIrr[k]] = vec4(blended, 0.0f);
+      }
+      if (writeOcc[k]) occlusionTexels[atOcc[k]] = mix(open[k] / occWeight[k], oldOcc[k], sAlpha[k]);
     }
   } else {
-    // The occlusion texel tid - n_i^2: the share of its lobe's rays that pass d_max. Its taps
-    // are the irradiance texel's, but these threads take it, since their depth texels hold
-    // fewer taps in all than an irradiance texel's (the narrow cos^exponent lobe): that
-    // evens out the two halves of the group.
-    int ot = tid - irrTexelCount;
-    if (ot < no * no) {
-      float dmax = field.occlusionDistance;
-      float open[K], occWeight = 0.0f;
-      [[unroll]] for (int k = 0; k < K; ++k) open[k] = 0.0f;
-      uvec2 h = tapHeader(ot);  // the irradiance texel's taps
-      const uint blockStride = 4u * uint(irrTexelCount);
-      uint blocks = (h.x + 3u) / 4u;
-      uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
-      if (fourLanes) {  // the same sums, probe k in component k
-        vec4 op = vec4(0.0f);
-        for (uint b = 0u; b < blocks; ++b) {
-          uvec4 block = nextBlock;
-          if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
-          [[unroll]] for (int u = 0; u < 4; ++u) {
-            if (4u * b + uint(u) >= h.x) break;
-            float w = tapWeight(block[u]);
-            int ray = tapRay(block[u]);
-            vec4 d = vec4(sRay[ray].w, sRay[rowStride + ray].w, sRay[2 * rowStride + ray].w, sRay[3 * rowStride + ray].w);
-            op += vec4(greaterThan(d, vec4(dmax))) * w;
-            occWeight += w;
-          }
-        }
-        [[unroll]] for (int k = 0; k < K; ++k) open[k] = op[k];
-        blocks = 0u;
-      }
-      for (uint b = 0u; b < blocks; ++b) {
-        uvec4 block = nextBlock;
-        if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
-        [[unroll]] for (int u = 0; u < 4; ++u) {
-          if (4u * b + uint(u) >= h.x) break;
-          float w = tapWeight(block[u]);
-          int ray = tapRay(block[u]);
-          [[unroll]] for (int k = 0; k < K; ++k) {
-            if (k >= probesHere) break;
-            open[k] += sRay[k * rowStride + ray].w > dmax ? w : 0.0f;
-          }
-          occWeight += w;
-        }
-      }
-      bool write[K];
-      int at[K];
-      float old[K];
-      [[unroll]] for (int k = 0; k < K; ++k) {
-        write[k] = k < probesHere && !sInside[k] && occWeight > 0.0f && kVariant != 8;
-        at[k] = pcOcclusionIndex(sOcclusionOrigin[k] + ivec2(1 + ot % no, 1 + ot / no));
-        old[k] = write[k] ? occlusionTexels[at[k]] : 0.0f;
-      }
-      [[unroll]] for (int k = 0; k < K; ++k) {
-        if (kVariant == 8 && k < probesHere && isnan(open[k])) changes[firstRequest + k] = 1.0f;  // timing experiment
-        if (write[k]) occlusionTexels[at[k]] = mix(open[k] / occWeight, old[k], sAlpha[k]);
-      }
-    }
     for (int t = tid - irrTexelCount; t < depthTexelCount; t += PC_BLEND_THREADS - irrTexelCount) {
       float m1[K], m2[K], depthWeight[K];
       [[unroll]] for (int k = 0; k < K; ++k) m1[k] = m2[k] = depthWeight[k] = 0.0f;

@@ -76,8 +76,8 @@ PC_CONST int PC_MAX_RAYS_PER_PROBE = 1024;  // kMaxRaysPerProbe (common/field.h)
 // probe_blend.comp: a workgroup blends up to PC_BLEND_MAX_PROBES consecutive requests, as many
 // as its shared scratch of PC_MAX_RAYS_PER_PROBE rays holds (a power of two, so a group never
 // straddles a launch tile), so each tap it loads serves every one of them. Its first
-// PC_IRRADIANCE_TEXELS^2 threads own an irradiance texel each, the others an occlusion texel
-// each (the same taps) and a share of the depth texels: about the same work per thread.
+// PC_IRRADIANCE_TEXELS^2 threads own an irradiance and occlusion texel each, the others share
+// the depth texels: about the same number of taps per thread.
 PC_CONST int PC_BLEND_THREADS = 128;
 PC_CONST int PC_BLEND_MAX_PROBES = 4;
 PC_FN int pcBlendProbes(int rayCount) {
