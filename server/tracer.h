@@ -73,10 +73,15 @@ struct TracerOptions {
 
 Result<std::unique_ptr<Tracer>> makeEmbreeTracer(const Scene& scene, const TracerOptions& options = {});
 
+struct VulkanTracerOptions;
+
 // The backend by name (--backend): "embree"; "vulkan" (any Vulkan device with ray tracing,
 // lavapipe included); "auto" or "" (a GPU with ray tracing, else Embree, saying why).
+// `vulkan`, where given, sets the Vulkan backend's options but allowCpuDevice, which the
+// backend's name decides.
 Result<std::unique_ptr<Tracer>> makeTracer(const Scene& scene, const std::string& backend,
-                                           const TracerOptions& options = {});
+                                           const TracerOptions& options = {},
+                                           const VulkanTracerOptions* vulkan = nullptr);
 
 // Every probe of the field, for full updates.
 std::vector<ProbeRef> allProbes(const Field& field);

@@ -5,10 +5,11 @@
 namespace pc {
 
 Result<std::unique_ptr<Tracer>> makeTracer(const Scene& scene, const std::string& backend,
-                                           const TracerOptions& options) {
+                                           const TracerOptions& options,
+                                           const VulkanTracerOptions* given) {
   if (backend == "embree") return makeEmbreeTracer(scene, options);
   if (backend == "vulkan" || backend == "auto" || backend.empty()) {
-    VulkanTracerOptions vulkan;
+    VulkanTracerOptions vulkan = given ? *given : VulkanTracerOptions{};
     // A CPU implementation only when asked for by name: it is far slower than Embree.
     vulkan.allowCpuDevice = backend == "vulkan";
     auto gpu = VulkanTracer::create(scene, options, vulkan);

@@ -444,8 +444,14 @@ TEST(VulkanTracer, ShadowRoundsGiveTheFieldOfOneRound) {
   request.probes = allProbes(f1);
   const std::size_t slotBytes =
       request.probes.size() * 32 * (sizeof(gpu::GpuShadowRay) + sizeof(gpu::GpuShadowLight));
-  auto rounds = makeGpu(scene, &why, false, everyRay, 7 * slotBytes);
-  ASSERT_TRUE(rounds) << why;
+  // Through the factory, as the server passes its --gpu-shadow-memory.
+  VulkanTracerOptions budget;
+  budget.validation = true;
+  budget.shadowMemoryBudget = 7 * slotBytes;
+  auto made = makeTracer(scene, "vulkan", everyRay, &budget);
+  ASSERT_TRUE(made) << made.error().message;
+  auto* rounds = dynamic_cast<VulkanTracer*>(made.value().get());
+  ASSERT_NE(rounds, nullptr);
   std::uint64_t rays1 = 0, raysR = 0;
   for (int i = 0; i < 2; ++i) {
     request.rotationSeed = 910u + std::uint32_t(i);

@@ -20,6 +20,7 @@
 #include "server/bake.h"
 #include "server/net_field_loop.h"
 #include "server/net_server.h"
+#include "server/vulkan_tracer.h"
 
 namespace {
 
@@ -62,6 +63,15 @@ int main(int argc, char** argv) {
          "share of a hit's punctual light below which a light's shadow ray is drawn at random, "
          "weighted to keep the expected light (0: every shadow ray; fewer rays with many lights)")
       ->check(CLI::Range(0.0f, 1.0f))
+      ->capture_default_str();
+  std::size_t gpuShadowMiB = 0;
+  app.add_option(
+         "--gpu-shadow-memory", gpuShadowMiB,
+         "Vulkan backend: the most device memory, in MiB, for the shadow rays of one update "
+         "(48 bytes per probe ray, light and emissive sample); beyond it shading runs in "
+         "rounds, with the same field (0: a quarter of the largest device-local heap, at "
+         "most 8 GiB)")
+      ->check(CLI::Range(std::size_t(0), std::size_t(1) << 30))
       ->capture_default_str();
   app.add_option("--rate", loop.rate, "field updates per second");
   app.add_option("--rays", rays, "rays per probe per update (without --probes)");
@@ -139,7 +149,9 @@ int main(int argc, char** argv) {
   if (!scene) return pc::logError(scene.error().message), 1;
   for (const std::string& w : scene->warnings) pc::logWarn(w);
 
-  auto tracer = pc::makeTracer(*scene, backend, tracerOptions);
+  pc::VulkanTracerOptions vulkanOptions;
+  vulkanOptions.shadowMemoryBudget = gpuShadowMiB << 20;
+  auto tracer = pc::makeTracer(*scene, backend, tracerOptions, &vulkanOptions);
   if (!tracer) return pc::logError("tracer: " + tracer.error().message), 1;
   pc::logInfo("tracer: " + (*tracer)->name());
 
