@@ -301,33 +301,27 @@ void main() {
         }
       }
     }
-    // Every probe's old texels are loaded before any is stored: the compiler cannot tell that
-    // the stores miss the later loads, and would otherwise wait out a memory round trip per
-    // probe. The same for the depth texels below.
-    ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
-    bool writeIrr[K], writeOcc[K];
-    int atIrr[K], atOcc[K];
-    vec3 oldIrr[K];
-    float oldOcc[K];
     [[unroll]] for (int k = 0; k < K; ++k) {
-      bool here = k < probesHere && !sInside[k] && kVariant != 8;
-      writeIrr[k] = here && irrWeight[k] > 0.0f;
-      writeOcc[k] = here && occWeight[k] > 0.0f;
-      atIrr[k] = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
-      atOcc[k] = pcOcclusionIndex(sOcclusionOrigin[k] + texel);
-      oldIrr[k] = writeIrr[k] ? irradianceTexels[atIrr[k]].xyz : vec3(0.0f);
-      oldOcc[k] = writeOcc[k] ? occlusionTexels[atOcc[k]] : 0.0f;
-    }
-    [[unroll]] for (int k = 0; k < K; ++k) {
-      if (kVariant == 8 && k < probesHere && isnan(irrSum[k].x + irrWeight[k] + open[k] + occWeight[k]))
-        changes[firstRequest + k] = 1.0f;  // timing experiment: the sums without the atlas
-      if (writeIrr[k]) {
-        vec3 blended = mix(pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]), oldIrr[k], sAlpha[k]);
-        vec3 delta = abs(blended - oldIrr[k]);
-        atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
-        irradianceTexels[atIrr[k]] = vec4(blended, 0.0f);
+      if (k >= probesHere) break;
+      if (sInside[k]) continue;
+      ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
+      if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
+        if (isnan(irrSum[k].x + irrWeight[k] + open[k] + occWeight[k])) changes[firstRequest + k] = 1.0f;
+        continue;
       }
-      if (writeOcc[k]) occlusionTexels[atOcc[k]] = mix(open[k] / occWeight[k], oldOcc[k], sAlpha[k]);
+      if (irrWeight[k] > 0.0f) {
+        int i = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
+        vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
+        vec3 old = irradianceTexels[i].xyz;
+        vec3 blended = mix(sample_, old, sAlpha[k]);
+        vec3 delta = abs(blended - old);
+        atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
+        irradianceTexels[i] = vec4(blended, 0.0f);
+      }
+      if (occWeight[k] > 0.0f) {
+        int i = pcOcclusionIndex(sOcclusionOrigin[k] + texel);
+        occlusionTexels[i] = mix(open[k] / occWeight[k], occlusionTexels[i], sAlpha[k]);
+      }
     }
   } else {
     for (int t = tid - irrTexelCount; t < depthTexelCount; t += PC_BLEND_THREADS - irrTexelCount) {
@@ -376,17 +370,15 @@ void main() {
           }
         }
       }
-      bool write[K];
-      int at[K];
-      vec2 old[K];
       [[unroll]] for (int k = 0; k < K; ++k) {
-        write[k] = k < probesHere && !sInside[k] && depthWeight[k] > 0.0f && kVariant != 8;
-        at[k] = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
-        old[k] = write[k] ? depthTexels[at[k]] : vec2(0.0f);
-      }
-      [[unroll]] for (int k = 0; k < K; ++k) {
-        if (kVariant == 8 && k < probesHere && isnan(m1[k] + m2[k])) changes[firstRequest + k] = 1.0f;  // timing experiment
-        if (write[k]) depthTexels[at[k]] = mix(vec2(m1[k], m2[k]) / depthWeight[k], old[k], sAlpha[k]);
+        if (k >= probesHere) break;
+        if (sInside[k] || !(depthWeight[k] > 0.0f)) continue;
+        if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
+          if (isnan(m1[k] + m2[k])) changes[firstRequest + k] = 1.0f;
+          continue;
+        }
+        int i = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
+        depthTexels[i] = mix(vec2(m1[k], m2[k]) / depthWeight[k], depthTexels[i], sAlpha[k]);
       }
     }
   }
@@ -402,42 +394,30 @@ void main() {
   // columns: 4 (s - 1) of them per channel.
   const int si = ni + 2, sd = nd + 2, so = no + 2;
   const int bi = 4 * (si - 1), bd = 4 * (sd - 1), bo = 4 * (so - 1);
-  // A thread's few items are all read before any is written (as the tiles' texels above).
-  const int kItems = (K * (bi + bd + bo) + PC_BLEND_THREADS - 1) / PC_BLEND_THREADS;
-  int borderItems = kVariant == 4 ? 0 : probesHere * (bi + bd + bo);
-  int channel[kItems], to[kItems];  // channel: 0 irradiance, 1 depth, 2 occlusion, -1 none
-  vec4 value[kItems];
-  [[unroll]] for (int j = 0; j < kItems; ++j) {
-    int item = tid + j * PC_BLEND_THREADS;
-    int k = min(item / (bi + bd + bo), K - 1), b = item % (bi + bd + bo);
-    channel[j] = item >= borderItems || sInside[k] ? -1 : b < bi ? 0 : b < bi + bd ? 1 : 2;
-    int s = channel[j] == 0 ? si : channel[j] == 1 ? sd : so;
-    int n = s - 2;
-    b -= channel[j] == 1 ? bi : channel[j] == 2 ? bi + bd : 0;
+  for (int item = tid; item < (kVariant == 4 ? 0 : probesHere * (bi + bd + bo)); item += PC_BLEND_THREADS) {
+    int k = item / (bi + bd + bo), b = item % (bi + bd + bo);
+    if (sInside[k]) continue;
+    int s, n;
+    int channel;  // 0 irradiance, 1 depth, 2 occlusion
+    if (b < bi) {
+      channel = 0, s = si, n = ni;
+    } else if (b < bi + bd) {
+      channel = 1, s = sd, n = nd, b -= bi;
+    } else {
+      channel = 2, s = so, n = no, b -= bi + bd;
+    }
     ivec2 bxy = b < s ? ivec2(b, 0)
               : b < 2 * s ? ivec2(b - s, s - 1)
               : b < 3 * s - 2 ? ivec2(0, 1 + b - 2 * s)
               : ivec2(s - 1, 1 + b - (3 * s - 2));
     ivec2 src = pcBorderSource(bxy.x, bxy.y, n) + ivec2(1);
-    ivec2 o = channel[j] == 0 ? sIrradianceOrigin[k] : channel[j] == 1 ? sDepthOrigin[k] : sOcclusionOrigin[k];
-    if (channel[j] == 0) {
-      to[j] = pcIrradianceIndex(o + bxy);
-      value[j] = irradianceTexels[pcIrradianceIndex(o + src)];
-    } else if (channel[j] == 1) {
-      to[j] = pcDepthIndex(o + bxy);
-      value[j] = vec4(depthTexels[pcDepthIndex(o + src)], 0.0f, 0.0f);
-    } else if (channel[j] == 2) {
-      to[j] = pcOcclusionIndex(o + bxy);
-      value[j] = vec4(occlusionTexels[pcOcclusionIndex(o + src)]);
-    }
-  }
-  [[unroll]] for (int j = 0; j < kItems; ++j) {
-    if (channel[j] == 0) {
-      irradianceTexels[to[j]] = value[j];
-    } else if (channel[j] == 1) {
-      depthTexels[to[j]] = value[j].xy;
-    } else if (channel[j] == 2) {
-      occlusionTexels[to[j]] = value[j].x;
+    ivec2 o = channel == 0 ? sIrradianceOrigin[k] : channel == 1 ? sDepthOrigin[k] : sOcclusionOrigin[k];
+    if (channel == 0) {
+      irradianceTexels[pcIrradianceIndex(o + bxy)] = irradianceTexels[pcIrradianceIndex(o + src)];
+    } else if (channel == 1) {
+      depthTexels[pcDepthIndex(o + bxy)] = depthTexels[pcDepthIndex(o + src)];
+    } else {
+      occlusionTexels[pcOcclusionIndex(o + bxy)] = occlusionTexels[pcOcclusionIndex(o + src)];
     }
   }
   if (tid < probesHere && !sInside[tid]) changes[firstRequest + tid] = uintBitsToFloat(sMaxChange[tid]);
