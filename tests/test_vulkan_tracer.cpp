@@ -585,7 +585,6 @@ TEST(VulkanTracer, LaunchOrderMapsBothWays) {
   }
 }
 
-}  // namespace
 // Above 256 rays a blend workgroup holds two probes' rays, above 512 one (pcBlendProbes), and
 // sums them in per-probe arrays instead of the four-probe vec4 lanes: those layouts of the
 // shared ray scratch must blend as the CPU does too.
@@ -616,4 +615,5 @@ TEST(VulkanTracer, BlendGroupsOfTwoAndOneProbeMatchEmbree) {
   }
 }
 
+}  // namespace
 }  // namespace pc
