@@ -16,8 +16,10 @@
 // Shared memory holds each probe's rays in a row of rayCount + 1 (probe-major, padded): the
 // threads of a warp read different rays of one probe per tap, and with the padding those land
 // in different banks (with rays interleaved by probe, a vec4 tap read hit only two of the
-// eight 16-byte bank groups). Each probe's tile origins and ray reach are looked up once, up
-// front, instead of per texel and per border texel.
+// eight 16-byte bank groups). The depth-moment distances, one float per probe and ray, are
+// the exception: with four probes a ray's four sit side by side, so a depth tap is one
+// 16-byte read for the whole group. Each probe's tile origins and ray reach are looked up
+// once, up front, instead of per texel and per border texel.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_KHR_shader_subgroup_ballot : require
