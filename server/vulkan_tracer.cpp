@@ -165,6 +165,7 @@ struct VulkanTracer::Impl {
   int slotCapacity = -1, counterSlotCapacity = -1;
   int roundSlots = 1;                  // this update's shadow slots per round
   std::size_t shadowMemoryBudget = 0;  // VulkanTracerOptions::shadowMemoryBudget
+  std::size_t maxBufferBytes = 0;  // VulkanTracerOptions::maxStorageBufferBytes, or the device's
   int loggedRounds = 1;                // the rounds last reported in the log
   vk::Buffer tapsUpload, taps;  // blend taps: host-written, copied to device memory per update
   std::size_t tapBytes = 0;     // of this update's taps
@@ -276,6 +277,9 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
         largest = std::max(largest, mp.memoryHeaps[h].size);
     shadowMemoryBudget = std::size_t(std::min<VkDeviceSize>(largest / 4, VkDeviceSize(8) << 30));
   }
+  maxBufferBytes = std::size_t(ctx->properties().limits.maxStorageBufferRange);
+  if (vulkan.maxStorageBufferBytes > 0)
+    maxBufferBytes = std::min(maxBufferBytes, vulkan.maxStorageBufferBytes);
   ensureRequestCapacity(1, 1, 0);
   return Status::success();
 }
@@ -639,8 +643,29 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   const std::size_t records =
       std::max(probes, probeCapacity) * std::max<std::size_t>(std::size_t(rayCount), rayCapacity);
   const std::size_t slotBytes = records * (sizeof(GpuShadowRay) + sizeof(GpuShadowLight));
+  // Each per-ray buffer is bound whole, so none may pass the device's storage-buffer range: a
+  // round's slots share one shadow-ray buffer, so they are held to it as to the budget.
+  const std::size_t slotsInRange = maxBufferBytes / (records * sizeof(GpuShadowRay));
   roundSlots = std::max(
-      1, std::min(slots, int(std::min<std::size_t>(shadowMemoryBudget / slotBytes, 1u << 20))));
+      1, std::min({slots, int(std::min<std::size_t>(shadowMemoryBudget / slotBytes, 1u << 20)),
+                   int(std::min<std::size_t>(slotsInRange, 1u << 20))}));
+  // Past the range even with one slot a round (or without slots): the update is refused, as
+  // buffers it cannot do without are.
+  const std::size_t widestRecord =
+      std::max({sizeof(GpuHit), std::size_t(16), slots > 0 ? sizeof(GpuShadowRay) : 0});
+  if (records * widestRecord > maxBufferBytes) {
+    auto size = [](std::size_t b) {
+      return b >= (std::size_t(1) << 20) ? std::to_string(b >> 20) + " MiB"
+                                         : std::to_string(b) + " bytes";
+    };
+    logError("vulkan tracer: an update of " + std::to_string(std::max(probes, probeCapacity)) +
+             " probes x " +
+             std::to_string(std::max<std::size_t>(std::size_t(rayCount), rayCapacity)) +
+             " rays needs per-ray buffers of " + size(records * widestRecord) +
+             ", over the device's storage-buffer range of " + size(maxBufferBytes) +
+             ": request fewer probes per update (the server's --budget)");
+    std::abort();
+  }
   if (probes <= probeCapacity && rayTotal <= probeCapacity * std::size_t(rayCapacity) &&
       std::size_t(rayCount) <= std::size_t(rayCapacity) && roundSlots <= slotCapacity &&
       slots <= counterSlotCapacity)

@@ -34,6 +34,10 @@ struct VulkanTracerOptions {
   // as fit, with the same field (gpu_trace.h: pcShadowRounds). 0: a quarter of the device's
   // largest device-local memory heap, at most 8 GiB.
   std::size_t shadowMemoryBudget = 0;
+  // The most bytes one per-ray buffer may span (0: the device's maxStorageBufferRange). Shadow
+  // rounds hold to it as to the budget above; an update too large for one slot's records is
+  // refused with a message naming the limit. Smaller values only serve tests.
+  std::size_t maxStorageBufferBytes = 0;
 };
 
 class VulkanTracer final : public Tracer {

@@ -428,8 +428,8 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
 }
 
 // Shadow rounds (gpu_trace.h, pcShadowRounds): with a shadow memory budget that holds 7 of the
-// 40 lights' records, the update shades and traces shadow rays in 6 rounds and must give the
-// very field of one round, with the same shadow rays.
+// 40 lights' records, or a buffer range that does, the update shades and traces shadow rays in
+// 6 rounds and must give the very field of one round, with the same shadow rays.
 TEST(VulkanTracer, ShadowRoundsGiveTheFieldOfOneRound) {
   const Scene scene = manyLightsScene();
   TracerOptions everyRay;  // every light's shadow ray, so that every round has work
@@ -452,19 +452,31 @@ TEST(VulkanTracer, ShadowRoundsGiveTheFieldOfOneRound) {
   ASSERT_TRUE(made) << made.error().message;
   auto* rounds = dynamic_cast<VulkanTracer*>(made.value().get());
   ASSERT_NE(rounds, nullptr);
+  // The same rounds where a buffer may span no more than 7 slots' shadow rays (a device's
+  // storage-buffer range), the memory budget unbounded.
+  VulkanTracerOptions narrow;
+  narrow.validation = true;
+  narrow.allowCpuDevice = true;
+  narrow.shadowMemoryBudget = std::size_t(1) << 40;
+  narrow.maxStorageBufferBytes = 7 * request.probes.size() * 32 * sizeof(gpu::GpuShadowRay);
+  auto ranged = VulkanTracer::create(scene, everyRay, narrow);
+  ASSERT_TRUE(ranged) << ranged.error().message;
+  Field fn = f1;
   std::uint64_t rays1 = 0, raysR = 0;
   for (int i = 0; i < 2; ++i) {
     request.rotationSeed = 910u + std::uint32_t(i);
     rays1 += oneRound->update(f1, request).shadowRays;
+    const UpdateStats sn = (*ranged)->update(fn, request);
     const UpdateStats s = rounds->update(fr, request);
     raysR += s.shadowRays;
     // Where the device has timestamps, the rounds are one timed span.
-    auto has = [&](const char* pass) {
-      return std::any_of(s.gpuPasses.begin(), s.gpuPasses.end(),
+    auto has = [&](const UpdateStats& st, const char* pass) {
+      return std::any_of(st.gpuPasses.begin(), st.gpuPasses.end(),
                          [&](const auto& p) { return p.first == pass; });
     };
-    if (has("blend")) {
-      EXPECT_TRUE(has("shadow rounds"));
+    if (has(s, "blend")) {
+      EXPECT_TRUE(has(s, "shadow rounds"));
+      EXPECT_TRUE(has(sn, "shadow rounds"));
     }
   }
   std::printf("40 lights in rounds of 7: %llu shadow rays, one round %llu\n",
@@ -472,8 +484,10 @@ TEST(VulkanTracer, ShadowRoundsGiveTheFieldOfOneRound) {
   EXPECT_GT(rays1, 0u);
   EXPECT_EQ(raysR, rays1);
   expectIdenticalFields(fr, f1);
+  expectIdenticalFields(fn, f1);
   EXPECT_EQ(oneRound->validationErrorCount(), 0u);
   EXPECT_EQ(rounds->validationErrorCount(), 0u);
+  EXPECT_EQ((*ranged)->validationErrorCount(), 0u);
 }
 
 // Shadow-ray roulette (interop/shadow_roulette.h): the GPU draws the same lights as Embree for
