@@ -1233,7 +1233,8 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
               " rounds of " + std::to_string(m.roundSlots) + ": their records for " +
               std::to_string(std::uint64_t(n) * std::uint64_t(rayCount)) +
               " probe rays exceed the " + std::to_string(m.shadowMemoryBudget >> 20) +
-              " MiB shadow memory budget");
+              " MiB shadow memory budget or, in one buffer, the " +
+              std::to_string(m.maxBufferBytes >> 20) + " MiB storage-buffer range");
     m.loggedRounds = std::max(rounds, 1);
   }
   const int groupProbes = m.blendGroupProbes(rayCount);
