@@ -727,6 +727,27 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
   using vk::MemoryUsage;
   const VkBufferUsageFlags rw = kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   auto bytes = [](const Atlas& a) { return a.texels.size() * sizeof(float); };
+  brickTotal = 0;
+  brickOffset.fill(0);
+  for (int k = 0; k < field.cascadeCount(); ++k) {
+    brickOffset[k] = brickTotal;
+    brickTotal += pcBrickCount(field.cascade(k));
+  }
+  for (int k = field.cascadeCount(); k < PC_MAX_CASCADES; ++k) brickOffset[k] = brickTotal;
+  const std::size_t bricks = std::size_t(std::max(brickTotal, 1));
+  const std::size_t packedBytes =
+      bricks * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float);
+  // Every field buffer is bound whole, so none may pass the storage-buffer range; the packed
+  // bricks (every tile of the field with its borders, when all change) are the largest.
+  const std::size_t widest = std::max(bytes(field.irradiance) / 3 * 4, packedBytes);
+  if (widest > maxBufferBytes) {
+    logError("vulkan tracer: a field of " + std::to_string(field.probes.size()) +
+             " probes needs buffers of " + std::to_string(widest >> 20) +
+             " MiB, over the device's storage-buffer range of " +
+             std::to_string(maxBufferBytes >> 20) +
+             " MiB: use fewer probes (the sidecar's volumes)");
+    std::abort();
+  }
   fieldDesc = orDie(vk::Buffer::create(*ctx, sizeof(FieldDesc), kHostInput, MemoryUsage::Upload), "field desc");
   // The irradiance atlas holds a vec4 per texel on the GPU (field_buffers.glsl).
   irradiance =
@@ -736,16 +757,9 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
   occlusion = orDie(vk::Buffer::create(*ctx, bytes(field.occlusion), rw, MemoryUsage::DeviceLocal), "occlusion");
   const std::size_t recordBytes = std::max<std::size_t>(field.probes.size(), 1) * sizeof(GpuProbeRecord);
   records = orDie(vk::Buffer::create(*ctx, recordBytes, rw, MemoryUsage::DeviceLocal), "records");
-  recordsReadback = orDie(vk::Buffer::create(*ctx, recordBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUsage::Readback),
+  recordsReadback = orDie(vk::Buffer::create(*ctx, recordBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                             MemoryUsage::Readback),
                           "record readback");
-  brickTotal = 0;
-  brickOffset.fill(0);
-  for (int k = 0; k < field.cascadeCount(); ++k) {
-    brickOffset[k] = brickTotal;
-    brickTotal += pcBrickCount(field.cascade(k));
-  }
-  for (int k = field.cascadeCount(); k < PC_MAX_CASCADES; ++k) brickOffset[k] = brickTotal;
-  const std::size_t bricks = std::size_t(std::max(brickTotal, 1));
   brickFlags = orDie(vk::Buffer::create(*ctx, bricks * 4, rw, MemoryUsage::DeviceLocal), "brick flags");
   const std::size_t listBytes = (PC_BRICK_LIST_HEADER + bricks) * 4;
   brickList = orDie(vk::Buffer::create(*ctx, listBytes, rw | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, MemoryUsage::DeviceLocal),
@@ -753,8 +767,7 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
   brickListReadback = orDie(vk::Buffer::create(*ctx, listBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUsage::Readback),
                             "brick list readback");
   // Shaders write the packed tiles straight into host memory: only changed bricks cross.
-  packed = orDie(vk::Buffer::create(*ctx, bricks * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float),
-                                    kStorage, MemoryUsage::Readback),
+  packed = orDie(vk::Buffer::create(*ctx, packedBytes, kStorage, MemoryUsage::Readback),
                  "packed bricks");
   layoutDesc = field.desc;
   haveField = true;
