@@ -57,6 +57,19 @@ T orDie(Result<T> r, const char* what) {
   return std::move(r).value();
 }
 
+// Dies, saying why: `what` needs a buffer of `bytes`, past the storage-buffer range `range`
+// that a descriptor binding the whole buffer can cover. `fix` says what to ask for instead.
+[[noreturn]] void dieOverRange(const std::string& what, std::size_t bytes, std::size_t range,
+                               const char* fix) {
+  auto size = [](std::size_t b) {
+    return b >= (std::size_t(1) << 20) ? std::to_string(b >> 20) + " MiB"
+                                       : std::to_string(b) + " bytes";
+  };
+  logError("vulkan tracer: " + what + " needs buffers of " + size(bytes) +
+           ", over the device's storage-buffer range of " + size(range) + ": " + fix);
+  std::abort();
+}
+
 VkDeviceSize alignUp(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
 
 // A ray-tracing pipeline's shader binding table: one raygen record, the miss records, one hit
@@ -653,19 +666,12 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   // buffers it cannot do without are.
   const std::size_t widestRecord =
       std::max({sizeof(GpuHit), std::size_t(16), slots > 0 ? sizeof(GpuShadowRay) : 0});
-  if (records * widestRecord > maxBufferBytes) {
-    auto size = [](std::size_t b) {
-      return b >= (std::size_t(1) << 20) ? std::to_string(b >> 20) + " MiB"
-                                         : std::to_string(b) + " bytes";
-    };
-    logError("vulkan tracer: an update of " + std::to_string(std::max(probes, probeCapacity)) +
-             " probes x " +
-             std::to_string(std::max<std::size_t>(std::size_t(rayCount), rayCapacity)) +
-             " rays needs per-ray buffers of " + size(records * widestRecord) +
-             ", over the device's storage-buffer range of " + size(maxBufferBytes) +
-             ": request fewer probes per update (the server's --budget)");
-    std::abort();
-  }
+  if (records * widestRecord > maxBufferBytes)
+    dieOverRange("an update of " + std::to_string(std::max(probes, probeCapacity)) + " probes x " +
+                     std::to_string(std::max<std::size_t>(std::size_t(rayCount), rayCapacity)) +
+                     " rays",
+                 records * widestRecord, maxBufferBytes,
+                 "request fewer probes per update (the server's --budget)");
   if (probes <= probeCapacity && rayTotal <= probeCapacity * std::size_t(rayCapacity) &&
       std::size_t(rayCount) <= std::size_t(rayCapacity) && roundSlots <= slotCapacity &&
       slots <= counterSlotCapacity)
@@ -740,14 +746,9 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
   // Every field buffer is bound whole, so none may pass the storage-buffer range; the packed
   // bricks (every tile of the field with its borders, when all change) are the largest.
   const std::size_t widest = std::max(bytes(field.irradiance) / 3 * 4, packedBytes);
-  if (widest > maxBufferBytes) {
-    logError("vulkan tracer: a field of " + std::to_string(field.probes.size()) +
-             " probes needs buffers of " + std::to_string(widest >> 20) +
-             " MiB, over the device's storage-buffer range of " +
-             std::to_string(maxBufferBytes >> 20) +
-             " MiB: use fewer probes (the sidecar's volumes)");
-    std::abort();
-  }
+  if (widest > maxBufferBytes)
+    dieOverRange("a field of " + std::to_string(field.probes.size()) + " probes", widest,
+                 maxBufferBytes, "use fewer probes (the sidecar's volumes)");
   fieldDesc = orDie(vk::Buffer::create(*ctx, sizeof(FieldDesc), kHostInput, MemoryUsage::Upload), "field desc");
   // The irradiance atlas holds a vec4 per texel on the GPU (field_buffers.glsl).
   irradiance =

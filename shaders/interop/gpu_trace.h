@@ -138,7 +138,8 @@ PC_FN int pcShadowMaskWords(int slots) { return (slots + 31) / 32; }
 // Shadow rounds. A slot's shadow list and lights take a record per probe ray of the update, so
 // the memory of shadow slots grows with lights x probes x rays (48 bytes per ray and slot:
 // 200 MB a slot at 16,384 probes x 256 rays). The tracer holds at most `roundSlots` slots'
-// records (UpdateParams::roundSlots, from a memory budget) and, with more slots, runs shade
+// records (UpdateParams::roundSlots, from a memory budget and the device's storage-buffer
+// range, which one round's shadow-ray buffer may not pass) and, with more slots, runs shade
 // and shadow trace once per round of that many slots (TracePush::slotBase: the round's first
 // slot): the first round writes the rays' records, every round requests its own slots'
 // shadow rays, and a resolve pass (probe_resolve.comp) adds the visible light of the round's
