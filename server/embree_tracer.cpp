@@ -123,12 +123,13 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
     for (std::size_t p = range.begin(); p != range.end(); ++p) {
       const ProbeRef ref = request.probes[p];
       const glm::vec3 origin = field.probePosition(ref.cascade, ref.slot);
+      const float near = gpu::pcProbeRayNear(field.cascade(ref.cascade));
       Rng rng(request.rotationSeed * 0x9E3779B97F4A7C15ull + p, 7);
       RayResult* out = &results[p * rayCount];
       for (int i = 0; i < rayCount; ++i) {
         Hit hit;
         if (indirect) deferred[p * rayCount + i].key = DeferredHit::kNone;
-        if (!embree_->intersect(origin, dirs[i], 0.0f, inf, hit)) {
+        if (!embree_->intersect(origin, dirs[i], near, inf, hit)) {
           out[i] = {scene_.sky.radiance(dirs[i]), inf};
           continue;
         }
@@ -217,9 +218,10 @@ double EmbreeTracer::traceOnly(const Field& field, const UpdateRequest& request,
     for (std::size_t p = range.begin(); p != range.end(); ++p) {
       const ProbeRef ref = request.probes[p];
       const glm::vec3 origin = field.probePosition(ref.cascade, ref.slot);
+      const float near = gpu::pcProbeRayNear(field.cascade(ref.cascade));
       for (int i = 0; i < rayCount; ++i) {
         Hit hit;
-        local += embree_->intersect(origin, dirs[i], 0.0f, inf, hit) ? 1 : 0;
+        local += embree_->intersect(origin, dirs[i], near, inf, hit) ? 1 : 0;
       }
     }
     hitCount += local;

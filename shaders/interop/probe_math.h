@@ -158,6 +158,14 @@ PC_FN vec3 pcProbeGridPosition(PC_IN(CascadeDesc) c, ivec3 logical) {
   return c.origin + vec3(logical) * c.spacing;
 }
 
+// Where a probe's rays start, as a share of the spacing past the probe. A grid aligned with the
+// walls puts whole rows of probes on their planes, and a ray from a point on a plane hits it at
+// t = 0 or misses it as the tracer's rounding falls: Embree and the GPU then saw different
+// surfaces, and classified and relocated those probes differently. Past this distance, the
+// plane a probe sits on is never hit; a probe this close to a surface counts as on it.
+PC_CONST float PC_PROBE_RAY_NEAR = 1e-3f;
+PC_FN float pcProbeRayNear(PC_IN(CascadeDesc) c) { return PC_PROBE_RAY_NEAR * c.spacing; }
+
 // ---- atlas addressing -------------------------------------------------------------------------
 // Every channel's atlas holds one bordered tile per probe slot, PC_ATLAS_TILES_PER_ROW tiles per
 // row; cascade k starts at tile row c.atlasTileRow. Tile size = interior texels + 2.
