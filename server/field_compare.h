@@ -2,6 +2,8 @@
 // held to (tests, probecast-bench gpu-trace).
 #pragma once
 
+#include <vector>
+
 #include "../common/field.h"
 
 namespace pc {
@@ -16,5 +18,22 @@ struct FieldDifference {
 
 // `b` is the reference. The fields must share their layout (same volumes and settings).
 FieldDifference compareFields(const Field& a, const Field& b);
+
+// One probe of two fields side by side: where the backends part, for finding out why.
+struct ProbeDifference {
+  int cascade = 0, slot = 0;
+  glm::vec3 positionA{0.0f}, positionB{0.0f};  // world, relocated
+  int stateA = 0, stateB = 0;
+  // Mean decoded irradiance over the tile's interior texels and channels, and mean depth.
+  double irradianceA = 0, irradianceB = 0, depthA = 0, depthB = 0;
+  // What the probe adds to compareFields' numerators: sum |a - b| over the interior texels
+  // (and channels) of decoded irradiance and of mean depth.
+  double irradianceError = 0, depthError = 0;
+};
+
+// The `count` probes active in both that add most to compareFields' irradiance numerator,
+// largest first; then the `count` that add most to its depth numerator; then every real probe
+// whose state differs.
+std::vector<ProbeDifference> largestProbeDifferences(const Field& a, const Field& b, int count);
 
 }  // namespace pc

@@ -41,10 +41,11 @@ double grays(std::uint64_t rays, double ms) { return ms > 0 ? double(rays) / (ms
 Benchmark addGpuTrace(CLI::App& app) {
   auto* cmd = app.add_subcommand("gpu-trace", "Vulkan ray tracing: speed per pass, raw ceiling, agreement with Embree, quality");
   static std::string scenePath = "builtin", sidecar, device;
-  static int updates = 8, rays = 256;
+  static int updates = 8, rays = 256, worst = 0;
   static std::size_t shadowMemoryMiB = 0;
   static std::vector<int> counts;
-  static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false;
+  static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false,
+              singleBounce = false;
   static float roulette = pc::TracerOptions{}.shadowRouletteShare;
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
@@ -60,6 +61,12 @@ Benchmark addGpuTrace(CLI::App& app) {
   cmd->add_flag("--gpu-only", gpuOnly, "refuse CPU Vulkan implementations (lavapipe)");
   cmd->add_flag("--no-embree", skipEmbree, "skip the Embree run (and the field comparison)");
   cmd->add_flag("--no-quality", skipQuality, "skip the probe-lit renders and the reference");
+  cmd->add_flag("--single-bounce", singleBounce,
+                "both backends skip the previous field at hits (direct light only), to tell where "
+                "they part");
+  cmd->add_option("--worst", worst,
+                  "list the probes whose irradiance differs most between the backends, and those "
+                  "whose state differs");
   cmd->add_flag("--bounded-shadow-launch", boundedShadowLaunch,
                 "launch shadow rays over the most the list can hold, not from the list's length on the GPU");
   cmd->add_option("--shadow-memory", shadowMemoryMiB,
@@ -102,6 +109,7 @@ Benchmark addGpuTrace(CLI::App& app) {
             Field fc = Field::create(volumes, settings);
             BakeOptions bake;
             bake.updates = setup.updates;
+            if (singleBounce) bake.shading = kShadeNoIndirect;
             const BakeStats gpuBake = bakeField(fg, **gpu, bake);
             BakeStats cpuBake;
             if (cpu) cpuBake = bakeField(fc, *cpu, bake);
@@ -109,6 +117,7 @@ Benchmark addGpuTrace(CLI::App& app) {
             // ---- speed: raw ceiling and full updates on the same rays ----
             UpdateRequest request;
             request.probes = allProbes(fg);
+            request.shading = bake.shading;
             const std::uint64_t probeRaysPerUpdate = std::uint64_t(request.probes.size()) * rays;
             double rawMs = 0, gpuMs = 0, wallMs = 0, embreeMs = 0, embreeRawMs = 0;
             std::uint64_t shadowRays = 0, embreeShadowRays = 0, readback = 0;
@@ -191,6 +200,23 @@ Benchmark addGpuTrace(CLI::App& app) {
               const FieldDifference d = compareFields(fg, fc);
               std::printf("fields after identical updates: %d probes active in both, %d state mismatches\n", d.probes,
                           d.stateMismatches);
+              if (worst > 0) {
+                std::printf(
+                    "probes apart, GPU | Embree: the %d largest irradiance differences, the %d "
+                    "largest "
+                    "depth differences, then the state mismatches (irradiance and depth: tile "
+                    "means; "
+                    "differences: summed over the tile)\n",
+                    worst, worst);
+                for (const ProbeDifference& p : largestProbeDifferences(fg, fc, worst))
+                  std::printf(
+                      "  cascade %d slot %d: state %d | %d, at (%.3f %.3f %.3f) | (%.3f %.3f "
+                      "%.3f), "
+                      "irradiance %.4g | %.4g, depth %.4g | %.4g, differences %.3g, %.3g\n",
+                      p.cascade, p.slot, p.stateA, p.stateB, p.positionA.x, p.positionA.y,
+                      p.positionA.z, p.positionB.x, p.positionB.y, p.positionB.z, p.irradianceA,
+                      p.irradianceB, p.depthA, p.depthB, p.irradianceError, p.depthError);
+              }
               figure("field_rel_diff_irradiance", d.irradiance, "ratio");
               figure("field_rel_diff_depth", d.depth, "ratio");
             }
