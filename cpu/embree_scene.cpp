@@ -5,6 +5,7 @@
 #include <string>
 
 #include "../common/log.h"
+#include "../shaders/interop/probe_math.h"
 
 namespace pc {
 namespace {
@@ -251,6 +252,7 @@ SurfacePoint EmbreeScene::surface(const Hit& hit, glm::vec3 origin, glm::vec3 di
   const glm::vec3 p0 = corner(i0), p1 = corner(i1), p2 = corner(i2);
   const float u = hit.barycentric.x, v = hit.barycentric.y, w = 1.0f - u - v;
   sp.position = w * p0 + u * p1 + v * p2;
+  sp.extent = gpu::pcTriangleExtent(p0, p1, p2);
 
   // The front face is the counter-clockwise side (glTF, OBJ). Computing it from the world
   // corners keeps the convention independent of how Embree orients its own Ng.

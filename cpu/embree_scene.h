@@ -29,6 +29,7 @@ struct SurfacePoint {
   glm::vec3 normal{0.0f};           // shading normal, flipped to face the incoming ray
   glm::vec3 geometricNormal{0.0f};  // unit, flipped to face the incoming ray
   bool backface = false;            // the ray hit the back of the triangle's winding
+  float extent = 0.0f;              // largest world coordinate of the triangle's corners
   glm::vec3 albedo{0.0f};
   glm::vec3 emission{0.0f};         // radiance emitted toward the ray origin
   int material = 0;

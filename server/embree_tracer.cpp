@@ -140,8 +140,10 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
         }
         lightOptions.shadowRouletteKey = gpu::pcShadowRouletteKey(
             request.rotationSeed, std::uint32_t(p * rayCount + std::size_t(i)));
-        glm::vec3 irradiance =
-            directIrradiance(*embree_, state_, emissive_, sp.position, sp.normal, rng, lightOptions);
+        const glm::vec3 shadowOrigin =
+            gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
+        glm::vec3 irradiance = directIrradiance(*embree_, state_, emissive_, shadowOrigin,
+                                                sp.normal, rng, lightOptions);
         glm::vec3 emitted = emissive_.sampled(sp.material) ? glm::vec3(0.0f) : sp.emission;
         glm::vec3 reflectance = sp.albedo * (1.0f / gpu::PC_PI);
         out[i] = {emitted + reflectance * irradiance, hit.t};

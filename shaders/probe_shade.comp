@@ -293,7 +293,8 @@ void shadeHit(GpuHit hit, vec3 dir) {
     sampled = m.sampled != 0;
   }
   albedoOverPi = albedo * (1.0f / PC_PI);
-  if (kVariant != 2 && kVariant != 4) directRequests(P, N);  // else a timing experiment
+  if (kVariant != 2 && kVariant != 4)  // else a timing experiment
+    directRequests(pcShadowOrigin(P, ng, pcTriangleExtent(p0, p1, p2)), N);
   vec3 indirect = vec3(0.0f);
   if ((params.shading & 1) == 0 && kVariant != 1 && kVariant != 4 && push.slotBase == 0) {
     float coverage = 0.0f;
