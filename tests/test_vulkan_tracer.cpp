@@ -712,8 +712,8 @@ Scene shiftedRoom(float shift) {
 
 // The built-in room 3000 units from the world's origin, where a float step is 2.4e-4: shadow
 // rays that left from the hit point itself found their own triangles there (Embree's field 2.1%
-// darker than at the origin, the GPU's 9.3e-3 from Embree's); shadow origins 256 steps off the
-// surface made it 17% brighter. pcShadowOrigin's 16 steps: 0.9% brighter, 5e-5 between the
+// darker than at the origin, lavapipe's 9.3e-3 from Embree's); shadow origins 256 steps off
+// the surface made it 17% brighter. pcShadowOrigin's 16 steps: 0.9% brighter, 5e-5 between the
 // backends.
 TEST(VulkanTracer, RoomFarFromTheOriginLightsAsAtTheOrigin) {
   double means[3] = {0, 0, 0};

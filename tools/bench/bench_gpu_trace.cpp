@@ -65,8 +65,8 @@ Benchmark addGpuTrace(CLI::App& app) {
                 "both backends skip the previous field at hits (direct light only), to tell where "
                 "they part");
   cmd->add_option("--worst", worst,
-                  "list the probes whose irradiance differs most between the backends, and those "
-                  "whose state differs");
+                  "list the N probes whose irradiance, and the N whose depth, differ most between "
+                  "the backends, and those whose state differs");
   cmd->add_flag("--bounded-shadow-launch", boundedShadowLaunch,
                 "launch shadow rays over the most the list can hold, not from the list's length on the GPU");
   cmd->add_option("--shadow-memory", shadowMemoryMiB,
@@ -201,21 +201,16 @@ Benchmark addGpuTrace(CLI::App& app) {
               std::printf("fields after identical updates: %d probes active in both, %d state mismatches\n", d.probes,
                           d.stateMismatches);
               if (worst > 0) {
-                std::printf(
-                    "probes apart, GPU | Embree: the %d largest irradiance differences, the %d "
-                    "largest "
-                    "depth differences, then the state mismatches (irradiance and depth: tile "
-                    "means; "
-                    "differences: summed over the tile)\n",
-                    worst, worst);
+                std::printf("probes apart, GPU | Embree: the %d largest irradiance differences, "
+                            "the %d largest depth differences, then the state mismatches\n"
+                            "(irradiance and depth: tile means; differences: summed over the tile)\n",
+                            worst, worst);
                 for (const ProbeDifference& p : largestProbeDifferences(fg, fc, worst))
-                  std::printf(
-                      "  cascade %d slot %d: state %d | %d, at (%.3f %.3f %.3f) | (%.3f %.3f "
-                      "%.3f), "
-                      "irradiance %.4g | %.4g, depth %.4g | %.4g, differences %.3g, %.3g\n",
-                      p.cascade, p.slot, p.stateA, p.stateB, p.positionA.x, p.positionA.y,
-                      p.positionA.z, p.positionB.x, p.positionB.y, p.positionB.z, p.irradianceA,
-                      p.irradianceB, p.depthA, p.depthB, p.irradianceError, p.depthError);
+                  std::printf("  cascade %d slot %d: state %d | %d, at (%.3f %.3f %.3f) | (%.3f %.3f %.3f), "
+                              "irradiance %.4g | %.4g, depth %.4g | %.4g, differences %.3g, %.3g\n",
+                              p.cascade, p.slot, p.stateA, p.stateB, p.positionA.x, p.positionA.y, p.positionA.z,
+                              p.positionB.x, p.positionB.y, p.positionB.z, p.irradianceA, p.irradianceB, p.depthA,
+                              p.depthB, p.irradianceError, p.depthError);
               }
               figure("field_rel_diff_irradiance", d.irradiance, "ratio");
               figure("field_rel_diff_depth", d.depth, "ratio");
