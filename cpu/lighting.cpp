@@ -170,8 +170,8 @@ bool EmissiveLights::sampled(int material) const {
 }
 
 glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
-                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 N, Rng& rng,
-                           const DirectLightOptions& options) {
+                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                           glm::vec3 N, Rng& rng, const DirectLightOptions& options) {
   glm::vec3 E(0.0f);
   std::uint64_t shadowRays = 0;
   // Counted locally and added once: the counter may be shared by a thread's many calls.
@@ -202,7 +202,7 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
                                     options.shadowRouletteKey, int(i));
     if (weight == 0.0f) continue;
     ++shadowRays;
-    if (scene.occluded(P, ls.wi, kShadowNear, ls.far)) continue;
+    if (scene.occluded(shadowOrigin, ls.wi, kShadowNear, ls.far)) continue;
     E += weight == 1.0f ? ls.irradiance : ls.irradiance * weight;
   }
 
@@ -235,9 +235,9 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
     if (cosSurface <= 0.0f || cosLight <= 0.0f) continue;
     // Aim at a point lifted off the emitter so the emitter itself never shadows the sample.
     const glm::vec3 target = offsetRayOrigin(Q, tri.normal);
-    const float shadowFar = glm::length(target - P) * kShadowFarScale;
+    const float shadowFar = glm::length(target - shadowOrigin) * kShadowFarScale;
     ++shadowRays;
-    if (scene.occluded(P, wi, kShadowNear, shadowFar)) continue;
+    if (scene.occluded(shadowOrigin, wi, kShadowNear, shadowFar)) continue;
     const float pdfArea = pTriangle / tri.area;
     sum += tri.radiance * (cosSurface * cosLight / (d2 * pdfArea));
   }

@@ -56,10 +56,18 @@ struct DirectLightOptions {
 };
 
 // Irradiance E (W/m^2) arriving at P (normal N, unit) directly from lights, shadowed.
-// Multiply by albedo / pi for the reflected radiance of a diffuse surface.
+// Multiply by albedo / pi for the reflected radiance of a diffuse surface. The lights are
+// evaluated at P; the shadow rays leave from `shadowOrigin`, P moved off its surface
+// (gpu::pcShadowOrigin, offsetRayOrigin), toward each light or emitter sample.
 glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
-                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 N, Rng& rng,
-                           const DirectLightOptions& options = {});
+                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                           glm::vec3 N, Rng& rng, const DirectLightOptions& options = {});
+// The same with the shadow rays leaving from P itself (P already off its surface).
+inline glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
+                                  const EmissiveLights& emissive, glm::vec3 P, glm::vec3 N,
+                                  Rng& rng, const DirectLightOptions& options = {}) {
+  return directIrradiance(scene, state, emissive, P, P, N, rng, options);
+}
 
 // Offset along the geometric normal that keeps secondary rays from re-hitting their origin.
 glm::vec3 offsetRayOrigin(glm::vec3 P, glm::vec3 geometricNormal);

@@ -142,8 +142,8 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
             request.rotationSeed, std::uint32_t(p * rayCount + std::size_t(i)));
         const glm::vec3 shadowOrigin =
             gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
-        glm::vec3 irradiance = directIrradiance(*embree_, state_, emissive_, shadowOrigin,
-                                                sp.normal, rng, lightOptions);
+        glm::vec3 irradiance = directIrradiance(*embree_, state_, emissive_, sp.position,
+                                                shadowOrigin, sp.normal, rng, lightOptions);
         glm::vec3 emitted = emissive_.sampled(sp.material) ? glm::vec3(0.0f) : sp.emission;
         glm::vec3 reflectance = sp.albedo * (1.0f / gpu::PC_PI);
         out[i] = {emitted + reflectance * irradiance, hit.t};

@@ -174,7 +174,7 @@ int pickEmissive(float u) {
 
 // Emissive sample `s`'s request (slot lightCount + s). Samples draw from the ray's stream in
 // order: u, then the point on the triangle (none when the pick has no probability).
-void emissiveRequest(int s, int samples, vec3 P, vec3 N) {
+void emissiveRequest(int s, int samples, vec3 P, vec3 shadowOrigin, vec3 N) {
   int slot = params.lightCount + s;
   float u = (float(s) + rnd()) / float(samples);
   int k = pickEmissive(u);
@@ -202,13 +202,14 @@ void emissiveRequest(int s, int samples, vec3 P, vec3 N) {
     return;
   }
   vec3 target = offsetRayOrigin(Q, tri.normal);
-  float shadowFar = length(target - P) * kShadowFarScale;
+  float shadowFar = length(target - shadowOrigin) * kShadowFarScale;
   float pdfArea = pTriangle / tri.area;
-  request(slot, P, wi, shadowFar, tri.radiance * (cosSurface * cosLight / (d2 * pdfArea)) / float(samples));
+  request(slot, shadowOrigin, wi, shadowFar, tri.radiance * (cosSurface * cosLight / (d2 * pdfArea)) / float(samples));
 }
 
-// Every slot's request for a lit surface point.
-void directRequests(vec3 P, vec3 N) {
+// Every slot's request for a lit surface point: the lights evaluated at P, the shadow rays from
+// shadowOrigin (P off its surface, pcShadowOrigin), as cpu/lighting.cpp directIrradiance.
+void directRequests(vec3 P, vec3 shadowOrigin, vec3 N) {
   // The punctual lights' unshadowed luminance, for the shadow-ray roulette.
   float total = 0.0f;
   vec3 wi;
@@ -222,7 +223,7 @@ void directRequests(vec3 P, vec3 N) {
                  : kRoulette ? pcShadowRouletteWeight(pcLuminance(irradiance), total, params.shadowRouletteShare, key, i)
                  : 1.0f;
     if (weight > 0.0f) {
-      request(i, P, wi, far, weight == 1.0f ? irradiance : irradiance * weight);
+      request(i, shadowOrigin, wi, far, weight == 1.0f ? irradiance : irradiance * weight);
     } else {
       noRequest(i);
     }
@@ -230,7 +231,7 @@ void directRequests(vec3 P, vec3 N) {
   }
   int samples = params.shadowSlots - params.lightCount;
   for (int s = 0; s < samples; ++s) {
-    emissiveRequest(s, samples, P, N);
+    emissiveRequest(s, samples, P, shadowOrigin, N);
     appendRequest(params.lightCount + s);
   }
 }
@@ -294,7 +295,7 @@ void shadeHit(GpuHit hit, vec3 dir) {
   }
   albedoOverPi = albedo * (1.0f / PC_PI);
   if (kVariant != 2 && kVariant != 4)  // else a timing experiment
-    directRequests(pcShadowOrigin(P, ng, pcTriangleExtent(p0, p1, p2)), N);
+    directRequests(P, pcShadowOrigin(P, ng, pcTriangleExtent(p0, p1, p2)), N);
   vec3 indirect = vec3(0.0f);
   if ((params.shading & 1) == 0 && kVariant != 1 && kVariant != 4 && push.slotBase == 0) {
     float coverage = 0.0f;

@@ -712,9 +712,9 @@ Scene shiftedRoom(float shift) {
 
 // The built-in room 3000 units from the world's origin, where a float step is 2.4e-4: shadow
 // rays that left from the hit point itself found their own triangles there (Embree's field 2.1%
-// darker than at the origin, lavapipe's 9.3e-3 from Embree's); shadow origins 256 steps off
-// the surface made it 17% brighter. pcShadowOrigin's 16 steps: 0.9% brighter, 5e-5 between the
-// backends.
+// darker than at the origin, lavapipe's 9.3e-3 from Embree's); shadow rays and light both
+// taken 256 steps off the surface made it 17% brighter, 16 steps 0.9%. pcShadowOrigin's 16
+// steps for the shadow rays alone: 0.2% darker, 4e-5 between the backends.
 TEST(VulkanTracer, RoomFarFromTheOriginLightsAsAtTheOrigin) {
   double means[3] = {0, 0, 0};
   FieldDifference far;
@@ -741,7 +741,7 @@ TEST(VulkanTracer, RoomFarFromTheOriginLightsAsAtTheOrigin) {
       "room at the origin: mean irradiance %.5f; 3000 away: Embree %.5f, GPU %.5f; GPU vs Embree "
       "there %.2e / %.2e, state mismatches %d\n",
       means[0], means[1], means[2], far.irradiance, far.depth, far.stateMismatches);
-  EXPECT_NEAR(means[1] / means[0], 1.0, 0.015);
+  EXPECT_NEAR(means[1] / means[0], 1.0, 0.005);
   EXPECT_LE(far.irradiance, 1e-3);
   EXPECT_LE(far.depth, 1e-3);
   EXPECT_EQ(far.stateMismatches, 0);
