@@ -234,10 +234,15 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
     const float cosLight = -glm::dot(tri.normal, wi);  // one-sided: only the front emits
     if (cosSurface <= 0.0f || cosLight <= 0.0f) continue;
     // Aim at a point lifted off the emitter so the emitter itself never shadows the sample.
+    // The shadow ray runs from its origin straight to that point, and stops just short of it.
     const glm::vec3 target = offsetRayOrigin(Q, tri.normal);
-    const float shadowFar = glm::length(target - shadowOrigin) * kShadowFarScale;
+    const glm::vec3 toTarget = target - shadowOrigin;
+    const float targetDistance = glm::length(toTarget);
+    if (targetDistance <= 0.0f) continue;
     ++shadowRays;
-    if (scene.occluded(shadowOrigin, wi, kShadowNear, shadowFar)) continue;
+    if (scene.occluded(shadowOrigin, toTarget / targetDistance, kShadowNear,
+                       targetDistance * kShadowFarScale))
+      continue;
     const float pdfArea = pTriangle / tri.area;
     sum += tri.radiance * (cosSurface * cosLight / (d2 * pdfArea));
   }

@@ -201,10 +201,19 @@ void emissiveRequest(int s, int samples, vec3 P, vec3 shadowOrigin, vec3 N) {
     noRequest(slot);
     return;
   }
+  // Aimed at a point lifted off the emitter, so that the emitter never shadows its own sample:
+  // the ray runs from its origin straight to that point and stops just short of it, as on the
+  // CPU (cpu/lighting.cpp).
   vec3 target = offsetRayOrigin(Q, tri.normal);
-  float shadowFar = length(target - shadowOrigin) * kShadowFarScale;
+  vec3 toTarget = target - shadowOrigin;
+  float targetDistance = length(toTarget);
+  if (!(targetDistance > 0.0f)) {
+    noRequest(slot);
+    return;
+  }
   float pdfArea = pTriangle / tri.area;
-  request(slot, shadowOrigin, wi, shadowFar, tri.radiance * (cosSurface * cosLight / (d2 * pdfArea)) / float(samples));
+  request(slot, shadowOrigin, toTarget / targetDistance, targetDistance * kShadowFarScale,
+          tri.radiance * (cosSurface * cosLight / (d2 * pdfArea)) / float(samples));
 }
 
 // Every slot's request for a lit surface point: the lights evaluated at P, the shadow rays from
