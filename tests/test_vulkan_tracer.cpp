@@ -77,6 +77,15 @@ Backends makeBackends(const Scene& scene, int rays, std::string* why,
   return b;
 }
 
+// `updates` updates of every probe on both backends, seeds firstSeed, firstSeed + 1, ...
+void updateBoth(Backends& b, int updates, std::uint32_t firstSeed) {
+  for (int i = 0; i < updates; ++i) {
+    b.request.rotationSeed = firstSeed + std::uint32_t(i);
+    b.gpu->update(b.fg, b.request);
+    b.cpu->update(b.fc, b.request);
+  }
+}
+
 // Every border texel of every tile the update wrote (probes not inside geometry) holds exactly
 // its interior source (pcBorderSource), in each of the three atlases.
 void expectBordersCopyTheirSources(const Field& f) {
@@ -611,11 +620,7 @@ TEST(VulkanTracer, BlendGroupsOfTwoAndOneProbeMatchEmbree) {
     if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
     auto& [gpu, cpu, fg, fc, request] = b;
     ASSERT_EQ(gpu::pcBlendProbes(rays), rays == 512 ? 2 : 1);
-    for (int i = 0; i < 2; ++i) {
-      request.rotationSeed = 900u + std::uint32_t(i);
-      gpu->update(fg, request);
-      cpu->update(fc, request);
-    }
+    updateBoth(b, 2, 900u);
     const FieldDifference d = compareFields(fg, fc);
     std::printf(
         "builtin, %d rays: %d active probes, irradiance rel diff %.2e, depth rel diff %.2e\n", rays,
@@ -656,11 +661,7 @@ TEST(VulkanTracer, ProbesOnWallPlanesMatchEmbree) {
   Backends b = makeBackends(scene, 128, &why);
   if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
   auto& [gpu, cpu, fg, fc, request] = b;
-  for (int i = 0; i < 4; ++i) {
-    request.rotationSeed = 1100u + std::uint32_t(i);
-    gpu->update(fg, request);
-    cpu->update(fc, request);
-  }
+  updateBoth(b, 4, 1100u);
   int probes = 0, onWalls = 0, offsetMismatches = 0;
   const gpu::CascadeDesc& c = fc.cascade(0);
   for (int s = 0; s < gpu::pcSlotCount(c); ++s) {
@@ -725,11 +726,7 @@ TEST(VulkanTracer, RoomFarFromTheOriginLightsAsAtTheOrigin) {
     Backends b = makeBackends(scene, 128, &why);
     if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
     auto& [gpu, cpu, fg, fc, request] = b;
-    for (int u = 0; u < 4; ++u) {
-      request.rotationSeed = 1300u + std::uint32_t(u);
-      gpu->update(fg, request);
-      cpu->update(fc, request);
-    }
+    updateBoth(b, 4, 1300u);
     means[i] = meanIrradiance(fc);
     if (i == 1) {
       means[2] = meanIrradiance(fg);
