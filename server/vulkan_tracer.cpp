@@ -162,6 +162,10 @@ struct VulkanTracer::Impl {
   vk::UniqueDescriptorSetLayout setLayout;
   vk::UniqueDescriptorPool descriptorPool;
   VkDescriptorSet set = VK_NULL_HANDLE;
+  // The same bindings but for the field's, which point at the snapshot below: what the trace
+  // and shading passes of an update in slices read (traceSet: `set` or this one).
+  VkDescriptorSet snapshotSet = VK_NULL_HANDLE;
+  VkDescriptorSet traceSet = VK_NULL_HANDLE;
   vk::UniquePipelineLayout pipelineLayout;
   vk::UniquePipeline tracePipeline, shadowPipeline, shadePipeline, resolvePipeline, blendPipeline,
       changesPipeline, packPipeline;
@@ -183,6 +187,12 @@ struct VulkanTracer::Impl {
   vk::Buffer tapsUpload, taps;  // blend taps: host-written, copied to device memory per update
   std::size_t tapBytes = 0;     // of this update's taps
   std::size_t probeCapacity = 0, rayCapacity = 0;
+  // An update of more probe rays than one pass holds (maxPassRays) runs in slices of its
+  // probes, a submission each. Each slice traces and shades against the field as the update
+  // found it, copied once into the snapshot buffers, so the field is the one pass's: a slice
+  // blended earlier does not light a later one.
+  std::size_t maxPassRays = 0;
+  vk::Buffer prevIrradiance, prevDepth, prevOcclusion, prevRecords;
 
   // ---- field on the GPU ----
   FieldDesc layoutDesc{};  // the layout the field buffers were made for
@@ -230,7 +240,13 @@ struct VulkanTracer::Impl {
   int shadowSlots() const;
   void ensureRequestCapacity(std::size_t probes, int rayCount, int slots);
   bool ensureFieldBuffers(const Field& field);
-  void writeUpdateInputs(const Field& field, const UpdateRequest& request, bool blendTaps);
+  std::size_t sliceProbes(int rayCount) const;
+  void ensureSnapshot();
+  void recordSnapshot();
+  // Writes the inputs of the request's probes [first, first + count); the blend taps too
+  // where `blendTaps`. `sliced`: the update runs in slices (the snapshot is made ready).
+  void writeUpdateInputs(const Field& field, const UpdateRequest& request, std::size_t first,
+                         std::size_t count, bool blendTaps, bool sliced);
   void begin();
   void submitAndWait();
   void recordFieldSync(const Field& field, std::vector<vk::Buffer>& staging);
@@ -240,6 +256,9 @@ struct VulkanTracer::Impl {
   void recordShadowTrace(int slots, std::uint64_t rayCount, int slotBase);
   void recordResolve(int probeCount, int rayCount);
   void dispatchRows(std::uint64_t groups);
+  // Trace, shade, shadow rays and blend for the `probeCount` probes of the current inputs.
+  void recordWavefront(int probeCount, int rayCount, bool sliced);
+  bool loggedSlices = false;  // the first update in slices is reported in the log
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -281,18 +300,28 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   timer = std::move(t).value();
   if (Status s = uploadScene(); !s) return s;
   if (Status s = createPipelines(); !s) return s;
+  const VkPhysicalDeviceMemoryProperties& mp = ctx->memoryProperties();
+  VkDeviceSize largestHeap = 0;
+  for (std::uint32_t h = 0; h < mp.memoryHeapCount; ++h)
+    if (mp.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
+      largestHeap = std::max(largestHeap, mp.memoryHeaps[h].size);
   shadowMemoryBudget = vulkan.shadowMemoryBudget;
-  if (shadowMemoryBudget == 0) {
-    const VkPhysicalDeviceMemoryProperties& mp = ctx->memoryProperties();
-    VkDeviceSize largest = 0;
-    for (std::uint32_t h = 0; h < mp.memoryHeapCount; ++h)
-      if (mp.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
-        largest = std::max(largest, mp.memoryHeaps[h].size);
-    shadowMemoryBudget = std::size_t(std::min<VkDeviceSize>(largest / 4, VkDeviceSize(8) << 30));
-  }
+  if (shadowMemoryBudget == 0)
+    shadowMemoryBudget =
+        std::size_t(std::min<VkDeviceSize>(largestHeap / 4, VkDeviceSize(8) << 30));
   maxBufferBytes = std::size_t(ctx->properties().limits.maxStorageBufferRange);
   if (vulkan.maxStorageBufferBytes > 0)
     maxBufferBytes = std::min(maxBufferBytes, vulkan.maxStorageBufferBytes);
+  // A pass's probe rays: each per-ray buffer (bound whole) within the storage-buffer range,
+  // and their records with one shadow slot's within a quarter of the device-local memory.
+  const std::size_t widestRecord =
+      std::max({sizeof(GpuHit), std::size_t(16), sizeof(GpuShadowRay)});
+  const std::size_t rayBytes =
+      sizeof(GpuHit) + 16 + 4 + sizeof(GpuShadowRay) + sizeof(GpuShadowLight);
+  maxPassRays =
+      std::max<std::size_t>(1, std::min<std::size_t>(maxBufferBytes / widestRecord,
+                                                     std::size_t(largestHeap / 4) / rayBytes));
+  if (vulkan.maxPassRays > 0) maxPassRays = std::min(maxPassRays, vulkan.maxPassRays);
   ensureRequestCapacity(1, 1, 0);
   return Status::success();
 }
@@ -469,11 +498,12 @@ Status VulkanTracer::Impl::createPipelines() {
   setLayout = vk::UniqueDescriptorSetLayout(ctx->device(), dsl);
 
   const VkDescriptorPoolSize sizes[] = {
-      {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 1},
-      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, std::uint32_t(PC_BINDING_COUNT)},
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, std::uint32_t(textures.size())}};
+      {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 2},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * std::uint32_t(PC_BINDING_COUNT)},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+       2 * std::max<std::uint32_t>(std::uint32_t(textures.size()), 1)}};
   VkDescriptorPoolCreateInfo pci{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  pci.maxSets = 1;
+  pci.maxSets = 2;
   pci.poolSizeCount = 3;
   pci.pPoolSizes = sizes;
   VkDescriptorPool dp = VK_NULL_HANDLE;
@@ -482,14 +512,20 @@ Status VulkanTracer::Impl::createPipelines() {
   const std::uint32_t textureCount = std::uint32_t(textures.size());
   VkDescriptorSetVariableDescriptorCountAllocateInfo vci{
       VK_STRUCTURE_TYPE_DESCRIPTOR_SET_VARIABLE_DESCRIPTOR_COUNT_ALLOCATE_INFO};
-  vci.descriptorSetCount = 1;
-  vci.pDescriptorCounts = &textureCount;
+  const std::uint32_t textureCounts[2] = {textureCount, textureCount};
+  vci.descriptorSetCount = 2;
+  vci.pDescriptorCounts = textureCounts;
+  const VkDescriptorSetLayout layouts[2] = {dsl, dsl};
   VkDescriptorSetAllocateInfo sai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
   sai.pNext = &vci;
   sai.descriptorPool = dp;
-  sai.descriptorSetCount = 1;
-  sai.pSetLayouts = &dsl;
-  PC_VK_TRY(vkAllocateDescriptorSets(ctx->device(), &sai, &set));
+  sai.descriptorSetCount = 2;
+  sai.pSetLayouts = layouts;
+  VkDescriptorSet sets[2] = {};
+  PC_VK_TRY(vkAllocateDescriptorSets(ctx->device(), &sai, sets));
+  set = sets[0];
+  snapshotSet = sets[1];
+  traceSet = set;
 
   VkPushConstantRange push{VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(TracePush)};
   VkPipelineLayoutCreateInfo plci{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
@@ -650,11 +686,22 @@ int VulkanTracer::Impl::shadowSlots() const {
 
 void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount, int slots) {
   probes = std::max<std::size_t>(probes, 1);
-  const std::size_t rayTotal = probes * std::size_t(std::max(rayCount, 1));
+  const std::size_t perProbe = std::size_t(std::max(rayCount, 1));
+  // Buffers grow to the most probes and rays per probe asked for; where both at once would
+  // pass what a pass holds (a change of rays per probe), they are made for this request alone.
+  const bool fits = probes <= probeCapacity && perProbe <= rayCapacity;
+  std::size_t capProbes = std::max(probes, probeCapacity),
+              capRays = std::max(perProbe, rayCapacity);
+  if (fits) {
+    capProbes = probeCapacity;
+    capRays = rayCapacity;
+  } else if (capProbes * capRays > std::max(maxPassRays, probes * perProbe)) {
+    capProbes = probes;
+    capRays = perProbe;
+  }
   // A round holds as many slots as the memory budget allows for the buffers' rays (at least
   // one, at most every slot).
-  const std::size_t records =
-      std::max(probes, probeCapacity) * std::max<std::size_t>(std::size_t(rayCount), rayCapacity);
+  const std::size_t records = capProbes * capRays;
   const std::size_t slotBytes = records * (sizeof(GpuShadowRay) + sizeof(GpuShadowLight));
   // Each per-ray buffer is bound whole, so none may pass the device's storage-buffer range: a
   // round's slots share one shadow-ray buffer, so they are held to it as to the budget.
@@ -667,17 +714,12 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   const std::size_t widestRecord =
       std::max({sizeof(GpuHit), std::size_t(16), slots > 0 ? sizeof(GpuShadowRay) : 0});
   if (records * widestRecord > maxBufferBytes)
-    dieOverRange("an update of " + std::to_string(std::max(probes, probeCapacity)) + " probes x " +
-                     std::to_string(std::max<std::size_t>(std::size_t(rayCount), rayCapacity)) +
-                     " rays",
-                 records * widestRecord, maxBufferBytes,
-                 "request fewer probes per update (the server's --budget)");
-  if (probes <= probeCapacity && rayTotal <= probeCapacity * std::size_t(rayCapacity) &&
-      std::size_t(rayCount) <= std::size_t(rayCapacity) && roundSlots <= slotCapacity &&
-      slots <= counterSlotCapacity)
-    return;
-  probeCapacity = std::max(probes, probeCapacity);
-  rayCapacity = std::max<std::size_t>(std::size_t(rayCount), rayCapacity);
+    dieOverRange(
+        "a pass of " + std::to_string(capProbes) + " probes x " + std::to_string(capRays) + " rays",
+        records * widestRecord, maxBufferBytes, "use fewer rays per probe");
+  if (fits && roundSlots <= slotCapacity && slots <= counterSlotCapacity) return;
+  probeCapacity = capProbes;
+  rayCapacity = capRays;
   slotCapacity = roundSlots;  // not more: the budget is for these rays
   counterSlotCapacity = std::max(slots, counterSlotCapacity);
   using vk::MemoryUsage;
@@ -827,50 +869,95 @@ void VulkanTracer::Impl::writeDescriptors() {
   buffers[PC_BIND_SHADOW_MASK] = &shadowMask;
   buffers[PC_BIND_SHADOW_RAYS] = &shadowRays;
   buffers[PC_BIND_SHADOW_LIGHT] = &shadowLight;
-  std::vector<VkWriteDescriptorSet> writes;
-  for (int b = 0; b < PC_BINDING_COUNT; ++b) {
-    if (!buffers[b] || !buffers[b]->get()) continue;
-    infos[b] = buffers[b]->descriptor();
-    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    w.dstSet = set;
-    w.dstBinding = std::uint32_t(b);
-    w.descriptorCount = 1;
-    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    w.pBufferInfo = &infos[b];
-    writes.push_back(w);
-  }
-  VkAccelerationStructureKHR tlas = accel.topLevel();
-  VkWriteDescriptorSetAccelerationStructureKHR asw{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
-  asw.accelerationStructureCount = 1;
-  asw.pAccelerationStructures = &tlas;
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.pNext = &asw;
-  w.dstSet = set;
-  w.dstBinding = PC_BIND_TLAS;
-  w.descriptorCount = 1;
-  w.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
-  writes.push_back(w);
   std::vector<VkDescriptorImageInfo> images;
   for (std::size_t i = 0; i < textures.size(); ++i)
     images.push_back(
         {textureSamplers[i], textures[i].view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
-  VkWriteDescriptorSet tw{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  tw.dstSet = set;
-  tw.dstBinding = PC_BIND_TEXTURES;
-  tw.descriptorCount = std::uint32_t(images.size());
-  tw.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  tw.pImageInfo = images.data();
-  writes.push_back(tw);
-  vkUpdateDescriptorSets(ctx->device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
+  VkAccelerationStructureKHR tlas = accel.topLevel();
+  VkWriteDescriptorSetAccelerationStructureKHR asw{
+      VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
+  asw.accelerationStructureCount = 1;
+  asw.pAccelerationStructures = &tlas;
+  auto writeSet = [&](VkDescriptorSet dst) {
+    std::vector<VkWriteDescriptorSet> writes;
+    for (int b = 0; b < PC_BINDING_COUNT; ++b) {
+      if (!buffers[b] || !buffers[b]->get()) continue;
+      infos[b] = buffers[b]->descriptor();
+      VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      w.dstSet = dst;
+      w.dstBinding = std::uint32_t(b);
+      w.descriptorCount = 1;
+      w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+      w.pBufferInfo = &infos[b];
+      writes.push_back(w);
+    }
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.pNext = &asw;
+    w.dstSet = dst;
+    w.dstBinding = PC_BIND_TLAS;
+    w.descriptorCount = 1;
+    w.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
+    writes.push_back(w);
+    VkWriteDescriptorSet tw{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    tw.dstSet = dst;
+    tw.dstBinding = PC_BIND_TEXTURES;
+    tw.descriptorCount = std::uint32_t(images.size());
+    tw.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    tw.pImageInfo = images.data();
+    writes.push_back(tw);
+    vkUpdateDescriptorSets(ctx->device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
+  };
+  writeSet(set);
+  if (prevIrradiance.get()) {
+    // The snapshot set: the field as the update found it, for the slices' trace and shading.
+    buffers[PC_BIND_IRRADIANCE] = &prevIrradiance;
+    buffers[PC_BIND_DEPTH] = &prevDepth;
+    buffers[PC_BIND_OCCLUSION] = &prevOcclusion;
+    buffers[PC_BIND_PROBES] = &prevRecords;
+    writeSet(snapshotSet);
+  }
   descriptorsDirty = false;
 }
 
-void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateRequest& request, bool blendTaps) {
+// Probes per slice of an update at `rayCount` rays per probe.
+std::size_t VulkanTracer::Impl::sliceProbes(int rayCount) const {
+  return std::max<std::size_t>(1, maxPassRays / std::size_t(std::max(rayCount, 1)));
+}
+
+// Snapshot buffers the size of the field's (made when an update first runs in slices).
+void VulkanTracer::Impl::ensureSnapshot() {
+  const VkBufferUsageFlags usage = kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  for (auto [live, copy] :
+       {std::pair{&irradiance, &prevIrradiance}, std::pair{&depth, &prevDepth},
+        std::pair{&occlusion, &prevOcclusion}, std::pair{&records, &prevRecords}}) {
+    if (copy->get() && copy->size() == live->size()) continue;
+    *copy = orDie(vk::Buffer::create(*ctx, live->size(), usage, vk::MemoryUsage::DeviceLocal),
+                  "field snapshot");
+    descriptorsDirty = true;
+  }
+}
+
+void VulkanTracer::Impl::recordSnapshot() {
+  for (auto [live, copy] :
+       {std::pair{&irradiance, &prevIrradiance}, std::pair{&depth, &prevDepth},
+        std::pair{&occlusion, &prevOcclusion}, std::pair{&records, &prevRecords}}) {
+    const VkBufferCopy region{0, 0, live->size()};
+    vkCmdCopyBuffer(cmd, live->get(), copy->get(), 1, &region);
+  }
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                    kRayStage | kComputeStage, kShaderRW);
+}
+
+void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateRequest& request,
+                                           std::size_t first, std::size_t count, bool blendTaps,
+                                           bool sliced) {
   const int rayCount = field.settings.raysPerProbe;
-  const std::size_t n = request.probes.size();
+  const std::size_t n = count;
   ensureRequestCapacity(n, rayCount, shadowSlots());
   ensureFieldBuffers(field);
+  if (sliced) ensureSnapshot();
   writeDescriptors();
+  traceSet = sliced ? snapshotSet : set;
 
   // The same directions as the Embree backend, computed once on the host.
   const std::vector<glm::vec3> dirs = probeRayDirections(rayCount, request.rotationSeed);
@@ -904,7 +991,8 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
     tapBytes = std::size_t(next) * sizeof(std::uint32_t);
   }
   auto* r = requests.as<glm::ivec2>();
-  for (std::size_t i = 0; i < n; ++i) r[i] = glm::ivec2(request.probes[i].cascade, request.probes[i].slot);
+  for (std::size_t i = 0; i < n; ++i)
+    r[i] = glm::ivec2(request.probes[first + i].cascade, request.probes[first + i].slot);
 
   UpdateParams p{};
   p.skyZenith = scene->sky.zenith;
@@ -1003,7 +1091,8 @@ std::uint64_t VulkanTracer::Impl::maxLaunchWidth() const {
 
 void VulkanTracer::Impl::recordTrace(int probeCount, int rayCount) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, tracePipeline.get());
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1,
+                          &traceSet, 0, nullptr);
   // One-dimensional launches (gpu_trace.h: PC_TRACE_TILE_PROBES); whole tiles per launch but
   // the last, so launch order runs on across launches.
   const std::uint64_t rays = std::uint64_t(std::max(rayCount, 1));
@@ -1027,7 +1116,8 @@ void VulkanTracer::Impl::dispatchRows(std::uint64_t groups) {
 
 void VulkanTracer::Impl::recordShade(int probeCount, int rayCount, int slotBase) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipeline.get());
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1,
+                          &traceSet, 0, nullptr);
   const TracePush push{0, 0, slotBase, 0};
   vkCmdPushConstants(cmd, pipelineLayout.get(),
                      VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push,
@@ -1038,8 +1128,8 @@ void VulkanTracer::Impl::recordShade(int probeCount, int rayCount, int slotBase)
 
 void VulkanTracer::Impl::recordResolve(int probeCount, int rayCount) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, resolvePipeline.get());
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set, 0,
-                          nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1,
+                          &traceSet, 0, nullptr);
   const std::uint64_t rays = std::uint64_t(probeCount) * std::uint64_t(rayCount);
   dispatchRows((rays + PC_SHADE_THREADS - 1) / PC_SHADE_THREADS);
 }
@@ -1052,7 +1142,8 @@ void VulkanTracer::Impl::recordResolve(int probeCount, int rayCount) {
 // depend on each other, so nothing separates them.
 void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, int slotBase) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1, &set, 0, nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1,
+                          &traceSet, 0, nullptr);
   const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
   // Per-slot timestamps (PC_SHADOW_SLOT_TIMES) in single rounds only: several rounds are one
   // timed span, which they would cut.
@@ -1083,6 +1174,95 @@ void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, in
                              &shadowTable.callable, std::uint32_t(push.count), 1, 1);
     }
   }
+}
+
+// The wavefront (gpu_trace.h): trace, shade, shadow rays, then the blend adds the visible light
+// and blends; with more shadow slots than a round holds, shade and shadow rays once per round,
+// each round's light added to the rays by the resolve pass.
+void VulkanTracer::Impl::recordWavefront(int n, int rayCount, bool sliced) {
+  const int slots = shadowSlots();
+  const int rounds = pcShadowRounds(slots, roundSlots);
+  if (rounds != loggedRounds) {
+    if (rounds > 1)
+      logInfo("vulkan tracer: " + std::to_string(slots) +
+              " shadow slots (lights and emissive samples) in " + std::to_string(rounds) +
+              " rounds of " + std::to_string(roundSlots) + ": their records for " +
+              std::to_string(std::uint64_t(n) * std::uint64_t(rayCount)) +
+              " probe rays exceed the " + std::to_string(shadowMemoryBudget >> 20) +
+              " MiB shadow memory budget or, in one buffer, the " +
+              std::to_string(maxBufferBytes >> 20) + " MiB storage-buffer range");
+    loggedRounds = std::max(rounds, 1);
+  }
+  const int groupProbes = blendGroupProbes(rayCount);
+  auto recordBlend = [&] {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, blendPipeline.get());
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set,
+                            0, nullptr);
+    dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
+  };
+  if (overlapVariant != 0 && rounds <= 1 && !sliced) {
+    // Timing experiment (PC_OVERLAP_VARIANT): one span over the passes, some barriers left
+    // out so that passes may run at once; fields are wrong. 8 every barrier, 1 trace with
+    // shade, 4 shadow trace with blend, 5 both, 16 trace with blend, 17 trace, shade and blend.
+    const int v = overlapVariant;
+    auto rtToCs = [&] { vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW); };
+    auto csToAll = [&] {
+      vk::memoryBarrier(cmd, kComputeStage | kRayStage, kShaderRW,
+                        kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                        kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+    };
+    timer.begin(cmd, "overlap span");
+    recordTrace(n, rayCount);
+    if (v & 16) recordBlend();
+    if (!(v & 1)) rtToCs();
+    recordShade(n, rayCount, 0);
+    csToAll();
+    if (slots > 0) recordShadowTrace(slots, std::uint64_t(n) * std::uint64_t(rayCount), 0);
+    if (!(v & 4)) rtToCs();
+    if (!(v & 16)) recordBlend();
+    timer.end(cmd);
+    vk::memoryBarrier(cmd, kComputeStage | kRayStage, kShaderRW, kComputeStage, kShaderRW);
+    return;
+  }
+  timer.begin(cmd, "trace");
+  recordTrace(n, rayCount);
+  timer.end(cmd);
+  vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+
+  // Several rounds are timed as one span (the timer holds a bounded number of passes).
+  const bool roundTimes = rounds <= 1;
+  if (!roundTimes) timer.begin(cmd, "shadow rounds");
+  for (int round = 0; round < std::max(rounds, 1); ++round) {
+    const int slotBase = round * roundSlots;
+    if (roundTimes) timer.begin(cmd, "shade");
+    recordShade(n, rayCount, slotBase);
+    if (roundTimes) timer.end(cmd);
+    // The shadow launch may read its size from the counters the shade pass appended to: an
+    // indirect-command read, which a plain shader-read barrier does not cover.
+    vk::memoryBarrier(cmd, kComputeStage, kShaderRW,
+                      kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                      kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+
+    if (slots > 0) {
+      if (roundTimes) timer.begin(cmd, "shadow trace");
+      recordShadowTrace(std::min(roundSlots, slots - slotBase),
+                        std::uint64_t(n) * std::uint64_t(rayCount), slotBase);
+      if (roundTimes) timer.end(cmd);
+      vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+    }
+    if (rounds > 1) {
+      // The round's light into the rays, before the next round's shade pass reuses the
+      // slots' records (and the blend reads the rays).
+      recordResolve(n, rayCount);
+      vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
+    }
+  }
+  if (!roundTimes) timer.end(cmd);
+
+  timer.begin(cmd, "blend");
+  recordBlend();
+  timer.end(cmd);
+  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1205,150 +1385,115 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   UpdateStats stats;
   const auto t0 = Clock::now();
   const int rayCount = field.settings.raysPerProbe;
-  const int n = int(request.probes.size());
-  if (n == 0) return stats;
+  const std::size_t total = request.probes.size();
+  if (total == 0) return stats;
   if (Status s = m.ensureBlendPipeline(rayCount); !s) {  // as buffers the update cannot do without
     logError("vulkan tracer: blend pipeline: " + s.error().message);
     std::abort();
   }
-  m.writeUpdateInputs(field, request, true);
+  // One submission per slice of the request's probes; one slice unless the request holds more
+  // probe rays than a pass (Impl::maxPassRays). The brick flags and list gather every slice's
+  // changed bricks, packed and read back after the last.
+  const std::size_t perSlice = m.sliceProbes(rayCount);
+  const bool sliced = total > perSlice;
+  if (sliced && !m.loggedSlices) {
+    logInfo("vulkan tracer: an update of " + std::to_string(total) + " probes x " +
+            std::to_string(rayCount) + " rays runs in slices of " + std::to_string(perSlice) +
+            " probes (at most " + std::to_string(m.maxPassRays) + " probe rays a pass)");
+    m.loggedSlices = true;
+  }
   std::vector<vk::Buffer> staging;
-
-  m.begin();
-  VkCommandBuffer cmd = m.cmd;
-  m.recordFieldSync(field, staging);
-  if (m.tlasDirty) {
-    m.timer.begin(cmd, "tlas");
-    m.accel.recordTopLevelBuild(cmd);
-    m.timer.end(cmd);
-    m.tlasDirty = false;
-  }
-  // Clear the change list and counters.
-  vkCmdFillBuffer(cmd, m.brickFlags.get(), 0, VK_WHOLE_SIZE, 0);
-  const std::uint32_t header[PC_BRICK_LIST_HEADER] = {0, 1, 1};
-  vkCmdUpdateBuffer(cmd, m.brickList.get(), 0, sizeof header, header);
-  const VkBufferCopy counterCopy{0, 0, m.counters.size()};
-  vkCmdCopyBuffer(cmd, m.countersInit.get(), m.counters.get(), 1, &counterCopy);
-  const VkBufferCopy tapCopy{0, 0, m.tapBytes};
-  vkCmdCopyBuffer(cmd, m.tapsUpload.get(), m.taps.get(), 1, &tapCopy);
-  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT | VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                    kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                    kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-
-  // The wavefront (gpu_trace.h): trace, shade, shadow rays, then the blend adds the visible
-  // light and blends; with more shadow slots than a round holds, shade and shadow rays once
-  // per round, each round's light added to the rays by the resolve pass.
-  const int slots = m.shadowSlots();
-  const int rounds = pcShadowRounds(slots, m.roundSlots);
-  if (rounds != m.loggedRounds) {
-    if (rounds > 1)
-      logInfo("vulkan tracer: " + std::to_string(slots) +
-              " shadow slots (lights and emissive samples) in " + std::to_string(rounds) +
-              " rounds of " + std::to_string(m.roundSlots) + ": their records for " +
-              std::to_string(std::uint64_t(n) * std::uint64_t(rayCount)) +
-              " probe rays exceed the " + std::to_string(m.shadowMemoryBudget >> 20) +
-              " MiB shadow memory budget or, in one buffer, the " +
-              std::to_string(m.maxBufferBytes >> 20) + " MiB storage-buffer range");
-    m.loggedRounds = std::max(rounds, 1);
-  }
-  const int groupProbes = m.blendGroupProbes(rayCount);
-  auto recordBlend = [&] {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.blendPipeline.get());
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipelineLayout.get(), 0, 1,
-                            &m.set, 0, nullptr);
-    m.dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
-  };
-  if (m.overlapVariant != 0 && rounds <= 1) {
-    // Timing experiment (PC_OVERLAP_VARIANT): one span over the passes, some barriers left
-    // out so that passes may run at once; fields are wrong. 8 every barrier, 1 trace with
-    // shade, 4 shadow trace with blend, 5 both, 16 trace with blend, 17 trace, shade and blend.
-    const int v = m.overlapVariant;
-    auto rtToCs = [&] { vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW); };
-    auto csToAll = [&] {
-      vk::memoryBarrier(cmd, kComputeStage | kRayStage, kShaderRW,
-                        kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                        kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-    };
-    m.timer.begin(cmd, "overlap span");
-    m.recordTrace(n, rayCount);
-    if (v & 16) recordBlend();
-    if (!(v & 1)) rtToCs();
-    m.recordShade(n, rayCount, 0);
-    csToAll();
-    if (slots > 0) m.recordShadowTrace(slots, std::uint64_t(n) * std::uint64_t(rayCount), 0);
-    if (!(v & 4)) rtToCs();
-    if (!(v & 16)) recordBlend();
-    m.timer.end(cmd);
-    vk::memoryBarrier(cmd, kComputeStage | kRayStage, kShaderRW, kComputeStage, kShaderRW);
-  } else {
-    m.timer.begin(cmd, "trace");
-    m.recordTrace(n, rayCount);
-    m.timer.end(cmd);
-    vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
-
-    // Several rounds are timed as one span (the timer holds a bounded number of passes).
-    const bool roundTimes = rounds <= 1;
-    if (!roundTimes) m.timer.begin(cmd, "shadow rounds");
-    for (int round = 0; round < std::max(rounds, 1); ++round) {
-      const int slotBase = round * m.roundSlots;
-      if (roundTimes) m.timer.begin(cmd, "shade");
-      m.recordShade(n, rayCount, slotBase);
-      if (roundTimes) m.timer.end(cmd);
-      // The shadow launch may read its size from the counters the shade pass appended to: an
-      // indirect-command read, which a plain shader-read barrier does not cover.
-      vk::memoryBarrier(cmd, kComputeStage, kShaderRW,
-                        kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                        kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-
-      if (slots > 0) {
-        if (roundTimes) m.timer.begin(cmd, "shadow trace");
-        m.recordShadowTrace(std::min(m.roundSlots, slots - slotBase),
-                            std::uint64_t(n) * std::uint64_t(rayCount), slotBase);
-        if (roundTimes) m.timer.end(cmd);
-        vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+  for (std::size_t first = 0; first < total; first += perSlice) {
+    const int n = int(std::min(perSlice, total - first));
+    const bool firstSlice = first == 0, lastSlice = first + std::size_t(n) == total;
+    m.writeUpdateInputs(field, request, first, std::size_t(n), firstSlice, sliced);
+    m.begin();
+    VkCommandBuffer cmd = m.cmd;
+    if (firstSlice) {
+      m.recordFieldSync(field, staging);
+      if (m.tlasDirty) {
+        m.timer.begin(cmd, "tlas");
+        m.accel.recordTopLevelBuild(cmd);
+        m.timer.end(cmd);
+        m.tlasDirty = false;
       }
-      if (rounds > 1) {
-        // The round's light into the rays, before the next round's shade pass reuses the
-        // slots' records (and the blend reads the rays).
-        m.recordResolve(n, rayCount);
-        vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
+      // Clear the change list; the taps serve every slice.
+      vkCmdFillBuffer(cmd, m.brickFlags.get(), 0, VK_WHOLE_SIZE, 0);
+      const std::uint32_t header[PC_BRICK_LIST_HEADER] = {0, 1, 1};
+      vkCmdUpdateBuffer(cmd, m.brickList.get(), 0, sizeof header, header);
+      const VkBufferCopy tapCopy{0, 0, m.tapBytes};
+      vkCmdCopyBuffer(cmd, m.tapsUpload.get(), m.taps.get(), 1, &tapCopy);
+      if (sliced) {
+        m.timer.begin(cmd, "snapshot");
+        m.recordSnapshot();
+        m.timer.end(cmd);
       }
     }
-    if (!roundTimes) m.timer.end(cmd);
+    // The shadow lists' counters start each slice empty.
+    const VkBufferCopy counterCopy{0, 0, m.counters.size()};
+    vkCmdCopyBuffer(cmd, m.countersInit.get(), m.counters.get(), 1, &counterCopy);
+    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                      VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                      kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                      kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+    m.recordWavefront(n, rayCount, sliced);
 
-    m.timer.begin(cmd, "blend");
-    recordBlend();
+    // Changed bricks: this slice's into the list; after the last, the list packed for the host.
+    m.timer.begin(cmd, "changes");
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.changesPipeline.get());
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipelineLayout.get(), 0, 1,
+                            &m.set, 0, nullptr);
+    vkCmdDispatch(cmd, std::uint32_t((n + 63) / 64), 1, 1);
+    if (lastSlice) {
+      vk::memoryBarrier(cmd, kComputeStage, kShaderRW,
+                        kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                        kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.packPipeline.get());
+      vkCmdDispatchIndirect(cmd, m.brickList.get(), 0);
+    }
     m.timer.end(cmd);
-    vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
+    vk::memoryBarrier(cmd, kComputeStage, kShaderRW, VK_PIPELINE_STAGE_2_COPY_BIT,
+                      VK_ACCESS_2_TRANSFER_READ_BIT);
+
+    m.timer.begin(cmd, "readback");
+    if (lastSlice) {
+      const VkBufferCopy recordCopy{0, 0, m.records.size()};
+      vkCmdCopyBuffer(cmd, m.records.get(), m.recordsReadback.get(), 1, &recordCopy);
+      const VkBufferCopy listCopy{0, 0, m.brickList.size()};
+      vkCmdCopyBuffer(cmd, m.brickList.get(), m.brickListReadback.get(), 1, &listCopy);
+    }
+    vkCmdCopyBuffer(cmd, m.counters.get(), m.countersReadback.get(), 1, &counterCopy);
+    m.timer.end(cmd);
+    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | kComputeStage,
+                      VK_ACCESS_2_TRANSFER_WRITE_BIT | kShaderRW, VK_PIPELINE_STAGE_2_HOST_BIT,
+                      VK_ACCESS_2_HOST_READ_BIT);
+    m.submitAndWait();
+
+    m.countersReadback.invalidate();
+    const auto* counts = m.countersReadback.as<std::uint32_t>();
+    for (int s = 0; s < m.shadowSlots(); ++s) {
+      stats.shadowRays += counts[s * PC_COUNTER_WORDS];  // the lists' lengths
+      if (m.shadowSlotTimes)
+        logInfo("shadow slot " + std::to_string(s) + ": " +
+                std::to_string(counts[s * PC_COUNTER_WORDS]) + " rays");
+    }
+    // Each pass's time summed over the slices, in the order the passes first ran.
+    for (const auto& [name, ms] : m.timer.results()) {
+      auto it = std::find_if(stats.gpuPasses.begin(), stats.gpuPasses.end(),
+                             [&](const auto& p) { return p.first == name; });
+      if (it == stats.gpuPasses.end())
+        stats.gpuPasses.emplace_back(name, ms);
+      else
+        it->second += ms;
+    }
+    stats.readbackBytes += m.counters.size();
   }
-
-  m.timer.begin(cmd, "changes");
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.changesPipeline.get());
-  vkCmdDispatch(cmd, std::uint32_t((n + 63) / 64), 1, 1);
-  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                    kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.packPipeline.get());
-  vkCmdDispatchIndirect(cmd, m.brickList.get(), 0);
-  m.timer.end(cmd);
-  vk::memoryBarrier(cmd, kComputeStage, kShaderRW, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_READ_BIT);
-
-  m.timer.begin(cmd, "readback");
-  const VkBufferCopy recordCopy{0, 0, m.records.size()};
-  vkCmdCopyBuffer(cmd, m.records.get(), m.recordsReadback.get(), 1, &recordCopy);
-  const VkBufferCopy listCopy{0, 0, m.brickList.size()};
-  vkCmdCopyBuffer(cmd, m.brickList.get(), m.brickListReadback.get(), 1, &listCopy);
-  vkCmdCopyBuffer(cmd, m.counters.get(), m.countersReadback.get(), 1, &counterCopy);
-  m.timer.end(cmd);
-  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | kComputeStage, VK_ACCESS_2_TRANSFER_WRITE_BIT | kShaderRW,
-                    VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
-  m.submitAndWait();
   staging.clear();
 
   // ---- back on the host: changed bricks, records, counters ----
   const auto th = Clock::now();
   m.brickListReadback.invalidate();
   m.recordsReadback.invalidate();
-  m.countersReadback.invalidate();
   m.packed.invalidate();
   const auto* list = m.brickListReadback.as<std::uint32_t>();
   const std::uint32_t changed = list[0];
@@ -1390,18 +1535,11 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   m.syncedField = &field;
   m.syncedVersion = field.version;
   m.syncedRecords = field.probes;
-  stats.readbackBytes = std::uint64_t(changed) * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float) +
-                        m.records.size() + m.brickList.size() + m.counters.size();
-  const auto* counts = m.countersReadback.as<std::uint32_t>();
-  for (int s = 0; s < m.shadowSlots(); ++s) {
-    stats.shadowRays += counts[s * PC_COUNTER_WORDS];  // the lists' lengths
-    if (m.shadowSlotTimes)
-      logInfo("shadow slot " + std::to_string(s) + ": " +
-              std::to_string(counts[s * PC_COUNTER_WORDS]) + " rays");
-  }
+  stats.readbackBytes +=
+      std::uint64_t(changed) * PC_PROBES_PER_BRICK * PC_PACKED_PROBE_FLOATS * sizeof(float) +
+      m.records.size() + m.brickList.size();
   const double hostMs = msSince(th);
 
-  stats.gpuPasses = m.timer.results();
   for (const auto& [name, ms] : stats.gpuPasses) {
     stats.gpuMs += ms;
     if (name == "trace") stats.traceMs = ms;
@@ -1409,35 +1547,43 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
     if (name == "blend" || name == "changes") stats.blendMs += ms;
   }
   stats.gpuPasses.emplace_back("host unpack (CPU)", hostMs);
-  stats.probeRays = std::uint64_t(n) * std::uint64_t(rayCount);
-  stats.probesUpdated = n;
+  stats.probeRays = std::uint64_t(total) * std::uint64_t(rayCount);
+  stats.probesUpdated = int(total);
   stats.totalMs = msSince(t0);
   return stats;
 }
 
 double VulkanTracer::traceOnly(Field& field, const UpdateRequest& request) {
   Impl& m = *impl_;
-  const int n = int(request.probes.size());
-  if (n == 0) return 0.0;
-  m.writeUpdateInputs(field, request, false);
+  const std::size_t total = request.probes.size();
+  const int rayCount = field.settings.raysPerProbe;
+  const std::size_t perSlice = m.sliceProbes(rayCount);
   std::vector<vk::Buffer> staging;
-  m.begin();
-  m.recordFieldSync(field, staging);
-  if (m.tlasDirty) {
-    m.accel.recordTopLevelBuild(m.cmd);
-    m.tlasDirty = false;
+  double ms = 0.0;
+  // In the update's slices; the field stays as it is, so every slice reads it as it is.
+  for (std::size_t first = 0; first < total; first += perSlice) {
+    const std::size_t n = std::min(perSlice, total - first);
+    m.writeUpdateInputs(field, request, first, n, false, false);
+    m.begin();
+    if (first == 0) {
+      m.recordFieldSync(field, staging);
+      if (m.tlasDirty) {
+        m.accel.recordTopLevelBuild(m.cmd);
+        m.tlasDirty = false;
+      }
+    }
+    m.timer.begin(m.cmd, "raw trace");
+    m.recordTrace(int(n), rayCount);
+    m.timer.end(m.cmd);
+    m.submitAndWait();
+    for (const auto& [name, t] : m.timer.results())
+      if (name == "raw trace") ms += t;
   }
-  m.timer.begin(m.cmd, "raw trace");
-  m.recordTrace(n, field.settings.raysPerProbe);
-  m.timer.end(m.cmd);
-  m.submitAndWait();
   // The field on the GPU is what the host holds: the sync above uploaded any difference.
   m.syncedField = &field;
   m.syncedVersion = field.version;
   m.syncedRecords = field.probes;
-  for (const auto& [name, ms] : m.timer.results())
-    if (name == "raw trace") return ms;
-  return 0.0;
+  return ms;
 }
 
 }  // namespace pc

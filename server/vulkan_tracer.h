@@ -38,6 +38,12 @@ struct VulkanTracerOptions {
   // rounds hold to it as to the budget above; an update too large for one slot's records is
   // refused with a message naming the limit. Smaller values only serve tests.
   std::size_t maxStorageBufferBytes = 0;
+  // The most probe rays one pass of an update traces, shades and blends (0: as many as keep
+  // each per-ray buffer within the storage-buffer range and the per-ray records within a
+  // quarter of the device-local memory). A larger update runs in slices of its probes, one
+  // submission each, every slice lit by the field as the update found it: the same field as
+  // one pass. Smaller values serve tests and measurements.
+  std::size_t maxPassRays = 0;
 };
 
 class VulkanTracer final : public Tracer {

@@ -744,5 +744,65 @@ TEST(VulkanTracer, RoomFarFromTheOriginLightsAsAtTheOrigin) {
   EXPECT_EQ(far.stateMismatches, 0);
 }
 
+// An update of more probe rays than one pass holds runs in slices of its probes, each lit by
+// the field as the update found it (a snapshot): the field is the one pass's to the bit. The
+// first slice blended must not light the next: from a fresh field, a later slice would
+// otherwise see the first slice's probes initialized, and the field would differ.
+TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
+  const Scene scene = builtinScene();
+  std::string why;
+  auto onePass = makeGpu(scene, &why);
+  if (!onePass) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  FieldSettings settings;
+  settings.raysPerProbe = 32;
+  Field f1 = Field::create(scene.volumes, settings), fs = f1;
+  UpdateRequest all;
+  all.probes = allProbes(f1);
+  // Three slices, the last a short one.
+  const std::size_t perSlice = all.probes.size() / 3 + 7;
+  VulkanTracerOptions vo;
+  vo.validation = true;
+  vo.allowCpuDevice = true;
+  vo.maxPassRays = perSlice * 32;
+  auto made = VulkanTracer::create(scene, TracerOptions{}, vo);
+  ASSERT_TRUE(made) << made.error().message;
+  VulkanTracer& slices = **made;
+  // Every probe twice, then every third probe (a request that is not the field's order).
+  UpdateRequest some;
+  for (std::size_t i = 0; i < all.probes.size(); i += 3) some.probes.push_back(all.probes[i]);
+  const UpdateRequest* requests[3] = {&all, &all, &some};
+  for (int i = 0; i < 3; ++i) {
+    UpdateRequest r = *requests[i];
+    r.rotationSeed = 1400u + std::uint32_t(i);
+    const UpdateStats a = onePass->update(f1, r);
+    const UpdateStats b = slices.update(fs, r);
+    EXPECT_EQ(b.probesUpdated, a.probesUpdated);
+    EXPECT_EQ(b.probeRays, a.probeRays);
+    EXPECT_EQ(b.shadowRays, a.shadowRays);
+    EXPECT_EQ(b.bricksChanged, a.bricksChanged);
+    // Where the device has timestamps: the snapshot is taken once, and only where sliced.
+    auto count = [](const UpdateStats& st, const char* pass) {
+      return std::count_if(st.gpuPasses.begin(), st.gpuPasses.end(),
+                           [&](const auto& p) { return p.first == pass; });
+    };
+    if (count(a, "blend") > 0) {
+      EXPECT_EQ(count(a, "snapshot"), 0);
+      EXPECT_EQ(count(b, "snapshot"), i < 2 ? 1 : 0) << "update " << i;
+    }
+  }
+  expectIdenticalFields(fs, f1);
+  ASSERT_EQ(fs.probes.size(), f1.probes.size());
+  int moved = 0;
+  for (std::size_t i = 0; i < f1.probes.size(); ++i) {
+    EXPECT_EQ(fs.probes[i].state, f1.probes[i].state) << "probe " << i;
+    EXPECT_EQ(fs.probes[i].offset, f1.probes[i].offset) << "probe " << i;
+    EXPECT_EQ(fs.probes[i].updates, f1.probes[i].updates) << "probe " << i;
+    moved += f1.probes[i].offset != glm::vec3(0.0f) ? 1 : 0;
+  }
+  std::printf("%zu probes in slices of %zu: %d relocated\n", all.probes.size(), perSlice, moved);
+  EXPECT_EQ(onePass->validationErrorCount(), 0u);
+  EXPECT_EQ(slices.validationErrorCount(), 0u);
+}
+
 }  // namespace
 }  // namespace pc

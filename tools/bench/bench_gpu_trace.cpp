@@ -42,7 +42,7 @@ Benchmark addGpuTrace(CLI::App& app) {
   auto* cmd = app.add_subcommand("gpu-trace", "Vulkan ray tracing: speed per pass, raw ceiling, agreement with Embree, quality");
   static std::string scenePath = "builtin", sidecar, device;
   static int updates = 8, rays = 256, worst = 0;
-  static std::size_t shadowMemoryMiB = 0;
+  static std::size_t shadowMemoryMiB = 0, passRays = 0;
   static std::vector<int> counts;
   static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false,
               singleBounce = false;
@@ -72,6 +72,10 @@ Benchmark addGpuTrace(CLI::App& app) {
   cmd->add_option("--shadow-memory", shadowMemoryMiB,
                   "MiB the shadow slots' records may take; more slots run in rounds (0: a quarter of the "
                   "device-local heap, at most 8 GiB)");
+  cmd->add_option(
+      "--pass-rays", passRays,
+      "the most probe rays one pass of a GPU update holds; larger updates run in slices "
+      "of their probes (0: as many as the device's buffers and memory allow)");
   addRenderOptions(*cmd, setup);
   return {cmd, [] {
             auto scene = loadBenchScene(scenePath, sidecar);
@@ -87,6 +91,7 @@ Benchmark addGpuTrace(CLI::App& app) {
             vo.deviceNameFilter = device;
             vo.boundedShadowLaunch = boundedShadowLaunch;
             vo.shadowMemoryBudget = shadowMemoryMiB << 20;
+            vo.maxPassRays = passRays;
             TracerOptions options;
             options.shadowRouletteShare = roulette;
             auto gpu = VulkanTracer::create(*scene, options, vo);
