@@ -1000,6 +1000,7 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
   p.skyGround = scene->sky.ground;
   p.rayCount = rayCount;
   p.probeCount = int(n);
+  p.requestBase = int(first);
   p.shading = request.shading;
   p.lightCount = int(state.lights.size());
   p.emissiveCount = int(emissive.size() / sizeof(GpuEmissiveTriangle));

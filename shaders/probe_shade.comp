@@ -60,7 +60,9 @@ float rnd() {
 // This ray's launch index, the stride between its slots' records, and its albedo / pi (what
 // a light's irradiance is scaled by on its way to the probe).
 uint launchIndex;
-uint rayIndex;  // request x rays per probe + ray: the ray's random streams are keyed by it
+// Request x rays per probe + ray, the request index counted over the whole update (not the
+// slice): the ray's random streams are keyed by it, as on the CPU.
+uint rayIndex;
 uint slotStride;
 vec3 albedoOverPi;
 // The shadow ray of the slot last requested, until appendRequest lists it (tmax 0: none).
@@ -321,7 +323,7 @@ void main() {
   if (launchIndex >= slotStride) return;
   pending.tmax = 0.0f;
   ivec2 pr = pcLaunchProbeRay(launchIndex, params.probeCount, params.rayCount);
-  rayIndex = uint(pr.x) * uint(params.rayCount) + uint(pr.y);
+  rayIndex = uint(params.requestBase + pr.x) * uint(params.rayCount) + uint(pr.y);
   rngState = pcHash(params.seed * 0x9E3779B9u ^ pcHash(rayIndex));
   vec3 dir = rayDirs[pr.y].xyz;
   GpuHit hit = hits[launchIndex];

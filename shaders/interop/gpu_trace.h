@@ -329,7 +329,7 @@ struct UpdateParams {
   float shadowRouletteShare;  // TracerOptions::shadowRouletteShare (interop/shadow_roulette.h)
   int roundSlots;             // shadow slots per round (pcShadowRounds)
   int lightsResolved;         // 1: the rounds' resolve passes added the visible light to the rays
-  float pad3;
+  int requestBase;            // the request index of this pass's first probe (an update in slices)
   // -- 112
 };
 
