@@ -46,6 +46,14 @@ struct VulkanTracerOptions {
   std::size_t maxPassRays = 0;
 };
 
+// Probe rays per pass of an update (the slices' size): at most `maxPassRays` (what the buffers
+// and memory hold), and fewer where that lets every one of `shadowSlots` shadow slots fit the
+// shadow memory budget and the storage-buffer range in one round, since each further round
+// repeats the shade pass over every ray of the pass: but not fewer than about 4 M rays, which
+// a large GPU needs to stay busy.
+std::size_t vulkanPassRays(std::size_t maxPassRays, int shadowSlots, std::size_t shadowMemoryBudget,
+                           std::size_t maxBufferBytes);
+
 class VulkanTracer final : public Tracer {
  public:
   static Result<std::unique_ptr<VulkanTracer>> create(const Scene& scene, const TracerOptions& options,

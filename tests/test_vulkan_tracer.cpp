@@ -806,5 +806,24 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
   EXPECT_EQ(slices.validationErrorCount(), 0u);
 }
 
+// The slices' size: one round of shadow slots where that leaves passes of at least 4 M rays.
+TEST(VulkanTracer, PassesHoldEveryShadowSlotInOneRoundWhereLargeEnough) {
+  const std::size_t perSlot = sizeof(gpu::GpuShadowRay) + sizeof(gpu::GpuShadowLight);
+  const std::size_t gib = std::size_t(1) << 30, fourM = std::size_t(1) << 22;
+  const std::size_t rangeRays = 4 * gib / sizeof(gpu::GpuShadowRay);
+  // No shadow rays, or one slot: rounds never repeat, so the pass holds all it can.
+  EXPECT_EQ(vulkanPassRays(rangeRays, 0, 8 * gib, 4 * gib), rangeRays);
+  EXPECT_EQ(vulkanPassRays(rangeRays, 1, 8 * gib, 4 * gib), rangeRays);
+  // Four lights: their shadow rays share one buffer, so the range bounds the pass first.
+  EXPECT_EQ(vulkanPassRays(rangeRays, 4, 8 * gib, 4 * gib),
+            4 * gib / (4 * sizeof(gpu::GpuShadowRay)));
+  // ... and the memory budget where it is the smaller.
+  EXPECT_EQ(vulkanPassRays(rangeRays, 4, gib, 4 * gib), gib / (4 * perSlot));
+  // Many lights: no fewer than 4 M rays a pass; rounds take the rest.
+  EXPECT_EQ(vulkanPassRays(rangeRays, 400, 8 * gib, 4 * gib), fourM);
+  // Never more than the buffers hold.
+  EXPECT_EQ(vulkanPassRays(1000, 4, 8 * gib, 4 * gib), 1000u);
+}
+
 }  // namespace
 }  // namespace pc
