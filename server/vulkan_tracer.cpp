@@ -187,10 +187,10 @@ struct VulkanTracer::Impl {
   vk::Buffer tapsUpload, taps;  // blend taps: host-written, copied to device memory per update
   std::size_t tapBytes = 0;     // of this update's taps
   std::size_t probeCapacity = 0, rayCapacity = 0;
-  // An update of more probe rays than one pass holds (maxPassRays) runs in slices of its
-  // probes, a submission each. Each slice traces and shades against the field as the update
-  // found it, copied once into the snapshot buffers, so the field is the one pass's: a slice
-  // blended earlier does not light a later one.
+  // An update of more probe rays than one pass holds (maxPassRays, or fewer: vulkanPassRays)
+  // runs in slices of its probes, a submission each. Each slice traces and shades against the field
+  // as the update found it, copied once into the snapshot buffers, so the field is the one pass's:
+  // a slice blended earlier does not light a later one.
   std::size_t maxPassRays = 0;
   vk::Buffer prevIrradiance, prevDepth, prevOcclusion, prevRecords;
 
@@ -240,7 +240,7 @@ struct VulkanTracer::Impl {
   int shadowSlots() const;
   void ensureRequestCapacity(std::size_t probes, int rayCount, int slots);
   bool ensureFieldBuffers(const Field& field);
-  std::size_t sliceProbes(int rayCount) const;
+  std::size_t sliceProbes(std::size_t probes, int rayCount) const;
   void ensureSnapshot();
   void recordSnapshot();
   // Writes the inputs of the request's probes [first, first + count); the blend taps too
@@ -922,11 +922,14 @@ void VulkanTracer::Impl::writeDescriptors() {
   descriptorsDirty = false;
 }
 
-// Probes per slice of an update at `rayCount` rays per probe.
-std::size_t VulkanTracer::Impl::sliceProbes(int rayCount) const {
+// Probes per slice of an update of `probes` probes at `rayCount` rays per probe: as few slices
+// as the pass size allows, of even sizes (not full ones and a sliver).
+std::size_t VulkanTracer::Impl::sliceProbes(std::size_t probes, int rayCount) const {
   const std::size_t rays =
       vulkanPassRays(maxPassRays, shadowSlots(), shadowMemoryBudget, maxBufferBytes);
-  return std::max<std::size_t>(1, rays / std::size_t(std::max(rayCount, 1)));
+  const std::size_t most = std::max<std::size_t>(1, rays / std::size_t(std::max(rayCount, 1)));
+  const std::size_t slices = (probes + most - 1) / most;
+  return slices <= 1 ? most : (probes + slices - 1) / slices;
 }
 
 // Snapshot buffers the size of the field's (made when an update first runs in slices).
@@ -1413,12 +1416,16 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
   // One submission per slice of the request's probes; one slice unless the request holds more
   // probe rays than a pass (Impl::maxPassRays). The brick flags and list gather every slice's
   // changed bricks, packed and read back after the last.
-  const std::size_t perSlice = m.sliceProbes(rayCount);
+  const std::size_t perSlice = m.sliceProbes(total, rayCount);
   const bool sliced = total > perSlice;
   if (sliced && !m.loggedSlices) {
     logInfo("vulkan tracer: an update of " + std::to_string(total) + " probes x " +
-            std::to_string(rayCount) + " rays runs in slices of " + std::to_string(perSlice) +
-            " probes (at most " + std::to_string(m.maxPassRays) + " probe rays a pass)");
+            std::to_string(rayCount) + " rays runs in " +
+            std::to_string((total + perSlice - 1) / perSlice) + " slices of up to " +
+            std::to_string(perSlice) + " probes: more probe rays than one pass holds (" +
+            std::to_string(vulkanPassRays(m.maxPassRays, m.shadowSlots(), m.shadowMemoryBudget,
+                                          m.maxBufferBytes)) +
+            ")");
     m.loggedSlices = true;
   }
   std::vector<vk::Buffer> staging;
@@ -1576,7 +1583,7 @@ double VulkanTracer::traceOnly(Field& field, const UpdateRequest& request) {
   Impl& m = *impl_;
   const std::size_t total = request.probes.size();
   const int rayCount = field.settings.raysPerProbe;
-  const std::size_t perSlice = m.sliceProbes(rayCount);
+  const std::size_t perSlice = m.sliceProbes(total, rayCount);
   std::vector<vk::Buffer> staging;
   double ms = 0.0;
   // In the update's slices; the field stays as it is, so every slice reads it as it is.

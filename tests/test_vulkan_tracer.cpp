@@ -760,8 +760,8 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
   Field f1 = Field::create(scene.volumes, settings), fs = f1;
   UpdateRequest all;
   all.probes = allProbes(f1);
-  // Three slices, the last a short one.
-  const std::size_t perSlice = all.probes.size() / 3 + 7;
+  // Five slices (576 probes: four of 116, one of 112).
+  const std::size_t perSlice = all.probes.size() / 5 + 5;
   VulkanTracerOptions vo;
   vo.validation = true;
   vo.allowCpuDevice = true;
@@ -782,14 +782,15 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
     EXPECT_EQ(b.probeRays, a.probeRays);
     EXPECT_EQ(b.shadowRays, a.shadowRays);
     EXPECT_EQ(b.bricksChanged, a.bricksChanged);
-    // Where the device has timestamps: the snapshot is taken once, and only where sliced.
+    // Where the device has timestamps: one snapshot an update, and only where sliced (every
+    // request here, 192 probes in two slices the last).
     auto count = [](const UpdateStats& st, const char* pass) {
       return std::count_if(st.gpuPasses.begin(), st.gpuPasses.end(),
                            [&](const auto& p) { return p.first == pass; });
     };
     if (count(a, "blend") > 0) {
       EXPECT_EQ(count(a, "snapshot"), 0);
-      EXPECT_EQ(count(b, "snapshot"), i < 2 ? 1 : 0) << "update " << i;
+      EXPECT_EQ(count(b, "snapshot"), 1) << "update " << i;
     }
   }
   expectIdenticalFields(fs, f1);
@@ -801,7 +802,8 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
     EXPECT_EQ(fs.probes[i].updates, f1.probes[i].updates) << "probe " << i;
     moved += f1.probes[i].offset != glm::vec3(0.0f) ? 1 : 0;
   }
-  std::printf("%zu probes in slices of %zu: %d relocated\n", all.probes.size(), perSlice, moved);
+  std::printf("%zu probes in slices of at most %zu: %d relocated\n", all.probes.size(), perSlice,
+              moved);
   EXPECT_EQ(onePass->validationErrorCount(), 0u);
   EXPECT_EQ(slices.validationErrorCount(), 0u);
 }
