@@ -140,7 +140,10 @@ Result<FieldGpu> FieldGpu::create(const vk::Context& ctx, const std::optional<gp
     // and the offsets of such probes are never read.
     static_assert(gpu::PC_PROBE_UNINITIALIZED == 3);
     vkCmdFillBuffer(cmd, f.probes_.get(), 0, VK_WHOLE_SIZE, 0x40400000u);
-    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, kShaders,
+    // All transfer stages: the image clears run in the clear stage, and a buffer fill is a
+    // "transfer" operation of no named stage (the validation layer places it in the copy stage).
+    vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                      kShaders,
                       VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT |
                           VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
   });

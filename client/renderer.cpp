@@ -1116,12 +1116,15 @@ void Renderer::recordComputeRaster(VkCommandBuffer cmd, Slot& slot) {
   const VkPipelineLayout layout = pipelineLayout_.get();
   // The previous frame's lighting pass and tile pass are done with the buffers before they
   // are cleared.
-  vk::memoryBarrier(cmd, compute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
-                    VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+  vk::memoryBarrier(
+      cmd, compute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+      VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+  // A buffer fill is a "transfer" operation of no named stage (the validation layer places it
+  // in the copy stage, not the clear stage): barriers name all transfer stages.
   vkCmdFillBuffer(cmd, visSamples_.get(), 0, VK_WHOLE_SIZE, 0);  // depth 0, id 0: the sky
   vkCmdFillBuffer(cmd, rasterCounters_.get(), 0, VK_WHOLE_SIZE, 0);
-  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, compute,
-                    readWrite);
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                    compute, readWrite);
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &slot.set, 0, nullptr);
   // Triangle pass: enough groups for one triangle per thread, up to the dimension limit (the
   // shader strides over the rest).

@@ -946,6 +946,9 @@ void VulkanTracer::Impl::ensureSnapshot() {
 }
 
 void VulkanTracer::Impl::recordSnapshot() {
+  // After any upload of host edits into the field (recordFieldSync).
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                    VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_READ_BIT);
   for (auto [live, copy] :
        {std::pair{&irradiance, &prevIrradiance}, std::pair{&depth, &prevDepth},
         std::pair{&occlusion, &prevOcclusion}, std::pair{&records, &prevRecords}}) {
@@ -1036,9 +1039,12 @@ void VulkanTracer::Impl::begin() {
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
   VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
   timer.reset(cmd);
-  // Host writes (parameters, requests, instance records) before any GPU read.
-  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_WRITE_BIT,
-                    VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT);
+  // Host writes (parameters, requests, instance records), and the earlier submissions' writes
+  // (the field the last update or slice blended), before any GPU access.
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_HOST_BIT | VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT,
+                    VK_ACCESS_2_HOST_WRITE_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT,
+                    VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT,
+                    VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
   recordMirrorCopies();
 }
 
