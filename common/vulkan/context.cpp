@@ -203,6 +203,7 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   std::vector<const char*> instanceExt;
   for (const std::string& e : options.instanceExtensions) instanceExt.push_back(e.c_str());
   std::vector<const char*> layers;
+  bool syncValidation = false;
   if (options.validation) {
     std::uint32_t count = 0;
     vkEnumerateInstanceLayerProperties(&count, nullptr);
@@ -214,6 +215,15 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
     if (!found) return Error{"validation requested but VK_LAYER_KHRONOS_validation is not installed (vulkan-validationlayers)"};
     layers.push_back(kValidationLayer);
     instanceExt.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+    std::uint32_t extCount = 0;
+    vkEnumerateInstanceExtensionProperties(kValidationLayer, &extCount, nullptr);
+    std::vector<VkExtensionProperties> layerExt(extCount);
+    vkEnumerateInstanceExtensionProperties(kValidationLayer, &extCount, layerExt.data());
+    syncValidation =
+        std::any_of(layerExt.begin(), layerExt.end(), [](const VkExtensionProperties& e) {
+          return std::strcmp(e.extensionName, VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME) == 0;
+        });
+    if (syncValidation) instanceExt.push_back(VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME);
   }
   VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
   app.pApplicationName = "probecast";
@@ -234,7 +244,20 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
                     VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
   dci.pfnUserCallback = &Context::onDebugMessage;
   dci.pUserData = ctx.get();
-  if (options.validation) ici.pNext = &dci;
+  // Synchronization validation too, where the layer offers it: a missing barrier is a race on a
+  // real GPU even where a CPU implementation happens to run the commands in order.
+  const VkValidationFeatureEnableEXT syncFeature =
+      VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT;
+  VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+  features.enabledValidationFeatureCount = 1;
+  features.pEnabledValidationFeatures = &syncFeature;
+  if (options.validation) {
+    ici.pNext = &dci;
+    if (syncValidation) {
+      features.pNext = &dci;
+      ici.pNext = &features;
+    }
+  }
   const VkResult ir = vkCreateInstance(&ici, nullptr, &ctx->instance_);
   if (ir == VK_ERROR_INCOMPATIBLE_DRIVER) return Error{"no Vulkan driver (ICD) found; " + std::string(kNoDriverHint)};
   PC_VK_TRY(ir);
