@@ -1420,7 +1420,7 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
     std::abort();
   }
   // One submission per slice of the request's probes; one slice unless the request holds more
-  // probe rays than a pass (Impl::maxPassRays). The brick flags and list gather every slice's
+  // probe rays than a pass (vulkanPassRays). The brick flags and list gather every slice's
   // changed bricks, packed and read back after the last.
   const std::size_t perSlice = m.sliceProbes(total, rayCount);
   const bool sliced = total > perSlice;

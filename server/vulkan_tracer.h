@@ -34,9 +34,9 @@ struct VulkanTracerOptions {
   // as fit, with the same field (gpu_trace.h: pcShadowRounds). 0: a quarter of the device's
   // largest device-local memory heap, at most 8 GiB.
   std::size_t shadowMemoryBudget = 0;
-  // The most bytes one per-ray buffer may span (0: the device's maxStorageBufferRange). Shadow
-  // rounds hold to it as to the budget above; an update too large for one slot's records is
-  // refused with a message naming the limit. Smaller values only serve tests.
+  // The most bytes one per-ray buffer may span (0: the device's maxStorageBufferRange). Passes
+  // (maxPassRays) and shadow rounds hold to it; only a single probe with more rays than one
+  // buffer spans is refused, with a message naming the limit. Smaller values only serve tests.
   std::size_t maxStorageBufferBytes = 0;
   // The most probe rays one pass of an update traces, shades and blends (0: as many as keep
   // each per-ray buffer within the storage-buffer range and the per-ray records within a
