@@ -45,8 +45,14 @@ struct Tracer {
       // not already count it at the previous vertex.
       if (bounce == 0 || !emissive.sampled(sp.material)) L += throughput * sp.emission;
 
-      const glm::vec3 P = offsetRayOrigin(sp.position, sp.geometricNormal);
-      const glm::vec3 E = directIrradiance(scene, state, emissive, P, sp.normal, rng, direct);
+      // The lights are evaluated at the hit point; the shadow rays and the path's next ray leave
+      // from it moved off its triangle (pcShadowOrigin), as in the field update. An offset of
+      // 256 float steps of the point's own coordinates, as before, grows with the distance
+      // from the world's origin: 3000 units out it lit the built-in room as from 0.06 above
+      // its surfaces, 7.7% brighter than at the origin.
+      const glm::vec3 P = gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
+      const glm::vec3 E =
+          directIrradiance(scene, state, emissive, sp.position, P, sp.normal, rng, direct);
       L += throughput * sp.albedo * kInvPi * E;
       if (bounce >= maxBounces) break;
 

@@ -44,8 +44,11 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
             continue;
           }
           const SurfacePoint sp = scene.surface(hit, origin, dir);
-          const glm::vec3 P = offsetRayOrigin(sp.position, sp.geometricNormal);
-          const glm::vec3 E = directIrradiance(scene, state, emissive, P, sp.normal, rng, direct);
+          // Lights at the hit point, shadow rays from it moved off its triangle, as in the
+          // field update and the reference (path_tracer.cpp).
+          const glm::vec3 P = gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
+          const glm::vec3 E =
+              directIrradiance(scene, state, emissive, sp.position, P, sp.normal, rng, direct);
           // The field's sampler applies its own normal and view biases, so it gets the
           // surface point itself; V points from the surface back toward the camera.
           const glm::vec4 indirect =

@@ -90,4 +90,23 @@ inline Scene grilleRoom(bool cutOut, TextureWrap wrapU = TextureWrap::Repeat,
   return scene;
 }
 
+// The built-in room, still (no animation), moved `shift` along x and z with its lights, probe
+// volumes and cameras: the same room where float steps are larger.
+inline Scene shiftedRoom(float shift) {
+  Scene scene = builtinScene();
+  const glm::vec3 by(shift, 0.0f, shift);
+  for (Instance& inst : scene.instances) {
+    inst.transform[3] += glm::vec4(by, 0.0f);  // a translation after the instance's own
+    inst.animation = -1;
+  }
+  for (Light& light : scene.lights) {
+    light.position += by;
+    light.animation = -1;
+  }
+  for (ProbeVolume& v : scene.volumes) v.origin += by;
+  for (Camera& c : scene.cameras) c.position += by;
+  scene.animations.clear();
+  return scene;
+}
+
 }  // namespace pc::testmesh

@@ -19,6 +19,7 @@
 #include "cpu/probe_lit_render.h"
 #include "server/bake.h"
 #include "server/embree_tracer.h"
+#include "test_meshes.h"
 #include "test_timing.h"
 
 namespace pc {
@@ -207,6 +208,45 @@ TEST(Quality, SealedRoomDoesNotLeak) {
   EXPECT_GT(naiveRatio, 0.05) << "the naive field no longer leaks: the test lost its teeth";
   EXPECT_LT(ratio, naiveRatio) << "visibility weighting must leak less than the naive field";
   EXPECT_LE(ratio, 0.01) << "goal: the sealed room sees at most 1% of the open room's light";
+}
+
+double meanRadiance(const Image& image) {
+  double sum = 0.0;
+  for (const glm::vec3& p : image.pixels) sum += double(p.x + p.y + p.z) / 3.0;
+  return sum / double(image.pixels.size());
+}
+
+// The reference and the probe-lit render light a room far from the world's origin as at it:
+// the built-in room 3000 units out, where a float step is 2.4e-4. With their secondary rays
+// leaving 256 float steps of the hit point's own coordinates off the surface, and the lights
+// evaluated there, the reference rendered it 7.7% brighter than at the origin (the probe-lit
+// render likewise); now both leave from pcShadowOrigin with the lights at the hit point.
+TEST(Quality, RoomFarFromTheOriginRendersAsAtTheOrigin) {
+  double reference[2] = {0, 0}, probeLit[2] = {0, 0};
+  for (int i = 0; i < 2; ++i) {
+    const Scene scene = testmesh::shiftedRoom(i == 0 ? 0.0f : 3000.0f);
+    PathTraceOptions pt;
+    pt.width = 96;
+    pt.height = 54;
+    pt.spp = 64;
+    auto ref = renderReference(scene, pt);
+    ASSERT_TRUE(ref.ok()) << ref.error().message;
+    reference[i] = meanRadiance(ref->image);
+    auto field = bake(scene, 8);
+    ASSERT_TRUE(field.ok()) << field.error().message;
+    ProbeLitOptions lit;
+    lit.width = pt.width;
+    lit.height = pt.height;
+    lit.primarySamples = 2;
+    auto image = renderProbeLit(scene, *field, lit);
+    ASSERT_TRUE(image.ok()) << image.error().message;
+    probeLit[i] = meanRadiance(*image);
+  }
+  std::printf(
+      "mean radiance at the origin / 3000 away: reference %.5f / %.5f, probe-lit %.5f / %.5f\n",
+      reference[0], reference[1], probeLit[0], probeLit[1]);
+  EXPECT_NEAR(reference[1] / reference[0], 1.0, 0.01);
+  EXPECT_NEAR(probeLit[1] / probeLit[0], 1.0, 0.01);
 }
 
 }  // namespace

@@ -694,23 +694,6 @@ TEST(VulkanTracer, ProbesOnWallPlanesMatchEmbree) {
 namespace pc {
 namespace {
 
-// The built-in room, still, moved `shift` along x and z.
-Scene shiftedRoom(float shift) {
-  Scene scene = builtinScene();
-  const glm::mat4 move = glm::translate(glm::mat4(1.0f), {shift, 0.0f, shift});
-  for (Instance& inst : scene.instances) {
-    inst.transform = move * inst.transform;
-    inst.animation = -1;
-  }
-  for (Light& light : scene.lights) {
-    light.position += glm::vec3(shift, 0.0f, shift);
-    light.animation = -1;
-  }
-  for (ProbeVolume& v : scene.volumes) v.origin += glm::vec3(shift, 0.0f, shift);
-  scene.animations.clear();
-  return scene;
-}
-
 // The built-in room 3000 units from the world's origin, where a float step is 2.4e-4: shadow
 // rays that left from the hit point itself found their own triangles there (Embree's field 2.1%
 // darker than at the origin, lavapipe's 9.3e-3 from Embree's); shadow rays and light both
@@ -721,7 +704,7 @@ TEST(VulkanTracer, RoomFarFromTheOriginLightsAsAtTheOrigin) {
   FieldDifference far;
   const float shifts[2] = {0.0f, 3000.0f};
   for (int i = 0; i < 2; ++i) {
-    const Scene scene = shiftedRoom(shifts[i]);
+    const Scene scene = testmesh::shiftedRoom(shifts[i]);
     std::string why;
     Backends b = makeBackends(scene, 128, &why);
     if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;

@@ -79,15 +79,19 @@ Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, i
   return field;
 }
 
+// Bumped when the path tracer's output changes, so that no older cached image stands in for it
+// (2: secondary rays leave from pcShadowOrigin, the lights evaluated at the hit point).
+constexpr int kReferenceVersion = 2;
+
 Result<Reference> cachedReference(const Scene& scene, const Camera& camera, const RenderSetup& setup) {
   char key[160];
-  std::snprintf(key, sizeof key, "%016llx-%08x-%dx%d-%dspp",
-                (unsigned long long)scene.hash,
-                unsigned(std::hash<std::string>{}(std::to_string(camera.position.x) + std::to_string(camera.position.y) +
-                                                  std::to_string(camera.position.z) + std::to_string(camera.forward.x) +
-                                                  std::to_string(camera.forward.y) + std::to_string(camera.forward.z) +
-                                                  std::to_string(camera.yfov))),
-                setup.width, setup.height, setup.spp);
+  std::snprintf(key, sizeof key, "%016llx-%08x-%dx%d-%dspp-v%d", (unsigned long long)scene.hash,
+                unsigned(std::hash<std::string>{}(
+                    std::to_string(camera.position.x) + std::to_string(camera.position.y) +
+                    std::to_string(camera.position.z) + std::to_string(camera.forward.x) +
+                    std::to_string(camera.forward.y) + std::to_string(camera.forward.z) +
+                    std::to_string(camera.yfov))),
+                setup.width, setup.height, setup.spp, kReferenceVersion);
   fs::path exr, meta;
   if (!setup.cacheDir.empty()) {
     exr = fs::path(setup.cacheDir) / (std::string(key) + ".exr");
