@@ -752,6 +752,13 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
   auto made = VulkanTracer::create(scene, TracerOptions{}, vo);
   ASSERT_TRUE(made) << made.error().message;
   VulkanTracer& slices = **made;
+  // The same slices, each in shadow rounds of 7 of the 41 slots (40 lights, one emitter sample).
+  vo.shadowMemoryBudget =
+      7 * perSlice * 32 * (sizeof(gpu::GpuShadowRay) + sizeof(gpu::GpuShadowLight));
+  auto madeRounds = VulkanTracer::create(scene, TracerOptions{}, vo);
+  ASSERT_TRUE(madeRounds) << madeRounds.error().message;
+  VulkanTracer& slicesInRounds = **madeRounds;
+  Field fr = f1;
   // Every probe twice, then every third probe (a request that is not the field's order).
   UpdateRequest some;
   for (std::size_t i = 0; i < all.probes.size(); i += 3) some.probes.push_back(all.probes[i]);
@@ -761,6 +768,8 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
     r.rotationSeed = 1400u + std::uint32_t(i);
     const UpdateStats a = onePass->update(f1, r);
     const UpdateStats b = slices.update(fs, r);
+    const UpdateStats c = slicesInRounds.update(fr, r);
+    EXPECT_EQ(c.shadowRays, a.shadowRays);
     EXPECT_EQ(b.probesUpdated, a.probesUpdated);
     EXPECT_EQ(b.probeRays, a.probeRays);
     EXPECT_EQ(b.shadowRays, a.shadowRays);
@@ -774,9 +783,12 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
     if (count(a, "blend") > 0) {
       EXPECT_EQ(count(a, "snapshot"), 0);
       EXPECT_EQ(count(b, "snapshot"), 1) << "update " << i;
+      EXPECT_EQ(count(b, "shadow rounds"), 0);
+      EXPECT_EQ(count(c, "shadow rounds"), 1) << "update " << i;
     }
   }
   expectIdenticalFields(fs, f1);
+  expectIdenticalFields(fr, f1);
   ASSERT_EQ(fs.probes.size(), f1.probes.size());
   int moved = 0;
   for (std::size_t i = 0; i < f1.probes.size(); ++i) {
@@ -789,6 +801,7 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
               moved);
   EXPECT_EQ(onePass->validationErrorCount(), 0u);
   EXPECT_EQ(slices.validationErrorCount(), 0u);
+  EXPECT_EQ(slicesInRounds.validationErrorCount(), 0u);
 }
 
 // The slices' size: one round of shadow slots where that leaves passes of at least 4 M rays.
