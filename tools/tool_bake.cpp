@@ -1,12 +1,12 @@
-// probecast-bake: converges a scene's probe field on the CPU (Embree) and writes it as a
-// baked .probes file. With --render DIR it also renders the scene's camera lit by that field
-// and path traced, and writes both images, their difference and a summary (timings, PSNR).
+// probecast-bake: converges a scene's probe field (on the CPU with Embree, or with --backend on
+// a GPU's ray-tracing pipelines) and writes it as a baked .probes file. With --render DIR it also
+// renders the scene's camera lit by that field and path traced, and writes both images, their
+// difference and a summary (timings, PSNR).
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-
-#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "common/image.h"
@@ -15,7 +15,7 @@
 #include "cpu/probe_lit_render.h"
 #include "protocol/baked_file.h"
 #include "server/bake.h"
-#include "server/embree_tracer.h"
+#include "server/tracer.h"
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
@@ -26,12 +26,16 @@ static double secondsSince(Clock::time_point t0) {
 
 int main(int argc, char** argv) {
   CLI::App app{"Bake a probe field (and optionally check it against the path-traced reference)"};
-  std::string scenePath = "builtin", sidecar, out = "field.probes", renderDir;
+  std::string scenePath = "builtin", sidecar, out = "field.probes", renderDir, backend = "embree";
   int updates = 96, rays = 256, width = 480, height = 360, spp = 512, camera = 0, aa = 4;
   double time = 0.0;
   bool half = false;
   app.add_option("--scene", scenePath, "glTF/OBJ scene, or 'builtin' (a Cornell-style room)");
   app.add_option("--sidecar", sidecar, "scene.json sidecar (lights, cameras, volumes)");
+  app.add_option("--backend", backend,
+                 "tracer: embree (default), vulkan (any Vulkan ray-tracing device, lavapipe "
+                 "included) or auto (a GPU with ray tracing, else embree)")
+      ->capture_default_str();
   app.add_option("--updates", updates, "field updates");
   app.add_option("--rays", rays, "rays per probe per update");
   app.add_option("--time", time, "animation time of the baked state (seconds)");
@@ -58,15 +62,17 @@ int main(int argc, char** argv) {
   std::vector<pc::ProbeVolume> volumes = scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes;
   pc::Field field = pc::Field::create(volumes, settings);
   field.sceneHash = scene->hash;
-  auto tracer = pc::EmbreeTracer::create(*scene, {});
+  auto tracer = pc::makeTracer(*scene, backend);
   if (!tracer) {
-    pc::logError(tracer.error().message);
+    pc::logError("tracer: " + tracer.error().message);
     return 1;
   }
+  pc::logInfo("tracer: " + (*tracer)->name());
   (*tracer)->setState(pc::evaluateScene(*scene, time));
 
   nlohmann::json summary;
   summary["scene"] = scene->name;
+  summary["tracer"] = (*tracer)->name();
   summary["triangles"] = scene->triangleCount();
   summary["probes"] = field.probeCount();
   summary["cascades"] = field.cascadeCount();
