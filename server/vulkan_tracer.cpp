@@ -193,6 +193,13 @@ struct VulkanTracer::Impl {
   // a slice blended earlier does not light a later one.
   std::size_t maxPassRays = 0;
   vk::Buffer prevIrradiance, prevDepth, prevOcclusion, prevRecords;
+  // Each field buffer and its snapshot.
+  std::array<std::pair<vk::Buffer*, vk::Buffer*>, 4> snapshots() {
+    return {{{&irradiance, &prevIrradiance},
+             {&depth, &prevDepth},
+             {&occlusion, &prevOcclusion},
+             {&records, &prevRecords}}};
+  }
 
   // ---- field on the GPU ----
   FieldDesc layoutDesc{};  // the layout the field buffers were made for
@@ -935,9 +942,7 @@ std::size_t VulkanTracer::Impl::sliceProbes(std::size_t probes, int rayCount) co
 // Snapshot buffers the size of the field's (made when an update first runs in slices).
 void VulkanTracer::Impl::ensureSnapshot() {
   const VkBufferUsageFlags usage = kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-  for (auto [live, copy] :
-       {std::pair{&irradiance, &prevIrradiance}, std::pair{&depth, &prevDepth},
-        std::pair{&occlusion, &prevOcclusion}, std::pair{&records, &prevRecords}}) {
+  for (auto [live, copy] : snapshots()) {
     if (copy->get() && copy->size() == live->size()) continue;
     *copy = orDie(vk::Buffer::create(*ctx, live->size(), usage, vk::MemoryUsage::DeviceLocal),
                   "field snapshot");
@@ -949,9 +954,7 @@ void VulkanTracer::Impl::recordSnapshot() {
   // After any upload of host edits into the field (recordFieldSync).
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
                     VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_READ_BIT);
-  for (auto [live, copy] :
-       {std::pair{&irradiance, &prevIrradiance}, std::pair{&depth, &prevDepth},
-        std::pair{&occlusion, &prevOcclusion}, std::pair{&records, &prevRecords}}) {
+  for (auto [live, copy] : snapshots()) {
     const VkBufferCopy region{0, 0, live->size()};
     vkCmdCopyBuffer(cmd, live->get(), copy->get(), 1, &region);
   }
