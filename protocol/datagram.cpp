@@ -137,7 +137,7 @@ std::optional<CompletedUpdate> Reassembler::add(Fragment&& fragment, double now)
     while (!partial_.empty() && (partial_.size() + 1 > options_.maxUpdates ||
                                  bytes_ + u.totalSize > options_.maxBytes)) {
       auto oldest = std::min_element(partial_.begin(), partial_.end(), [](auto& a, auto& b) {
-        return a.second.firstSeen < b.second.firstSeen;
+        return a.second.lastSeen < b.second.lastSeen;
       });
       erase(oldest);
       ++dropped_;
@@ -147,11 +147,11 @@ std::optional<CompletedUpdate> Reassembler::add(Fragment&& fragment, double now)
     p.update = u;
     p.payload.assign(u.totalSize, 0);
     p.have.assign(fragment.count, false);
-    p.firstSeen = now;
     bytes_ += u.totalSize;
     it = partial_.emplace(u.updateId, std::move(p)).first;
   }
   Partial& p = it->second;
+  p.lastSeen = now;
   if (p.have[fragment.index]) return std::nullopt;  // duplicate
   std::copy(fragment.data.begin(), fragment.data.end(),
             p.payload.begin() + std::ptrdiff_t(fragment.index) * std::ptrdiff_t(kFragmentBytes));
@@ -166,7 +166,7 @@ std::optional<CompletedUpdate> Reassembler::add(Fragment&& fragment, double now)
 
 void Reassembler::expire(double now) {
   for (auto it = partial_.begin(); it != partial_.end();) {
-    if (now - it->second.firstSeen > options_.timeout) {
+    if (now - it->second.lastSeen > options_.timeout) {
       auto next = std::next(it);
       erase(it);
       ++dropped_;

@@ -68,7 +68,10 @@ std::vector<std::uint8_t> encodeDatagram(std::uint32_t sessionId, std::uint32_t 
 Result<Datagram> decodeDatagram(std::span<const std::uint8_t> bytes);
 
 struct ReassemblyOptions {
-  double timeout = 1.0;             // s: a partial payload older than this is dropped
+  // s: a partial payload that got no fragment for this long is dropped. Counted from its latest
+  // fragment, not its first: a sender resends a lost update whole (the same id and bytes) until
+  // it is acknowledged, and each resend fills in what the last one lost.
+  double timeout = 1.0;
   std::size_t maxUpdates = 64;      // partial payloads held at once
   std::size_t maxBytes = 4u << 20;  // their buffers together
 };
@@ -79,8 +82,9 @@ struct CompletedUpdate {
 };
 
 // Puts fragmented payloads back together. Keyed by update id; fragments whose header differs
-// from the partial payload's replace it (a restarted server reuses ids). When the caps are
-// reached the oldest partial payload is dropped: memory stays bounded whatever arrives.
+// from the partial payload's replace it (ids are hashes, which two updates may share). When the
+// caps are reached the partial payload that heard nothing for longest is dropped: memory stays
+// bounded whatever arrives.
 class Reassembler {
  public:
   explicit Reassembler(ReassemblyOptions options = {}) : options_(options) {}
@@ -97,7 +101,7 @@ class Reassembler {
     std::vector<std::uint8_t> payload;
     std::vector<bool> have;
     std::size_t received = 0;
-    double firstSeen = 0;
+    double lastSeen = 0;  // when its latest fragment arrived
   };
   void erase(std::map<std::uint32_t, Partial>::iterator it);
 

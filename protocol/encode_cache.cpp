@@ -4,6 +4,22 @@
 
 namespace pc {
 
+std::uint32_t updateIdFor(const EncodeKey& key) {
+  // splitmix64's finalizer over the key's words, folded to 32 bits.
+  auto mix = [](std::uint64_t h) {
+    h ^= h >> 30;
+    h *= 0xbf58476d1ce4e5b9ull;
+    h ^= h >> 27;
+    h *= 0x94d049bb133111ebull;
+    return h ^ (h >> 31);
+  };
+  std::uint64_t h = mix(std::uint64_t(std::uint32_t(key.cascade)) << 32 | key.brick);
+  h = mix(h ^ key.version);
+  h = mix(h ^ (key.base + 0x9e3779b97f4a7c15ull));
+  const std::uint32_t id = std::uint32_t(h ^ (h >> 32));
+  return id != 0 ? id : 1u;
+}
+
 std::shared_ptr<const EncodedUpdate> EncodeCache::find(const EncodeKey& key) {
   auto it = map_.find(key);
   if (it == map_.end()) {
@@ -18,9 +34,7 @@ std::shared_ptr<const EncodedUpdate> EncodeCache::find(const EncodeKey& key) {
 std::shared_ptr<const EncodedUpdate> EncodeCache::insert(const EncodeKey& key, std::uint8_t codec,
                                                          std::vector<std::uint8_t> payload) {
   auto u = std::make_shared<EncodedUpdate>();
-  // Update id 0 is never used, so a receiver's zeroed state never matches a real update.
-  if (nextId_ == 0) nextId_ = 1;
-  u->header = UpdateHeader{nextId_++,
+  u->header = UpdateHeader{updateIdFor(key),
                            key.cascade,
                            key.brick,
                            key.version,

@@ -19,7 +19,7 @@
 namespace pc {
 
 struct EncodedUpdate {
-  UpdateHeader header;  // updateId unique per entry; totalSize = payload.size()
+  UpdateHeader header;  // updateId: updateIdFor(key); totalSize = payload.size()
   std::vector<std::uint8_t> payload;
 };
 
@@ -30,11 +30,19 @@ struct EncodeKey {
   auto operator<=>(const EncodeKey&) const = default;
 };
 
+// The update id of an encoded (cascade, brick, version, base): a hash of the key, never 0 (a
+// receiver's zeroed state matches no update). A version's content never changes within a
+// session and encoding is deterministic, so an update encoded again after it left the cache
+// carries the same id and bytes, and a receiver completes it from the fragments of both sends
+// (Reassembler). Different keys that hash alike differ in their headers, which the receiver
+// compares in full (UpdateHeader::sameUpdate).
+std::uint32_t updateIdFor(const EncodeKey& key);
+
 class EncodeCache {
  public:
   explicit EncodeCache(std::size_t maxBytes) : maxBytes_(maxBytes) {}
   std::shared_ptr<const EncodedUpdate> find(const EncodeKey& key);
-  // Stores `payload` under `key` with a fresh update id and returns the entry.
+  // Stores `payload` under `key` (update id updateIdFor(key)) and returns the entry.
   std::shared_ptr<const EncodedUpdate> insert(const EncodeKey& key, std::uint8_t codec,
                                               std::vector<std::uint8_t> payload);
   // Drops every entry of brick (cascade, brick) whose key `drop` returns true for.
@@ -56,7 +64,6 @@ class EncodeCache {
   std::size_t bytes_ = 0;
   std::map<EncodeKey, Entry> map_;
   std::list<EncodeKey> lru_;  // front: most recently used
-  std::uint32_t nextId_ = 1;
   std::uint64_t hits_ = 0, misses_ = 0;
 };
 

@@ -125,11 +125,11 @@ Status StreamSender::onAck(const AckMsg& ack, double now) {
                    ") outside the field"};
     }
   }
-  if (ack.full) {
-    for (auto& cascade : tracks_) {
-      for (Track& t : cascade) t.acked = 0;
-    }
-  }
+  // A full ack lists every brick the client holds: the others it holds nothing of. They are
+  // cleared after the listed ones are read, so that a brick acknowledged long ago and listed
+  // again gives no round-trip sample (its send is seconds old: such samples had grown the
+  // resend timeout to seconds, and under loss the stream stalled behind it).
+  if (ack.full) ++fullAcks_;
   for (const AckRange& r : ack.ranges) {
     for (std::uint32_t i = 0; i < r.count; ++i) {
       Track& t = tracks_[r.cascade][r.firstBrick + i];
@@ -139,6 +139,14 @@ Status StreamSender::onAck(const AckMsg& ack, double now) {
         if (sample >= 0 && sample < 10.0) stats_.srtt = 0.875 * stats_.srtt + 0.125 * sample;
       }
       t.acked = r.version;
+      t.listedIn = fullAcks_;
+    }
+  }
+  if (ack.full) {
+    for (auto& cascade : tracks_) {
+      for (Track& t : cascade) {
+        if (t.listedIn != fullAcks_) t.acked = 0;
+      }
     }
   }
   return Status::success();
@@ -236,6 +244,9 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
 
   // Which bricks want sending, most urgent first.
   std::vector<Candidate> candidates;
+  const double timeout = resendTimeout();
+  // Lost updates of several fragments, which the receiver may hold in part.
+  std::size_t lostUpdates = 0, lostBytes = 0;
   for (int k = 0; k < int(tracks_.size()); ++k) {
     for (int b = 0; b < int(tracks_[k].size()); ++b) {
       Track& t = tracks_[k][b];
@@ -246,11 +257,29 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
         continue;
       }
       if (t.pendingSince < 0) t.pendingSince = now;
+      const bool unacked = t.sent != 0 && t.sent != t.acked;
+      // An update of several fragments not acknowledged (yet) can go again as it was while the
+      // client still holds its base and the publisher both versions: the receiver completes
+      // it from the fragments of every send.
+      const bool resendable = unacked && !t.repair && t.sentFragments > 1 &&
+                              (t.sentBase == 0 || t.sentBase == t.acked) &&
+                              publisher_.find(k, b, t.sent) &&
+                              (t.sentBase == 0 || publisher_.find(k, b, t.sentBase));
+      if (resendable && (t.resent || now - t.sentAt >= timeout)) {
+        ++lostUpdates;
+        lostBytes += t.sentBytes;
+      }
       // One version in flight per brick: the client keeps only the version it holds, so a
       // newer version sent before the last one is acknowledged would have to be a residual on
       // a version the client may already have replaced (and would need a repair). Waiting for
       // the ack (one round trip) also batches a quickly changing brick's versions.
-      if (t.sent != 0 && t.sent != t.acked && now - t.sentAt < resendTimeout()) continue;
+      if (unacked && now - t.sentAt < timeout) continue;
+      const double key =
+          distanceInBricks(k, b) - options_.agingBricksPerSecond * (now - t.pendingSince);
+      if (resendable) {  // lost: the resend timeout passed
+        candidates.push_back(Candidate{k, b, key, Reason::Timeout, true});
+        continue;
+      }
       Reason reason = Reason::Timeout;
       if (t.repair) {
         reason = Reason::Repair;
@@ -271,12 +300,12 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
           reason = t.skipReason;
         }
       }
-      const double key =
-          distanceInBricks(k, b) - options_.agingBricksPerSecond * (now - t.pendingSince);
-      candidates.push_back(Candidate{k, b, key, reason});
+      candidates.push_back(Candidate{k, b, key, reason, false});
     }
   }
+  // Lost updates first (finishing them frees the receiver's reassembly), then by key.
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    if (a.again != b.again) return a.again;
     return a.key < b.key || (a.key == b.key && (a.cascade < b.cascade ||
                                                 (a.cascade == b.cascade && a.brick < b.brick)));
   });
@@ -286,19 +315,27 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   for (const Candidate& c : candidates) {
     if (tokens_ <= 0) break;
     Track& t = tracks_[c.cascade][c.brick];
-    const std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
+    std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
     std::uint64_t base = 0;
-    if (t.acked != 0 && t.acked < version &&
-        now - t.selfContainedAt < options_.selfContainedInterval) {
+    if (c.again) {
+      version = t.sent;
+      base = t.sentBase;
+    } else if (t.acked != 0 && t.acked < version &&
+               now - t.selfContainedAt < options_.selfContainedInterval) {
       base = t.acked;
     }
     auto update = publisher_.encoded(c.cascade, c.brick, version, base);
-    if (!update && base != 0) {
+    if (!update && base != 0 && !c.again) {
       base = 0;  // the acknowledged version left the history
       update = publisher_.encoded(c.cascade, c.brick, version, 0);
     }
     if (!update) continue;
     const std::size_t fragments = fragmentCount(update->header.totalSize);
+    if (!c.again && fragments > 1 && lostUpdates > 0 &&
+        (lostUpdates >= options_.maxLostUpdates ||
+         lostBytes + update->payload.size() > options_.maxLostBytes)) {
+      continue;  // the receiver may be holding as many partial updates as it can
+    }
     tokens_ -= double(update->payload.size() + fragments * kFragmentOverheadBytes);
     if (t.sent == version) {
       ++stats_.resends;
@@ -307,6 +344,9 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       t.resent = false;
     }
     t.sent = version;
+    t.sentBase = base;
+    t.sentBytes = std::uint32_t(update->payload.size());
+    t.sentFragments = std::uint32_t(fragments);
     t.sentAt = now;
     if (base == 0) t.selfContainedAt = now;
     t.repair = false;

@@ -11,6 +11,16 @@
 // the settle time, and the brick was sent within the refresh interval. There is no queue beyond
 // one entry per brick, always for the newest version: a lagging client gets the newest state,
 // never a backlog. Bricks near the viewer go first, and waiting raises a brick's priority.
+//
+// One exception, for loss: an update of several fragments that was not acknowledged in time is
+// sent again as the same update (same version, base, id and bytes) while both versions are in
+// the publisher's history, ahead of other bricks. The receiver keeps the fragments that arrived
+// and each resend fills in what the last one lost, so a brick of n fragments arrives after a
+// few sends even where a whole send arrives with probability (1 - loss)^n: a brick of a real
+// scene is 30-60 fragments self-contained, and with a newer version in every send it would
+// almost never arrive at 10% loss. While the lost updates held open reach the receiver's
+// reassembly caps (SenderOptions::maxLostUpdates, maxLostBytes), no new update of several
+// fragments starts.
 #pragma once
 
 #include <algorithm>
@@ -53,6 +63,11 @@ struct SenderOptions {
   // noise by a few percent of the spacing, which moves the sampled light very little; a probe
   // state change (to or from inside geometry) always counts.
   float offsetThreshold = 0.01f;
+  // Lost updates of several fragments resent as they were (see above) that may be held open at
+  // once, in updates and payload bytes: half the receiver's default reassembly caps, so that
+  // updates in flight fit beside them.
+  std::size_t maxLostUpdates = ReassemblyOptions{}.maxUpdates / 2;
+  std::size_t maxLostBytes = ReassemblyOptions{}.maxBytes / 2;
   double heartbeatInterval = 0.25;  // s: an empty datagram when nothing else was sent
   double agingBricksPerSecond =
       8;  // priority: each second waiting counts as this many bricks nearer
@@ -150,7 +165,10 @@ class StreamSender {
   };
   struct Track {
     std::uint64_t acked = 0;  // what the client holds, from acks and repair requests
+    std::uint64_t listedIn = 0;  // the latest full ack that listed this brick (fullAcks_)
     std::uint64_t sent = 0;   // newest version sent
+    std::uint64_t sentBase = 0;                      // the base it was sent on (0: self-contained)
+    std::uint32_t sentBytes = 0, sentFragments = 0;  // its payload
     double sentAt = -1e30;
     bool resent = false;  // sent more than once: no round-trip sample (Karn)
     double selfContainedAt = -1e30;
@@ -166,6 +184,7 @@ class StreamSender {
     int brick;
     double key;
     Reason reason;
+    bool again;  // the lost update, resent as it was
   };
   Status onAck(const AckMsg& ack, double now);
   Status onRepair(const RepairRequestMsg& repair);
@@ -182,6 +201,7 @@ class StreamSender {
   std::vector<std::vector<Track>> tracks_;
   std::optional<glm::vec3> viewer_;
   double tokens_ = 0, lastPoll_ = -1, lastDatagramAt_ = -1e30;
+  std::uint64_t fullAcks_ = 0;  // full acks received
   std::uint32_t sequence_ = 0;
   SenderStats stats_;
 };

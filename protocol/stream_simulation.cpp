@@ -15,6 +15,15 @@ bool allVersionsMatch(const Field& server, const StreamReceiver& receiver) {
   return true;
 }
 
+bool holdsEveryBrick(const Field& server, const StreamReceiver& receiver) {
+  for (int k = 0; k < server.cascadeCount(); ++k) {
+    for (std::size_t b = 0; b < server.brickVersions[k].size(); ++b) {
+      if (server.brickVersions[k][b] != 0 && receiver.brickVersion(k, int(b)) == 0) return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& advance,
@@ -77,6 +86,7 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
     r.maxCacheBytes = std::max(r.maxCacheBytes, publisher.cache().bytes());
     r.maxHistoryBytes = std::max(r.maxHistoryBytes, publisher.historyBytes());
     r.seconds = t;
+    if (r.heldEverySeconds < 0 && holdsEveryBrick(server, receiver)) r.heldEverySeconds = t;
 
     if (t >= faultEnd && allVersionsMatch(server, receiver)) {
       r.converged = true;

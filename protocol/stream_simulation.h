@@ -40,6 +40,7 @@ struct StreamSimulationOptions {
 struct StreamSimulationResult {
   bool converged = false;
   double convergeSeconds = 0;  // after the faults stopped
+  double heldEverySeconds = -1;  // when the receiver first held a version of every brick
   SenderStats sender;
   ReceiverStats receiver;
   LinkStats link;

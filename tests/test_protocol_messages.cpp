@@ -3,6 +3,7 @@
 // reassembly caps and the receiver's and sender's refusal of what does not fit the session.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <string>
 
@@ -386,6 +387,76 @@ TEST(ProtocolSession, SenderRefusesBadAcks) {
   EXPECT_FALSE(tx.onMessage(encodeMessage(HelloMsg{}), 0).ok());
   EXPECT_TRUE(tx.onMessage(encodeMessage(AckMsg{false, 0, {{0, 0, 8, 0}}}), 0).ok());
   EXPECT_EQ(tx.stats().badMessages, 5u);
+}
+
+TEST(ProtocolSession, FullAckOfOldBricksIsNoRoundTripSample) {
+  // A full ack lists bricks acknowledged long ago; only an ack of a send not yet acknowledged
+  // measures the round trip. Before, a full ack 5 s after the send counted as a 5 s sample.
+  Field server = test::makeSyntheticLayout();
+  std::mt19937 rng(3);
+  test::evolveField(server, rng, 1.0f, 0.0f);
+  FieldPublisher pub(server);
+  ASSERT_TRUE(pub.publish(server, 0.0).ok());
+  StreamSender tx(pub, 1);
+  ASSERT_FALSE(tx.poll(0.0).empty());
+  const int bricks0 = pub.brickCount(0), bricks1 = pub.brickCount(1);
+  ASSERT_EQ(tx.pendingBricks(), std::size_t(bricks0 + bricks1));
+  const std::uint64_t v = server.version;
+  AckMsg all{false, v, {{0, 0, std::uint32_t(bricks0), v}, {1, 0, std::uint32_t(bricks1), v}}};
+  ASSERT_TRUE(tx.onMessage(all, 0.05).ok());
+  // One 0.05 s sample per brick, each moving the estimate an eighth of the way.
+  const double srtt =
+      0.05 + (SenderOptions{}.initialRtt - 0.05) * std::pow(0.875, bricks0 + bricks1);
+  EXPECT_NEAR(tx.stats().srtt, srtt, 1e-12);
+  EXPECT_EQ(tx.pendingBricks(), 0u);
+  // Five seconds on, a full ack that lists cascade 0 only: no sample, and cascade 1 is held no
+  // more.
+  ASSERT_TRUE(tx.onMessage(AckMsg{true, v, {{0, 0, std::uint32_t(bricks0), v}}}, 5.0).ok());
+  EXPECT_NEAR(tx.stats().srtt, srtt, 1e-12);
+  EXPECT_LT(tx.resendTimeout(), 0.5);
+  EXPECT_EQ(tx.pendingBricks(), std::size_t(bricks1));
+}
+
+TEST(ProtocolDatagrams, EncodedUpdateIdsFollowTheirKey) {
+  // The same update encoded again (after it left the cache) has the same id, so a receiver
+  // completes it from the fragments of both sends; other keys have other ids.
+  EncodeCache cache(1 << 20);
+  const EncodeKey a{0, 5, 12, 9}, b{0, 5, 12, 0}, c{1, 5, 12, 9}, d{0, 6, 12, 9}, e{0, 5, 13, 9};
+  const std::uint32_t id = cache.insert(a, 1, std::vector<std::uint8_t>(10, 1))->header.updateId;
+  EXPECT_NE(id, 0u);
+  cache.eraseBrickIf(0, 5, [](const EncodeKey&) { return true; });
+  EXPECT_EQ(cache.entries(), 0u);
+  EXPECT_EQ(cache.insert(a, 1, std::vector<std::uint8_t>(10, 1))->header.updateId, id);
+  EXPECT_EQ(updateIdFor(a), id);
+  for (const EncodeKey& other : {b, c, d, e}) EXPECT_NE(updateIdFor(other), id);
+}
+
+TEST(ProtocolDatagrams, ReassemblyKeepsAPayloadWhileFragmentsKeepComing) {
+  // A payload whose fragments come over longer than the timeout, each within it of the last
+  // (a lost update resent), completes; one that hears nothing for the timeout is dropped.
+  ReassemblyOptions o;
+  o.timeout = 0.5;
+  Reassembler r(o);
+  const UpdateHeader u{77, 0, 2, 4, 0, 1, std::uint32_t(4 * kFragmentBytes)};
+  auto frag = [&](std::uint16_t i) {
+    Fragment f;
+    f.update = u;
+    f.index = i;
+    f.count = 4;
+    f.data.assign(kFragmentBytes, std::uint8_t(i));
+    return f;
+  };
+  for (std::uint16_t i = 0; i < 3; ++i) {
+    EXPECT_FALSE(r.add(frag(i), 0.4 * i).has_value());
+    r.expire(0.4 * i + 0.3);
+    EXPECT_EQ(r.pendingUpdates(), 1u);
+  }
+  auto done = r.add(frag(3), 1.2);
+  ASSERT_TRUE(done.has_value());
+  EXPECT_EQ(done->payload[3 * kFragmentBytes], 3);
+  EXPECT_FALSE(r.add(frag(0), 2.0).has_value());
+  r.expire(2.6);
+  EXPECT_EQ(r.pendingUpdates(), 0u);
 }
 
 }  // namespace

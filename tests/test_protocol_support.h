@@ -83,6 +83,38 @@ inline int evolveField(Field& f, std::mt19937& rng, float share, float phase) {
   return changed;
 }
 
+// One update of a field whose content does not compress, as a field traced with few rays: every
+// brick repainted with noise on every texel and stamped with the next field version. A brick
+// of such a field is tens of fragments, as in real scenes.
+inline void evolveNoisyField(Field& f, std::mt19937& rng, float phase) {
+  std::uniform_real_distribution<float> noise(-0.1f, 0.1f);
+  const std::uint64_t next = f.version + 1;
+  for (int k = 0; k < f.cascadeCount(); ++k) {
+    for (int b = 0; b < gpu::pcBrickCount(f.cascade(k)); ++b) {
+      paintBrick(f, k, b, phase + 0.37f * float(b));
+      for (int s = 0; s < gpu::PC_PROBES_PER_BRICK; ++s) {
+        const int slot = b * gpu::PC_PROBES_PER_BRICK + s;
+        if (!gpu::pcSlotValid(f.cascade(k), slot)) continue;
+        const glm::ivec2 o =
+            gpu::pcAtlasTileOrigin(f.cascade(k), slot, gpu::PC_IRRADIANCE_TEXELS + 2);
+        for (int y = 1; y <= gpu::PC_IRRADIANCE_TEXELS; ++y)
+          for (int x = 1; x <= gpu::PC_IRRADIANCE_TEXELS; ++x)
+            for (int ch = 0; ch < 3; ++ch) f.irradiance.at(o.x + x, o.y + y)[ch] += noise(rng);
+        const glm::ivec2 od = gpu::pcAtlasTileOrigin(f.cascade(k), slot, gpu::PC_DEPTH_TEXELS + 2);
+        for (int y = 1; y <= gpu::PC_DEPTH_TEXELS; ++y)
+          for (int x = 1; x <= gpu::PC_DEPTH_TEXELS; ++x) {
+            float* t = f.depth.at(od.x + x, od.y + y);
+            t[0] *= 1.0f + noise(rng);
+            t[1] = t[0] * t[0] * (1.0f + std::abs(noise(rng)));
+          }
+        f.fixBorders(k, slot);
+      }
+      f.brickVersions[k][b] = next;
+    }
+  }
+  f.version = next;
+}
+
 // What a client that holds every brick's current version exactly has: the server's field
 // through quantization.
 inline Field quantizedCopy(const Field& server) {
