@@ -274,10 +274,14 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       // a version the client may already have replaced (and would need a repair). Waiting for
       // the ack (one round trip) also batches a quickly changing brick's versions.
       if (unacked && now - t.sentAt < timeout) continue;
-      const double key =
-          distanceInBricks(k, b) - options_.agingBricksPerSecond * (now - t.pendingSince);
+      // Waiting counts from when the brick became pending or was last sent, whichever is
+      // later: a brick that keeps changing is pending for good, and counted from the first
+      // it would keep the priority of a brick that was never sent.
+      const double key = distanceInBricks(k, b) -
+                         options_.agingBricksPerSecond * (now - std::max(t.pendingSince, t.sentAt));
+      const bool missing = t.acked == 0;
       if (resendable) {  // lost: the resend timeout passed
-        candidates.push_back(Candidate{k, b, key, Reason::Timeout, true});
+        candidates.push_back(Candidate{k, b, key, Reason::Timeout, true, missing});
         continue;
       }
       Reason reason = Reason::Timeout;
@@ -300,12 +304,14 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
           reason = t.skipReason;
         }
       }
-      candidates.push_back(Candidate{k, b, key, reason, false});
+      candidates.push_back(Candidate{k, b, key, reason, false, missing});
     }
   }
-  // Lost updates first (finishing them frees the receiver's reassembly), then by key.
+  // Lost updates first (finishing them frees the receiver's reassembly), then bricks the client
+  // lacks (a brick it holds only gets fresher), then by key.
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
     if (a.again != b.again) return a.again;
+    if (a.missing != b.missing) return a.missing;
     return a.key < b.key || (a.key == b.key && (a.cascade < b.cascade ||
                                                 (a.cascade == b.cascade && a.brick < b.brick)));
   });

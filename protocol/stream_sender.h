@@ -10,7 +10,9 @@
 // client has or is receiving is below the perceptual thresholds, the version is younger than
 // the settle time, and the brick was sent within the refresh interval. There is no queue beyond
 // one entry per brick, always for the newest version: a lagging client gets the newest state,
-// never a backlog. Bricks near the viewer go first, and waiting raises a brick's priority.
+// never a backlog. Bricks the client lacks go before newer versions of bricks it holds; among
+// them, bricks near the viewer go first, and waiting (since the brick was last sent) raises a
+// brick's priority.
 //
 // One exception, for loss: an update of several fragments that was not acknowledged in time is
 // sent again as the same update (same version, base, id and bytes) while both versions are in
@@ -184,7 +186,8 @@ class StreamSender {
     int brick;
     double key;
     Reason reason;
-    bool again;  // the lost update, resent as it was
+    bool again;    // the lost update, resent as it was
+    bool missing;  // the client holds no version of the brick
   };
   Status onAck(const AckMsg& ack, double now);
   Status onRepair(const RepairRequestMsg& repair);
