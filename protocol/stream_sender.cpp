@@ -74,10 +74,15 @@ StreamSender::StreamSender(FieldPublisher& publisher, std::uint32_t sessionId,
   tracks_.resize(publisher.cascadeCount());
   for (int k = 0; k < publisher.cascadeCount(); ++k) tracks_[k].resize(publisher.brickCount(k));
   stats_.srtt = options_.initialRtt;
+  stats_.rttvar = options_.initialRtt / 2;
 }
 
 double StreamSender::resendTimeout() const {
-  return std::max(options_.minResendTimeout, 2.0 * stats_.srtt);
+  // Twice the smoothed round trip, or more where acks come late by varying amounts (a loaded
+  // client): RFC 6298's srtt + 4 x rttvar, so that jitter does not send updates again that
+  // arrived.
+  return std::max(
+      {options_.minResendTimeout, 2.0 * stats_.srtt, stats_.srtt + 4.0 * stats_.rttvar});
 }
 
 std::size_t StreamSender::pendingBricks() const {
@@ -136,7 +141,10 @@ Status StreamSender::onAck(const AckMsg& ack, double now) {
       if (r.version == t.sent && t.acked != t.sent && !t.resent) {
         // Round-trip sample (with the receiver's ack delay, which the timeout must cover too).
         const double sample = now - t.sentAt;
-        if (sample >= 0 && sample < 10.0) stats_.srtt = 0.875 * stats_.srtt + 0.125 * sample;
+        if (sample >= 0 && sample < 10.0) {
+          stats_.rttvar = 0.75 * stats_.rttvar + 0.25 * std::abs(stats_.srtt - sample);
+          stats_.srtt = 0.875 * stats_.srtt + 0.125 * sample;
+        }
       }
       t.acked = r.version;
       t.listedIn = fullAcks_;

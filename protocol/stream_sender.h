@@ -90,7 +90,7 @@ struct SenderStats {
                   offset = 0, state = 0, settled = 0, refresh = 0, repair = 0, timeout = 0;
   } reasons;
   std::uint64_t badMessages = 0;
-  double srtt = 0;
+  double srtt = 0, rttvar = 0;  // smoothed round trip and its mean deviation, s
 };
 
 // How two versions of a brick differ (brickChange), shared by the senders of one publisher.

@@ -417,6 +417,32 @@ TEST(ProtocolSession, FullAckOfOldBricksIsNoRoundTripSample) {
   EXPECT_EQ(tx.pendingBricks(), std::size_t(bricks1));
 }
 
+TEST(ProtocolSession, ResendTimeoutCoversAcksThatComeLateNowAndThen) {
+  // A loaded client acks most updates in 50 ms and every fourth in 400 ms. Twice the smoothed
+  // round trip (0.24 s) would send those again although they arrived; with the round trip's
+  // deviation (srtt + 4 x rttvar) the timeout stays above the late acks.
+  Field server = test::makeSyntheticLayout();
+  std::mt19937 rng(5);
+  test::evolveField(server, rng, 1.0f, 0.0f);
+  FieldPublisher pub(server);
+  ASSERT_TRUE(pub.publish(server, 0.0).ok());
+  StreamSender tx(pub, 1);
+  for (int round = 0; round < 64; ++round) {
+    const double t = double(round);
+    test::evolveField(server, rng, 1.0f, float(t));
+    ASSERT_TRUE(pub.publish(server, t).ok());
+    ASSERT_FALSE(tx.poll(t).empty());
+    const double delay = round % 4 == 3 ? 0.4 : 0.05;
+    ASSERT_TRUE(tx.onMessage(AckMsg{false, server.version, {{0, 0, 1, server.brickVersions[0][0]}}},
+                             t + delay)
+                    .ok());
+    if (round >= 32 && round % 4 == 2) {
+      EXPECT_GT(tx.resendTimeout(), 0.4) << "round " << round;
+    }
+  }
+  EXPECT_LT(tx.resendTimeout(), 1.0);
+}
+
 TEST(ProtocolDatagrams, EncodedUpdateIdsFollowTheirKey) {
   // The same update encoded again (after it left the cache) has the same id, so a receiver
   // completes it from the fragments of both sends; other keys have other ids.
