@@ -389,34 +389,6 @@ TEST(ProtocolSession, SenderRefusesBadAcks) {
   EXPECT_EQ(tx.stats().badMessages, 5u);
 }
 
-TEST(ProtocolSession, FullAckOfOldBricksIsNoRoundTripSample) {
-  // A full ack lists bricks acknowledged long ago; only an ack of a send not yet acknowledged
-  // measures the round trip. Before, a full ack 5 s after the send counted as a 5 s sample.
-  Field server = test::makeSyntheticLayout();
-  std::mt19937 rng(3);
-  test::evolveField(server, rng, 1.0f, 0.0f);
-  FieldPublisher pub(server);
-  ASSERT_TRUE(pub.publish(server, 0.0).ok());
-  StreamSender tx(pub, 1);
-  ASSERT_FALSE(tx.poll(0.0).empty());
-  const int bricks0 = pub.brickCount(0), bricks1 = pub.brickCount(1);
-  ASSERT_EQ(tx.pendingBricks(), std::size_t(bricks0 + bricks1));
-  const std::uint64_t v = server.version;
-  AckMsg all{false, v, {{0, 0, std::uint32_t(bricks0), v}, {1, 0, std::uint32_t(bricks1), v}}};
-  ASSERT_TRUE(tx.onMessage(all, 0.05).ok());
-  // One 0.05 s sample per brick, each moving the estimate an eighth of the way.
-  const double srtt =
-      0.05 + (SenderOptions{}.initialRtt - 0.05) * std::pow(0.875, bricks0 + bricks1);
-  EXPECT_NEAR(tx.stats().srtt, srtt, 1e-12);
-  EXPECT_EQ(tx.pendingBricks(), 0u);
-  // Five seconds on, a full ack that lists cascade 0 only: no sample, and cascade 1 is held no
-  // more.
-  ASSERT_TRUE(tx.onMessage(AckMsg{true, v, {{0, 0, std::uint32_t(bricks0), v}}}, 5.0).ok());
-  EXPECT_NEAR(tx.stats().srtt, srtt, 1e-12);
-  EXPECT_LT(tx.resendTimeout(), 0.5);
-  EXPECT_EQ(tx.pendingBricks(), std::size_t(bricks1));
-}
-
 TEST(ProtocolSession, ResendTimeoutCoversAcksThatComeLateNowAndThen) {
   // A loaded client acks most updates in 50 ms and every fourth in 400 ms. Twice the smoothed
   // round trip (0.24 s) would send those again although they arrived; with the round trip's
