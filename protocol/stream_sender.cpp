@@ -273,8 +273,10 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       // receiver completes it from the fragments of every send. A brick the client holds gets
       // the newest version instead, as before: it is not missing, and a resend of an old
       // version after an ack that was only late would hold the client back.
-      const bool resendable = unacked && t.acked == 0 && t.sentBase == 0 && !t.repair &&
-                              t.sentFragments > 1 && publisher_.find(k, b, t.sent);
+      // (Its last send was self-contained when it was also the last self-contained one.)
+      const bool resendable = unacked && t.acked == 0 && t.selfContainedAt == t.sentAt &&
+                              !t.repair && fragmentCount(t.sentBytes) > 1 &&
+                              publisher_.find(k, b, t.sent);
       if (resendable && (t.resent || now - t.sentAt >= timeout)) {
         ++lostUpdates;
         lostBytes += t.sentBytes;
@@ -334,8 +336,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
     std::uint64_t base = 0;
     if (c.again) {
-      version = t.sent;
-      base = t.sentBase;
+      version = t.sent;  // self-contained, as it was sent
     } else if (t.acked != 0 && t.acked < version &&
                now - t.selfContainedAt < options_.selfContainedInterval) {
       base = t.acked;
@@ -360,9 +361,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       t.resent = false;
     }
     t.sent = version;
-    t.sentBase = base;
     t.sentBytes = std::uint32_t(update->payload.size());
-    t.sentFragments = std::uint32_t(fragments);
     t.sentAt = now;
     if (base == 0) t.selfContainedAt = now;
     t.repair = false;

@@ -171,8 +171,7 @@ class StreamSender {
   struct Track {
     std::uint64_t acked = 0;  // what the client holds, from acks and repair requests
     std::uint64_t sent = 0;   // newest version sent
-    std::uint64_t sentBase = 0;                      // the base it was sent on (0: self-contained)
-    std::uint32_t sentBytes = 0, sentFragments = 0;  // its payload
+    std::uint32_t sentBytes = 0;  // its payload
     double sentAt = -1e30;
     bool resent = false;  // sent more than once: no round-trip sample (Karn)
     double selfContainedAt = -1e30;
