@@ -12,6 +12,50 @@ void FieldLoop::sleepSeconds(double s) {
   if (s > 0) std::this_thread::sleep_for(std::chrono::duration<double>(s));
 }
 
+UpdateStats FieldLoop::update(const SceneState& state, std::uint64_t tick) {
+  UpdateRequest request;
+  request.rotationSeed = std::uint32_t(tick);
+  request.probes = scheduler_.plan(field_, tick, hub_.viewers());
+  request.changeThreshold = options_.changeThreshold;
+  while (tracer_) {
+    try {
+      tracer_->setState(state);
+      return tracer_->update(field_, request);
+    } catch (const TracerFailure& e) {
+      logError("field update " + std::to_string(tick) + " failed: " + e.what());
+      {
+        std::lock_guard lock(statsMutex_);
+        ++stats_.tracerFailures;
+        stats_.lastFailure = e.what();
+      }
+      if (!fallBack()) break;
+    }
+  }
+  return {};
+}
+
+bool FieldLoop::fallBack() {
+  const bool used = fallbackTracer_ != nullptr;  // the fallback itself failed
+  tracer_ = nullptr;
+  if (!used && options_.fallback) {
+    auto made = options_.fallback();
+    if (made) {
+      fallbackTracer_ = std::move(made).value();
+      tracer_ = fallbackTracer_.get();
+      logWarn("field updates go on with the " + tracer_->name() + " tracer, from field version " +
+              std::to_string(field_.version));
+    } else {
+      logError("fallback tracer: " + made.error().message);
+    }
+  }
+  if (!tracer_)
+    logError("no tracer left: the field stays at version " + std::to_string(field_.version) +
+             ", still published to clients");
+  std::lock_guard lock(statsMutex_);
+  stats_.tracer = tracer_ ? tracer_->name() : "";
+  return tracer_ != nullptr;
+}
+
 void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   double t = options_.startTime + elapsed;
   const bool freezing = options_.freezeAt >= 0 && t >= options_.freezeAt;
@@ -19,14 +63,7 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   const SceneState state = evaluateScene(scene_, t);
 
   UpdateStats us;
-  if (!frozen_) {
-    tracer_.setState(state);
-    UpdateRequest request;
-    request.rotationSeed = std::uint32_t(tick);
-    request.probes = scheduler_.plan(field_, tick, hub_.viewers());
-    request.changeThreshold = options_.changeThreshold;
-    us = tracer_.update(field_, request);
-  }
+  if (!frozen_ && tracer_) us = update(state, tick);
   // Published every tick, frozen or not: the scene state doubles as the clients' clock.
   const auto publishStart = std::chrono::steady_clock::now();
   Status published = hub_.publish(field_, sceneStateMessage(state), now);
@@ -66,6 +103,11 @@ void appendFieldLoopMetrics(MetricsText& m, const FieldLoopStats& s) {
   m.counter("probecast_field_ticks_total", "Field thread ticks (each publishes).",
             double(s.ticks));
   m.counter("probecast_field_updates_total", "Field updates traced.", double(s.updates));
+  m.counter("probecast_field_tracer_failures_total",
+            "Tracer failures (a GPU lost or out of memory); each moves updates to the fallback.",
+            double(s.tracerFailures));
+  m.gauge("probecast_field_tracer_info", "The tracer updating the field (none: updates stopped).",
+          1.0, {{"tracer", s.tracer.empty() ? "none" : s.tracer}});
   m.counter("probecast_field_update_seconds_total", "Time spent tracing and blending updates.",
             s.updateSeconds);
   m.counter("probecast_field_publish_seconds_total",

@@ -7,7 +7,10 @@
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <mutex>
+#include <string>
 
 #include "common/field.h"
 #include "common/scene.h"
@@ -25,6 +28,11 @@ struct FieldLoopOptions {
   std::filesystem::path dumpField;  // at the freeze, the exact field is written here
   SchedulerOptions scheduler;
   float changeThreshold = 0.0f;
+  // Where the tracer fails (TracerFailure: a GPU lost or out of memory), the field thread makes
+  // this one and goes on with it from the field as the last completed update left it, redoing
+  // the failed tick's update. Without one, or where it fails too, the field stays as it is and
+  // is still published every tick: clients keep what they hold and the scene keeps moving.
+  std::function<Result<std::unique_ptr<Tracer>>()> fallback;
 };
 
 struct FieldLoopStats {
@@ -38,6 +46,9 @@ struct FieldLoopStats {
   double lastPublishMs = 0;   // quantizing the changed bricks for the senders
   std::uint64_t updates = 0;  // ticks that traced (not frozen)
   double updateSeconds = 0, publishSeconds = 0;  // totals
+  std::string tracer;                            // the tracer's name; empty once none is left
+  std::uint64_t tracerFailures = 0;              // TracerFailures caught
+  std::string lastFailure;                       // the latest one's message
 };
 
 // The field thread's metrics (probecast_field_*) for the server's /metrics endpoint.
@@ -47,8 +58,14 @@ class FieldLoop {
  public:
   FieldLoop(const Scene& scene, Tracer& tracer, Field& field, FieldHub& hub,
             FieldLoopOptions options)
-      : scene_(scene), tracer_(tracer), field_(field), hub_(hub), options_(options),
-        scheduler_(options.scheduler) {}
+      : scene_(scene),
+        tracer_(&tracer),
+        field_(field),
+        hub_(hub),
+        options_(std::move(options)),
+        scheduler_(options_.scheduler) {
+    stats_.tracer = tracer.name();
+  }
 
   // Ticks until `stop` is set. `clock` gives seconds on the server's clock (the one the
   // senders use). The animation clock follows it, so an overlong tick is caught up, not
@@ -72,10 +89,15 @@ class FieldLoop {
 
  private:
   void tickOnce(double elapsed, double now, std::uint64_t tick);
+  // The tick's update on the current tracer, and on the fallback where that one fails.
+  UpdateStats update(const SceneState& state, std::uint64_t tick);
+  // Replaces the failed tracer with the fallback; false where there is none to go on with.
+  bool fallBack();
   static void sleepSeconds(double s);
 
   const Scene& scene_;
-  Tracer& tracer_;
+  Tracer* tracer_;  // null once every tracer failed
+  std::unique_ptr<Tracer> fallbackTracer_;
   Field& field_;
   FieldHub& hub_;
   FieldLoopOptions options_;

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -48,6 +49,16 @@ struct UpdateStats {
   std::uint64_t shadowRays = 0;
   int probesUpdated = 0;
   int bricksChanged = 0;
+};
+
+// What Tracer::update and setState throw when the backend can no longer run: a GPU lost or
+// out of memory (what() names the call and the error). The field is left as the last
+// completed update left it (a backend writes the host field only once an update completed),
+// and the tracer fails every later call: the caller goes on with another backend
+// (FieldLoopOptions::fallback) or without updates.
+class TracerFailure : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
 };
 
 class Tracer {

@@ -47,27 +47,34 @@ constexpr VkPipelineStageFlags2 kRayStage = VK_PIPELINE_STAGE_2_RAY_TRACING_SHAD
 constexpr VkPipelineStageFlags2 kComputeStage = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
 constexpr VkAccessFlags2 kShaderRW = VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
 
-// Dies with the failing call's message: resources the update cannot do without.
+// Failures on the update path throw TracerFailure (tracer.h), never abort: a server whose GPU
+// is lost or out of memory goes on with another backend, and its clients with it.
+[[noreturn]] void fail(const std::string& message) {
+  throw TracerFailure("vulkan tracer: " + message);
+}
+
+// The buffer, or a TracerFailure naming it: resources the update cannot do without.
 template <typename T>
-T orDie(Result<T> r, const char* what) {
-  if (!r) {
-    logError(std::string("vulkan tracer: ") + what + ": " + r.error().message);
-    std::abort();
-  }
+T orFail(Result<T> r, const char* what) {
+  if (!r) fail(std::string(what) + ": " + r.error().message);
   return std::move(r).value();
 }
 
-// Dies, saying why: `what` needs a buffer of `bytes`, past the storage-buffer range `range`
+// A call's VkResult, as a TracerFailure naming the call where it failed (a lost device, memory).
+void checkCall(VkResult result, const char* call) {
+  if (result != VK_SUCCESS) fail(vk::vkErrorMessage(call, result));
+}
+
+// Fails, saying why: `what` needs a buffer of `bytes`, past the storage-buffer range `range`
 // that a descriptor binding the whole buffer can cover. `fix` says what to ask for instead.
-[[noreturn]] void dieOverRange(const std::string& what, std::size_t bytes, std::size_t range,
-                               const char* fix) {
+[[noreturn]] void failOverRange(const std::string& what, std::size_t bytes, std::size_t range,
+                                const char* fix) {
   auto size = [](std::size_t b) {
     return b >= (std::size_t(1) << 20) ? std::to_string(b >> 20) + " MiB"
                                        : std::to_string(b) + " bytes";
   };
-  logError("vulkan tracer: " + what + " needs buffers of " + size(bytes) +
-           ", over the device's storage-buffer range of " + size(range) + ": " + fix);
-  std::abort();
+  fail(what + " needs buffers of " + size(bytes) + ", over the device's storage-buffer range of " +
+       size(range) + ": " + fix);
 }
 
 VkDeviceSize alignUp(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
@@ -151,6 +158,22 @@ struct VulkanTracer::Impl {
   // one over them all, and each slot's shadow-ray count in the log.
   bool shadowSlotTimes = false;
   bool boundedShadowLaunch = false;  // VulkanTracerOptions::boundedShadowLaunch
+  // Submissions made, and the one that fails as a lost device would (VulkanTracerOptions).
+  int submissions = 0, failSubmission = 0;
+  // The first failure's message: once set, every call fails with it (a lost device stays lost).
+  std::string failure;
+  // Runs `f` (a Tracer call), unless an earlier call failed; remembers a failure it throws.
+  template <typename F>
+  auto guarded(F&& f) {
+    if (!failure.empty())
+      throw TracerFailure(failure + " (failed earlier; the tracer is unusable)");
+    try {
+      return f();
+    } catch (const TracerFailure& e) {
+      failure = e.what();
+      throw;
+    }
+  }
   SceneAccel accel;
   bool tlasDirty = true;
   std::vector<vk::Image> textures;
@@ -278,6 +301,7 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   co.allowCpuDevice = vulkan.allowCpuDevice;
   co.deviceNameFilter = vulkan.deviceNameFilter;
   boundedShadowLaunch = vulkan.boundedShadowLaunch;
+  failSubmission = vulkan.failSubmission;
   // Diagnostics: PC_PIPELINE_STATS=1 logs each pipeline's compiler statistics (registers,
   // shared memory, ...) where the driver reports them.
   co.pipelineStatistics = std::getenv("PC_PIPELINE_STATS") != nullptr;
@@ -724,7 +748,7 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   const std::size_t widestRecord =
       std::max({sizeof(GpuHit), std::size_t(16), slots > 0 ? sizeof(GpuShadowRay) : 0});
   if (records * widestRecord > maxBufferBytes)
-    dieOverRange(
+    failOverRange(
         "a pass of " + std::to_string(capProbes) + " probes x " + std::to_string(capRays) + " rays",
         records * widestRecord, maxBufferBytes, "use fewer rays per probe");
   if (fits && roundSlots <= slotCapacity && slots <= counterSlotCapacity) return;
@@ -734,31 +758,41 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   counterSlotCapacity = std::max(slots, counterSlotCapacity);
   using vk::MemoryUsage;
   const std::size_t rayRecords = probeCapacity * rayCapacity;
-  params = orDie(vk::Buffer::create(*ctx, sizeof(UpdateParams), kHostInput, MemoryUsage::Upload), "params");
-  rayDirs = orDie(vk::Buffer::create(*ctx, rayCapacity * 16, kHostInput, MemoryUsage::Upload), "ray directions");
-  requests = orDie(vk::Buffer::create(*ctx, probeCapacity * 8, kHostInput, MemoryUsage::Upload), "requests");
-  hits = orDie(vk::Buffer::create(*ctx, rayRecords * sizeof(GpuHit), kStorage, MemoryUsage::DeviceLocal), "hits");
-  rays = orDie(vk::Buffer::create(*ctx, rayRecords * 16, kStorage, MemoryUsage::DeviceLocal), "ray results");
+  params = orFail(vk::Buffer::create(*ctx, sizeof(UpdateParams), kHostInput, MemoryUsage::Upload),
+                  "params");
+  rayDirs = orFail(vk::Buffer::create(*ctx, rayCapacity * 16, kHostInput, MemoryUsage::Upload),
+                   "ray directions");
+  requests = orFail(vk::Buffer::create(*ctx, probeCapacity * 8, kHostInput, MemoryUsage::Upload),
+                    "requests");
+  hits = orFail(
+      vk::Buffer::create(*ctx, rayRecords * sizeof(GpuHit), kStorage, MemoryUsage::DeviceLocal),
+      "hits");
+  rays = orFail(vk::Buffer::create(*ctx, rayRecords * 16, kStorage, MemoryUsage::DeviceLocal),
+                "ray results");
   const std::size_t maskWords = std::max<std::size_t>(rayRecords * std::size_t(pcShadowMaskWords(slotCapacity)), 1);
-  shadowMask = orDie(vk::Buffer::create(*ctx, maskWords * 4, kStorage, MemoryUsage::DeviceLocal), "shadow masks");
+  shadowMask = orFail(vk::Buffer::create(*ctx, maskWords * 4, kStorage, MemoryUsage::DeviceLocal),
+                      "shadow masks");
   const std::size_t slotRecords = std::max<std::size_t>(rayRecords * std::size_t(slotCapacity), 1);
-  shadowLight = orDie(vk::Buffer::create(*ctx, slotRecords * sizeof(GpuShadowLight), kStorage, MemoryUsage::DeviceLocal),
-                      "shadow light");
-  shadowRays = orDie(vk::Buffer::create(*ctx, slotRecords * sizeof(GpuShadowRay), kStorage, MemoryUsage::DeviceLocal),
-                     "shadow rays");
-  changes = orDie(vk::Buffer::create(*ctx, probeCapacity * 4, kStorage, MemoryUsage::DeviceLocal), "changes");
+  shadowLight = orFail(vk::Buffer::create(*ctx, slotRecords * sizeof(GpuShadowLight), kStorage,
+                                          MemoryUsage::DeviceLocal),
+                       "shadow light");
+  shadowRays = orFail(vk::Buffer::create(*ctx, slotRecords * sizeof(GpuShadowRay), kStorage,
+                                         MemoryUsage::DeviceLocal),
+                      "shadow rays");
+  changes = orFail(vk::Buffer::create(*ctx, probeCapacity * 4, kStorage, MemoryUsage::DeviceLocal),
+                   "changes");
   const std::size_t counterBytes =
       std::size_t(PC_COUNTER_WORDS) * 4 * std::size_t(std::max(counterSlotCapacity, 1));
-  counters = orDie(
+  counters = orFail(
       vk::Buffer::create(*ctx, counterBytes,
                          kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
                              VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
                          MemoryUsage::DeviceLocal),
       "counters");
-  countersReadback = orDie(vk::Buffer::create(*ctx, counterBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                              MemoryUsage::Readback),
-                           "counter readback");
-  countersInit = orDie(
+  countersReadback = orFail(vk::Buffer::create(*ctx, counterBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                               MemoryUsage::Readback),
+                            "counter readback");
+  countersInit = orFail(
       vk::Buffer::create(*ctx, counterBytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload),
       "counter start");
   {
@@ -771,11 +805,12 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   }
   // At most every ray feeds every texel: the bound of the tap table.
   const std::size_t tapCapacity = (2 * PC_TAP_TEXELS + PC_TAP_TEXELS * (rayCapacity + 3)) * sizeof(std::uint32_t);
-  tapsUpload = orDie(vk::Buffer::create(*ctx, tapCapacity, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload),
-                     "tap upload");
-  taps = orDie(vk::Buffer::create(*ctx, tapCapacity, kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                  MemoryUsage::DeviceLocal),
-               "taps");
+  tapsUpload = orFail(
+      vk::Buffer::create(*ctx, tapCapacity, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload),
+      "tap upload");
+  taps = orFail(vk::Buffer::create(*ctx, tapCapacity, kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                   MemoryUsage::DeviceLocal),
+                "taps");
   descriptorsDirty = true;
 }
 
@@ -799,29 +834,35 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
   // bricks (every tile of the field with its borders, when all change) are the largest.
   const std::size_t widest = std::max(bytes(field.irradiance) / 3 * 4, packedBytes);
   if (widest > maxBufferBytes)
-    dieOverRange("a field of " + std::to_string(field.probes.size()) + " probes", widest,
-                 maxBufferBytes, "use fewer probes (the sidecar's volumes)");
-  fieldDesc = orDie(vk::Buffer::create(*ctx, sizeof(FieldDesc), kHostInput, MemoryUsage::Upload), "field desc");
+    failOverRange("a field of " + std::to_string(field.probes.size()) + " probes", widest,
+                  maxBufferBytes, "use fewer probes (the sidecar's volumes)");
+  fieldDesc = orFail(vk::Buffer::create(*ctx, sizeof(FieldDesc), kHostInput, MemoryUsage::Upload),
+                     "field desc");
   // The irradiance atlas holds a vec4 per texel on the GPU (field_buffers.glsl).
-  irradiance =
-      orDie(vk::Buffer::create(*ctx, bytes(field.irradiance) / 3 * 4, rw, MemoryUsage::DeviceLocal),
-            "irradiance");
-  depth = orDie(vk::Buffer::create(*ctx, bytes(field.depth), rw, MemoryUsage::DeviceLocal), "depth");
-  occlusion = orDie(vk::Buffer::create(*ctx, bytes(field.occlusion), rw, MemoryUsage::DeviceLocal), "occlusion");
+  irradiance = orFail(
+      vk::Buffer::create(*ctx, bytes(field.irradiance) / 3 * 4, rw, MemoryUsage::DeviceLocal),
+      "irradiance");
+  depth =
+      orFail(vk::Buffer::create(*ctx, bytes(field.depth), rw, MemoryUsage::DeviceLocal), "depth");
+  occlusion = orFail(vk::Buffer::create(*ctx, bytes(field.occlusion), rw, MemoryUsage::DeviceLocal),
+                     "occlusion");
   const std::size_t recordBytes = std::max<std::size_t>(field.probes.size(), 1) * sizeof(GpuProbeRecord);
-  records = orDie(vk::Buffer::create(*ctx, recordBytes, rw, MemoryUsage::DeviceLocal), "records");
-  recordsReadback = orDie(vk::Buffer::create(*ctx, recordBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                             MemoryUsage::Readback),
-                          "record readback");
-  brickFlags = orDie(vk::Buffer::create(*ctx, bricks * 4, rw, MemoryUsage::DeviceLocal), "brick flags");
+  records = orFail(vk::Buffer::create(*ctx, recordBytes, rw, MemoryUsage::DeviceLocal), "records");
+  recordsReadback = orFail(vk::Buffer::create(*ctx, recordBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                              MemoryUsage::Readback),
+                           "record readback");
+  brickFlags =
+      orFail(vk::Buffer::create(*ctx, bricks * 4, rw, MemoryUsage::DeviceLocal), "brick flags");
   const std::size_t listBytes = (PC_BRICK_LIST_HEADER + bricks) * 4;
-  brickList = orDie(vk::Buffer::create(*ctx, listBytes, rw | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, MemoryUsage::DeviceLocal),
-                    "brick list");
-  brickListReadback = orDie(vk::Buffer::create(*ctx, listBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUsage::Readback),
-                            "brick list readback");
+  brickList = orFail(vk::Buffer::create(*ctx, listBytes, rw | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
+                                        MemoryUsage::DeviceLocal),
+                     "brick list");
+  brickListReadback = orFail(
+      vk::Buffer::create(*ctx, listBytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUsage::Readback),
+      "brick list readback");
   // Shaders write the packed tiles straight into host memory: only changed bricks cross.
-  packed = orDie(vk::Buffer::create(*ctx, packedBytes, kStorage, MemoryUsage::Readback),
-                 "packed bricks");
+  packed = orFail(vk::Buffer::create(*ctx, packedBytes, kStorage, MemoryUsage::Readback),
+                  "packed bricks");
   layoutDesc = field.desc;
   haveField = true;
   syncedField = nullptr;
@@ -832,9 +873,10 @@ bool VulkanTracer::Impl::ensureFieldBuffers(const Field& field) {
 void VulkanTracer::Impl::ensureMirrors() {
   for (auto [host, device] : mirrors()) {
     if (device->get() && device->size() == host->size()) continue;
-    *device = orDie(vk::Buffer::create(*ctx, host->size(), kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                       vk::MemoryUsage::DeviceLocal),
-                    "input copy");
+    *device =
+        orFail(vk::Buffer::create(*ctx, host->size(), kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                  vk::MemoryUsage::DeviceLocal),
+               "input copy");
     descriptorsDirty = true;
   }
 }
@@ -944,8 +986,8 @@ void VulkanTracer::Impl::ensureSnapshot() {
   const VkBufferUsageFlags usage = kStorage | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   for (auto [live, copy] : snapshots()) {
     if (copy->get() && copy->size() == live->size()) continue;
-    *copy = orDie(vk::Buffer::create(*ctx, live->size(), usage, vk::MemoryUsage::DeviceLocal),
-                  "field snapshot");
+    *copy = orFail(vk::Buffer::create(*ctx, live->size(), usage, vk::MemoryUsage::DeviceLocal),
+                   "field snapshot");
     descriptorsDirty = true;
   }
 }
@@ -1037,10 +1079,10 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
 }
 
 void VulkanTracer::Impl::begin() {
-  VK_CHECK(vkResetCommandBuffer(cmd, 0));
+  checkCall(vkResetCommandBuffer(cmd, 0), "vkResetCommandBuffer");
   VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
+  checkCall(vkBeginCommandBuffer(cmd, &bi), "vkBeginCommandBuffer");
   timer.reset(cmd);
   // Host writes (parameters, requests, instance records), and the earlier submissions' writes
   // (the field the last update or slice blended), before any GPU access.
@@ -1052,16 +1094,21 @@ void VulkanTracer::Impl::begin() {
 }
 
 void VulkanTracer::Impl::submitAndWait() {
-  VK_CHECK(vkEndCommandBuffer(cmd));
+  checkCall(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
   VkCommandBufferSubmitInfo cbi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_SUBMIT_INFO};
   cbi.commandBuffer = cmd;
   VkSubmitInfo2 si{VK_STRUCTURE_TYPE_SUBMIT_INFO_2};
   si.commandBufferInfoCount = 1;
   si.pCommandBufferInfos = &cbi;
   VkFence f = fence.get();
-  VK_CHECK(vkResetFences(ctx->device(), 1, &f));
-  VK_CHECK(vkQueueSubmit2(ctx->queue(), 1, &si, f));
-  VK_CHECK(vkWaitForFences(ctx->device(), 1, &f, VK_TRUE, UINT64_MAX));
+  checkCall(vkResetFences(ctx->device(), 1, &f), "vkResetFences");
+  ++submissions;
+  if (submissions == failSubmission) {
+    // VulkanTracerOptions::failSubmission: what a device lost in this submission reports.
+    fail(vk::vkErrorMessage("vkQueueSubmit2", VK_ERROR_DEVICE_LOST) + " (simulated)");
+  }
+  checkCall(vkQueueSubmit2(ctx->queue(), 1, &si, f), "vkQueueSubmit2");
+  checkCall(vkWaitForFences(ctx->device(), 1, &f, VK_TRUE, UINT64_MAX), "vkWaitForFences");
 }
 
 // Uploads what the host changed since the GPU last saw the field: all atlases when this is a
@@ -1075,8 +1122,9 @@ void VulkanTracer::Impl::recordFieldSync(const Field& field, std::vector<vk::Buf
   if (!atlases && !recordsDiffer) return;
   timer.begin(cmd, "upload");
   auto upload = [&](const vk::Buffer& dst, const void* data, std::size_t bytes) {
-    vk::Buffer s = orDie(vk::Buffer::create(*ctx, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUsage::Upload),
-                         "staging");
+    vk::Buffer s = orFail(
+        vk::Buffer::create(*ctx, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUsage::Upload),
+        "staging");
     s.write(data, bytes);
     VkBufferCopy copy{0, 0, bytes};
     if (bytes > 0) vkCmdCopyBuffer(cmd, s.get(), dst.get(), 1, &copy);
@@ -1306,14 +1354,24 @@ Result<std::unique_ptr<VulkanTracer>> VulkanTracer::create(const Scene& scene, c
   impl->options = options;
   if (Status s = impl->init(vulkan); !s) return s.error();
   std::unique_ptr<VulkanTracer> tracer(new VulkanTracer(std::move(impl)));
-  tracer->setState(evaluateScene(scene, 0.0));
+  try {
+    tracer->setState(evaluateScene(scene, 0.0));
+  } catch (const TracerFailure& e) {
+    return Error{e.what()};
+  }
   return tracer;
 }
 
 VulkanTracer::VulkanTracer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 VulkanTracer::~VulkanTracer() {
-  if (impl_ && impl_->ctx) impl_->ctx->waitIdle();
+  // Not Context::waitIdle, which aborts on an error: a lost device reports one here, and the
+  // resources go all the same.
+  if (impl_ && impl_->ctx) {
+    const VkResult r = vkDeviceWaitIdle(impl_->ctx->device());
+    if (r != VK_SUCCESS && impl_->failure.empty())
+      logWarn("vulkan tracer: " + vk::vkErrorMessage("vkDeviceWaitIdle", r) + " at shutdown");
+  }
 }
 
 std::string VulkanTracer::name() const { return "vulkan (" + impl_->ctx->deviceName() + ")"; }
@@ -1321,6 +1379,10 @@ std::string VulkanTracer::name() const { return "vulkan (" + impl_->ctx->deviceN
 const vk::Context& VulkanTracer::context() const { return *impl_->ctx; }
 
 void VulkanTracer::setState(const SceneState& state) {
+  impl_->guarded([&] { setStateOnce(state); });
+}
+
+void VulkanTracer::setStateOnce(const SceneState& state) {
   Impl& m = *impl_;
   const Scene& scene = *m.scene;
   m.state = state;
@@ -1402,8 +1464,9 @@ void VulkanTracer::setState(const SceneState& state) {
       b.write(data, bytes);
       return;
     }
-    m.ctx->waitIdle();
-    b = orDie(vk::Buffer::create(*m.ctx, bytes, kHostInput, vk::MemoryUsage::Upload), "scene state");
+    checkCall(vkDeviceWaitIdle(m.ctx->device()), "vkDeviceWaitIdle");
+    b = orFail(vk::Buffer::create(*m.ctx, bytes, kHostInput, vk::MemoryUsage::Upload),
+               "scene state");
     b.write(data, bytes);
     m.descriptorsDirty = true;
   };
@@ -1412,16 +1475,19 @@ void VulkanTracer::setState(const SceneState& state) {
 }
 
 UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
+  return impl_->guarded([&] { return updateOnce(field, request); });
+}
+
+// The host field is written only after the last submission completed, so a failure in any of
+// them leaves it as the previous update left it.
+UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request) {
   Impl& m = *impl_;
   UpdateStats stats;
   const auto t0 = Clock::now();
   const int rayCount = field.settings.raysPerProbe;
   const std::size_t total = request.probes.size();
   if (total == 0) return stats;
-  if (Status s = m.ensureBlendPipeline(rayCount); !s) {  // as buffers the update cannot do without
-    logError("vulkan tracer: blend pipeline: " + s.error().message);
-    std::abort();
-  }
+  if (Status s = m.ensureBlendPipeline(rayCount); !s) fail("blend pipeline: " + s.error().message);
   // One submission per slice of the request's probes; one slice unless the request holds more
   // probe rays than a pass (vulkanPassRays). The brick flags and list gather every slice's
   // changed bricks, packed and read back after the last.
@@ -1589,6 +1655,10 @@ UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
 }
 
 double VulkanTracer::traceOnly(Field& field, const UpdateRequest& request) {
+  return impl_->guarded([&] { return traceOnlyOnce(field, request); });
+}
+
+double VulkanTracer::traceOnlyOnce(Field& field, const UpdateRequest& request) {
   Impl& m = *impl_;
   const std::size_t total = request.probes.size();
   const int rayCount = field.settings.raysPerProbe;

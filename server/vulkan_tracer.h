@@ -44,6 +44,10 @@ struct VulkanTracerOptions {
   // submission each, every slice lit by the field as the update found it: the same field as
   // one pass. Smaller values serve tests and measurements.
   std::size_t maxPassRays = 0;
+  // Failure drills (probecast-server --gpu-fail-submission): the N-th submission (from 1) is
+  // not made and reports VK_ERROR_DEVICE_LOST, as a GPU lost in it would; every call from
+  // there on fails. 0: never. Serves the tests of what the server does when its GPU fails.
+  int failSubmission = 0;
 };
 
 // Probe rays per pass of an update (the slices' size): at most `maxPassRays` (what the buffers
@@ -60,6 +64,9 @@ class VulkanTracer final : public Tracer {
                                                       const VulkanTracerOptions& vulkan);
   ~VulkanTracer() override;
   std::string name() const override;
+  // setState, update and traceOnly throw TracerFailure (tracer.h) where the GPU fails: a lost
+  // device, memory it lacks, an update past the device's limits. The field then holds the last
+  // completed update, and every later call fails too.
   void setState(const SceneState& state) override;
   UpdateStats update(Field& field, const UpdateRequest& request) override;
 
@@ -75,6 +82,9 @@ class VulkanTracer final : public Tracer {
 
  private:
   explicit VulkanTracer(std::unique_ptr<Impl> impl);
+  void setStateOnce(const SceneState& state);
+  UpdateStats updateOnce(Field& field, const UpdateRequest& request);
+  double traceOnlyOnce(Field& field, const UpdateRequest& request);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -1,6 +1,7 @@
 // The real executables: probecast-server and the headless probecast-client (lavapipe, a tiny
 // image) over loopback. The server is killed mid-stream (SIGKILL: no goodbye) and restarted on
-// the same port; the client must keep rendering through the outage, reconnect and resync.
+// the same port; the client must keep rendering through the outage, reconnect and resync. And
+// a server whose GPU fails mid-stream goes on updating on the CPU, its client still in session.
 // The client's live summary file tells the test what it is doing.
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -13,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -44,6 +46,14 @@ class Child {
   }
   ~Child() { kill(SIGKILL); }
   bool running() const { return pid_ > 0; }
+  // Whether the process has exited (reaped here).
+  bool exited() {
+    if (pid_ <= 0) return true;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) != pid_) return false;
+    pid_ = -1;
+    return true;
+  }
   void kill(int sig) {
     if (pid_ <= 0) return;
     ::kill(pid_, sig);
@@ -85,6 +95,13 @@ template <typename T>
 T field(const nlohmann::json& j, const char* key, T otherwise) {
   if (!j.is_object() || !j.contains(key)) return otherwise;
   return j[key].get<T>();
+}
+
+std::string readText(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
 }
 
 template <typename F>
@@ -169,6 +186,109 @@ TEST(NetRestart, HeadlessClientKeepsRenderingReconnectsAndResyncs) {
   ASSERT_TRUE(waitUntil([&] { return field(readSummary(summary), "frames", 0) > framesAfter + 2; }, 20.0));
   client.kill(SIGTERM);
   server->kill(SIGTERM);
+}
+
+// The server's GPU (lavapipe here) fails mid-stream as a lost device would
+// (--gpu-fail-submission): the server logs the failure, its field thread goes on with Embree
+// from the last completed field, and the client, still in its first session, keeps receiving
+// new versions.
+TEST(NetRestart, ServerGoesOnOnTheCpuWhenItsGpuFails) {
+  if (!fs::exists(kBin + "probecast-server") || !fs::exists(kBin + "probecast-client"))
+    GTEST_SKIP() << "probecast-server and probecast-client are not built";
+  const fs::path dir = fs::path(PC_BUILD_DIR) / "test-net-gpu-failure";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::uint16_t port = freePort();
+  const std::string portText = std::to_string(port);
+  const fs::path serverLog = dir / "server.log";
+  // Two warm-up updates, then the field thread's updates at 10 a second: the 40th submission
+  // fails about 4 s after the server listens, with the client synced by then.
+  Child server({kBin + "probecast-server",
+                "--scene",
+                "builtin",
+                "--backend",
+                "vulkan",
+                "--rays",
+                "32",
+                "--warmup",
+                "2",
+                "--rate",
+                "10",
+                "--gpu-fail-submission",
+                "40",
+                "--bind",
+                "127.0.0.1",
+                "--port",
+                portText,
+                "--token",
+                "gpu-token",
+                "--stats-interval",
+                "0"},
+               serverLog);
+  ASSERT_TRUE(server.running());
+  ASSERT_TRUE(waitUntil([&] { return canConnect(port) || server.exited(); }, 60.0));
+  if (!canConnect(port)) {
+    const std::string log = readText(serverLog);
+    if (log.find("no Vulkan") != std::string::npos)
+      GTEST_SKIP() << "no Vulkan ray-tracing device: " << log;
+    FAIL() << "the server never listened: " << log;
+  }
+  const fs::path summary = dir / "client.json";
+  Child client({kBin + "probecast-client",
+                "--scene",
+                "builtin",
+                "--connect",
+                "127.0.0.1:" + portText,
+                "--token",
+                "gpu-token",
+                "--width",
+                "48",
+                "--height",
+                "32",
+                "--msaa",
+                "2",
+                "--duration",
+                "120",
+                "--save-every",
+                "0",
+                "--no-exr",
+                "--max-fps",
+                "30",
+                "--out",
+                dir.string(),
+                "--summary",
+                summary.string()},
+               dir / "client.log");
+  ASSERT_TRUE(client.running());
+  nlohmann::json s;
+  ASSERT_TRUE(waitUntil([&] { return field(readSummary(summary), "synced", false); }, 60.0))
+      << "the client never synced; see " << (dir / "client.log");
+  ASSERT_EQ(readText(serverLog).find("VK_ERROR_DEVICE_LOST"), std::string::npos)
+      << "the GPU failed before the client synced: the drill comes too early for this machine";
+
+  ASSERT_TRUE(waitUntil(
+      [&] { return readText(serverLog).find("go on with the embree") != std::string::npos; }, 60.0))
+      << "no failure and fallback in " << serverLog << ":\n"
+      << readText(serverLog);
+  const std::string log = readText(serverLog);
+  EXPECT_NE(log.find("vkQueueSubmit2 failed: VK_ERROR_DEVICE_LOST"), std::string::npos) << log;
+  s = readSummary(summary);
+  const auto versionAtFailure = field(s, "server_field_version", std::uint64_t(0));
+  const auto appliedAtFailure = field(s, "bricks_applied", std::uint64_t(0));
+  // New versions from the CPU reach the client, in the same session.
+  ASSERT_TRUE(waitUntil(
+      [&] {
+        s = readSummary(summary);
+        return field(s, "server_field_version", std::uint64_t(0)) >= versionAtFailure + 5 &&
+               field(s, "bricks_applied", std::uint64_t(0)) > appliedAtFailure;
+      },
+      60.0))
+      << "no new versions after the failure; see " << (dir / "client.log");
+  EXPECT_EQ(field(s, "sessions", 0), 1);
+  EXPECT_TRUE(field(s, "connected", false));
+  EXPECT_FALSE(server.exited()) << readText(serverLog);
+  client.kill(SIGTERM);
+  server.kill(SIGTERM);
 }
 
 }  // namespace

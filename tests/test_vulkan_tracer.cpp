@@ -7,11 +7,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <glm/gtc/matrix_transform.hpp>
 #include <memory>
 #include <optional>
+#include <thread>
 #include <vector>
 
 #include "common/field.h"
@@ -19,6 +22,8 @@
 #include "server/bake.h"
 #include "server/embree_tracer.h"
 #include "server/field_compare.h"
+#include "server/net_field_loop.h"
+#include "server/net_hub.h"
 #include "server/vulkan_tracer.h"
 #include "shaders/interop/gpu_trace.h"
 #include "shaders/interop/probe_update.h"
@@ -27,15 +32,11 @@
 namespace pc {
 namespace {
 
-std::unique_ptr<VulkanTracer> makeGpu(
-    const Scene& scene, std::string* why, bool boundedShadowLaunch = false,
-    const TracerOptions& options = {},
-    std::size_t shadowMemoryBudget = VulkanTracerOptions{}.shadowMemoryBudget) {
-  VulkanTracerOptions vo;
+// A GPU tracer on any Vulkan ray-tracing device (lavapipe in CI), with the validation layer.
+std::unique_ptr<VulkanTracer> makeGpuWith(const Scene& scene, VulkanTracerOptions vo,
+                                          std::string* why, const TracerOptions& options = {}) {
   vo.validation = true;
   vo.allowCpuDevice = true;
-  vo.boundedShadowLaunch = boundedShadowLaunch;
-  vo.shadowMemoryBudget = shadowMemoryBudget;
   auto t = VulkanTracer::create(scene, options, vo);
   if (!t) {
     *why = t.error().message;
@@ -46,6 +47,16 @@ std::unique_ptr<VulkanTracer> makeGpu(
     return nullptr;
   }
   return std::move(t).value();
+}
+
+std::unique_ptr<VulkanTracer> makeGpu(
+    const Scene& scene, std::string* why, bool boundedShadowLaunch = false,
+    const TracerOptions& options = {},
+    std::size_t shadowMemoryBudget = VulkanTracerOptions{}.shadowMemoryBudget) {
+  VulkanTracerOptions vo;
+  vo.boundedShadowLaunch = boundedShadowLaunch;
+  vo.shadowMemoryBudget = shadowMemoryBudget;
+  return makeGpuWith(scene, vo, why, options);
 }
 
 // Both backends on one scene, a field for each at `rays` per probe and a request for every
@@ -821,6 +832,118 @@ TEST(VulkanTracer, PassesHoldEveryShadowSlotInOneRoundWhereLargeEnough) {
   EXPECT_EQ(vulkanPassRays(rangeRays, 400, 8 * gib, 4 * gib), fourM);
   // Never more than the buffers hold.
   EXPECT_EQ(vulkanPassRays(1000, 4, 8 * gib, 4 * gib), 1000u);
+}
+
+// A GPU tracer whose third submission fails as a lost device's would (the failure drill), and
+// a field of the scene at 32 rays per probe.
+std::unique_ptr<VulkanTracer> makeFailingGpu(const Scene& scene, std::string* why) {
+  VulkanTracerOptions vo;
+  vo.failSubmission = 3;
+  return makeGpuWith(scene, vo, why);
+}
+
+Field smallField(const Scene& scene) {
+  FieldSettings settings;
+  settings.raysPerProbe = 32;
+  Field f = Field::create(scene.volumes, settings);
+  f.sceneHash = scene.hash;
+  return f;
+}
+
+// A GPU that fails (here the third submission reports VK_ERROR_DEVICE_LOST, as a lost device's
+// does) fails the update with a TracerFailure naming the call and the error, and leaves the
+// field as the last completed update left it, probe records included. Every later call fails
+// too, and the Embree backend goes on from that field.
+TEST(VulkanTracer, AFailedUpdateLeavesTheFieldAsTheLastOneLeftIt) {
+  const Scene scene = builtinScene();
+  std::string why;
+  auto gpu = makeFailingGpu(scene, &why);
+  if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  Field f = smallField(scene);
+  UpdateRequest request;
+  request.probes = allProbes(f);
+  for (std::uint32_t seed : {1u, 2u}) {
+    request.rotationSeed = seed;
+    gpu->update(f, request);
+  }
+  ASSERT_EQ(f.version, 2u);
+  const Field before = f;
+
+  request.rotationSeed = 3;
+  std::string message;
+  try {
+    gpu->update(f, request);
+  } catch (const TracerFailure& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("vkQueueSubmit2"), std::string::npos) << message;
+  EXPECT_NE(message.find("VK_ERROR_DEVICE_LOST"), std::string::npos) << message;
+  auto expectUnchanged = [&] {
+    expectIdenticalFields(f, before);
+    ASSERT_EQ(f.probes.size(), before.probes.size());
+    for (std::size_t i = 0; i < f.probes.size(); ++i) {
+      EXPECT_EQ(f.probes[i].state, before.probes[i].state) << "probe " << i;
+      EXPECT_EQ(f.probes[i].updates, before.probes[i].updates) << "probe " << i;
+      EXPECT_EQ(f.probes[i].offset, before.probes[i].offset) << "probe " << i;
+    }
+  };
+  expectUnchanged();
+  EXPECT_THROW(gpu->update(f, request), TracerFailure);
+  EXPECT_THROW(gpu->setState(evaluateScene(scene, 0.0)), TracerFailure);
+  expectUnchanged();
+  EXPECT_EQ(gpu->validationErrorCount(), 0u);
+
+  auto cpu = makeEmbreeTracer(scene);
+  ASSERT_TRUE(cpu.ok());
+  (*cpu)->update(f, request);
+  EXPECT_EQ(f.version, 3u);
+  int continued = 0;  // probes whose running mean went on from the GPU's two updates
+  for (const ProbeRecord& r : f.probes) continued += r.updates == 3u;
+  EXPECT_GT(continued, 0);
+}
+
+// The server's field thread through a GPU failure: the failed tick's update is redone on the
+// fallback (Embree) from the field the last completed update left, and the ticks go on. With
+// no fallback the field stays at that version and ticks (publishing it) go on.
+TEST(VulkanTracer, FieldLoopGoesOnWithTheFallbackWhenTheGpuFails) {
+  const Scene scene = builtinScene();
+  for (bool withFallback : {true, false}) {
+    SCOPED_TRACE(withFallback ? "with the Embree fallback" : "without a fallback");
+    std::string why;
+    auto gpu = makeFailingGpu(scene, &why);
+    if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+    Field field = smallField(scene);
+    FieldHub hub(field);
+    FieldLoopOptions options;
+    options.rate = 10;
+    if (withFallback) options.fallback = [&scene] { return makeEmbreeTracer(scene); };
+    FieldLoop loop(scene, *gpu, field, hub, options);
+    // A clock a tick ahead at every reading: the ticks run back to back.
+    double clock = 0.0;
+    std::atomic<bool> stop{false};
+    std::thread thread([&] { loop.run(stop, [&clock] { return clock += 0.1; }); });
+    const auto start = std::chrono::steady_clock::now();
+    while (loop.stats().ticks < 6 &&
+           std::chrono::steady_clock::now() - start < std::chrono::seconds(120))
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    stop = true;
+    thread.join();
+    const FieldLoopStats s = loop.stats();
+    ASSERT_GE(s.ticks, 6u);
+    EXPECT_EQ(s.tracerFailures, 1u);
+    EXPECT_NE(s.lastFailure.find("VK_ERROR_DEVICE_LOST"), std::string::npos) << s.lastFailure;
+    if (withFallback) {
+      EXPECT_EQ(s.tracer.rfind("embree", 0), 0u) << s.tracer;
+      EXPECT_EQ(s.updates, s.ticks);  // the failed tick's update was redone
+      EXPECT_EQ(field.version, s.updates);
+    } else {
+      EXPECT_EQ(s.tracer, "");
+      EXPECT_EQ(s.updates, 2u);
+      EXPECT_EQ(field.version, 2u);
+    }
+    EXPECT_EQ(s.fieldVersion, field.version);
+    EXPECT_EQ(gpu->validationErrorCount(), 0u);
+  }
 }
 
 }  // namespace

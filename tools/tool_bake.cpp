@@ -16,6 +16,7 @@
 #include "protocol/baked_file.h"
 #include "server/bake.h"
 #include "server/tracer.h"
+#include "server/vulkan_tracer.h"
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
@@ -36,6 +37,11 @@ int main(int argc, char** argv) {
                  "tracer: embree (default), vulkan (any Vulkan ray-tracing device, lavapipe "
                  "included) or auto (a GPU with ray tracing, else embree)")
       ->capture_default_str();
+  int gpuFailSubmission = 0;
+  app.add_option("--gpu-fail-submission", gpuFailSubmission,
+                 "failure drill: the GPU tracer's N-th submission fails as a lost device would "
+                 "(0: never)")
+      ->check(CLI::Range(0, 1 << 30));
   app.add_option("--updates", updates, "field updates");
   app.add_option("--rays", rays, "rays per probe per update");
   app.add_option("--time", time, "animation time of the baked state (seconds)");
@@ -62,13 +68,14 @@ int main(int argc, char** argv) {
   std::vector<pc::ProbeVolume> volumes = scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes;
   pc::Field field = pc::Field::create(volumes, settings);
   field.sceneHash = scene->hash;
-  auto tracer = pc::makeTracer(*scene, backend);
+  pc::VulkanTracerOptions vulkan;
+  vulkan.failSubmission = gpuFailSubmission;
+  auto tracer = pc::makeTracer(*scene, backend, {}, &vulkan);
   if (!tracer) {
     pc::logError("tracer: " + tracer.error().message);
     return 1;
   }
   pc::logInfo("tracer: " + (*tracer)->name());
-  (*tracer)->setState(pc::evaluateScene(*scene, time));
 
   nlohmann::json summary;
   summary["scene"] = scene->name;
@@ -81,7 +88,16 @@ int main(int argc, char** argv) {
     pc::BakeOptions options;
     options.updates = updates;
     options.progress = [&](int, int) { progress.advance(); };
-    pc::BakeStats stats = pc::bakeField(field, **tracer, options);
+    pc::BakeStats stats;
+    try {
+      (*tracer)->setState(pc::evaluateScene(*scene, time));
+      stats = pc::bakeField(field, **tracer, options);
+    } catch (const pc::TracerFailure& e) {
+      // Nothing written: a bake stopped part way is no baked field.
+      pc::logError(std::string("bake failed: ") + e.what() +
+                   "; nothing written (--backend embree bakes on the CPU)");
+      return 1;
+    }
     const double mrays = double(stats.probeRays + stats.shadowRays) / (stats.ms * 1e3);
     summary["bake"] = {{"updates", stats.updates},
                        {"seconds", stats.ms / 1000.0},

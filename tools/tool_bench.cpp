@@ -3,6 +3,8 @@
 #include <thread>
 
 #include "bench/bench.h"
+#include "common/log.h"
+#include "server/tracer.h"
 
 namespace pc::bench {
 
@@ -38,7 +40,14 @@ int main(int argc, char** argv) {
       pc::bench::addLeak(app), pc::bench::addClient(app), pc::bench::addGpuTrace(app),
       pc::bench::addFaults(app), pc::bench::addStream(app), pc::bench::addLoad(app)};
   CLI11_PARSE(app, argc, argv);
-  for (auto& b : benches)
-    if (b.command->parsed()) return b.run();
+  for (auto& b : benches) {
+    if (!b.command->parsed()) continue;
+    try {
+      return b.run();
+    } catch (const pc::TracerFailure& e) {
+      pc::logError(std::string("tracer failed: ") + e.what());
+      return 1;
+    }
+  }
   return 1;
 }

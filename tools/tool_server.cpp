@@ -73,6 +73,15 @@ int main(int argc, char** argv) {
          "most 8 GiB)")
       ->check(CLI::Range(std::size_t(0), std::size_t(1) << 30))
       ->capture_default_str();
+  bool noFallback = false;
+  app.add_flag("--no-fallback", noFallback,
+               "where the GPU tracer fails (device lost, out of memory), keep serving the last "
+               "field without updates instead of going on with Embree on the CPU");
+  int gpuFailSubmission = 0;
+  app.add_option("--gpu-fail-submission", gpuFailSubmission,
+                 "failure drill: the GPU tracer's N-th submission fails as a lost device would "
+                 "(0: never)")
+      ->check(CLI::Range(0, 1 << 30));
   app.add_option("--rate", loop.rate, "field updates per second");
   app.add_option("--rays", rays, "rays per probe per update (without --probes)");
   app.add_option("--warmup", warmup, "warm-up updates without --probes");
@@ -151,9 +160,14 @@ int main(int argc, char** argv) {
 
   pc::VulkanTracerOptions vulkanOptions;
   vulkanOptions.shadowMemoryBudget = gpuShadowMiB << 20;
+  vulkanOptions.failSubmission = gpuFailSubmission;
   auto tracer = pc::makeTracer(*scene, backend, tracerOptions, &vulkanOptions);
   if (!tracer) return pc::logError("tracer: " + tracer.error().message), 1;
   pc::logInfo("tracer: " + (*tracer)->name());
+  // A GPU that fails hands the updates to Embree (FieldLoopOptions::fallback).
+  const bool onCpu = (*tracer)->name().rfind("embree", 0) == 0;
+  if (!onCpu && !noFallback)
+    loop.fallback = [&scene, tracerOptions] { return pc::makeEmbreeTracer(*scene, tracerOptions); };
 
   pc::Field field;
   if (!probes.empty()) {
@@ -168,8 +182,24 @@ int main(int argc, char** argv) {
     field.sceneHash = scene->hash;
     pc::BakeOptions bake;
     bake.updates = warmup;
-    (*tracer)->setState(pc::evaluateScene(*scene, loop.startTime));
-    pc::bakeField(field, **tracer, bake);
+    try {
+      (*tracer)->setState(pc::evaluateScene(*scene, loop.startTime));
+      pc::bakeField(field, **tracer, bake);
+    } catch (const pc::TracerFailure& e) {
+      // No client yet: the warm-up starts over on the fallback, from a fresh field.
+      pc::logError(std::string("warm-up bake failed: ") + e.what());
+      if (!loop.fallback) return 1;
+      auto cpu = loop.fallback();
+      if (!cpu) return pc::logError("fallback tracer: " + cpu.error().message), 1;
+      pc::logWarn("the warm-up and the field updates go on with the " + (*cpu)->name() + " tracer");
+      tracer = std::move(cpu);
+      loop.fallback = nullptr;
+      field = pc::Field::create(
+          scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes, settings);
+      field.sceneHash = scene->hash;
+      (*tracer)->setState(pc::evaluateScene(*scene, loop.startTime));
+      pc::bakeField(field, **tracer, bake);
+    }
   }
   pc::logInfo("field: " + std::to_string(field.desc.probeCount) + " probe slots, " +
               std::to_string(field.desc.cascadeCount) + " cascades, version " +
