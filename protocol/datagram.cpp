@@ -120,7 +120,8 @@ void Reassembler::erase(std::map<std::uint32_t, Partial>::iterator it) {
   partial_.erase(it);
 }
 
-std::optional<CompletedUpdate> Reassembler::add(Fragment&& fragment, double now) {
+std::optional<CompletedUpdate> Reassembler::add(Fragment&& fragment, double now,
+                                                std::uint32_t sequence) {
   const UpdateHeader& u = fragment.update;
   if (fragment.count == 1) {
     // Whole payload in one fragment: nothing to hold.
@@ -152,6 +153,12 @@ std::optional<CompletedUpdate> Reassembler::add(Fragment&& fragment, double now)
   }
   Partial& p = it->second;
   p.lastSeen = now;
+  p.lastSequence = sequence;
+  if (!p.answered) {  // the first fragment since a report: a sample of the repair round trip
+    p.answered = true;
+    const double sample = now - p.reportedAt;
+    repairRtt_ = repairRtt_ == 0 ? sample : 0.875 * repairRtt_ + 0.125 * sample;
+  }
   if (p.have[fragment.index]) return std::nullopt;  // duplicate
   std::copy(fragment.data.begin(), fragment.data.end(),
             p.payload.begin() + std::ptrdiff_t(fragment.index) * std::ptrdiff_t(kFragmentBytes));
@@ -162,6 +169,40 @@ std::optional<CompletedUpdate> Reassembler::add(Fragment&& fragment, double now)
   bytes_ -= u.totalSize;
   partial_.erase(it);
   return done;
+}
+
+std::vector<FragmentGap> Reassembler::takeGaps(double now, std::uint32_t newestSequence,
+                                               std::size_t maxGaps) {
+  const double repeat = std::max(options_.gapRepeat, 2.0 * repairRtt_);
+  std::vector<Partial*> due;
+  for (auto& [id, p] : partial_) {
+    // Sequence numbers wrap: their difference, read as signed, says which is newer.
+    const bool overtaken =
+        std::int32_t(newestSequence - p.lastSequence) >= std::int32_t(options_.gapReorder) &&
+        now - p.lastSeen >= options_.gapQuiet;
+    if (p.reportedAt >= 0 && !p.answered) {
+      // Reported, and no fragment answered yet: again when none came within `repeat`.
+      if (now - p.reportedAt < repeat) continue;
+    } else if (!overtaken) {
+      continue;  // its fragments may still be coming
+    }
+    due.push_back(&p);
+  }
+  std::sort(due.begin(), due.end(),
+            [](const Partial* a, const Partial* b) { return a->lastSeen < b->lastSeen; });
+  if (due.size() > maxGaps) due.resize(maxGaps);
+  std::vector<FragmentGap> gaps;
+  for (Partial* p : due) {
+    FragmentGap g;
+    g.update = p->update;
+    g.fragmentCount = std::uint16_t(p->have.size());
+    for (std::size_t i = 0; i < p->have.size(); ++i)
+      if (!p->have[i]) g.missing.push_back(std::uint16_t(i));
+    p->reportedAt = now;
+    p->answered = false;
+    gaps.push_back(std::move(g));
+  }
+  return gaps;
 }
 
 void Reassembler::expire(double now) {

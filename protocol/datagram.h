@@ -74,6 +74,24 @@ struct ReassemblyOptions {
   double timeout = 1.0;
   std::size_t maxUpdates = 64;      // partial payloads held at once
   std::size_t maxBytes = 4u << 20;  // their buffers together
+  // Selective repair (takeGaps). An update's fragments leave the sender in consecutive
+  // datagrams, so once a datagram `gapReorder` or more sequence numbers past the one that
+  // brought a partial payload's latest fragment has arrived, and `gapQuiet` s have passed since
+  // that fragment (for links that reorder by more datagrams), what it lacks was lost: it is
+  // reported. The evidence is sequence numbers, so a client that reads its socket late reports
+  // nothing early. It is reported again while fragments are missing: on the same evidence past
+  // the answer's fragments, or `gapRepeat` s after the last report where no answer came (at
+  // least this, and at least twice the time answers took).
+  std::uint32_t gapReorder = 3;
+  double gapQuiet = 0.01;
+  double gapRepeat = 0.05;
+};
+
+// A partial payload's missing fragments (Reassembler::takeGaps).
+struct FragmentGap {
+  UpdateHeader update;
+  std::uint16_t fragmentCount = 0;
+  std::vector<std::uint16_t> missing;
 };
 
 struct CompletedUpdate {
@@ -89,8 +107,15 @@ class Reassembler {
  public:
   explicit Reassembler(ReassemblyOptions options = {}) : options_(options) {}
   // The completed payload when `fragment` completes one.
-  std::optional<CompletedUpdate> add(Fragment&& fragment, double now);
+  // `sequence`: the datagram's that brought the fragment (selective repair).
+  std::optional<CompletedUpdate> add(Fragment&& fragment, double now, std::uint32_t sequence = 0);
   void expire(double now);
+  // The partial payloads due a report of their missing fragments now, given the newest datagram
+  // sequence received (ReassemblyOptions: gapReorder, gapRepeat), the longest waiting first,
+  // at most `maxGaps`; each is marked reported at `now`.
+  std::vector<FragmentGap> takeGaps(double now, std::uint32_t newestSequence, std::size_t maxGaps);
+  // Smoothed time from a report to the first fragment answering it (0 before any).
+  double repairRoundTrip() const { return repairRtt_; }
   std::size_t pendingUpdates() const { return partial_.size(); }
   std::size_t pendingBytes() const { return bytes_; }
   std::uint64_t dropped() const { return dropped_; }
@@ -101,7 +126,10 @@ class Reassembler {
     std::vector<std::uint8_t> payload;
     std::vector<bool> have;
     std::size_t received = 0;
-    double lastSeen = 0;  // when its latest fragment arrived
+    double lastSeen = 0;             // when its latest fragment arrived
+    std::uint32_t lastSequence = 0;  // the datagram that brought it
+    double reportedAt = -1;          // when its gaps were last reported (takeGaps); -1: never
+    bool answered = true;            // a fragment arrived since that report
   };
   void erase(std::map<std::uint32_t, Partial>::iterator it);
 
@@ -109,6 +137,7 @@ class Reassembler {
   std::map<std::uint32_t, Partial> partial_;
   std::size_t bytes_ = 0;
   std::uint64_t dropped_ = 0;
+  double repairRtt_ = 0;
 };
 
 }  // namespace pc

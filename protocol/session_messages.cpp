@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "protocol/datagram.h"
 #include "protocol/session_generated.h"
 
 namespace pc {
@@ -101,7 +102,17 @@ struct Encoder {
       ranges.emplace_back(r.version, r.firstBrick, r.count, std::uint8_t(r.cascade));
     }
     auto rangesOff = fbb.CreateVectorOfStructs(ranges);
-    return net::CreateAck(fbb, m.full, m.fieldVersion, rangesOff).Union();
+    fb::Offset<fb::Vector<fb::Offset<net::FragmentGap>>> gapsOff;
+    if (!m.gaps.empty()) {
+      std::vector<fb::Offset<net::FragmentGap>> gaps;
+      for (const FragmentGapMsg& g : m.gaps) {
+        gaps.push_back(net::CreateFragmentGap(fbb, g.updateId, std::uint8_t(g.cascade), g.brick,
+                                              g.version, g.baseVersion, g.fragmentCount,
+                                              fbb.CreateVector(g.missing)));
+      }
+      gapsOff = fbb.CreateVector(gaps);
+    }
+    return net::CreateAck(fbb, m.full, m.fieldVersion, rangesOff, gapsOff).Union();
   }
   fb::Offset<void> operator()(const RepairRequestMsg& m) {
     std::vector<net::BrickRef> refs;
@@ -293,6 +304,30 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
           std::memcpy(&copy, p, sizeof copy);
           const net::AckRange* r = &copy;
           m.ranges.push_back(AckRange{r->cascade(), r->first_brick(), r->count(), r->version()});
+        }
+      }
+      if (w->gaps()) {
+        if (w->gaps()->size() > kMaxFragmentGaps) {
+          return fail("ack: " + std::to_string(w->gaps()->size()) + " fragment gaps (at most " +
+                      std::to_string(kMaxFragmentGaps) + ")");
+        }
+        for (const net::FragmentGap* g : *w->gaps()) {
+          FragmentGapMsg gap{g->update_id(),    g->cascade(),        g->brick(), g->version(),
+                             g->base_version(), g->fragment_count(), {}};
+          if (gap.fragmentCount < 2 || gap.fragmentCount > fragmentCount(kMaxUpdatePayloadBytes))
+            return fail("ack: fragment gap of an update of " + std::to_string(gap.fragmentCount) +
+                        " fragments");
+          if (g->missing()) {
+            if (g->missing()->size() > gap.fragmentCount)
+              return fail("ack: fragment gap lists more fragments than its update has");
+            for (std::uint16_t i : *g->missing()) {
+              if (i >= gap.fragmentCount)
+                return fail("ack: fragment gap names fragment " + std::to_string(i) + " of " +
+                            std::to_string(gap.fragmentCount));
+              gap.missing.push_back(i);
+            }
+          }
+          m.gaps.push_back(std::move(gap));
         }
       }
       return SessionMessage(std::move(m));

@@ -86,10 +86,25 @@ struct AckRange {
   std::uint64_t version = 0;
 };
 
+// A partially received update and the fragments it lacks (selective repair).
+struct FragmentGapMsg {
+  std::uint32_t updateId = 0;
+  int cascade = 0;
+  std::uint32_t brick = 0;
+  std::uint64_t version = 0, baseVersion = 0;
+  std::uint16_t fragmentCount = 0;
+  std::vector<std::uint16_t> missing;  // indices below fragmentCount
+};
+
+// Gaps one Ack may carry (more is refused): the receiver's reassembly holds fewer partial
+// updates than this.
+inline constexpr std::size_t kMaxFragmentGaps = 128;
+
 struct AckMsg {
   bool full = false;  // every held brick is listed; unlisted bricks hold nothing
   std::uint64_t fieldVersion = 0;
   std::vector<AckRange> ranges;
+  std::vector<FragmentGapMsg> gaps;
 };
 
 struct BrickRefMsg {

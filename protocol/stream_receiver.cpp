@@ -62,6 +62,8 @@ Status StreamReceiver::onDatagram(std::span<const std::uint8_t> bytes, double no
   }
   ++stats_.datagrams;
   serverVersion_ = std::max(serverVersion_, d->fieldVersion);
+  if (stats_.datagrams == 1 || std::int32_t(d->sequence - newestSequence_) > 0)
+    newestSequence_ = d->sequence;
   Status result;
   for (Fragment& f : d->fragments) {
     ++stats_.fragments;
@@ -75,7 +77,7 @@ Status StreamReceiver::onDatagram(std::span<const std::uint8_t> bytes, double no
       result = Error{stats_.lastError};
       continue;
     }
-    if (auto done = reassembler_.add(std::move(f), now)) {
+    if (auto done = reassembler_.add(std::move(f), now, d->sequence)) {
       if (Status s = apply(*done, now); !s) result = s;
     }
   }
@@ -139,10 +141,20 @@ std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
   for (const auto& cascade : bricks_) {
     for (const BrickState& b : cascade) dirty |= b.ackDirty;
   }
-  if (full || (dirty && now - lastAckAt_ >= options_.ackInterval)) {
+  // Partial updates that later datagrams overtook: their missing fragments, for the sender to
+  // send again (selective repair), in an ack of their own timing.
+  std::vector<FragmentGap> gaps;
+  if (options_.reportGaps) gaps = reassembler_.takeGaps(now, newestSequence_, kMaxFragmentGaps);
+  if (full || !gaps.empty() || (dirty && now - lastAckAt_ >= options_.ackInterval)) {
     AckMsg ack;
     ack.full = full;
     ack.fieldVersion = serverVersion_;
+    for (FragmentGap& g : gaps) {
+      const UpdateHeader& u = g.update;
+      ack.gaps.push_back(FragmentGapMsg{u.updateId, u.cascade, u.brick, u.version, u.baseVersion,
+                                        g.fragmentCount, std::move(g.missing)});
+      ++stats_.gapReports;
+    }
     for (int k = 0; k < int(bricks_.size()); ++k) {
       for (std::uint32_t i = 0; i < bricks_[k].size(); ++i) {
         BrickState& b = bricks_[k][i];

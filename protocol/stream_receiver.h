@@ -40,6 +40,9 @@ struct ReceiverOptions {
   double ackInterval = 0.02;     // s: changes are acknowledged at most this often
   double fullAckInterval = 1.0;  // s: every held version is acknowledged this often
   double repairInterval = 0.2;   // s: per brick, at most one repair request this often
+  // Acks name the fragments that partial updates lack (ReassemblyOptions: gapReorder, gapRepeat),
+  // and the sender sends those again. False only to measure what that brings.
+  bool reportGaps = true;
   ReassemblyOptions reassembly;
   // False: only each brick's codes (the residual bases) are kept, not the decoded field: the
   // atlases are released and field() holds the layout, probe records and brick versions only.
@@ -56,6 +59,7 @@ struct ReceiverStats {
   std::uint64_t decodeErrors = 0;
   std::uint64_t repairBricks = 0;  // bricks named in repair requests
   std::uint64_t acks = 0;
+  std::uint64_t gapReports = 0;  // partial updates whose missing fragments were asked for
   std::string lastError;
 };
 
@@ -110,6 +114,7 @@ class StreamReceiver {
   ReceiverOptions options_;
   std::vector<std::vector<BrickState>> bricks_;
   Reassembler reassembler_;
+  std::uint32_t newestSequence_ = 0;  // of the datagrams received (wrapping)
   std::uint64_t serverVersion_ = 0;
   double lastAckAt_ = -1e30, lastFullAckAt_ = -1e30;
   ReceiverStats stats_;

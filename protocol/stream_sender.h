@@ -32,6 +32,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <glm/glm.hpp>
+#include <memory>
 #include <optional>
 #include <span>
 #include <unordered_map>
@@ -82,6 +83,7 @@ struct SenderOptions {
 struct SenderStats {
   std::uint64_t datagrams = 0, bytes = 0;
   std::uint64_t updates = 0, residualUpdates = 0, resends = 0, fragments = 0;
+  std::uint64_t repairedFragments = 0;  // fragments sent again on a client's report of gaps
   std::uint64_t skipped = 0;  // brick-polls held back by the perceptual thresholds
   // Why each update was sent (they add up to `updates`): the client held nothing of the brick
   // (or the sender knew of nothing it held); the change passed a threshold (by quantity:
@@ -190,7 +192,16 @@ class StreamSender {
     bool again;    // the lost update, resent as it was
     bool missing;  // the client holds no version of the brick
   };
+  // Fragments a client asked for again (an Ack's gaps), sent first at the next poll. At most
+  // one per brick: a newer report replaces the older one.
+  struct Repair {
+    int cascade;
+    int brick;
+    std::shared_ptr<const EncodedUpdate> update;
+    std::vector<std::uint16_t> fragments;
+  };
   Status onAck(const AckMsg& ack, double now);
+  void queueRepair(const FragmentGapMsg& gap);
   Status onRepair(const RepairRequestMsg& repair);
   // Whether the change from `ref` to `version` is below every threshold; if not, t.skipReason
   // names the first threshold it passed.
@@ -206,6 +217,7 @@ class StreamSender {
   std::optional<glm::vec3> viewer_;
   double tokens_ = 0, lastPoll_ = -1, lastDatagramAt_ = -1e30;
   std::uint32_t sequence_ = 0;
+  std::vector<Repair> repairs_;
   SenderStats stats_;
 };
 

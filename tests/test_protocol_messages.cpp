@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <random>
 #include <string>
 
@@ -76,6 +77,34 @@ TEST(ProtocolMessages, RoundTrips) {
   EXPECT_EQ(ack2.ranges[1].version, 11u);
   RepairRequestMsg rep{{{1, 2, 3}}};
   EXPECT_EQ(roundTrip(rep).bricks[0].haveVersion, 3u);
+
+  AckMsg gaps{false, 12, {}, {{77, 1, 5, 9, 4, 30, {2, 17, 29}}}};
+  AckMsg gaps2 = roundTrip(gaps);
+  ASSERT_EQ(gaps2.gaps.size(), 1u);
+  const FragmentGapMsg& g = gaps2.gaps[0];
+  EXPECT_EQ(g.updateId, 77u);
+  EXPECT_EQ(g.cascade, 1);
+  EXPECT_EQ(g.brick, 5u);
+  EXPECT_EQ(g.version, 9u);
+  EXPECT_EQ(g.baseVersion, 4u);
+  EXPECT_EQ(g.fragmentCount, 30);
+  EXPECT_EQ(g.missing, (std::vector<std::uint16_t>{2, 17, 29}));
+  EXPECT_TRUE(roundTrip(ack).gaps.empty());
+}
+
+TEST(ProtocolMessages, AckGapsOutsideTheirUpdateAreRefused) {
+  auto refused = [](const FragmentGapMsg& gap, const char* what) {
+    auto m = decodeMessage(encodeMessage(AckMsg{false, 1, {}, {gap}}));
+    ASSERT_FALSE(m.ok()) << what;
+    EXPECT_NE(m.error().message.find("fragment"), std::string::npos) << m.error().message;
+  };
+  refused({1, 0, 0, 2, 0, 30, {30}}, "an index past the count");
+  refused({1, 0, 0, 2, 0, 1, {0}}, "an update of one fragment");
+  refused({1, 0, 0, 2, 0, 60000, {0}}, "more fragments than a payload can have");
+  refused({1, 0, 0, 2, 0, 3, {0, 1, 2, 0}}, "more indices than fragments");
+  AckMsg many{
+      false, 1, {}, std::vector<FragmentGapMsg>(kMaxFragmentGaps + 1, {1, 0, 0, 2, 0, 3, {0}})};
+  EXPECT_FALSE(decodeMessage(encodeMessage(many)).ok());
 }
 
 TEST(ProtocolMessages, VersionRules) {
@@ -389,6 +418,115 @@ TEST(ProtocolSession, SenderRefusesBadAcks) {
   EXPECT_EQ(tx.stats().badMessages, 5u);
 }
 
+TEST(ProtocolSession, SenderSendsAgainTheFragmentsAClientLacks) {
+  // A client that got part of an update names the fragments it lacks in an ack; the sender sends
+  // exactly those again, from the same update (same id and bytes), before anything else. A gap
+  // of a version no longer in flight, or of an update the sender did not send, is ignored; one
+  // outside the field is refused.
+  Field server = test::makeSyntheticLayout();
+  std::mt19937 rng(9);
+  test::evolveNoisyField(server, rng, 0.0f);
+  FieldPublisher pub(server);
+  ASSERT_TRUE(pub.publish(server, 0.0).ok());
+  SenderOptions options;
+  options.burstBytes = 64e6;  // every brick in the first poll, and tokens left for the repair
+  StreamSender tx(pub, 1, options);
+  std::map<std::pair<int, std::uint32_t>, UpdateHeader> sent;  // brick -> its update
+  for (const auto& d : tx.poll(0.0)) {
+    auto dg = decodeDatagram(d);
+    ASSERT_TRUE(dg.ok());
+    for (const Fragment& f : dg->fragments) sent[{f.update.cascade, f.update.brick}] = f.update;
+  }
+  ASSERT_FALSE(sent.empty());
+  const UpdateHeader u = sent.begin()->second;
+  const std::uint16_t count = fragmentCount(u.totalSize);
+  ASSERT_GE(count, 3);
+  const std::uint64_t fragmentsBefore = tx.stats().fragments;
+  const FragmentGapMsg gap{u.updateId,
+                           u.cascade,
+                           u.brick,
+                           u.version,
+                           u.baseVersion,
+                           count,
+                           {0, std::uint16_t(count - 1)}};
+  ASSERT_TRUE(tx.onMessage(AckMsg{false, server.version, {}, {gap}}, 0.01).ok());
+  std::vector<std::uint16_t> again;
+  for (const auto& d : tx.poll(0.01)) {
+    auto dg = decodeDatagram(d);
+    ASSERT_TRUE(dg.ok());
+    for (const Fragment& f : dg->fragments) {
+      EXPECT_TRUE(f.update.sameUpdate(u));
+      again.push_back(f.index);
+    }
+  }
+  EXPECT_EQ(again, gap.missing);
+  EXPECT_EQ(tx.stats().repairedFragments, 2u);
+  EXPECT_EQ(tx.stats().fragments, fragmentsBefore + 2);
+
+  // Stale or foreign gaps: nothing is sent for them.
+  FragmentGapMsg otherId = gap, otherVersion = gap;
+  otherId.updateId ^= 1u;
+  otherVersion.version += 1;
+  ASSERT_TRUE(tx.onMessage(AckMsg{false, server.version, {}, {otherId, otherVersion}}, 0.02).ok());
+  // Once the update is acknowledged, a late report of its gaps sends nothing either.
+  ASSERT_TRUE(
+      tx.onMessage(AckMsg{false, server.version, {{u.cascade, u.brick, 1, u.version}}, {gap}}, 0.02)
+          .ok());
+  EXPECT_TRUE(tx.poll(0.02).empty());
+  EXPECT_EQ(tx.stats().repairedFragments, 2u);
+
+  FragmentGapMsg outside = gap;
+  outside.brick = 1000;
+  EXPECT_FALSE(tx.onMessage(AckMsg{false, server.version, {}, {outside}}, 0.03).ok());
+}
+
+// Fragment i of an update of four whole fragments, its bytes all i.
+Fragment fragmentOfFour(const UpdateHeader& u, std::uint16_t i) {
+  Fragment f;
+  f.update = u;
+  f.index = i;
+  f.count = 4;
+  f.data.assign(kFragmentBytes, std::uint8_t(i));
+  return f;
+}
+
+TEST(ProtocolDatagrams, GapsAreReportedOnceLaterDatagramsOvertakeThem) {
+  // Evidence of loss is datagrams three sequence numbers past a partial payload's latest
+  // fragment, and 10 ms since it, however long ago it came (a client that reads its socket late
+  // has lost nothing).
+  ReassemblyOptions o;
+  o.gapReorder = 3;
+  o.gapQuiet = 0.01;
+  o.gapRepeat = 0.05;
+  Reassembler r(o);
+  const UpdateHeader u{78, 0, 3, 5, 0, 1, std::uint32_t(4 * kFragmentBytes)};
+  auto frag = [&](std::uint16_t i) { return fragmentOfFour(u, i); };
+  r.add(frag(0), 0.0, 10);
+  r.add(frag(2), 0.001, 12);
+  EXPECT_TRUE(r.takeGaps(0.5, 14, 8).empty());  // datagram 13 may still be on its way
+  auto gaps = r.takeGaps(0.5, 15, 8);
+  ASSERT_EQ(gaps.size(), 1u);
+  EXPECT_TRUE(gaps[0].update.sameUpdate(u));
+  EXPECT_EQ(gaps[0].fragmentCount, 4);
+  EXPECT_EQ(gaps[0].missing, (std::vector<std::uint16_t>{1, 3}));
+  EXPECT_TRUE(r.takeGaps(0.52, 16, 8).empty());    // reported, no answer yet
+  ASSERT_EQ(r.takeGaps(0.551, 16, 8).size(), 1u);  // no answer within gapRepeat: again
+  r.add(frag(1), 0.571, 20);                       // an answer, 20 ms after the report
+  EXPECT_NEAR(r.repairRoundTrip(), 0.02, 1e-9);
+  EXPECT_TRUE(r.takeGaps(0.6, 21, 8).empty());    // the answer's fragments may still be coming
+  EXPECT_TRUE(r.takeGaps(0.575, 23, 8).empty());  // overtaken, but within gapQuiet of it
+  gaps = r.takeGaps(0.6, 23, 8);                  // overtaken again, fragment 3 still missing
+  ASSERT_EQ(gaps.size(), 1u);
+  EXPECT_EQ(gaps[0].missing, (std::vector<std::uint16_t>{3}));
+  EXPECT_TRUE(r.add(frag(3), 0.62, 24).has_value());
+  EXPECT_TRUE(r.takeGaps(1.0, 100, 8).empty());
+
+  // Sequence numbers wrap.
+  r.add(frag(0), 2.0, 0xFFFFFFFEu);
+  EXPECT_TRUE(r.takeGaps(2.02, 0u, 8).empty());
+  EXPECT_EQ(r.takeGaps(2.02, 1u, 8).size(), 1u);
+}
+
 TEST(ProtocolSession, ResendTimeoutCoversAcksThatComeLateNowAndThen) {
   // A loaded client acks most updates in 50 ms and every fourth in 400 ms. Twice the smoothed
   // round trip (0.24 s) would send those again although they arrived; with the round trip's
@@ -436,14 +574,7 @@ TEST(ProtocolDatagrams, ReassemblyKeepsAPayloadWhileFragmentsKeepComing) {
   o.timeout = 0.5;
   Reassembler r(o);
   const UpdateHeader u{77, 0, 2, 4, 0, 1, std::uint32_t(4 * kFragmentBytes)};
-  auto frag = [&](std::uint16_t i) {
-    Fragment f;
-    f.update = u;
-    f.index = i;
-    f.count = 4;
-    f.data.assign(kFragmentBytes, std::uint8_t(i));
-    return f;
-  };
+  auto frag = [&](std::uint16_t i) { return fragmentOfFour(u, i); };
   for (std::uint16_t i = 0; i < 3; ++i) {
     EXPECT_FALSE(r.add(frag(i), 0.4 * i).has_value());
     r.expire(0.4 * i + 0.3);
