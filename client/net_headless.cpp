@@ -133,7 +133,8 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
                      {"missing_base", s.receiver.missingBase},
                      {"rejected_datagrams", s.receiver.rejectedDatagrams},
                      {"decode_errors", s.receiver.decodeErrors},
-                     {"repair_bricks", s.receiver.repairBricks}};
+                     {"repair_bricks", s.receiver.repairBricks},
+                     {"gap_reports", s.receiver.gapReports}};
     // Written beside and renamed into place: a reader polling the file never sees half of it.
     const std::string tmp = run.summary + ".tmp";
     {

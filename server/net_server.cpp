@@ -252,6 +252,8 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     datagrams = sender_->poll(now);
     pendingBricks_ = sender_->pendingBricks();
+    resends_ = sender_->stats().resends;
+    repairedFragments_ = sender_->stats().repairedFragments;
   }
 
   // Called by the server's poll without the hub lock.
@@ -310,6 +312,8 @@ class Session : public std::enable_shared_from_this<Session> {
     c.bytesReceived = bytesReceived_;
     c.messagesReceived = messagesReceived_;
     c.pendingBricks = pendingBricks_;
+    c.resends = resends_;
+    c.repairedFragments = repairedFragments_;
     return c;
   }
   std::uint64_t tcpQueueFullPolls() const { return tcpQueueFullPolls_; }
@@ -553,6 +557,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::uint64_t bytesSent_ = 0, bytesReceived_ = 0, datagrams_ = 0, udpDropped_ = 0;
   std::uint64_t messagesReceived_ = 0, tcpQueueFullPolls_ = 0;
   std::size_t pendingBricks_ = 0;
+  std::uint64_t resends_ = 0, repairedFragments_ = 0;
   Bucket messageBucket_, byteBucket_;
 };
 
@@ -712,6 +717,8 @@ void NetServer::Impl::remove(std::uint32_t id, DisconnectCause cause) {
   totals.messagesReceived += info.messagesReceived;
   totals.datagrams += info.datagrams;
   totals.udpDropped += info.udpDropped;
+  totals.resends += info.resends;
+  totals.repairedFragments += info.repairedFragments;
   totals.tcpQueueFullPolls += it->second->tcpQueueFullPolls();
   ++totals.disconnected;
   ++totals.disconnects[std::size_t(cause)];
@@ -733,6 +740,8 @@ void NetServer::Impl::publishStats(double pollSeconds) {
     s.messagesReceived += c.messagesReceived;
     s.datagrams += c.datagrams;
     s.udpDropped += c.udpDropped;
+    s.resends += c.resends;
+    s.repairedFragments += c.repairedFragments;
     s.tcpQueueFullPolls += session->tcpQueueFullPolls();
     if (session->welcomed()) s.clients.push_back(c);
   }
@@ -781,6 +790,12 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
             double(s.messagesReceived));
   m.counter("probecast_datagrams_sent_total", "Brick datagrams sent (over UDP or framed over TCP).",
             double(s.datagrams));
+  m.counter("probecast_updates_resent_total",
+            "Brick updates sent again whole (lost: not acknowledged within the resend timeout).",
+            double(s.resends));
+  m.counter("probecast_fragments_repaired_total",
+            "Fragments sent again because a client reported them missing from a partial update.",
+            double(s.repairedFragments));
   m.counter("probecast_udp_send_drops_total",
             "Datagrams dropped because the UDP socket's send buffer was full.",
             double(s.udpDropped));

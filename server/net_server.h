@@ -98,6 +98,9 @@ struct NetClientInfo {
   std::uint64_t bytesSent = 0, datagrams = 0, udpDropped = 0;
   std::uint64_t bytesReceived = 0, messagesReceived = 0;
   std::size_t pendingBricks = 0;
+  // Loss recovery by the sender: whole updates sent again, and fragments sent again on the
+  // client's report of what a partial update lacks (PROTOCOL.md, "Fragment gaps").
+  std::uint64_t resends = 0, repairedFragments = 0;
 };
 
 struct NetServerStats {
@@ -111,6 +114,7 @@ struct NetServerStats {
   std::array<std::uint64_t, kDisconnectCauses> rejectedMessages{};
   std::uint64_t bytesSent = 0, bytesReceived = 0, messagesReceived = 0;
   std::uint64_t datagrams = 0, udpDropped = 0;
+  std::uint64_t resends = 0, repairedFragments = 0;  // NetClientInfo's, summed
   // Sender polls skipped because a TCP-only client's write queue was full (the client gets
   // the newest state later instead of a backlog).
   std::uint64_t tcpQueueFullPolls = 0;

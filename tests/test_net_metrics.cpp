@@ -128,6 +128,11 @@ TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
   EXPECT_EQ(before.types.at("probecast_disconnects_total"), "counter");
   EXPECT_EQ(before["probecast_disconnects_total{cause=\"flood\"}"], 0.0);
   EXPECT_EQ(before["probecast_sessions_rejected_total{cause=\"server_full\"}"], 0.0);
+  EXPECT_EQ(before.types.at("probecast_updates_resent_total"), "counter");
+  EXPECT_EQ(before.types.at("probecast_fragments_repaired_total"), "counter");
+  EXPECT_EQ(before.types.at("probecast_field_tracer_failures_total"), "counter");
+  EXPECT_EQ(before["probecast_field_tracer_failures_total"], 0.0);
+  EXPECT_EQ(before["probecast_field_tracer_info{tracer=\"embree\"}"], 1.0);
 
   std::uint64_t sentWhileConnected = 0;
   {
