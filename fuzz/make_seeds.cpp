@@ -51,6 +51,10 @@ void messages() {
   ack.fieldVersion = 9;
   ack.ranges = {{0, 0, 8, 3}, {1, 2, 1, 5}};
   write("messages", "ack", encodeMessage(ack));
+  AckMsg gaps;
+  gaps.fieldVersion = 9;
+  gaps.gaps = {{77, 0, 3, 9, 4, 30, {2, 17, 29}}, {78, 1, 0, 9, 0, 3, {0}}};
+  write("messages", "ack-gaps", encodeMessage(gaps));
   RepairRequestMsg repair;
   repair.bricks = {{0, 1, 2}, {1, 0, 0}};
   write("messages", "repair", encodeMessage(repair));

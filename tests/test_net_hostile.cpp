@@ -278,7 +278,8 @@ TEST(NetHostile, MessagesOutOfOrderAreRefused) {
 TEST(NetHostile, AcksAndRepairsBeyondTheFieldAreRefused) {
   HostileFixture f;
   // Ranges outside the field, an ack covering the field many times over (work a client could
-  // multiply at will), and a repair request naming more bricks than the field holds.
+  // multiply at will), a repair request naming more bricks than the field holds, and fragment
+  // gaps of a brick outside the field.
   AckMsg outside;
   outside.ranges.push_back({0, 1u << 30, 5, 1});
   AckMsg repeated;
@@ -289,13 +290,15 @@ TEST(NetHostile, AcksAndRepairsBeyondTheFieldAreRefused) {
         std::size_t((c.counts.x + 3) / 4 * ((c.counts.y + 3) / 4) * ((c.counts.z + 3) / 4));
   RepairRequestMsg repair;  // within the frame cap (16 bytes a brick), over the field
   repair.bricks.assign(fieldBricks + 1, BrickRefMsg{0, 0, 0});
-  for (const auto& frame :
-       {encodeMessage(outside), encodeMessage(repeated), encodeMessage(repair)}) {
+  AckMsg gap;  // fragments missing from an update of a brick the field does not have
+  gap.gaps.push_back(FragmentGapMsg{1, 0, std::uint32_t(fieldBricks) + 7, 2, 0, 4, {1, 2}});
+  for (const auto& frame : {encodeMessage(outside), encodeMessage(repeated), encodeMessage(repair),
+                            encodeMessage(gap)}) {
     auto peer = joinedPeer(f.port());
     peer->send(frame);
     EXPECT_TRUE(peer->closedByServer());
   }
-  f.expectOnlyCause(DisconnectCause::Invalid, 3);
+  f.expectOnlyCause(DisconnectCause::Invalid, 4);
   f.expectGoodClientUnaffected();
 }
 
