@@ -201,30 +201,15 @@ TEST(NetRestart, ServerGoesOnOnTheCpuWhenItsGpuFails) {
   const std::uint16_t port = freePort();
   const std::string portText = std::to_string(port);
   const fs::path serverLog = dir / "server.log";
-  // Two warm-up updates, then the field thread's updates at 10 a second: the 40th submission
-  // fails about 4 s after the server listens, with the client synced by then.
-  Child server({kBin + "probecast-server",
-                "--scene",
-                "builtin",
-                "--backend",
-                "vulkan",
-                "--rays",
-                "32",
-                "--warmup",
-                "2",
-                "--rate",
-                "10",
-                "--gpu-fail-submission",
-                "40",
-                "--bind",
-                "127.0.0.1",
-                "--port",
-                portText,
-                "--token",
-                "gpu-token",
-                "--stats-interval",
-                "0"},
-               serverLog);
+  // Two warm-up updates, then the field thread's updates at 10 a second: the 150th submission
+  // fails about 15 s after the server listens (later on busy cores), with the client synced
+  // long before (about 0.1 s after it connects, here).
+  std::vector<std::string> args = {kBin + "probecast-server", "--port", portText};
+  for (const char* a : {"--scene", "builtin", "--backend", "vulkan", "--rays", "32", "--warmup",
+                        "2", "--rate", "10", "--gpu-fail-submission", "150", "--bind", "127.0.0.1",
+                        "--token", "gpu-token", "--stats-interval", "0"})
+    args.push_back(a);
+  Child server(args, serverLog);
   ASSERT_TRUE(server.running());
   ASSERT_TRUE(waitUntil([&] { return canConnect(port) || server.exited(); }, 60.0));
   if (!canConnect(port)) {
