@@ -1,3 +1,4 @@
+#include "../log.h"
 #include "context.h"
 
 namespace pc::vk {
@@ -43,9 +44,15 @@ std::vector<std::pair<std::string, double>> GpuTimer::results() const {
   std::vector<std::pair<std::string, double>> out;
   if (!supported_ || used_ == 0) return out;
   std::vector<std::uint64_t> ticks(used_);
-  VK_CHECK(vkGetQueryPoolResults(ctx_->device(), pool_.get(), 0, used_, ticks.size() * sizeof(std::uint64_t),
-                                 ticks.data(), sizeof(std::uint64_t),
-                                 VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+  const VkResult r = vkGetQueryPoolResults(
+      ctx_->device(), pool_.get(), 0, used_, ticks.size() * sizeof(std::uint64_t), ticks.data(),
+      sizeof(std::uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
+  if (r != VK_SUCCESS) {
+    // Timings are diagnostics: without them the work itself still stands (a lost device shows
+    // at the caller's next submission, which reports it).
+    pc::logWarn("GPU timestamps: " + vkErrorMessage("vkGetQueryPoolResults", r));
+    return out;
+  }
   for (std::uint32_t i = 0; i + 1 < used_; i += 2) {
     const double ms = double(ticks[i + 1] - ticks[i]) * periodNs_ * 1e-6;
     out.emplace_back(names_[i / 2], ms);
