@@ -122,8 +122,8 @@ class Client {
 
   struct Window {
     double start = 0;
-    std::uint64_t sessions = 0, bytesDown = 0, bytesUp = 0, datagrams = 0, applied = 0,
-                  repairs = 0, stale = 0, errors = 0, unmatched = 0;
+    std::uint64_t sessions = 0, bytesDown = 0, bytesUp = 0, datagrams = 0, applied = 0, repairs = 0,
+                  gapReports = 0, stale = 0, errors = 0, unmatched = 0;
     double sessionSeconds = 0, maxGap = 0, maxStaleness = 0;
     std::vector<float> latencyMs, stalenessMs;
     std::string lastError;
@@ -168,7 +168,8 @@ class Client {
   int bricksTotal_ = 0, bricksHeld_ = 0;
   bool synced_ = false;
   double syncSeconds_ = -1;
-  std::uint64_t maxHeld_ = 0, lastApplied_ = 0, lastRepairs_ = 0, lastStale_ = 0;
+  std::uint64_t maxHeld_ = 0, lastApplied_ = 0, lastRepairs_ = 0, lastGapReports_ = 0,
+                lastStale_ = 0;
   std::deque<std::pair<std::uint64_t, double>> versions_;  // (field version, publish time)
   std::deque<std::pair<std::uint64_t, double>> pending_;   // (version, applied at)
   std::optional<double> clockOffset_;  // client clock - server clock
@@ -205,8 +206,10 @@ void Client::tick(double now) {
   if (state_ != State::Session) return;  // a send may have failed
   const ReceiverStats& rs = receiver_->stats();
   window_.repairs += rs.repairBricks - lastRepairs_;
+  window_.gapReports += rs.gapReports - lastGapReports_;
   window_.stale += rs.stale - lastStale_;
   lastRepairs_ = rs.repairBricks;
+  lastGapReports_ = rs.gapReports;
   lastStale_ = rs.stale;
   if (now - lastPoseAt_ >= o_.poseInterval) sendPose(now);
   if (now - lastStaleSampleAt_ >= kStalenessSampleInterval) sampleStaleness(now);
@@ -392,7 +395,7 @@ void Client::onSessionInfo(const SessionInfoMsg& info, double now) {
   synced_ = false;
   syncSeconds_ = -1;
   infoVersion_ = info.fieldVersion;
-  maxHeld_ = lastApplied_ = lastRepairs_ = lastStale_ = 0;
+  maxHeld_ = lastApplied_ = lastRepairs_ = lastGapReports_ = lastStale_ = 0;
   versions_.clear();
   pending_.clear();
   clockOffset_.reset();
@@ -591,6 +594,7 @@ ClientReport Client::report(double now, std::vector<float>& latency, std::vector
   r.datagrams = window_.datagrams;
   r.bricksApplied = window_.applied;
   r.repairBricks = window_.repairs;
+  r.gapReports = window_.gapReports;
   r.staleUpdates = window_.stale;
   r.errors = window_.errors;
   r.maxDatagramGap = gap;
@@ -756,6 +760,7 @@ LoadReport LoadGenerator::report() {
     kbit.push_back(float(c.kbitDown));
     r.bricksApplied += c.bricksApplied;
     r.repairBricks += c.repairBricks;
+    r.gapReports += c.gapReports;
     r.datagrams += c.datagrams;
     r.errors += c.errors;
     r.sessionsStarted += c.sessions;

@@ -77,6 +77,7 @@ struct ClientReport {
   std::uint64_t bytesDown = 0, bytesUp = 0;
   double kbitDown = 0, kbitUp = 0;  // per second of the window
   std::uint64_t datagrams = 0, bricksApplied = 0, repairBricks = 0, staleUpdates = 0;
+  std::uint64_t gapReports = 0;  // partial updates whose missing fragments were asked for
   std::uint64_t errors = 0;
   double maxDatagramGap = 0;  // s
   double maxStaleness = 0;    // s
@@ -96,6 +97,7 @@ struct LoadReport {
   Percentiles kbitPerClient;  // down, over clients
   std::uint64_t unmatchedUpdates = 0;  // applied versions whose publish time never arrived
   std::uint64_t bricksApplied = 0, repairBricks = 0, datagrams = 0, errors = 0;
+  std::uint64_t gapReports = 0;
   int starvedClients = 0;
   std::uint64_t decodedPayloads = 0, sharedDecodes = 0, contentMismatches = 0;
   double residentMb = 0;        // this process, at the report

@@ -44,6 +44,7 @@ std::string reportJson(const LoadReport& r) {
   j["unmatched_updates"] = r.unmatchedUpdates;
   j["bricks_applied"] = r.bricksApplied;
   j["repair_bricks"] = r.repairBricks;
+  j["gap_reports"] = r.gapReports;
   j["datagrams"] = r.datagrams;
   j["errors"] = r.errors;
   j["error_samples"] = r.errorSamples;
@@ -66,6 +67,7 @@ std::string reportJson(const LoadReport& r) {
                        {"datagrams", c.datagrams},
                        {"bricks_applied", c.bricksApplied},
                        {"repair_bricks", c.repairBricks},
+                       {"gap_reports", c.gapReports},
                        {"stale_updates", c.staleUpdates},
                        {"errors", c.errors},
                        {"last_error", c.lastError},
@@ -93,9 +95,12 @@ std::string reportTable(const LoadReport& r) {
   row("update latency (ms)", r.latencyMs);
   row("staleness (ms)", r.stalenessMs);
   row("down per client (kbit/s)", r.kbitPerClient);
-  s += format("bricks applied %llu, repairs %llu, datagrams %llu, unmatched updates %llu\n",
-              (unsigned long long)r.bricksApplied, (unsigned long long)r.repairBricks,
-              (unsigned long long)r.datagrams, (unsigned long long)r.unmatchedUpdates);
+  s += format(
+      "bricks applied %llu, repairs %llu, gap reports %llu, datagrams %llu, unmatched updates "
+      "%llu\n",
+      (unsigned long long)r.bricksApplied, (unsigned long long)r.repairBricks,
+      (unsigned long long)r.gapReports, (unsigned long long)r.datagrams,
+      (unsigned long long)r.unmatchedUpdates);
   s += format("errors %llu, starved clients %d\n", (unsigned long long)r.errors, r.starvedClients);
   for (const std::string& e : r.errorSamples) s += "  error: " + e + "\n";
   int shown = 0;
