@@ -8,6 +8,13 @@ namespace pc {
 
 namespace {
 
+// Fragment i of an encoded update: a view of its bytes.
+FragmentRef fragmentOf(const EncodedUpdate& u, std::uint16_t i) {
+  const std::size_t begin = std::size_t(i) * kFragmentBytes;
+  const std::size_t size = std::min(kFragmentBytes, u.payload.size() - begin);
+  return FragmentRef{u.header, i, std::span(u.payload).subspan(begin, size)};
+}
+
 // Packs fragments into datagrams in the order given, each within kMaxDatagramBytes.
 class Packer {
  public:
@@ -290,10 +297,9 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     Track& t = tracks_[r.cascade][r.brick];
     if (t.sent != u.header.version || t.acked == u.header.version) continue;  // moved on since
     for (std::uint16_t i : r.fragments) {
-      const std::size_t begin = std::size_t(i) * kFragmentBytes;
-      const std::size_t size = std::min(kFragmentBytes, u.payload.size() - begin);
-      packer.add(FragmentRef{u.header, i, std::span(u.payload).subspan(begin, size)});
-      tokens_ -= double(size + kFragmentOverheadBytes);
+      const FragmentRef f = fragmentOf(u, i);
+      packer.add(f);
+      tokens_ -= double(f.data.size() + kFragmentOverheadBytes);
     }
     stats_.fragments += r.fragments.size();
     stats_.repairedFragments += r.fragments.size();
@@ -429,9 +435,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   for (const auto& u : chosen) {
     const std::uint16_t n = fragmentCount(u->header.totalSize);
     for (std::uint16_t i = 0; i < n; ++i) {
-      const std::size_t begin = std::size_t(i) * kFragmentBytes;
-      const std::size_t size = std::min(kFragmentBytes, u->payload.size() - begin);
-      packer.add(FragmentRef{u->header, i, std::span(u->payload).subspan(begin, size)});
+      packer.add(fragmentOf(*u, i));
       ++stats_.fragments;
     }
   }

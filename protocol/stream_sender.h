@@ -14,7 +14,9 @@
 // them, bricks near the viewer go first, and waiting (since the brick was last sent) raises a
 // brick's priority.
 //
-// One exception, for loss: a brick the client holds nothing of, whose self-contained update of
+// Loss: the client's acks name the fragments a partial update lacks, and those are sent again
+// first (selective repair, PROTOCOL.md "Fragment gaps"). And one exception: a brick the client
+// holds nothing of, whose self-contained update of
 // several fragments was not acknowledged in time, is sent again as the same update (same
 // version, id and bytes) while the publisher holds that version, ahead of other bricks. The
 // receiver keeps the fragments that arrived and each resend fills in what the last one lost,

@@ -175,16 +175,20 @@ int main(int argc, char** argv) {
     if (!baked) return pc::logError(baked.error().message), 1;
     field = std::move(baked).value();
   } else {
-    pc::FieldSettings settings;
-    settings.raysPerProbe = rays;
-    field = pc::Field::create(scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes,
-                              settings);
-    field.sceneHash = scene->hash;
-    pc::BakeOptions bake;
-    bake.updates = warmup;
+    // A fresh field, warmed up with a short bake.
+    auto warmUp = [&](pc::Tracer& t) {
+      pc::FieldSettings settings;
+      settings.raysPerProbe = rays;
+      field = pc::Field::create(
+          scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes, settings);
+      field.sceneHash = scene->hash;
+      pc::BakeOptions bake;
+      bake.updates = warmup;
+      t.setState(pc::evaluateScene(*scene, loop.startTime));
+      pc::bakeField(field, t, bake);
+    };
     try {
-      (*tracer)->setState(pc::evaluateScene(*scene, loop.startTime));
-      pc::bakeField(field, **tracer, bake);
+      warmUp(**tracer);
     } catch (const pc::TracerFailure& e) {
       // No client yet: the warm-up starts over on the fallback, from a fresh field.
       pc::logError(std::string("warm-up bake failed: ") + e.what());
@@ -194,11 +198,7 @@ int main(int argc, char** argv) {
       pc::logWarn("the warm-up and the field updates go on with the " + (*cpu)->name() + " tracer");
       tracer = std::move(cpu);
       loop.fallback = nullptr;
-      field = pc::Field::create(
-          scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes, settings);
-      field.sceneHash = scene->hash;
-      (*tracer)->setState(pc::evaluateScene(*scene, loop.startTime));
-      pc::bakeField(field, **tracer, bake);
+      warmUp(**tracer);
     }
   }
   pc::logInfo("field: " + std::to_string(field.desc.probeCount) + " probe slots, " +
