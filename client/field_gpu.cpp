@@ -389,7 +389,7 @@ Status FieldGpu::uploadAll(FieldMirror& mirror) {
 }
 
 Result<FieldAtlases> FieldGpu::download() const {
-  ctx_->waitIdle();
+  PC_VK_TRY(ctx_->waitIdle());
   const vk::Image* images[3] = {&irradiance_, &depth_, &occlusion_};
   const int channels[3] = {3, 2, 1};
   const std::size_t texelBytes[3] = {8, 8, 2};
@@ -416,7 +416,7 @@ Result<FieldAtlases> FieldGpu::download() const {
                       VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
   });
   if (!s) return s.error();
-  buffer->invalidate();
+  PC_VK_TRY(buffer->invalidate());
   FieldAtlases out;
   Atlas* atlases[3] = {&out.irradiance, &out.depth, &out.occlusion};
   const auto* bytes = buffer->as<const std::uint8_t>();

@@ -197,7 +197,7 @@ Renderer::~Renderer() {
   if (ctx_) ctx_->waitIdle();
 }
 
-void Renderer::waitIdle() const { ctx_->waitIdle(); }
+VkResult Renderer::waitIdle() const { return ctx_->waitIdle(); }
 
 Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const Scene& scene,
                                                    FieldMirror& mirror,
@@ -755,7 +755,7 @@ Status Renderer::writeDescriptors() {
 Status Renderer::resize(int width, int height) {
   if (width <= 0 || height <= 0) return Error{"render size must be positive"};
   if (width == options_.width && height == options_.height) return Status::success();
-  ctx_->waitIdle();
+  PC_VK_TRY(ctx_->waitIdle());
   options_.width = width;
   options_.height = height;
   Status s = createTargets();
@@ -774,8 +774,9 @@ void Renderer::collectTimings(Slot& slot) {
     if (name == "probe") t.probeMs = ms;
     if (name == "tonemap") t.tonemapMs = ms;
   }
-  if (computeRaster()) {
-    slot.rasterStats.invalidate();
+  // A failed invalidate (a lost device) leaves the counters unread; the frame's next call to
+  // the device reports the loss.
+  if (computeRaster() && slot.rasterStats.invalidate() == VK_SUCCESS) {
     t.rasterDropped = slot.rasterStats.as<const gpu::RasterCounters>()->dropped;
     if (t.rasterDropped > 0 && !rasterDropWarned_) {
       logWarn("compute rasterizer: " + std::to_string(t.rasterDropped) +
@@ -1212,7 +1213,7 @@ Result<Renderer::Readback> Renderer::renderOffscreen(const FrameInput& input) {
   Slot& slot = *slots_[current_];
   const VkFence fence = slot.fence.get();
   PC_VK_TRY(vkWaitForFences(ctx_->device(), 1, &fence, VK_TRUE, UINT64_MAX));
-  readback_.invalidate();
+  PC_VK_TRY(readback_.invalidate());
   collectTimings(slot);
 
   Readback out;

@@ -139,7 +139,8 @@ class Renderer {
   const FrameStats& lastStats() const { return stats_; }
   // The frame slot beginFrame chose (for per-slot objects of the caller, like semaphores).
   int currentSlot() const { return current_; }
-  void waitIdle() const;
+  // Context::waitIdle: a lost device's error, returned.
+  VkResult waitIdle() const;
 
   // Headless: renders one frame into an offscreen target and reads back the linear and the
   // tone-mapped image of every view (waits for the frame).

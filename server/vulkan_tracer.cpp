@@ -1365,10 +1365,9 @@ Result<std::unique_ptr<VulkanTracer>> VulkanTracer::create(const Scene& scene, c
 VulkanTracer::VulkanTracer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 VulkanTracer::~VulkanTracer() {
-  // Not Context::waitIdle, which aborts on an error: a lost device reports one here, and the
-  // resources go all the same.
+  // A lost device reports an error here, and the resources go all the same.
   if (impl_ && impl_->ctx) {
-    const VkResult r = vkDeviceWaitIdle(impl_->ctx->device());
+    const VkResult r = impl_->ctx->waitIdle();
     if (r != VK_SUCCESS && impl_->failure.empty())
       logWarn("vulkan tracer: " + vk::vkErrorMessage("vkDeviceWaitIdle", r) + " at shutdown");
   }
@@ -1570,7 +1569,7 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
                       VK_ACCESS_2_HOST_READ_BIT);
     m.submitAndWait();
 
-    m.countersReadback.invalidate();
+    checkCall(m.countersReadback.invalidate(), "vkInvalidateMappedMemoryRanges (counters)");
     const auto* counts = m.countersReadback.as<std::uint32_t>();
     for (int s = 0; s < m.shadowSlots(); ++s) {
       stats.shadowRays += counts[s * PC_COUNTER_WORDS];  // the lists' lengths
@@ -1593,9 +1592,9 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
 
   // ---- back on the host: changed bricks, records, counters ----
   const auto th = Clock::now();
-  m.brickListReadback.invalidate();
-  m.recordsReadback.invalidate();
-  m.packed.invalidate();
+  checkCall(m.brickListReadback.invalidate(), "vkInvalidateMappedMemoryRanges (brick list)");
+  checkCall(m.recordsReadback.invalidate(), "vkInvalidateMappedMemoryRanges (probe records)");
+  checkCall(m.packed.invalidate(), "vkInvalidateMappedMemoryRanges (packed bricks)");
   const auto* list = m.brickListReadback.as<std::uint32_t>();
   const std::uint32_t changed = list[0];
   const float* packed = m.packed.as<float>();

@@ -45,7 +45,7 @@ TEST(VulkanContext, CreatesDeviceAndRoundTripsABuffer) {
     timer->end(cmd);
   });
   ASSERT_TRUE(s) << s.error().message;
-  dst->invalidate();
+  ASSERT_EQ(dst->invalidate(), VK_SUCCESS);
   EXPECT_EQ(std::memcmp(dst->mapped(), data.data(), 1024), 0);
   auto times = timer->results();
   if (timer->supported()) {

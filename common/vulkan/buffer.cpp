@@ -82,12 +82,12 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
   return *this;
 }
 
-void Buffer::invalidate() const {
-  if (coherent_ || !mapped_) return;
+VkResult Buffer::invalidate() const {
+  if (coherent_ || !mapped_) return VK_SUCCESS;
   VkMappedMemoryRange range{VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE};
   range.memory = memory_;
   range.size = VK_WHOLE_SIZE;
-  VK_CHECK(vkInvalidateMappedMemoryRanges(ctx_->device(), 1, &range));
+  return vkInvalidateMappedMemoryRanges(ctx_->device(), 1, &range);
 }
 
 void Buffer::write(const void* data, std::size_t bytes, std::size_t offset) const {

@@ -172,11 +172,6 @@ std::string vkErrorMessage(const char* call, VkResult result) {
   return std::string(call) + " failed: " + resultName(result);
 }
 
-void fatalVkError(const char* call, VkResult result, const char* file, int line) {
-  logError(std::string(file) + ":" + std::to_string(line) + ": " + vkErrorMessage(call, result));
-  std::abort();
-}
-
 VKAPI_ATTR VkBool32 VKAPI_CALL Context::onDebugMessage(
     VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT,
     const VkDebugUtilsMessengerCallbackDataEXT* data, void* user) {
@@ -509,6 +504,6 @@ Status Context::submitAndWait(const std::function<void(VkCommandBuffer)>& record
   return Status::success();
 }
 
-void Context::waitIdle() const { VK_CHECK(vkDeviceWaitIdle(device_)); }
+VkResult Context::waitIdle() const { return vkDeviceWaitIdle(device_); }
 
 }  // namespace pc::vk

@@ -5,7 +5,8 @@
 // Ownership: every wrapper owns its handle and destroys it in its destructor; wrappers move,
 // never copy. Wrappers keep a pointer to their Context, which must outlive them.
 // Errors: creation returns pc::Result / pc::Status with the failing call and VkResult name;
-// calls that cannot fail sensibly mid-frame use VK_CHECK (check.h), which logs and aborts.
+// calls that a lost device can fail later (waitIdle, Buffer::invalidate) return their VkResult.
+// Nothing here aborts: a GPU server falls back to the CPU, a client stops with a message.
 #pragma once
 
 #include <atomic>
@@ -97,7 +98,9 @@ class Context {
   // Records `record` into a one-shot command buffer, submits it and waits for it to finish.
   Status submitAndWait(const std::function<void(VkCommandBuffer)>& record) const;
 
-  void waitIdle() const;
+  // Waits for the device to finish its work. A lost device returns its error (it never
+  // aborts): destroying resources afterwards is still allowed, so destructors may ignore it.
+  VkResult waitIdle() const;
 
  private:
   Context() = default;
@@ -194,8 +197,9 @@ class Buffer {
   template <typename T>
   T* as() const { return static_cast<T*>(mapped_); }
   // Makes GPU writes visible to the host (no-op on coherent memory). Call after the GPU work
-  // that wrote the buffer finished.
-  void invalidate() const;
+  // that wrote the buffer finished. A lost device can fail it: the caller decides what that
+  // means (the tracer reports a TracerFailure, the client renderer stops).
+  [[nodiscard]] VkResult invalidate() const;
   // Copies `bytes` to the start of a mapped buffer.
   void write(const void* data, std::size_t bytes, std::size_t offset = 0) const;
   VkDescriptorBufferInfo descriptor() const { return {buffer_, 0, VK_WHOLE_SIZE}; }
