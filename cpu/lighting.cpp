@@ -169,9 +169,10 @@ bool EmissiveLights::sampled(int material) const {
          sampledMaterials_[material];
 }
 
+template <class R>
 glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
                            const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
-                           glm::vec3 N, Rng& rng, const DirectLightOptions& options) {
+                           glm::vec3 N, R& rng, const DirectLightOptions& options) {
   glm::vec3 E(0.0f);
   std::uint64_t shadowRays = 0;
   // Counted locally and added once: the counter may be shared by a thread's many calls.
@@ -248,6 +249,13 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
   }
   return E + sum / float(samples);
 }
+
+template glm::vec3 directIrradiance<Rng>(const EmbreeScene&, const SceneState&,
+                                         const EmissiveLights&, glm::vec3, glm::vec3, glm::vec3,
+                                         Rng&, const DirectLightOptions&);
+template glm::vec3 directIrradiance<RayRng>(const EmbreeScene&, const SceneState&,
+                                            const EmissiveLights&, glm::vec3, glm::vec3, glm::vec3,
+                                            RayRng&, const DirectLightOptions&);
 
 glm::vec3 offsetRayOrigin(glm::vec3 P, glm::vec3 n) {
   // Move the point a fixed number of float steps (ulps) along the normal, so the offset

@@ -58,14 +58,23 @@ struct DirectLightOptions {
 // Irradiance E (W/m^2) arriving at P (normal N, unit) directly from lights, shadowed.
 // Multiply by albedo / pi for the reflected radiance of a diffuse surface. The lights are
 // evaluated at P; the shadow rays leave from `shadowOrigin`, P moved off its surface
-// (gpu::pcShadowOrigin, offsetRayOrigin), toward each light or emitter sample.
+// (gpu::pcShadowOrigin, offsetRayOrigin), toward each light or emitter sample. Emitter samples
+// draw from `rng`: an Rng, or a probe ray's RayRng (cpu/random.h).
+template <class R>
 glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
                            const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
-                           glm::vec3 N, Rng& rng, const DirectLightOptions& options = {});
+                           glm::vec3 N, R& rng, const DirectLightOptions& options = {});
+extern template glm::vec3 directIrradiance<Rng>(const EmbreeScene&, const SceneState&,
+                                                const EmissiveLights&, glm::vec3, glm::vec3,
+                                                glm::vec3, Rng&, const DirectLightOptions&);
+extern template glm::vec3 directIrradiance<RayRng>(const EmbreeScene&, const SceneState&,
+                                                   const EmissiveLights&, glm::vec3, glm::vec3,
+                                                   glm::vec3, RayRng&, const DirectLightOptions&);
 // The same with the shadow rays leaving from P itself (P already off its surface).
-inline glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
-                                  const EmissiveLights& emissive, glm::vec3 P, glm::vec3 N,
-                                  Rng& rng, const DirectLightOptions& options = {}) {
+template <class R>
+glm::vec3 directIrradiance(const EmbreeScene& scene, const SceneState& state,
+                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 N, R& rng,
+                           const DirectLightOptions& options = {}) {
   return directIrradiance(scene, state, emissive, P, P, N, rng, options);
 }
 

@@ -3,6 +3,8 @@
 
 #include <cstdint>
 
+#include "../shaders/interop/probe_math.h"
+
 namespace pc {
 
 class Rng {
@@ -25,6 +27,23 @@ class Rng {
  private:
   std::uint64_t state_ = 0;
   std::uint64_t inc_;
+};
+
+// One probe ray's random stream in a field update, the GPU shade pass's own
+// (gpu::pcRayRandomSeed): keyed by the ray, not drawn in sequence over a probe's rays, so the
+// Embree and Vulkan backends light a hit with the same emitter samples.
+class RayRng {
+ public:
+  RayRng(std::uint32_t seed, std::uint32_t rayIndex)
+      : state_(gpu::pcRayRandomSeed(seed, rayIndex)) {}
+  // Uniform in [0, 1).
+  float uniform() {
+    state_ = gpu::pcHash(state_);
+    return gpu::pcHashToFloat(state_);
+  }
+
+ private:
+  std::uint32_t state_;
 };
 
 }  // namespace pc

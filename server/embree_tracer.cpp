@@ -124,7 +124,6 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
       const ProbeRef ref = request.probes[p];
       const glm::vec3 origin = field.probePosition(ref.cascade, ref.slot);
       const float near = gpu::pcProbeRayNear(field.cascade(ref.cascade));
-      Rng rng(request.rotationSeed * 0x9E3779B97F4A7C15ull + p, 7);
       RayResult* out = &results[p * rayCount];
       for (int i = 0; i < rayCount; ++i) {
         Hit hit;
@@ -138,8 +137,10 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
           out[i] = {glm::vec3(0.0f), -hit.t};
           continue;
         }
-        lightOptions.shadowRouletteKey = gpu::pcShadowRouletteKey(
-            request.rotationSeed, std::uint32_t(p * rayCount + std::size_t(i)));
+        const auto rayIndex = std::uint32_t(p * rayCount + std::size_t(i));
+        lightOptions.shadowRouletteKey = gpu::pcShadowRouletteKey(request.rotationSeed, rayIndex);
+        // The GPU shade pass's stream for this ray: the same emitter samples.
+        RayRng rng(std::uint32_t(request.rotationSeed), rayIndex);
         const glm::vec3 shadowOrigin =
             gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
         glm::vec3 irradiance = directIrradiance(*embree_, state_, emissive_, sp.position,

@@ -324,7 +324,7 @@ void main() {
   pending.tmax = 0.0f;
   ivec2 pr = pcLaunchProbeRay(launchIndex, params.probeCount, params.rayCount);
   rayIndex = uint(params.requestBase + pr.x) * uint(params.rayCount) + uint(pr.y);
-  rngState = pcHash(params.seed * 0x9E3779B9u ^ pcHash(rayIndex));
+  rngState = pcRayRandomSeed(params.seed, rayIndex);
   vec3 dir = rayDirs[pr.y].xyz;
   GpuHit hit = hits[launchIndex];
   if (hit.instance < 0) {

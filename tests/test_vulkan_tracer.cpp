@@ -292,12 +292,12 @@ namespace pc {
 namespace {
 
 // The McGuire Cornell box lights the room with a small emissive quad, sampled as a light with
-// shadow rays. The two backends draw their light samples from different random streams, so
-// single updates differ by sampling noise; after a bake of many updates both fields converge
-// to the same answer. Tolerance: 2% mean relative difference for irradiance (lavapipe measured
-// 0.66% after a 24-update bake of 4x4x4 probes: the remaining sampling noise of both fields);
-// depth has no sampling noise and keeps the 1% bound.
-TEST(VulkanTracer, LightSampledEmittersConvergeToEmbree) {
+// shadow rays. Both backends draw a ray's emitter samples from the same stream
+// (gpu::pcRayRandomSeed: keyed by the update's seed and the ray), so after the same updates
+// they hold the same field up to rounding: lavapipe measured 3.6e-7 irradiance after 2 updates
+// of 8x8x8 probes, where streams drawn per probe on the CPU had left 0.66% after a 24-update
+// bake. Tolerance 1e-3: far under the sampling noise two different streams would leave.
+TEST(VulkanTracer, LightSampledEmittersMatchEmbree) {
   const std::string path = std::string(PC_SCENES_DIR) + "/mcguire-cornellbox/CornellBox-Original.obj";
   auto scene = loadScene(path);
   if (!scene) GTEST_SKIP() << "no shared scenes: " << scene.error().message;
@@ -313,15 +313,15 @@ TEST(VulkanTracer, LightSampledEmittersConvergeToEmbree) {
   Field fg = Field::create(volumes, FieldSettings{});
   Field fc = Field::create(volumes, FieldSettings{});
   BakeOptions bake;
-  bake.updates = 24;
+  bake.updates = 4;
   bakeField(fg, *gpu, bake);
   bakeField(fc, **cpu, bake);
   const FieldDifference d = compareFields(fg, fc);
   std::printf("cornell box (sampled emitter): %d active probes, irradiance rel diff %.2e, depth rel diff %.2e\n",
               d.probes, d.irradiance, d.depth);
   EXPECT_GT(d.probes, 32);
-  EXPECT_LE(d.irradiance, 0.02);
-  EXPECT_LE(d.depth, 0.01);
+  EXPECT_LE(d.irradiance, 1e-3);
+  EXPECT_LE(d.depth, 1e-3);
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
 }
 

@@ -75,6 +75,14 @@ PC_FN uint pcHash(uint v) {
 }
 PC_FN float pcHashToFloat(uint h) { return float(h >> 8u) * (1.0f / 16777216.0f); }
 
+// The first state of a probe ray's random stream in a field update: `seed` the update's
+// rotation seed, `rayIndex` = request index x rays per probe + ray. Each draw hashes the state
+// again (pcHash) and maps it with pcHashToFloat. Both backends shade a ray with this stream
+// (probe_shade.comp, server/embree_tracer.cpp), so they sample the same points on emitters.
+PC_FN uint pcRayRandomSeed(uint seed, uint rayIndex) {
+  return pcHash(seed * 0x9E3779B9u ^ pcHash(rayIndex));
+}
+
 // Rec. 709 luminance of linear RGB.
 PC_FN float pcLuminance(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
