@@ -184,6 +184,16 @@ class GltfReader {
     if (have != comps)
       throw GltfError{std::string(what) + " accessor " + std::to_string(index) + " has " +
                       std::to_string(have) + " components, expected " + std::to_string(comps)};
+    if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT &&
+        a.componentType != TINYGLTF_COMPONENT_TYPE_BYTE &&
+        a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+        a.componentType != TINYGLTF_COMPONENT_TYPE_SHORT &&
+        a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT)
+      throw GltfError{std::string(what) + " accessor " + std::to_string(index) +
+                      " has component type " + std::to_string(a.componentType) +
+                      " (glTF allows float, byte, short and their unsigned forms here)"};
+    forEachElement(a, index,
+                   [](const unsigned char*, std::size_t) {});  // checked before allocating
     std::vector<float> out(a.count * comps, 0.0f);
     forEachElement(a, index, [&](const unsigned char* src, std::size_t i) {
       for (int c = 0; c < comps; ++c) out[i * comps + c] = component(src, a, c);
@@ -196,6 +206,8 @@ class GltfReader {
     const tinygltf::Accessor& a = m_.accessors[index];
     if (tinygltf::GetNumComponentsInType(a.type) != 1)
       throw GltfError{"index accessor " + std::to_string(index) + " is not scalar"};
+    forEachElement(a, index,
+                   [](const unsigned char*, std::size_t) {});  // checked before allocating
     std::vector<std::uint32_t> out(a.count, 0);
     forEachElement(a, index, [&](const unsigned char* src, std::size_t i) {
       switch (a.componentType) {
@@ -250,34 +262,103 @@ class GltfReader {
     }
   }
 
-  // Calls f(pointer to element i, i) for every element, after checking the whole range lies
-  // inside its buffer (a truncated or lying file must not make us read past the end).
-  template <typename F>
-  void forEachElement(const tinygltf::Accessor& a, int index, F&& f) {
-    if (a.sparse.isSparse)
-      throw GltfError{"accessor " + std::to_string(index) + " is sparse (not supported)"};
-    if (a.count == 0) return;
-    if (a.bufferView < 0) {
-      // No buffer view: the spec says all zeros, which our zero-filled outputs already are.
-      return;
-    }
-    check(a.bufferView, m_.bufferViews.size(), "bufferView");
-    const tinygltf::BufferView& view = m_.bufferViews[a.bufferView];
+  // The bytes of `count` elements of `elemSize`, `stride` apart, from `offset` in buffer view
+  // `viewIndex`: checked to lie inside the view and its buffer (a truncated or lying file must
+  // not make us read past the end), without overflow whatever the counts claim.
+  const unsigned char* elements(int viewIndex, std::size_t offset, std::size_t count,
+                                std::size_t elemSize, std::size_t stride, const std::string& what) {
+    check(viewIndex, m_.bufferViews.size(), "bufferView");
+    const tinygltf::BufferView& view = m_.bufferViews[viewIndex];
     check(view.buffer, m_.buffers.size(), "buffer");
     const tinygltf::Buffer& buf = m_.buffers[view.buffer];
-    int compSize = tinygltf::GetComponentSizeInBytes(a.componentType);
-    int comps = tinygltf::GetNumComponentsInType(a.type);
+    const std::size_t limit = std::min(view.byteOffset + view.byteLength, buf.data.size());
+    const std::size_t start = view.byteOffset + offset;
+    bool fits = start <= limit && elemSize <= limit - start;
+    if (fits && count > 1) {
+      const std::size_t room = limit - start - elemSize;  // for the other count - 1 strides
+      fits = stride == 0 || (count - 1) <= room / stride;
+    }
+    if (!fits) {
+      const long double needs = (long double)start +
+                                (long double)stride * (long double)(count - 1) +
+                                (long double)elemSize;
+      throw GltfError{what + " reads past the end of buffer " + std::to_string(view.buffer) +
+                      " (needs " +
+                      std::to_string((unsigned long long)std::min<long double>(needs, 1.8e19L)) +
+                      " bytes, has " + std::to_string(limit) + ")"};
+    }
+    return buf.data.data() + start;
+  }
+
+  // Accessors without a buffer view are zeros (then sparse values): their counts cost memory
+  // without bytes in the file to back them, so they are held to this many elements.
+  static constexpr std::size_t kMaxUnbackedElements = std::size_t(1) << 26;
+
+  // Checks accessor `index` whole (its elements and its sparse values lie inside their
+  // buffers) and calls f(pointer to element i, i) for every element, then for every sparse
+  // value with the index it replaces. Callers call it once with a no-op f before allocating
+  // for a.count elements, so that a count no file backs is an error, not an allocation.
+  template <typename F>
+  void forEachElement(const tinygltf::Accessor& a, int index, F&& f) {
+    const std::string what = "accessor " + std::to_string(index);
+    const int compSize = tinygltf::GetComponentSizeInBytes(a.componentType);
+    const int comps = tinygltf::GetNumComponentsInType(a.type);
     if (compSize <= 0 || comps <= 0)
-      throw GltfError{"accessor " + std::to_string(index) + " has an invalid type"};
-    std::size_t elemSize = std::size_t(compSize) * comps;
-    std::size_t stride = view.byteStride ? view.byteStride : elemSize;
-    std::size_t start = view.byteOffset + a.byteOffset;
-    std::size_t end = start + stride * (a.count - 1) + elemSize;
-    if (end > view.byteOffset + view.byteLength || end > buf.data.size())
-      throw GltfError{"accessor " + std::to_string(index) + " reads past the end of buffer " +
-                      std::to_string(view.buffer) + " (needs " + std::to_string(end) +
-                      " bytes, has " + std::to_string(buf.data.size()) + ")"};
-    for (std::size_t i = 0; i < a.count; ++i) f(buf.data.data() + start + i * stride, i);
+      throw GltfError{what + " has an invalid component type " + std::to_string(a.componentType) +
+                      " or type " + std::to_string(a.type)};
+    const std::size_t elemSize = std::size_t(compSize) * std::size_t(comps);
+    if (a.count == 0) return;
+    if (a.bufferView >= 0) {
+      check(a.bufferView, m_.bufferViews.size(), "bufferView");
+      const std::size_t byteStride = m_.bufferViews[a.bufferView].byteStride;
+      const std::size_t stride = byteStride ? byteStride : elemSize;
+      const unsigned char* base =
+          elements(a.bufferView, a.byteOffset, a.count, elemSize, stride, what);
+      for (std::size_t i = 0; i < a.count; ++i) f(base + i * stride, i);
+    } else if (a.count > kMaxUnbackedElements) {
+      throw GltfError{what + " has " + std::to_string(a.count) +
+                      " elements and no buffer view; at most " +
+                      std::to_string(kMaxUnbackedElements) + " are read without one"};
+    }
+    if (!a.sparse.isSparse) return;
+    // Sparse: `count` indices (strictly increasing, tightly packed) and as many values, each
+    // replacing the element at its index.
+    const std::string sw = what + " sparse";
+    if (a.sparse.count <= 0 || std::size_t(a.sparse.count) > a.count)
+      throw GltfError{sw + " count " + std::to_string(a.sparse.count) + " is not in 1.." +
+                      std::to_string(a.count)};
+    const std::size_t n = std::size_t(a.sparse.count);
+    const int indexSize = tinygltf::GetComponentSizeInBytes(a.sparse.indices.componentType);
+    if (a.sparse.indices.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+        a.sparse.indices.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        a.sparse.indices.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+      throw GltfError{sw + " indices have component type " +
+                      std::to_string(a.sparse.indices.componentType) + ", not an unsigned integer"};
+    if (a.sparse.indices.byteOffset < 0 || a.sparse.values.byteOffset < 0)
+      throw GltfError{sw + " has a negative byte offset"};
+    const unsigned char* indices =
+        elements(a.sparse.indices.bufferView, std::size_t(a.sparse.indices.byteOffset), n,
+                 std::size_t(indexSize), std::size_t(indexSize), sw + " indices");
+    const unsigned char* values =
+        elements(a.sparse.values.bufferView, std::size_t(a.sparse.values.byteOffset), n, elemSize,
+                 elemSize, sw + " values");
+    for (std::size_t k = 0; k < n; ++k) {
+      const unsigned char* at = indices + k * std::size_t(indexSize);
+      std::uint32_t i = 0;
+      if (indexSize == 1) {
+        i = at[0];
+      } else if (indexSize == 2) {
+        std::uint16_t v;
+        std::memcpy(&v, at, 2);
+        i = v;
+      } else {
+        std::memcpy(&i, at, 4);
+      }
+      if (i >= a.count)
+        throw GltfError{sw + " index " + std::to_string(i) + " (at " + std::to_string(k) +
+                        ") out of range (" + std::to_string(a.count) + " elements)"};
+      f(values + k * elemSize, std::size_t(i));
+    }
   }
 
   // Where a material's textures take their coordinates from: a TEXCOORD set and, with

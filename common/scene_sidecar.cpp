@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "common/scene_loaders.h"
+#include "shaders/interop/field_desc.h"
 
 namespace pc::scene_detail {
 
@@ -35,6 +36,9 @@ Result<fs::path> findSidecar(const fs::path& scene, const fs::path& explicitSide
 }
 
 namespace {
+
+// The most probes the volumes may hold in all: 2^22, about 17 GB of atlases.
+constexpr std::uint64_t kMaxSidecarProbes = std::uint64_t(1) << 22;
 
 // Thrown while reading the sidecar, caught in applySidecar: `pointer` locates the bad value.
 struct SidecarError {
@@ -347,9 +351,23 @@ void applyJson(Scene& scene, const json& root) {
     scene.volumes.clear();
     for (std::size_t i = 0; i < vols.size(); ++i)
       scene.volumes.push_back(parseVolume(vols[i], at("/volumes", i)));
+    if (vols.size() > std::size_t(gpu::PC_MAX_CASCADES))
+      fail("/volumes", std::to_string(vols.size()) + " volumes; a field has at most " +
+                           std::to_string(gpu::PC_MAX_CASCADES) + " cascades");
     for (std::size_t i = 1; i < scene.volumes.size(); ++i)
       if (scene.volumes[i].spacing < scene.volumes[i - 1].spacing)
         fail(at("/volumes", i) + "/spacing", "cascades must be ordered finest first");
+    // Every probe holds about 4 KB of atlases on every machine that holds the field: checked
+    // here, before anything is allocated for it.
+    std::uint64_t probes = 0;
+    for (std::size_t i = 0; i < scene.volumes.size(); ++i) {
+      const glm::ivec3 n = scene.volumes[i].counts;
+      probes += std::uint64_t(n.x) * std::uint64_t(n.y) * std::uint64_t(n.z);
+      if (probes > kMaxSidecarProbes)
+        fail(at("/volumes", i),
+             "the volumes hold " + std::to_string(probes) + " probes up to here; at most " +
+                 std::to_string(kMaxSidecarProbes) + " in all (each holds about 4 KB of atlases)");
+    }
   }
 
   std::vector<std::string> animationNames;

@@ -303,6 +303,81 @@ TEST(GltfLoad, QuadWithMaterialEmissionAndGeneratedNormals) {
   EXPECT_EQ(s.instances[0].name, "quad");
 }
 
+// Sparse accessors: a base of positions with one element replaced, and positions with no
+// buffer view (zeros) made whole by sparse values. Both are valid glTF that exporters write.
+TEST(Gltf, SparseAccessorsReplaceTheirElements) {
+  TempDir dir;
+  std::vector<unsigned char> bytes = quadBuffer();  // 48 bytes of positions, 12 of indices
+  auto append = [&](const void* p, std::size_t n) {
+    const auto* b = static_cast<const unsigned char*>(p);
+    bytes.insert(bytes.end(), b, b + n);
+  };
+  const float moved[3] = {1.0f, 2.0f, 0.0f};  // at 60: replaces element 2, (1, 1, 0)
+  append(moved, sizeof moved);
+  const float whole[12] = {0, 0, 0, 3, 0, 0, 3, 3, 0, 0, 3, 0};  // at 72: all four elements
+  append(whole, sizeof whole);
+  const unsigned char which[6] = {2, 0, 1, 2, 3, 9};  // at 120: uint8 indices (9: none)
+  append(which, sizeof which);
+  writeBytes(dir / "sparse.bin", bytes);
+  const std::string gltf = R"({
+  "asset": {"version": "2.0"},
+  "buffers": [{"uri": "sparse.bin", "byteLength": )" +
+                           std::to_string(bytes.size()) + R"(}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                  {"buffer": 0, "byteOffset": 48, "byteLength": 12},
+                  {"buffer": 0, "byteOffset": 60, "byteLength": 60},
+                  {"buffer": 0, "byteOffset": 120, "byteLength": 6}],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+     "sparse": {"count": 1, "indices": {"bufferView": 3, "componentType": 5121},
+                "values": {"bufferView": 2}}},
+    {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"},
+    {"componentType": 5126, "count": 4, "type": "VEC3",
+     "sparse": {"count": 4, "indices": {"bufferView": 3, "byteOffset": 1, "componentType": 5121},
+                "values": {"bufferView": 2, "byteOffset": 12}}}],
+  "meshes": [{"name": "based", "primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]},
+             {"name": "unbacked", "primitives": [{"attributes": {"POSITION": 2}, "indices": 1}]}],
+  "nodes": [{"mesh": 0}, {"mesh": 1}],
+  "scenes": [{"nodes": [0, 1]}], "scene": 0})";
+  writeFile(dir / "sparse.gltf", gltf);
+  auto r = pc::loadScene(dir / "sparse.gltf", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  ASSERT_EQ(r->meshes.size(), 2u);
+  const pc::Mesh& based = r->meshes[0];
+  const pc::Mesh& unbacked = r->meshes[1];
+  ASSERT_EQ(based.positions.size(), 4u);
+  expectNear(based.positions[1], {1, 0, 0});  // from the base
+  expectNear(based.positions[2], {1, 2, 0});  // replaced
+  ASSERT_EQ(unbacked.positions.size(), 4u);
+  expectNear(unbacked.positions[0], {0, 0, 0});
+  expectNear(unbacked.positions[2], {3, 3, 0});
+  expectNear(r->boundsMax, {3, 3, 0});
+
+  // A sparse index past the accessor's count is an error naming it.
+  std::string bad = gltf;
+  const std::string one =
+      R"("sparse": {"count": 1, "indices": {"bufferView": 3, "componentType": 5121})";
+  bad.replace(
+      bad.find(one), one.size(),
+      R"("sparse": {"count": 1, "indices": {"bufferView": 3, "byteOffset": 5, "componentType": 5121})");
+  writeFile(dir / "bad.gltf", bad);
+  expectError(pc::loadScene(dir / "bad.gltf", emptySidecar(dir)), "bad.gltf",
+              "accessor 0 sparse index 9 (at 0) out of range (4 elements)");
+}
+
+// A count that no bytes back is refused before anything is allocated for it.
+TEST(BadFiles, GltfAccessorCountPastItsBuffer) {
+  TempDir dir;
+  std::string json = quadGltf("quad.bin");
+  writeBytes(dir / "quad.bin", quadBuffer());
+  const std::string count = R"("count": 4)";
+  ASSERT_NE(json.find(count), std::string::npos);
+  json.replace(json.find(count), count.size(), R"("count": 1099511627776)");  // 2^40
+  writeFile(dir / "huge.gltf", json);
+  expectError(pc::loadScene(dir / "huge.gltf", emptySidecar(dir)), "huge.gltf",
+              "reads past the end of buffer 0 (needs 13194139533312 bytes, has 48)");
+}
+
 // quad.gltf with `members` (JSON) added to its one material and `alpha` as its base colour
 // factor's alpha.
 pc::Result<Scene> loadQuadWithMaterial(const TempDir& dir, const std::string& members,
@@ -655,6 +730,29 @@ TEST(BadFiles, SidecarWrongTypesNamePointer) {
   writeFile(dir / "s5.json", R"({"animations": [{"type": "rotate", "instances": ["nope"]}]})");
   expectError(pc::loadScene(scene, dir / "s5.json"), "s5.json",
               "at /animations/0/instances/0: no node or mesh named 'nope'");
+}
+
+TEST(BadFiles, SidecarVolumesBeyondWhatAFieldHolds) {
+  TempDir dir;
+  fs::path scene = writeQuadGltf(dir);
+  std::string five = R"({"volumes": [)";
+  for (int i = 0; i < 5; ++i)
+    five += std::string(i ? ", " : "") + R"({"origin": [0, 0, 0], "spacing": )" +
+            std::to_string(i + 1) + R"(, "counts": [2, 2, 2]})";
+  writeFile(dir / "v1.json", five + "]}");
+  expectError(pc::loadScene(scene, dir / "v1.json"), "v1.json",
+              "at /volumes: 5 volumes; a field has at most 4 cascades");
+  // Each axis within its bound, the whole far past any memory: refused before allocating.
+  writeFile(
+      dir / "v2.json",
+      R"({"volumes": [{"origin": [0, 0, 0], "spacing": 0.001, "counts": [2000, 2000, 2000]}]})");
+  expectError(pc::loadScene(scene, dir / "v2.json"), "v2.json",
+              "at /volumes/0: the volumes hold 8000000000 probes up to here; at most 4194304");
+  writeFile(dir / "v3.json",
+            R"({"volumes": [{"min": [0, 0, 0], "max": [1, 1, 1], "spacing": 0.0067},
+                                             {"min": [0, 0, 0], "max": [1, 1, 1], "spacing": 0.01}]})");
+  expectError(pc::loadScene(scene, dir / "v3.json"), "v3.json",
+              "at /volumes/1: the volumes hold 4405301 probes up to here");
 }
 
 // ---------------------------------------------------------------------------------------------
