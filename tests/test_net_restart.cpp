@@ -46,13 +46,18 @@ class Child {
   }
   ~Child() { kill(SIGKILL); }
   bool running() const { return pid_ > 0; }
-  // Whether the process has exited (reaped here).
+  // Whether the process has exited (reaped here; its status kept).
   bool exited() {
     if (pid_ <= 0) return true;
-    int status = 0;
-    if (waitpid(pid_, &status, WNOHANG) != pid_) return false;
+    if (waitpid(pid_, &status_, WNOHANG) != pid_) return false;
     pid_ = -1;
     return true;
+  }
+  // The exit code once exited() said so; -1 where a signal ended it.
+  int exitCode() const { return WIFEXITED(status_) ? WEXITSTATUS(status_) : -1; }
+  // Sends a signal without waiting for the process.
+  void signal(int sig) const {
+    if (pid_ > 0) ::kill(pid_, sig);
   }
   void kill(int sig) {
     if (pid_ <= 0) return;
@@ -64,6 +69,7 @@ class Child {
 
  private:
   pid_t pid_ = -1;
+  int status_ = 0;
 };
 
 std::uint16_t freePort() {
@@ -192,6 +198,37 @@ TEST(NetRestart, HeadlessClientKeepsRenderingReconnectsAndResyncs) {
 // (--gpu-fail-submission): the server logs the failure, its field thread goes on with Embree
 // from the last completed field, and the client, still in its first session, keeps receiving
 // new versions.
+// A warm-up bake of a large scene can take minutes on the CPU: SIGTERM must end it between
+// updates, not wait for it (here a warm-up of a million updates, which would take hours).
+TEST(NetRestart, ServerStopsOnSigtermDuringItsWarmUp) {
+  if (!fs::exists(kBin + "probecast-server")) GTEST_SKIP() << "probecast-server is not built";
+  const fs::path dir = fs::path(PC_BUILD_DIR) / "test-net-warm-up-signal";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path log = dir / "server.log";
+  std::vector<std::string> args = {kBin + "probecast-server", "--port", std::to_string(freePort())};
+  for (const char* a : {"--scene", "builtin", "--backend", "embree", "--rays", "64", "--warmup",
+                        "1000000", "--bind", "127.0.0.1", "--token", "t", "--stats-interval", "0"})
+    args.push_back(a);
+  Child server(args, log);
+  ASSERT_TRUE(server.running());
+  ASSERT_TRUE(waitUntil(
+      [&] {
+        return readText(log).find("warm-up: 1000000 updates") != std::string::npos ||
+               server.exited();
+      },
+      60.0))
+      << readText(log);
+  ASSERT_FALSE(server.exited()) << readText(log);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // into the updates
+  server.signal(SIGTERM);
+  EXPECT_TRUE(waitUntil([&] { return server.exited(); }, 30.0)) << readText(log);
+  EXPECT_EQ(server.exitCode(), 0);
+  const std::string text = readText(log);
+  EXPECT_NE(text.find("shutting down (SIGTERM) during the warm-up"), std::string::npos) << text;
+  EXPECT_EQ(text.find("ready port"), std::string::npos) << text;
+}
+
 TEST(NetRestart, ServerGoesOnOnTheCpuWhenItsGpuFails) {
   if (!fs::exists(kBin + "probecast-server") || !fs::exists(kBin + "probecast-client"))
     GTEST_SKIP() << "probecast-server and probecast-client are not built";

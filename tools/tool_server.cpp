@@ -169,6 +169,22 @@ int main(int argc, char** argv) {
   if (!onCpu && !noFallback)
     loop.fallback = [&scene, tracerOptions] { return pc::makeEmbreeTracer(*scene, tracerOptions); };
 
+  // Before the main loop, a signal found between warm-up updates ends the process: a large
+  // scene's warm-up on the CPU can take minutes, and SIGTERM must not wait for it.
+  struct Interrupted {
+    int signal;
+  };
+  auto pendingSignal = [&signals] {
+    timespec now{0, 0};
+    const int sig = sigtimedwait(&signals, nullptr, &now);
+    return sig == SIGINT || sig == SIGTERM ? sig : 0;
+  };
+  auto signalName = [](int sig) { return sig == SIGINT ? "SIGINT" : "SIGTERM"; };
+  if (const int sig = pendingSignal()) {
+    pc::logInfo(std::string("shutting down (") + signalName(sig) + ") before the field exists");
+    return 0;
+  }
+
   pc::Field field;
   if (!probes.empty()) {
     auto baked = pc::readBakedField(probes, scene->hash);
@@ -184,21 +200,42 @@ int main(int argc, char** argv) {
       field.sceneHash = scene->hash;
       pc::BakeOptions bake;
       bake.updates = warmup;
+      const double began = pc::steadySeconds();
+      double logged = began;
+      bake.progress = [&](int done, int total) {
+        if (const int sig = pendingSignal()) throw Interrupted{sig};
+        const double now = pc::steadySeconds();
+        if (now - logged >= 5.0 && done < total) {  // a slow warm-up says how far it is
+          char line[128];
+          std::snprintf(line, sizeof line, "warm-up: %d of %d updates, %.1f s", done, total,
+                        now - began);
+          pc::logInfo(line);
+          logged = now;
+        }
+      };
+      pc::logInfo("warm-up: " + std::to_string(warmup) + " updates of " +
+                  std::to_string(field.desc.probeCount) + " probes on " + t.name());
       t.setState(pc::evaluateScene(*scene, loop.startTime));
       pc::bakeField(field, t, bake);
     };
     try {
-      warmUp(**tracer);
-    } catch (const pc::TracerFailure& e) {
-      // No client yet: the warm-up starts over on the fallback, from a fresh field.
-      pc::logError(std::string("warm-up bake failed: ") + e.what());
-      if (!loop.fallback) return 1;
-      auto cpu = loop.fallback();
-      if (!cpu) return pc::logError("fallback tracer: " + cpu.error().message), 1;
-      pc::logWarn("the warm-up and the field updates go on with the " + (*cpu)->name() + " tracer");
-      tracer = std::move(cpu);
-      loop.fallback = nullptr;
-      warmUp(**tracer);
+      try {
+        warmUp(**tracer);
+      } catch (const pc::TracerFailure& e) {
+        // No client yet: the warm-up starts over on the fallback, from a fresh field.
+        pc::logError(std::string("warm-up bake failed: ") + e.what());
+        if (!loop.fallback) return 1;
+        auto cpu = loop.fallback();
+        if (!cpu) return pc::logError("fallback tracer: " + cpu.error().message), 1;
+        pc::logWarn("the warm-up and the field updates go on with the " + (*cpu)->name() +
+                    " tracer");
+        tracer = std::move(cpu);
+        loop.fallback = nullptr;
+        warmUp(**tracer);
+      }
+    } catch (const Interrupted& i) {
+      pc::logInfo(std::string("shutting down (") + signalName(i.signal) + ") during the warm-up");
+      return 0;
     }
   }
   pc::logInfo("field: " + std::to_string(field.desc.probeCount) + " probe slots, " +
@@ -239,7 +276,7 @@ int main(int argc, char** argv) {
     timespec wait{0, 200'000'000};
     const int sig = sigtimedwait(&signals, nullptr, &wait);
     if (sig == SIGINT || sig == SIGTERM) {
-      pc::logInfo(std::string("shutting down (") + (sig == SIGINT ? "SIGINT" : "SIGTERM") + ")");
+      pc::logInfo(std::string("shutting down (") + signalName(sig) + ")");
       break;
     }
     const double now = pc::steadySeconds();
