@@ -3,10 +3,12 @@
 #include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
 #include <tiny_obj_loader.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <unordered_map>
 
@@ -202,14 +204,23 @@ class ObjBuilder {
 };
 
 // tinyobj reads "nan" and "inf" as 0, so non-finite coordinates are looked for in the text
-// itself (the file is read once more; cheap next to parsing).
-Status checkVertexLines(const std::filesystem::path& path) {
+// itself (the file is read once more; cheap next to parsing). The same pass keeps each mtllib
+// line's whole argument for MtlReader.
+Status checkVertexLines(const std::filesystem::path& path, std::vector<std::string>& mtllibs) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
   std::size_t lineNo = 0, vertex = 0;
   while (std::getline(in, line)) {
     ++lineNo;
     std::size_t i = line.find_first_not_of(" \t");
+    if (i != std::string::npos && line.compare(i, 7, "mtllib ") == 0) {
+      std::string name = line.substr(i + 7);
+      while (!name.empty() && (name.back() == '\r' || name.back() == ' ' || name.back() == '\t'))
+        name.pop_back();
+      name.erase(0, name.find_first_not_of(" \t"));
+      if (!name.empty()) mtllibs.push_back(name);
+      continue;
+    }
     if (i == std::string::npos || line[i] != 'v' || i + 1 >= line.size() ||
         (line[i + 1] != ' ' && line[i + 1] != '\t'))
       continue;
@@ -226,28 +237,84 @@ Status checkVertexLines(const std::filesystem::path& path) {
   return Status::success();
 }
 
+// Reads the .mtl files an OBJ names, from the OBJ's folder. mtllib lists file names separated
+// by spaces, and tinyobj asks for them one at a time, stopping at the first that loads. So the
+// first request from an mtllib line reads the whole line's files here: its whole argument where
+// that is one file ("my materials.mtl": exporters write names with spaces), else every name on
+// it that is a file.
+class MtlReader : public tinyobj::MaterialReader {
+ public:
+  MtlReader(std::filesystem::path dir, std::vector<std::string> lines)
+      : dir_(std::move(dir)), lines_(std::move(lines)) {}
+
+  bool operator()(const std::string& name, std::vector<tinyobj::material_t>* materials,
+                  std::map<std::string, int>* materialMap, std::string* warn,
+                  std::string* err) override {
+    std::vector<std::string> files;
+    for (const std::string& line : lines_) {
+      const std::vector<std::string> tokens = split(line);
+      if (std::find(tokens.begin(), tokens.end(), name) == tokens.end()) continue;
+      if (isFile(line)) {
+        files = {line};
+      } else {
+        for (const std::string& t : tokens)
+          if (isFile(t)) files.push_back(t);
+      }
+      break;
+    }
+    if (files.empty() && isFile(name)) files = {name};
+    if (files.empty()) {
+      if (warn) *warn += "material file '" + name + "' not found in " + dir_.string() + "\n";
+      return false;
+    }
+    for (const std::string& f : files) {
+      if (!read_.insert(f).second) continue;  // read for an earlier line
+      std::ifstream in(dir_ / f, std::ios::binary);
+      tinyobj::LoadMtl(materialMap, materials, &in, warn, err);
+    }
+    return true;
+  }
+
+ private:
+  static std::vector<std::string> split(const std::string& line) {
+    std::istringstream in(line);
+    std::vector<std::string> out;
+    for (std::string t; in >> t;) out.push_back(t);
+    return out;
+  }
+  bool isFile(const std::string& name) const {
+    std::error_code ec;
+    return std::filesystem::is_regular_file(dir_ / name, ec);
+  }
+
+  std::filesystem::path dir_;
+  std::vector<std::string> lines_;
+  std::set<std::string> read_;
+};
+
 }  // namespace
 
 Result<Scene> loadObj(const std::filesystem::path& path) {
-  if (Status s = checkVertexLines(path); !s) return s.error();
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = true;
-  config.vertex_color = false;
-  config.mtl_search_path = path.parent_path().string();
-  tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path.string(), config)) {
-    std::string why = reader.Error();
+  std::vector<std::string> mtllibs;
+  if (Status s = checkVertexLines(path, mtllibs); !s) return s.error();
+  std::ifstream objText(path, std::ios::binary);
+  if (!objText) return Error{path.string() + ": cannot open"};
+  tinyobj::attrib_t attrib;
+  std::vector<tinyobj::shape_t> shapes;
+  std::vector<tinyobj::material_t> materials;
+  std::string warning, why;
+  MtlReader mtl(path.parent_path(), mtllibs);
+  if (!tinyobj::LoadObj(&attrib, &shapes, &materials, &warning, &why, &objText, &mtl,
+                        /*triangulate=*/true, /*default_vcols_fallback=*/false)) {
     while (!why.empty() && why.back() == '\n') why.pop_back();
     return Error{path.string() + ": cannot parse OBJ: " + (why.empty() ? "unknown error" : why)};
   }
   Scene scene;
   // A missing .mtl only costs colours; tinyobj reports it as a warning.
-  if (!reader.Warning().empty()) {
-    std::string w = reader.Warning();
-    while (!w.empty() && w.back() == '\n') w.pop_back();
-    scene.warnings.push_back(path.string() + ": " + w);
+  if (!warning.empty()) {
+    while (!warning.empty() && warning.back() == '\n') warning.pop_back();
+    scene.warnings.push_back(path.string() + ": " + warning);
   }
-  const tinyobj::attrib_t& attrib = reader.GetAttrib();
   // Non-finite coordinates would poison bounds and acceleration structures: refuse them here,
   // numbering vertices from 1 as the file's face lines do.
   for (std::size_t i = 0; i < attrib.vertices.size(); ++i)
@@ -255,8 +322,7 @@ Result<Scene> loadObj(const std::filesystem::path& path) {
       return Error{path.string() + ": vertex " + std::to_string(i / 3 + 1) +
                    " has a non-finite position"};
   ObjBuilder builder(path, attrib, scene);
-  builder.addMaterials(reader.GetMaterials());
-  const auto& shapes = reader.GetShapes();
+  builder.addMaterials(materials);
   for (std::size_t s = 0; s < shapes.size(); ++s)
     if (Status st = builder.addShape(shapes[s], s); !st) return st.error();
   return scene;

@@ -579,6 +579,31 @@ TEST(ObjLoad, SplitsByMaterialLoadsKdKeAndWarnsOnMissingTexture) {
   EXPECT_FLOAT_EQ(s.meshes[2].uvs[2].y, 0.0f);
 }
 
+// mtllib separates file names with spaces, but exporters write names that hold spaces: where
+// the tokens name no file and the whole argument does, that file is read. Two real files on
+// one line still both load.
+TEST(ObjLoad, MaterialFileNamesWithSpaces) {
+  TempDir dir;
+  writeFile(dir / "my materials.mtl", "newmtl lamp\nKd 0.5 0.5 0.5\nKe 3 2 1\n");
+  writeFile(dir / "a.mtl", "newmtl red\nKd 0.9 0.1 0.1\n");
+  writeFile(dir / "b.mtl", "newmtl blue\nKd 0.1 0.1 0.9\n");
+  const std::string quads = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+  writeFile(dir / "spaced.obj", "mtllib my materials.mtl\n" + quads + "usemtl lamp\nf 1 2 3 4\n");
+  auto r = pc::loadScene(dir / "spaced.obj", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  ASSERT_EQ(r->meshes.size(), 1u);
+  expectNear(r->materials[r->meshes[0].material].emissive, {3, 2, 1});
+  for (const std::string& w : r->warnings) ADD_FAILURE() << "unexpected warning: " << w;
+
+  writeFile(dir / "two.obj",
+            "mtllib a.mtl b.mtl\n" + quads + "usemtl red\nf 1 2 3\nusemtl blue\nf 1 3 4\n");
+  r = pc::loadScene(dir / "two.obj", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  ASSERT_EQ(r->meshes.size(), 2u);
+  expectNear(r->materials[r->meshes[0].material].baseColor, {0.9f, 0.1f, 0.1f});
+  expectNear(r->materials[r->meshes[1].material].baseColor, {0.1f, 0.1f, 0.9f});
+}
+
 TEST(ObjLoad, AlphaMapMakesACutOut) {
   TempDir dir;
   // An opaque image as map_d: its first channel is the mask (red 1, blue 0).
