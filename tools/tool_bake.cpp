@@ -17,6 +17,7 @@
 #include "server/bake.h"
 #include "server/tracer.h"
 #include "server/vulkan_tracer.h"
+#include "tools/command_line.h"
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
@@ -42,18 +43,21 @@ int main(int argc, char** argv) {
                  "failure drill: the GPU tracer's N-th submission fails as a lost device would "
                  "(0: never)")
       ->check(CLI::Range(0, 1 << 30));
-  app.add_option("--updates", updates, "field updates");
-  app.add_option("--rays", rays, "rays per probe per update");
-  app.add_option("--time", time, "animation time of the baked state (seconds)");
+  app.add_option("--updates", updates, "field updates")->check(CLI::Range(1, 1000000));
+  app.add_option("--rays", rays, "rays per probe per update")
+      ->check(CLI::Range(pc::kMinRaysPerProbe, pc::kMaxRaysPerProbe));
+  app.add_option("--time", time, "animation time of the baked state (seconds)")->check(pc::kFinite);
   app.add_option("-o,--out", out, "output .probes file");
   app.add_flag("--half", half, "store irradiance and occlusion as float16");
   app.add_option("--render", renderDir, "also render probe-lit and path-traced images here");
-  app.add_option("--width", width, "image width (--render)");
-  app.add_option("--height", height, "image height (--render)");
-  app.add_option("--spp", spp, "reference paths per pixel (--render)");
-  app.add_option("--camera", camera, "camera index (--render)");
-  app.add_option("--aa", aa, "primary samples per pixel of the probe-lit render (--render)");
-  CLI11_PARSE(app, argc, argv);
+  app.add_option("--width", width, "image width (--render)")->check(CLI::Range(1, 16384));
+  app.add_option("--height", height, "image height (--render)")->check(CLI::Range(1, 16384));
+  app.add_option("--spp", spp, "reference paths per pixel (--render)")
+      ->check(CLI::Range(1, 1 << 20));
+  app.add_option("--camera", camera, "camera index (--render)")->check(CLI::NonNegativeNumber);
+  app.add_option("--aa", aa, "primary samples per pixel of the probe-lit render (--render)")
+      ->check(CLI::Range(1, 4096));
+  if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 
   pc::Result<pc::Scene> scene = scenePath == "builtin" ? pc::Result<pc::Scene>(pc::builtinScene())
                                                    : pc::loadScene(scenePath, sidecar);
@@ -62,6 +66,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (const std::string& w : scene->warnings) pc::logWarn(w);
+  // The render's camera is checked before the bake, not after it.
+  if (!renderDir.empty()) {
+    if (auto cam = pc::sceneCamera(*scene, camera); !cam) {
+      pc::logError(cam.error().message);
+      return 1;
+    }
+  }
 
   pc::FieldSettings settings;
   settings.raysPerProbe = rays;

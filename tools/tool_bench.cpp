@@ -5,6 +5,7 @@
 #include "bench/bench.h"
 #include "common/log.h"
 #include "server/tracer.h"
+#include "tools/command_line.h"
 
 namespace pc::bench {
 
@@ -39,7 +40,7 @@ int main(int argc, char** argv) {
       pc::bench::addEnergy(app), pc::bench::addTrace(app), pc::bench::addQuality(app),
       pc::bench::addLeak(app), pc::bench::addClient(app), pc::bench::addGpuTrace(app),
       pc::bench::addFaults(app), pc::bench::addStream(app), pc::bench::addLoad(app)};
-  CLI11_PARSE(app, argc, argv);
+  if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   for (auto& b : benches) {
     if (!b.command->parsed()) continue;
     try {

@@ -8,6 +8,7 @@
 #include "client/client_app.h"
 #include "client/net_app.h"
 #include "common/log.h"
+#include "tools/command_line.h"
 
 namespace {
 
@@ -33,23 +34,27 @@ int main(int argc, char** argv) {
   app.add_option("--probes", c.probes, "baked field (.probes): the fallback indirect light");
   app.add_option("--out", c.outDir, "headless: output folder");
   app.add_option("--prefix", c.prefix, "headless: file name prefix");
-  app.add_option("--width", c.width, "render width");
-  app.add_option("--height", c.height, "render height");
-  app.add_option("--frames", c.frames, "frames to render (windowed: 0 runs until closed)");
-  app.add_option("--time", c.startTime, "animation time of the first frame, seconds");
-  app.add_option("--dt", c.dt, "seconds per frame (windowed: negative follows the clock)");
-  app.add_option("--camera", c.camera, "scene camera index");
+  app.add_option("--width", c.width, "render width")->check(CLI::Range(1, 16384));
+  app.add_option("--height", c.height, "render height")->check(CLI::Range(1, 16384));
+  app.add_option("--frames", c.frames, "frames to render (windowed: 0 runs until closed)")
+      ->check(CLI::Range(0, 1 << 30));
+  app.add_option("--time", c.startTime, "animation time of the first frame, seconds")
+      ->check(pc::kFinite);
+  app.add_option("--dt", c.dt, "seconds per frame (windowed: negative follows the clock)")
+      ->check(pc::kFinite);
+  app.add_option("--camera", c.camera, "scene camera index")->check(CLI::NonNegativeNumber);
   app.add_option("--pos", pos, "camera position x,y,z");
   app.add_option("--dir", dir, "camera direction x,y,z");
   app.add_option("--target", target, "camera target x,y,z");
-  app.add_option("--fov", fov, "vertical field of view, degrees");
+  app.add_option("--fov", fov, "vertical field of view, degrees")->check(CLI::Range(1.0, 179.0));
   app.add_flag("--stereo", c.stereo, "render both eyes in one pass (multiview)");
-  app.add_option("--ipd", c.ipd, "interpupillary distance, scene units");
+  app.add_option("--ipd", c.ipd, "interpupillary distance, scene units")
+      ->check(pc::kFinite & CLI::NonNegativeNumber);
   app.add_flag("--window", c.windowed, "open a window (GLFW) instead of writing files");
   app.add_flag("--validation", c.validation, "Vulkan validation layer; errors fail the run");
   app.add_flag("--no-overlay", noOverlay, "windowed: no text overlay");
   app.add_flag("--no-exr", noExr, "headless: PNG only");
-  app.add_option("--msaa", c.msaa, "samples per pixel (2, 4, 8)");
+  app.add_option("--msaa", c.msaa, "samples per pixel (2, 4, 8)")->check(CLI::IsMember({2, 4, 8}));
   std::string raster = "auto";
   app.add_option("--raster", raster,
                  "visibility buffer: auto, fixed (fixed-function, multiview) or compute");
@@ -71,11 +76,13 @@ int main(int argc, char** argv) {
   app.add_flag("--tcp-only", net.net.tcpOnly, "--connect: datagrams over TCP");
   app.add_option("--udp-advertise-port", net.net.udpAdvertisePort,
                  "--connect: UDP port the server sends to (a relay in front of this client)");
-  app.add_option("--duration", net.duration, "--connect: seconds to run (instead of --frames)");
-  app.add_option("--max-fps", net.maxFps, "--connect: frames per second at most");
+  app.add_option("--duration", net.duration, "--connect: seconds to run (instead of --frames)")
+      ->check(pc::kFinite & CLI::NonNegativeNumber);
+  app.add_option("--max-fps", net.maxFps, "--connect: frames per second at most")
+      ->check(pc::kFinite & CLI::NonNegativeNumber);
   app.add_option("--save-every", net.saveEvery, "--connect: write every Nth frame (0: last only)");
   app.add_option("--summary", net.summary, "--connect: write a JSON summary here");
-  CLI11_PARSE(app, argc, argv);
+  if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   c.textureMipmaps = !noMipmaps;
   if (auto r = pc::client::parseRasterizer(raster)) {
     c.rasterizer = *r;

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "common/image.h"
+#include "tools/command_line.h"
 
 namespace {
 
@@ -79,7 +80,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   app.add_option("--diff", diffPath, "write a false-colour difference PNG here");
   app.add_flag("--json", json, "print the results as one JSON object instead of the table");
-  CLI11_PARSE(app, argc, argv);
+  if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 
   auto a = load(pathA, exposure);
   if (!a) return fail(a.error().message);

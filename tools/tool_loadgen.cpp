@@ -11,6 +11,7 @@
 #include "common/log.h"
 #include "loadgen/load_generator.h"
 #include "loadgen/server_load.h"
+#include "tools/command_line.h"
 
 namespace {
 
@@ -45,7 +46,7 @@ int main(int argc, char** argv) {
   app.add_option("--seconds", seconds, "measured window, s");
   app.add_option("--json", jsonPath, "write the report as JSON here");
   app.add_option("--seed", o.seed, "random seed (pose phases, session jitter)");
-  CLI11_PARSE(app, argc, argv);
+  if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   o.shareDecoding = !decodeEach;
   if (o.token.empty()) {
     if (const char* env = std::getenv("PROBECAST_TOKEN")) o.token = env;

@@ -2,16 +2,16 @@
 // Writes reference.exr (linear; reference.pfm with --pfm) and reference.png (tone-mapped with
 // the scene's exposure) and reports the image's own noise, estimated from two independent
 // half-sample renders, so measured errors of other renderers can be set against it.
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
 #include <string>
-
-#include <CLI/CLI.hpp>
 
 #include "common/image.h"
 #include "common/log.h"
 #include "common/scene.h"
 #include "cpu/path_tracer.h"
+#include "tools/command_line.h"
 
 namespace {
 
@@ -33,16 +33,16 @@ int main(int argc, char** argv) {
   app.add_option("--scene", scenePath, "glTF or OBJ scene (default: the built-in scene)");
   app.add_option("--sidecar", sidecarPath, "scene.json with lights, cameras and animation");
   app.add_option("--camera", options.camera, "camera index")->check(CLI::NonNegativeNumber);
-  app.add_option("--width", options.width, "image width")->check(CLI::PositiveNumber);
-  app.add_option("--height", options.height, "image height")->check(CLI::PositiveNumber);
+  app.add_option("--width", options.width, "image width")->check(CLI::Range(1, 16384));
+  app.add_option("--height", options.height, "image height")->check(CLI::Range(1, 16384));
   app.add_option("--spp", options.spp, "samples per pixel")->check(CLI::PositiveNumber);
-  app.add_option("--time", options.time, "animation time in seconds");
+  app.add_option("--time", options.time, "animation time in seconds")->check(pc::kFinite);
   app.add_option("--seed", options.seed, "random seed (same seed, same image)");
   app.add_option("--bounces", options.maxBounces, "maximum indirect bounces")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--out", outDir, "output folder");
   app.add_flag("--pfm", pfm, "write reference.pfm instead of reference.exr");
-  CLI11_PARSE(app, argc, argv);
+  if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 
   pc::Scene scene;
   if (scenePath.empty()) {

@@ -21,6 +21,7 @@
 #include "server/net_field_loop.h"
 #include "server/net_server.h"
 #include "server/vulkan_tracer.h"
+#include "tools/command_line.h"
 
 namespace {
 
@@ -83,10 +84,13 @@ int main(int argc, char** argv) {
                  "(0: never)")
       ->check(CLI::Range(0, 1 << 30));
   app.add_option("--rate", loop.rate, "field updates per second");
-  app.add_option("--rays", rays, "rays per probe per update (without --probes)");
-  app.add_option("--warmup", warmup, "warm-up updates without --probes");
+  app.add_option("--rays", rays, "rays per probe per update (without --probes)")
+      ->check(CLI::Range(pc::kMinRaysPerProbe, pc::kMaxRaysPerProbe));
+  app.add_option("--warmup", warmup, "warm-up updates without --probes")
+      ->check(CLI::Range(0, 100000000));
   app.add_option("--budget", loop.scheduler.budget, "most probes per update (0: all due)");
-  app.add_option("--time", loop.startTime, "animation time of the first update");
+  app.add_option("--time", loop.startTime, "animation time of the first update")
+      ->check(pc::kFinite);
   app.add_option("--freeze-at", loop.freezeAt,
                  "animation time where the clock and the field stop (the field is then exact)");
   app.add_option("--dump-field", dumpField, "at the freeze, write the exact field here (.probes)");
@@ -121,7 +125,7 @@ int main(int argc, char** argv) {
                  "messages a client may send per second before it is disconnected as a flood");
   app.add_option("--max-write-queue", net.maxWriteQueueBytes,
                  "bytes queued to a client before it counts as not reading");
-  CLI11_PARSE(app, argc, argv);
+  if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   const auto format = pc::parseLogFormat(logFormat);
   const auto level = pc::parseLogLevel(logLevel);
   if (!format) return pc::logError("--log-format: expected text or json, got '" + logFormat + "'"), 1;

@@ -1,0 +1,37 @@
+// Command-line parsing shared by the probecast tools (CLI11).
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <optional>
+#include <string>
+
+namespace pc {
+
+// Parses the command line. --help prints the options and the tool exits 0; any other problem
+// (an unknown option, a bad value, an option given twice) prints CLI11's message and the tool
+// exits 1, its code for bad input, whatever CLI11's own code for that kind of error.
+// Use: if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
+inline std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 1;
+  }
+  return std::nullopt;
+}
+
+// A finite number: CLI11 reads "nan" and "inf" as numbers, which no option here means.
+inline const CLI::Validator kFinite(
+    [](std::string& text) -> std::string {
+      try {
+        std::size_t used = 0;
+        const double v = std::stod(text, &used);
+        if (used == text.size() && std::isfinite(v)) return {};
+      } catch (const std::exception&) {
+      }
+      return "expected a finite number, got '" + text + "'";
+    },
+    "FINITE");
+
+}  // namespace pc
