@@ -122,7 +122,12 @@ class GltfReader {
     cam.position = glm::vec3(world * glm::vec4(0, 0, 0, 1));
     cam.forward = glm::normalize(glm::vec3(world * glm::vec4(0, 0, -1, 0)));
     cam.up = glm::normalize(glm::vec3(world * glm::vec4(0, 1, 0, 0)));
-    if (c.perspective.yfov > 0) cam.yfov = float(c.perspective.yfov);
+    if (c.perspective.yfov > 0) {
+      if (!(c.perspective.yfov < 3.14159265))
+        throw GltfError{"camera '" + cam.name + "': yfov " + std::to_string(c.perspective.yfov) +
+                        " radians is not below pi"};
+      cam.yfov = float(c.perspective.yfov);
+    }
     scene_.cameras.push_back(cam);
   }
 
@@ -147,6 +152,18 @@ class GltfReader {
     if (l.color.size() == 3)
       light.color = glm::vec3(float(l.color[0]), float(l.color[1]), float(l.color[2]));
     light.intensity = float(l.intensity);
+    // As the sidecar's lights are checked (docs/SCENES.md): values that would light nothing
+    // sensible are errors, not silent nonsense.
+    if (!std::isfinite(light.intensity) || light.intensity < 0.0f)
+      throw GltfError{"light '" + light.name + "': intensity " + std::to_string(l.intensity) +
+                      " is negative or not finite"};
+    if (light.type == LightType::Spot &&
+        !(light.innerConeAngle >= 0.0f && light.innerConeAngle <= light.outerConeAngle &&
+          light.outerConeAngle <= 0.5f * 3.1415927f))
+      throw GltfError{"light '" + light.name +
+                      "': spot cones must be 0 <= inner <= outer <= pi/2 (inner " +
+                      std::to_string(l.spot.innerConeAngle) + ", outer " +
+                      std::to_string(l.spot.outerConeAngle) + ")"};
     light.range = float(l.range);
     light.position = glm::vec3(world * glm::vec4(0, 0, 0, 1));
     glm::vec3 dir = glm::vec3(world * glm::vec4(0, 0, -1, 0));  // lights shine along node -Z
@@ -647,6 +664,9 @@ Result<Scene> loadGltf(const std::filesystem::path& path) {
     std::string why = trimmed(err.empty() ? warn : err);
     return Error{file + ": cannot parse glTF: " + (why.empty() ? "unknown error" : why)};
   }
+  // glTF 1.0 files parse as JSON but hold nothing a 2.0 reader finds.
+  if (model.asset.version.rfind("2.", 0) != 0)
+    return Error{file + ": glTF version '" + model.asset.version + "' (only 2.x is read)"};
 
   Scene scene;
   if (!warn.empty()) scene.warnings.push_back(file + ": " + trimmed(warn));

@@ -287,6 +287,12 @@ Result<Scene> loadScene(const std::filesystem::path& path, const std::filesystem
 
   computeBounds(scene);
   scene.hash = hashScene(scene);
+  // Nothing lights such a scene: every image of it is black. Said once here rather than left
+  // to look like a failure of the renderers.
+  if (!scene.hasLights() && scene.sky.isBlack())
+    scene.warnings.push_back(file +
+                             ": no lights, no emissive materials and a black sky: nothing lights "
+                             "the scene (a sidecar adds lights and a sky, docs/SCENES.md)");
   return scene;
 }
 

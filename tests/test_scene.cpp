@@ -365,6 +365,56 @@ TEST(Gltf, SparseAccessorsReplaceTheirElements) {
               "accessor 0 sparse index 9 (at 0) out of range (4 elements)");
 }
 
+// Values the sidecar refuses are refused in a glTF file too, and a glTF 1.0 file is named as
+// such rather than reported as holding no triangles.
+TEST(BadFiles, GltfLightsCamerasAndVersionOutOfRange) {
+  TempDir dir;
+  writeBytes(dir / "quad.bin", quadBuffer());
+  const std::string lightNode =
+      R"([{"name": "quad", "mesh": 0}, {"name": "lamp", "extensions": {"KHR_lights_punctual": {"light": 0}}}])";
+  auto withLight = [&](const std::string& light) {
+    std::string json = quadGltf("quad.bin",
+                                R"(,
+  "extensionsUsed": ["KHR_lights_punctual"],
+  "extensions": {"KHR_lights_punctual": {"lights": [)" +
+                                    light + "]}}",
+                                lightNode);
+    const std::string roots = R"("scenes": [{"nodes": [0]}])";
+    json.replace(json.find(roots), roots.size(), R"("scenes": [{"nodes": [0, 1]}])");
+    return json;
+  };
+  writeFile(dir / "neg.gltf", withLight(R"({"type": "point", "intensity": -5})"));
+  expectError(pc::loadScene(dir / "neg.gltf", emptySidecar(dir)), "neg.gltf",
+              "light 'lamp': intensity -5.000000 is negative or not finite");
+  writeFile(
+      dir / "cone.gltf",
+      withLight(R"({"type": "spot", "spot": {"innerConeAngle": 1.0, "outerConeAngle": 0.2}})"));
+  expectError(pc::loadScene(dir / "cone.gltf", emptySidecar(dir)), "cone.gltf",
+              "spot cones must be 0 <= inner <= outer <= pi/2");
+  std::string v1 = quadGltf("quad.bin");
+  v1.replace(v1.find(R"("version": "2.0")"), 16, R"("version": "1.0")");
+  writeFile(dir / "v1.gltf", v1);
+  expectError(pc::loadScene(dir / "v1.gltf", emptySidecar(dir)), "v1.gltf",
+              "glTF version '1.0' (only 2.x is read)");
+}
+
+// A scene nothing lights loads, with a warning that says so.
+TEST(ObjLoad, UnlitSceneWarns) {
+  TempDir dir;
+  writeFile(dir / "dark.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  auto r = pc::loadScene(dir / "dark.obj", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  bool warned = false;
+  for (const std::string& w : r->warnings)
+    warned = warned || w.find("nothing lights the scene") != std::string::npos;
+  EXPECT_TRUE(warned);
+  writeFile(dir / "sky.json", R"({"sky": {"color": [0.2, 0.3, 0.4]}})");
+  r = pc::loadScene(dir / "dark.obj", dir / "sky.json");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  for (const std::string& w : r->warnings)
+    EXPECT_EQ(w.find("nothing lights"), std::string::npos) << w;
+}
+
 // A count that no bytes back is refused before anything is allocated for it.
 TEST(BadFiles, GltfAccessorCountPastItsBuffer) {
   TempDir dir;
