@@ -288,15 +288,22 @@ class GltfReader {
     const tinygltf::BufferView& view = m_.bufferViews[viewIndex];
     check(view.buffer, m_.buffers.size(), "buffer");
     const tinygltf::Buffer& buf = m_.buffers[view.buffer];
-    const std::size_t limit = std::min(view.byteOffset + view.byteLength, buf.data.size());
-    const std::size_t start = view.byteOffset + offset;
-    bool fits = start <= limit && elemSize <= limit - start;
+    // The view first, so that no sum below can wrap around.
+    if (view.byteOffset > buf.data.size() || view.byteLength > buf.data.size() - view.byteOffset)
+      throw GltfError{"bufferView " + std::to_string(viewIndex) + " (offset " +
+                      std::to_string(view.byteOffset) + ", length " +
+                      std::to_string(view.byteLength) + ") lies past the end of buffer " +
+                      std::to_string(view.buffer) + " (" + std::to_string(buf.data.size()) +
+                      " bytes)"};
+    const std::size_t limit = view.byteOffset + view.byteLength;
+    const std::size_t start = view.byteOffset + std::min(offset, view.byteLength + 1);
+    bool fits = offset <= view.byteLength && elemSize <= limit - start;
     if (fits && count > 1) {
       const std::size_t room = limit - start - elemSize;  // for the other count - 1 strides
       fits = stride == 0 || (count - 1) <= room / stride;
     }
     if (!fits) {
-      const long double needs = (long double)start +
+      const long double needs = (long double)view.byteOffset + (long double)offset +
                                 (long double)stride * (long double)(count - 1) +
                                 (long double)elemSize;
       throw GltfError{what + " reads past the end of buffer " + std::to_string(view.buffer) +
