@@ -31,7 +31,9 @@ ViewMatrices viewMatrices(const Camera& camera, int width, int height, float nea
   m.proj[2][3] = -1.0f;            // w = -z_view
   m.proj[3][2] = nearPlane;        // z = near, so depth = near / -z_view
   m.viewProj = m.proj * m.view;
-  m.invViewProj = glm::inverse(m.viewProj);
+  glm::mat4 rotation = m.view;
+  rotation[3] = glm::vec4(0.0f, 0.0f, 0.0f, 1.0f);
+  m.invViewProjFromEye = glm::inverse(m.proj * rotation);
   return m;
 }
 

@@ -13,7 +13,11 @@ struct ViewMatrices {
   glm::mat4 view{1.0f};
   glm::mat4 proj{1.0f};
   glm::mat4 viewProj{1.0f};
-  glm::mat4 invViewProj{1.0f};
+  // Clip -> the world-space offset from the camera: the inverse of proj x view without the
+  // view's translation. A pixel's ray comes straight out of it. Subtracting the eye from a
+  // point the full inverse gives would cancel: that point lies a near distance from the eye,
+  // and far from the origin (1e4) float's step there (1e-3) is a large share of it.
+  glm::mat4 invViewProjFromEye{1.0f};
   glm::vec3 position{0.0f};
 };
 

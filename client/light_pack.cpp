@@ -36,6 +36,17 @@ float farthestCorner(const Bounds& b, glm::vec3 p) {
   return d;
 }
 
+// A layer to render with `fromOrigin`, a view-projection of offsets from `origin`.
+ShadowView shadowView(int array, int layer, const glm::mat4& fromOrigin, glm::vec3 origin) {
+  ShadowView v;
+  v.array = array;
+  v.layer = layer;
+  v.fromOrigin = fromOrigin;
+  v.origin = origin;
+  v.viewProj = fromOrigin * glm::translate(glm::mat4(1.0f), -origin);
+  return v;
+}
+
 // Six 90-degree faces around `position`; faces whose whole frustum lies behind `front` (an
 // emitter's normal) are left out since nothing there receives light.
 void addCube(LightSet& set, gpu::GpuLight& light, int array, glm::vec3 position, float nearPlane,
@@ -48,10 +59,10 @@ void addCube(LightSet& set, gpu::GpuLight& light, int array, glm::vec3 position,
   light.normalOffset = kNormalOffsetTexels * 2.0f / float(size);  // 2 tan(45 deg) / size
   const glm::mat4 proj = glm::perspectiveRH_ZO(glm::radians(90.0f), 1.0f, nearPlane, farPlane);
   for (int f = 0; f < 6; ++f) {
-    const glm::mat4 m = proj * glm::lookAtRH(position, position + kFaceDirs[f], kFaceUps[f]);
+    const glm::mat4 m = proj * glm::lookAtRH(glm::vec3(0.0f), kFaceDirs[f], kFaceUps[f]);
     set.matrices.push_back(m);
     if (!front || glm::dot(kFaceDirs[f], *front) > -0.99f)
-      set.views.push_back({array, layers + f, m});
+      set.views.push_back(shadowView(array, layers + f, m, position));
   }
   layers += 6;
 }
@@ -79,24 +90,26 @@ void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const Shad
     glm::vec3 up(0.0f, 1.0f, 0.0f);
     if (std::abs(glm::dot(up, g.direction)) > 0.99f) up = glm::vec3(1.0f, 0.0f, 0.0f);
     const glm::mat4 m = glm::perspectiveRH_ZO(fov, 1.0f, nearPlane, farPlane) *
-                        glm::lookAtRH(l.position, l.position + g.direction, up);
+                        glm::lookAtRH(glm::vec3(0.0f), g.direction, up);
     g.shadowArray = kLargeShadowArray;
     g.shadowLayer = set.layers[kLargeShadowArray]++;
     g.shadowMatrix = int(set.matrices.size());
     g.shadowTexel = 1.0f / float(s.largeSize);
     g.normalOffset = kNormalOffsetTexels * 2.0f * std::tan(0.5f * fov) / float(s.largeSize);
     set.matrices.push_back(m);
-    set.views.push_back({0, g.shadowLayer, m});
+    set.views.push_back(shadowView(kLargeShadowArray, g.shadowLayer, m, g.position));
   } else {
     // The sun: an orthographic map fitted around the scene's bounds as the light sees them.
     g.type = gpu::PC_LIGHT_DIRECTIONAL;
     const glm::vec3 centre = 0.5f * (bounds.lo + bounds.hi);
     glm::vec3 up(0.0f, 1.0f, 0.0f);
     if (std::abs(glm::dot(up, g.direction)) > 0.99f) up = glm::vec3(1.0f, 0.0f, 0.0f);
-    const glm::mat4 view = glm::lookAtRH(centre - g.direction * diag, centre, up);
+    // The shadow origin: the map's eye, where the light's position would be.
+    g.position = centre - g.direction * diag;
+    const glm::mat4 view = glm::lookAtRH(glm::vec3(0.0f), g.direction, up);
     glm::vec3 lo(INFINITY), hi(-INFINITY);
     for (int i = 0; i < 8; ++i) {
-      const glm::vec3 p = glm::vec3(view * glm::vec4(bounds.corner(i), 1.0f));
+      const glm::vec3 p = glm::vec3(view * glm::vec4(bounds.corner(i) - g.position, 1.0f));
       lo = glm::min(lo, p);
       hi = glm::max(hi, p);
     }
@@ -108,7 +121,7 @@ void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const Shad
     g.shadowTexel = 1.0f / float(s.largeSize);
     g.normalOffset = kNormalOffsetTexels * std::max(hi.x - lo.x, hi.y - lo.y) / float(s.largeSize);
     set.matrices.push_back(m);
-    set.views.push_back({0, g.shadowLayer, m});
+    set.views.push_back(shadowView(kLargeShadowArray, g.shadowLayer, m, g.position));
   }
   set.lights.push_back(g);
 }

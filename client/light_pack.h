@@ -34,16 +34,23 @@ inline constexpr int kLargeShadowArray = 0, kSmallShadowArray = 1, kPointShadowA
 inline constexpr int kShadowArrays = 3;
 
 // One shadow map layer to render: the array (k*ShadowArray), its layer, the light's
-// view-projection (Vulkan depth 0..1).
+// view-projection (Vulkan depth 0..1) in world space (for culling and the cache), and the same
+// from the shadow origin (GpuLight::position): what the GPU uses, on positions minus the origin.
+// Far from the world's origin (1e4) the translation of a world-space matrix cancels against
+// the positions in float; offsets from the light do not.
 struct ShadowView {
   int array = 0;
   int layer = 0;
   glm::mat4 viewProj{1.0f};
+  glm::mat4 fromOrigin{1.0f};
+  glm::vec3 origin{0.0f};
 };
 
 struct LightSet {
   std::vector<gpu::GpuLight> lights;
-  std::vector<glm::mat4> matrices;  // indexed by GpuLight::shadowMatrix (+ cube face)
+  // Indexed by GpuLight::shadowMatrix (+ cube face): view-projections from the light's shadow
+  // origin, its GpuLight::position (ShadowView::fromOrigin).
+  std::vector<glm::mat4> matrices;
   std::vector<ShadowView> views;    // the layers to render
   int layers[kShadowArrays] = {0, 0, 0};  // per shadow array
   int areaLightCount = 0;

@@ -534,7 +534,7 @@ Status Renderer::createPipelines() {
   VkDescriptorSetLayout setLayout = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateDescriptorSetLayout(ctx_->device(), &li, nullptr, &setLayout));
   setLayout_ = vk::UniqueDescriptorSetLayout(ctx_->device(), setLayout);
-  const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4)};
+  const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(gpu::ShadowPush)};
   VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
   pli.setLayoutCount = 1;
   pli.pSetLayouts = &setLayout;
@@ -838,7 +838,7 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
     const ViewMatrices m =
         viewMatrices(input.cameras[v], options_.width, options_.height, nearPlane_);
     f.views[v].viewProj = m.viewProj;
-    f.views[v].invViewProj = m.invViewProj;
+    f.views[v].invViewProjFromEye = m.invViewProjFromEye;
     f.views[v].position = glm::vec4(m.position, 1.0f);
     slot.cameraViews[v] = m.viewProj;
   }
@@ -982,7 +982,8 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
                       large ? largeShadowPipeline_.get() : smallShadowPipeline_.get());
     setViewport(cmd, size, size);
-    vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4), &v.viewProj);
+    const gpu::ShadowPush push{v.fromOrigin, glm::vec4(v.origin, 0.0f)};
+    vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof push, &push);
     drawScene({v.viewProj});
     vkCmdEndRendering(cmd);
   }

@@ -5,6 +5,7 @@
 
 #include "cpu/probe_lit_render.h"
 #include "test_client_support.h"
+#include "test_meshes.h"
 
 namespace pc::client::test {
 namespace {
@@ -104,6 +105,33 @@ TEST(ClientStereo, LeftEyeEqualsMonoRenderOfTheSamePose) {
                 rasterizerName(rasterizer), leftVsMono, rightVsMono);
     EXPECT_GE(leftVsMono, 50.0);
     EXPECT_LT(rightVsMono, leftVsMono);
+  }
+}
+
+// Far from the world's origin a float's step is large (1e-3 at 1e4): the client must not
+// subtract large coordinates where the difference is small. Its pixel rays came from a point a
+// near distance from the eye minus the eye, and its shadow lookups from world-space matrices
+// whose translation cancelled against the positions: the room moved 10,000 units away showed
+// bands of false shadow (18 dB against the room at the origin). Now rays come from an
+// eye-relative inverse and shadow matrices work on offsets from the light.
+TEST(ClientFarFromOrigin, RoomRendersAsAtTheOrigin) {
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  const Scene here = testmesh::shiftedRoom(0.0f), there = testmesh::shiftedRoom(10000.0f);
+  const Field fieldHere = bakeQuickly(here, 4), fieldThere = bakeQuickly(there, 4);
+  auto cameraHere = sceneCamera(here, 0), cameraThere = sceneCamera(there, 0);
+  ASSERT_TRUE(cameraHere.ok() && cameraThere.ok());
+  for (Rasterizer rasterizer : {Rasterizer::FixedFunction, Rasterizer::Compute}) {
+    const ClientFrame a = renderClientFrame(*ctx, here, &fieldHere, *cameraHere, nullptr, kWidth,
+                                            kHeight, {}, rasterizer);
+    const ClientFrame b = renderClientFrame(*ctx, there, &fieldThere, *cameraThere, nullptr, kWidth,
+                                            kHeight, {}, rasterizer);
+    ASSERT_EQ(a.display.size(), 1u);
+    ASSERT_EQ(b.display.size(), 1u);
+    const double p = psnr8(b.display[0], a.display[0]);
+    std::printf("%s rasterizer: the room 10,000 away vs at the origin: %.2f dB\n",
+                rasterizerName(rasterizer), p);
+    EXPECT_GE(p, 40.0);
   }
 }
 

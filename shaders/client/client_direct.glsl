@@ -49,7 +49,7 @@ float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
     matrixIndex += face;
     layer += face;
   }
-  vec4 clip = shadowMatrices[matrixIndex] * vec4(offsetP, 1.0);
+  vec4 clip = shadowMatrices[matrixIndex] * vec4(offsetP - l.position, 1.0);  // from the light
   if (clip.w <= 0.0) return 1.0;
   vec3 ndc = clip.xyz / clip.w;
   vec2 uv = ndc.xy * 0.5 + 0.5;

@@ -75,10 +75,10 @@ void main() {
 
   // The pixel-centre ray, on which every sample's surface point lies (client_surface.glsl).
   vec2 centre = vec2(id.xy) + 0.5;
-  vec3 ray = normalize(pointUnderPixel(id.z, centre) - eye);
+  vec3 ray = normalize(rayUnderPixel(id.z, centre));
   // The next pixels' centre rays, for the texture footprint.
-  vec3 rayDx = pointUnderPixel(id.z, centre + vec2(1.0, 0.0)) - eye;
-  vec3 rayDy = pointUnderPixel(id.z, centre + vec2(0.0, 1.0)) - eye;
+  vec3 rayDx = rayUnderPixel(id.z, centre + vec2(1.0, 0.0));
+  vec3 rayDy = rayUnderPixel(id.z, centre + vec2(0.0, 1.0));
 
   uint ids[SAMPLES];
   vec3 shaded[SAMPLES];

@@ -70,7 +70,7 @@ void coverPixel(ScreenTriangle t, ivec2 pixel) {
     if ((wa == 0 && !ownA) || (wb == 0 && !ownB) || (wc == 0 && !ownC)) continue;
     if (CUT_OUTS && t.cutOutDraw >= 0) {
       vec3 eye = frame.views[t.view].position.xyz;
-      vec3 ray = pointUnderPixel(t.view, vec2(p) / float(PC_RASTER_SUBPIXEL)) - eye;
+      vec3 ray = rayUnderPixel(t.view, vec2(p) / float(PC_RASTER_SUBPIXEL));
       if (!coveredOnRay(draws[t.cutOutDraw], t.id - 1u, eye, ray)) continue;
     }
     float depth = (float(wa) * t.depth.x + float(wb) * t.depth.y + float(wc) * t.depth.z) * t.invArea;

@@ -23,7 +23,7 @@ void main() {
   if (CUT_OUTS && drawIsCutOut(draws[inDraw])) {
     int view = int(gl_ViewIndex);
     vec3 eye = frame.views[view].position.xyz;
-    if (!coveredOnRay(draws[inDraw], triangle, eye, pointUnderPixel(view, gl_FragCoord.xy) - eye))
+    if (!coveredOnRay(draws[inDraw], triangle, eye, rayUnderPixel(view, gl_FragCoord.xy)))
       discard;
   }
   outVisibility = triangle + 1u;

@@ -132,11 +132,12 @@ bool coveredOnRay(DrawData d, uint triangle, vec3 eye, vec3 ray) {
   return coveredAtUv(d, (1.0 - hit.x - hit.y) * w.v0.uv + hit.x * w.v1.uv + hit.y * w.v2.uv);
 }
 
-// The point of view `view` under window position `pixel` (in pixels from the top left corner;
-// pixel centres at + 0.5): the ray through it starts at the view's eye.
-vec3 pointUnderPixel(int view, vec2 pixel) {
+// The ray of view `view` through window position `pixel` (in pixels from the top left corner;
+// pixel centres at + 0.5): from the view's eye to a point under the pixel, unnormalized. Made
+// relative to the eye by the matrix itself, so no large coordinates cancel here.
+vec3 rayUnderPixel(int view, vec2 pixel) {
   vec2 ndc = pixel / frame.viewport * 2.0 - 1.0;
-  vec4 p = frame.views[view].invViewProj * vec4(ndc, 0.5, 1.0);
+  vec4 p = frame.views[view].invViewProjFromEye * vec4(ndc, 0.5, 1.0);
   return p.xyz / p.w;
 }
 

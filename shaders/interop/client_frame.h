@@ -45,7 +45,7 @@ PC_CONST int PC_MAX_VIEWS = 2;
 
 struct ClientView {
   mat4 viewProj;     // world -> clip (Vulkan: y down, reversed depth 1 at near, 0 at infinity)
-  mat4 invViewProj;  // clip -> world
+  mat4 invViewProjFromEye;  // clip -> world offset from `position` (no translation: see camera.h)
   vec4 position;     // camera position, w unused
 };
 
@@ -91,8 +91,15 @@ struct DrawData {
   ivec4 geometry;
 };
 
+// Shadow map rendering's push constants (client_shadow.vert): the layer's view-projection from
+// the shadow origin, and that origin (light_pack.h, ShadowView).
+struct ShadowPush {
+  mat4 fromOrigin;
+  vec4 origin;  // xyz; w unused
+};
+
 struct GpuLight {
-  vec3 position;
+  vec3 position;  // also the origin of its shadow matrices (directional: the shadow map's eye)
   int type;  // PC_LIGHT_*
   // -- 16
   vec3 direction;  // where the light travels (spot, directional); area: the emitter normal
