@@ -16,7 +16,7 @@ struct ViewMatrices {
   // Clip -> the world-space offset from the camera: the inverse of proj x view without the
   // view's translation. A pixel's ray comes straight out of it. Subtracting the eye from a
   // point the full inverse gives would cancel: that point lies a near distance from the eye,
-  // and far from the origin (1e4) float's step there (1e-3) is a large share of it.
+  // and far from the origin (1e4) a float's step (1e-3) is a large share of it.
   glm::mat4 invViewProjFromEye{1.0f};
   glm::vec3 position{0.0f};
 };
