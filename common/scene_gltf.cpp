@@ -296,10 +296,9 @@ class GltfReader {
                       std::to_string(view.buffer) + " (" + std::to_string(buf.data.size()) +
                       " bytes)"};
     const std::size_t limit = view.byteOffset + view.byteLength;
-    const std::size_t start = view.byteOffset + std::min(offset, view.byteLength + 1);
-    bool fits = offset <= view.byteLength && elemSize <= limit - start;
+    bool fits = offset <= view.byteLength && elemSize <= view.byteLength - offset;
     if (fits && count > 1) {
-      const std::size_t room = limit - start - elemSize;  // for the other count - 1 strides
+      const std::size_t room = view.byteLength - offset - elemSize;  // for the other strides
       fits = stride == 0 || (count - 1) <= room / stride;
     }
     if (!fits) {
@@ -311,7 +310,7 @@ class GltfReader {
                       std::to_string((unsigned long long)std::min<long double>(needs, 1.8e19L)) +
                       " bytes, has " + std::to_string(limit) + ")"};
     }
-    return buf.data.data() + start;
+    return buf.data.data() + view.byteOffset + offset;
   }
 
   // Accessors without a buffer view are zeros (then sparse values): their counts cost memory
