@@ -203,9 +203,9 @@ class ObjBuilder {
   int defaultMaterial_ = -1;
 };
 
-// tinyobj reads "nan" and "inf" as 0, so non-finite coordinates are looked for in the text
-// itself (the file is read once more; cheap next to parsing). The same pass keeps each mtllib
-// line's whole argument for MtlReader.
+// tinyobj reads "nan", "inf", words and missing coordinates as 0, so vertex lines are checked
+// in the text itself (the file is read once more; cheap next to parsing). The same pass keeps each
+// mtllib line's whole argument for MtlReader.
 Status checkVertexLines(const std::filesystem::path& path, std::vector<std::string>& mtllibs) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
@@ -227,12 +227,20 @@ Status checkVertexLines(const std::filesystem::path& path, std::vector<std::stri
     ++vertex;
     std::istringstream tokens(line.substr(i + 2));
     std::string tok;
-    for (int k = 0; k < 3 && tokens >> tok; ++k) {
-      double v = std::strtod(tok.c_str(), nullptr);
-      if (!std::isfinite(v))
-        return Error{path.string() + ":" + std::to_string(lineNo) + ": vertex " +
-                     std::to_string(vertex) + " has a non-finite coordinate '" + tok + "'"};
+    const std::string where =
+        path.string() + ":" + std::to_string(lineNo) + ": vertex " + std::to_string(vertex);
+    int k = 0;
+    for (; k < 3 && tokens >> tok; ++k) {
+      char* end = nullptr;
+      double v = std::strtod(tok.c_str(), &end);
+      if (end == tok.c_str() || *end != '\0')
+        return Error{where + " has a coordinate '" + tok + "' that is not a number"};
+      if (!std::isfinite(v)) return Error{where + " has a non-finite coordinate '" + tok + "'"};
     }
+    // tinyobj would read the missing coordinates as 0 and place the vertex silently.
+    if (k < 3)
+      return Error{where + " has " + std::to_string(k) + " coordinate" + (k == 1 ? "" : "s") +
+                   " where a position needs 3"};
   }
   return Status::success();
 }

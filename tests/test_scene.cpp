@@ -774,6 +774,22 @@ TEST(BadFiles, ObjNaNVertex) {
               "vertex 2 has a non-finite coordinate 'nan'");
 }
 
+TEST(BadFiles, ObjVertexWithoutThreeNumbers) {
+  TempDir dir;
+  writeFile(dir / "short.obj", "v 0 0 0\nv 1 0 0\nv 0 1\nf 1 2 3\n");
+  expectError(pc::loadScene(dir / "short.obj", emptySidecar(dir)), "short.obj:3",
+              "vertex 3 has 2 coordinates where a position needs 3");
+  writeFile(dir / "word.obj", "v 0 0 0\nv 1 zero 0\nv 0 1 0\nf 1 2 3\n");
+  expectError(pc::loadScene(dir / "word.obj", emptySidecar(dir)), "word.obj:2",
+              "vertex 2 has a coordinate 'zero' that is not a number");
+  writeFile(dir / "glued.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0x\nf 1 2 3\n");
+  expectError(pc::loadScene(dir / "glued.obj", emptySidecar(dir)), "glued.obj:3",
+              "vertex 3 has a coordinate '0x' that is not a number");
+  // A weight and vertex colours after the position are valid OBJ.
+  writeFile(dir / "extra.obj", "v 0 0 0 1\nv 1 0 0 1 0.5 0.5\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_TRUE(pc::loadScene(dir / "extra.obj", emptySidecar(dir)).ok());
+}
+
 TEST(BadFiles, NoTriangles) {
   TempDir dir;
   writeFile(dir / "empty.obj", "v 0 0 0\nv 1 0 0\n");
