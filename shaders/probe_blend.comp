@@ -28,7 +28,7 @@
 
 layout(local_size_x = PC_BLEND_THREADS) in;
 
-// Timing experiments only (PC_BLEND_VARIANT, read by server/vulkan_tracer.cpp): a nonzero value
+// Timing experiments only (PC_BLEND_VARIANT, read by server/vulkan_tracer_setup.cpp): a nonzero value
 // drops or changes one step so that a per-pass GPU time can be attributed to it; the fields it
 // gives may be wrong. 0, the default, is the blend itself. The variants:
 //   1 no tiles (step 2 skipped)          2 no irradiance/occlusion texels  3 no depth texels

@@ -17,7 +17,7 @@
 
 layout(local_size_x = PC_SHADE_THREADS) in;
 
-// Timing experiments only (PC_SHADE_VARIANT, read by server/vulkan_tracer.cpp): a nonzero value
+// Timing experiments only (PC_SHADE_VARIANT, read by server/vulkan_tracer_setup.cpp): a nonzero value
 // drops one step so that the pass's GPU time can be attributed; the fields it gives are wrong.
 // 0, the default, is the shading itself. 1 no field sampling (indirect 0), 2 no shadow-ray
 // requests (every slot written empty, nothing appended), 3 no textures, 4 all of 1-3.

@@ -1,4 +1,4 @@
-// GPU-visible structures of the Vulkan field update (server/vulkan_tracer.cpp and the shaders
+// GPU-visible structures of the Vulkan field update (server/vulkan_tracer*.cpp and the shaders
 // probe_trace.*, probe_shade.comp, probe_shadow.rgen, probe_blend.comp, brick_*.comp):
 // descriptor bindings, the scene in buffers, probe records, the per-ray wavefront records and
 // the per-update parameters. std430 layout; 16-byte rows are marked and C++ checks the sizes
