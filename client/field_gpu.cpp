@@ -189,12 +189,10 @@ Status FieldGpu::createWritePass(int frameSlots) {
   VkDescriptorSetLayout setLayout = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateDescriptorSetLayout(device, &li, nullptr, &setLayout));
   setLayout_ = vk::UniqueDescriptorSetLayout(device, setLayout);
-  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  pli.setLayoutCount = 1;
-  pli.pSetLayouts = &setLayout;
-  VkPipelineLayout pipelineLayout = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreatePipelineLayout(device, &pli, nullptr, &pipelineLayout));
-  pipelineLayout_ = vk::UniquePipelineLayout(device, pipelineLayout);
+  auto layout = vk::createPipelineLayout(*ctx_, setLayout);
+  if (!layout) return layout.error();
+  pipelineLayout_ = std::move(layout).value();
+  const VkPipelineLayout pipelineLayout = pipelineLayout_.get();
 
   const std::uint32_t n = std::uint32_t(frameSlots);
   const VkDescriptorPoolSize sizes[] = {

@@ -319,16 +319,11 @@ Status VulkanTracer::Impl::createPipelines() {
   snapshotSet = sets[1];
   traceSet = set;
 
-  VkPushConstantRange push{VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                           sizeof(TracePush)};
-  VkPipelineLayoutCreateInfo plci{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  plci.setLayoutCount = 1;
-  plci.pSetLayouts = &dsl;
-  plci.pushConstantRangeCount = 1;
-  plci.pPushConstantRanges = &push;
-  VkPipelineLayout pl = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreatePipelineLayout(ctx->device(), &plci, nullptr, &pl));
-  pipelineLayout = vk::UniquePipelineLayout(ctx->device(), pl);
+  auto layout = vk::createPipelineLayout(
+      *ctx, dsl, VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, sizeof(TracePush));
+  if (!layout) return layout.error();
+  pipelineLayout = std::move(layout).value();
+  const VkPipelineLayout pl = pipelineLayout.get();
 
   // ---- ray tracing: stages raygen, miss..., closest hit, and in scenes with cut-outs any
   // hit; groups: raygen, the misses, then one triangle hit group of the hit shaders. Scenes

@@ -23,6 +23,21 @@ Result<UniqueShaderModule> createShaderModule(const Context& ctx, std::span<cons
   return UniqueShaderModule(ctx.device(), module);
 }
 
+Result<UniquePipelineLayout> createPipelineLayout(const Context& ctx,
+                                                  VkDescriptorSetLayout setLayout,
+                                                  VkShaderStageFlags pushStages,
+                                                  std::uint32_t pushBytes) {
+  const VkPushConstantRange push{pushStages, 0, pushBytes};
+  VkPipelineLayoutCreateInfo ci{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  ci.setLayoutCount = 1;
+  ci.pSetLayouts = &setLayout;
+  ci.pushConstantRangeCount = pushBytes > 0 ? 1 : 0;
+  ci.pPushConstantRanges = pushBytes > 0 ? &push : nullptr;
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreatePipelineLayout(ctx.device(), &ci, nullptr, &layout));
+  return UniquePipelineLayout(ctx.device(), layout);
+}
+
 Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name) {
   const std::filesystem::path path = shaderPath(name);
   std::ifstream in(path, std::ios::binary | std::ios::ate);
