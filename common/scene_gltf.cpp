@@ -10,6 +10,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -628,6 +629,31 @@ std::string trimmed(std::string s) {
   return s;
 }
 
+// tinygltf hands an image's buffer view to its decoder without checking that the view lies
+// within its buffer, and the decoder then reads past the buffer's end. This loader runs in its
+// place: it checks the view (the model's buffers and views are parsed before its images) and
+// then decodes as tinygltf's own loader does.
+bool loadImageInBounds(tinygltf::Image* image, const int index, std::string* err, std::string* warn,
+                       int width, int height, const unsigned char* bytes, int size,
+                       void* modelPointer) {
+  const auto* model = static_cast<const tinygltf::Model*>(modelPointer);
+  if (image->bufferView >= 0) {
+    // tinygltf has checked the view's and its buffer's indices.
+    const tinygltf::BufferView& view = model->bufferViews[std::size_t(image->bufferView)];
+    const std::size_t bufferBytes = model->buffers[std::size_t(view.buffer)].data.size();
+    if (view.byteOffset > bufferBytes || view.byteLength > bufferBytes - view.byteOffset ||
+        view.byteLength > std::size_t(std::numeric_limits<int>::max())) {
+      if (err)
+        *err += "image " + std::to_string(index) + ": buffer view " +
+                std::to_string(image->bufferView) + " (offset " + std::to_string(view.byteOffset) +
+                ", " + std::to_string(view.byteLength) + " bytes) lies outside its buffer (" +
+                std::to_string(bufferBytes) + " bytes)\n";
+      return false;
+    }
+  }
+  return tinygltf::LoadImageData(image, index, err, warn, width, height, bytes, size, nullptr);
+}
+
 // tinygltf says only "Invalid glTF binary" for a cut-off .glb; the header tells us more.
 Status checkGlbLength(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -660,6 +686,7 @@ Result<Scene> loadGltf(const std::filesystem::path& path) {
                  [](unsigned char c) { return char(std::tolower(c)); });
   if (ext == ".glb")
     if (Status s = checkGlbLength(path); !s) return s.error();
+  loader.SetImageLoader(loadImageInBounds, &model);
   bool ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, file)
                           : loader.LoadASCIIFromFile(&model, &err, &warn, file);
   // Refuse what we cannot honour before anything else: tinygltf itself ignores the list.

@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "common/scene.h"
@@ -145,7 +146,12 @@ std::vector<ProbeVolume> defaultVolumes(const Scene& scene, int maxProbesPerAxis
   glm::vec3 lo = scene.boundsMin, hi = scene.boundsMax;
   glm::vec3 extent = hi - lo;
   float largest = std::max({extent.x, extent.y, extent.z});
-  if (!(largest > 0.0f) || !std::isfinite(largest)) {
+  // A scene too small for its spacing to be a normal float (or empty, or unbounded) gets the
+  // fallback volume: extent / spacing would overflow and the field's biases underflow.
+  const bool degenerate = !(largest > 0.0f) || !std::isfinite(largest) ||
+                          !(largest / float(2 * maxProbesPerAxis) >=
+                            std::numeric_limits<float>::min());
+  if (degenerate) {
     ProbeVolume v;
     v.origin = glm::vec3(-3.5f);
     v.spacing = 1.0f;
@@ -159,8 +165,9 @@ std::vector<ProbeVolume> defaultVolumes(const Scene& scene, int maxProbesPerAxis
     ProbeVolume v;
     v.spacing = spacing;
     for (int a = 0; a < 3; ++a) {
-      int n = int(std::ceil(extent[a] / spacing - 1e-3f));
-      v.counts[a] = std::clamp(n, 2, maxProbesPerAxis);
+      // At most the largest axis's count: the ratio is converted only once it is in range.
+      const float n = std::ceil(extent[a] / spacing - 1e-3f);
+      v.counts[a] = n < float(maxProbesPerAxis) ? std::max(int(n), 2) : maxProbesPerAxis;
     }
     v.origin = centre - 0.5f * spacing * glm::vec3(v.counts - 1);
     return v;

@@ -230,6 +230,26 @@ TEST(SceneModel, DefaultVolumesCoverTheBoundsInsetFinestFirst) {
   EXPECT_EQ(pc::defaultVolumes(s, 8).size(), 1u);
 }
 
+// A scene so small that its spacing would not be a normal float (found by fuzzing: the count
+// along an axis came out as int(inf)) gets the fallback volume; a small one its own grid.
+TEST(SceneModel, DefaultVolumesOfMicroscopicScenes) {
+  Scene s;
+  s.boundsMin = {0, 0, 0};
+  s.boundsMax = {1e-40f, 2e-41f, 1e-40f};
+  for (const pc::ProbeVolume& v : pc::defaultVolumes(s, 24)) {
+    EXPECT_GE(v.spacing, std::numeric_limits<float>::min());
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_GE(v.counts[a], 2);
+      EXPECT_LE(v.counts[a], 24);
+    }
+  }
+  s.boundsMax = {1e-30f, 1e-31f, 0};
+  std::vector<pc::ProbeVolume> v = pc::defaultVolumes(s, 24);
+  ASSERT_EQ(v.size(), 2u);
+  EXPECT_FLOAT_EQ(v[0].spacing, 1e-30f / 24);
+  EXPECT_EQ(v[0].counts, glm::ivec3(24, 3, 2));
+}
+
 TEST(SceneState, LightFollowsClosedPathAndBlockRotatesAboutPivot) {
   Scene s = pc::builtinScene();
   const pc::Animation& path = s.animations[s.lights[0].animation];
@@ -426,6 +446,26 @@ TEST(BadFiles, GltfAccessorCountPastItsBuffer) {
   writeFile(dir / "huge.gltf", json);
   expectError(pc::loadScene(dir / "huge.gltf", emptySidecar(dir)), "huge.gltf",
               "reads past the end of buffer 0 (needs 13194139533312 bytes, has 48)");
+}
+
+// A .glb whose image lies in a buffer view that runs past the buffer: tinygltf handed the view
+// to its image decoder unchecked, and the decoder read past the buffer's end.
+TEST(BadFiles, GltfImageViewPastItsBuffer) {
+  TempDir dir;
+  const std::vector<unsigned char> png = redBluePng();
+  std::vector<unsigned char> bin = quadBuffer();
+  bin.insert(bin.end(), png.begin(), png.end());
+  std::string json = quadGltf("", R"(,
+  "images": [{"bufferView": 2, "mimeType": "image/png"}],
+  "textures": [{"source": 0}])");
+  const std::string indexView = R"({"buffer": 0, "byteOffset": 48, "byteLength": 12})";
+  json.replace(json.find(indexView), indexView.size(),
+               indexView + R"(, {"buffer": 0, "byteOffset": 60, "byteLength": 4000})");
+  json.replace(json.find("\"byteLength\": 60}"), 17,
+               "\"byteLength\": " + std::to_string(bin.size()) + "}");
+  writeBytes(dir / "image.glb", makeGlb(json, bin));
+  expectError(pc::loadScene(dir / "image.glb", emptySidecar(dir)), "image.glb",
+              "image 0: buffer view 2 (offset 60, 4000 bytes) lies outside its buffer");
 }
 
 // quad.gltf with `members` (JSON) added to its one material and `alpha` as its base colour
