@@ -110,13 +110,21 @@ static bool normalsUsable(Mesh& mesh) {
   return true;
 }
 
-void computeBounds(Scene& scene) {
+Status computeBounds(Scene& scene) {
   glm::vec3 lo(INFINITY), hi(-INFINITY);
   for (const Instance& inst : scene.instances) {
     if (inst.mesh < 0 || std::size_t(inst.mesh) >= scene.meshes.size()) continue;
     const Mesh& mesh = scene.meshes[inst.mesh];
     for (std::uint32_t i : mesh.indices) {  // only referenced vertices count
       glm::vec3 p = glm::vec3(inst.transform * glm::vec4(mesh.positions[i], 1.0f));
+      // Finite file positions can still overflow under a node's scale or the sidecar's
+      // unit_scale: such a vertex would put infinities into every acceleration structure and
+      // probe volume built from the scene.
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        return Error{"instance '" + inst.name + "' (mesh '" + mesh.name + "'): vertex " +
+                     std::to_string(i) + " lands at a non-finite world position (" +
+                     std::to_string(p.x) + ", " + std::to_string(p.y) + ", " + std::to_string(p.z) +
+                     ") under its transform"};
       lo = glm::min(lo, p);
       hi = glm::max(hi, p);
     }
@@ -124,6 +132,7 @@ void computeBounds(Scene& scene) {
   if (lo.x > hi.x) lo = hi = glm::vec3(0.0f);
   scene.boundsMin = lo;
   scene.boundsMax = hi;
+  return Status::success();
 }
 
 namespace {
@@ -285,7 +294,7 @@ Result<Scene> loadScene(const std::filesystem::path& path, const std::filesystem
     scene.sidecar = found.value();
   }
 
-  computeBounds(scene);
+  if (Status s = computeBounds(scene); !s) return Error{file + ": " + s.error().message};
   scene.hash = hashScene(scene);
   // Nothing lights such a scene: every image of it is black. Said once here rather than left
   // to look like a failure of the renderers.

@@ -32,7 +32,9 @@ void generateNormals(Mesh& mesh);
 // Index ranges, finite positions, attribute sizes. The message names the mesh.
 Status validateMesh(const Mesh& mesh);
 
-void computeBounds(Scene& scene);
+// World bounds of the referenced vertices; an error names an instance whose transform puts a
+// vertex at a non-finite position.
+Status computeBounds(Scene& scene);
 std::uint64_t hashScene(const Scene& scene);
 
 // The sRGB decoding curve, as in shaders/interop/tonemap.h (pcSrgbDecode).

@@ -772,6 +772,30 @@ TEST(BadFiles, GlbWithShortBuffer) {
   EXPECT_NE(r.error().message.find("short.glb"), std::string::npos) << r.error().message;
 }
 
+// Finite file positions that a node's scale, or the sidecar's unit_scale, carries past the
+// float range: the scene's bounds were infinite, and every probe volume and acceleration
+// structure built from them with it.
+TEST(BadFiles, WorldPositionsPastTheFloatRange) {
+  TempDir dir;
+  writeBytes(dir / "quad.bin", quadBuffer());
+  writeFile(dir / "nested.gltf",
+            quadGltf("quad.bin", "",
+                     R"([{"name": "giant", "scale": [1e30, 1e30, 1e30], "children": [1]},
+                         {"name": "quad", "mesh": 0, "scale": [1e30, 1e30, 1e30]}])"));
+  expectError(pc::loadScene(dir / "nested.gltf", emptySidecar(dir)), "nested.gltf",
+              "instance 'quad' (mesh 'quadmesh'): vertex 0 lands at a non-finite world position");
+
+  writeFile(
+      dir / "large.gltf",
+      quadGltf("quad.bin", "", R"([{"name": "quad", "mesh": 0, "scale": [1e20, 1e20, 1e20]}])"));
+  auto large = pc::loadScene(dir / "large.gltf", emptySidecar(dir));
+  ASSERT_TRUE(large.ok()) << large.error().message;  // large but finite: loads
+  EXPECT_FLOAT_EQ(large->boundsMax.x, 1e20f);
+  writeFile(dir / "scaled.json", R"({"unit_scale": 1e20})");
+  expectError(pc::loadScene(dir / "large.gltf", dir / "scaled.json"), "large.gltf",
+              "non-finite world position");
+}
+
 TEST(BadFiles, GltfIndexOutOfRange) {
   TempDir dir;
   std::vector<unsigned char> bin = quadBuffer();
