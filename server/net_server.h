@@ -5,8 +5,8 @@
 // write queue. Every client is held to limits (NetServerOptions): a client that sends anything
 // malformed, oversized, in the wrong direction or out of order, floods, or stops reading, is
 // disconnected with its cause logged and counted (NetServerStats), and no other client
-// notices. Optionally Prometheus metrics over HTTP (net_metrics.h). Asio stays inside
-// net_server.cpp and net_metrics.cpp.
+// notices. Optionally Prometheus metrics over HTTP (net_metrics.h). Asio stays inside the
+// network layer's sources and its internal headers (net_server_impl.h, net_session.h).
 #pragma once
 
 #include <array>

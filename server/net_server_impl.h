@@ -1,0 +1,81 @@
+// Internal to the server's network layer (net_server.cpp, net_session.cpp): the state the
+// network thread keeps for the listener, the UDP socket and every session.
+#pragma once
+
+// clang-format off
+#include <utility>  // first: Boost.Asio 1.74 uses std::exchange without including it
+// clang-format on
+#include <boost/asio.hpp>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "net_server.h"
+
+namespace pc {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using asio::ip::udp;
+using Bytes = std::vector<std::uint8_t>;
+using SharedBytes = std::shared_ptr<const Bytes>;
+
+inline SharedBytes share(Bytes bytes) { return std::make_shared<const Bytes>(std::move(bytes)); }
+
+class Session;
+
+struct NetServer::Impl {
+  Impl(FieldHub& h, NetServerOptions o)
+      : hub(h), options(std::move(o)), acceptor(io), udpSocket(io), pollTimer(io) {}
+
+  void acceptNext();
+  void onAccepted(tcp::socket socket);
+  static constexpr int kAcceptBatch = 64;  // accepts per turn of the event loop, at most
+  void schedulePoll();
+  void poll();
+  void remove(std::uint32_t id, DisconnectCause cause);
+  void publishStats(double pollSeconds = 0);
+  void flushUdp();
+  std::string renderMetrics() const;
+
+  FieldHub& hub;
+  NetServerOptions options;
+  asio::io_context io;
+  tcp::acceptor acceptor;
+  udp::socket udpSocket;
+  asio::steady_timer pollTimer;
+  std::thread thread;
+  bool stopped = false;
+  // Perceptual comparisons shared by every session's sender (used under the hub lock).
+  BrickChangeCache changeCache;
+  // UDP datagrams of one poll, sent together (sendmmsg) after every session was polled.
+  struct UdpOut {
+    Session* session;  // kept alive by the poll's list of sessions
+    udp::endpoint to;
+    Bytes bytes;
+  };
+  std::vector<UdpOut> udpBatch;
+
+  std::map<std::uint32_t, std::shared_ptr<Session>> sessions;
+  std::size_t established = 0;  // sessions past the handshake
+  std::uint32_t nextSessionId = 0;
+  std::uint16_t tcpPort = 0, udpPortNumber = 0;
+  // Limits derived from the options and the field (create()).
+  std::size_t maxMessageBytes = 0;
+  double maxReceiveBytesPerSecond = 0;
+  std::size_t fieldBricks = 0;
+
+  // Totals of sessions that have ended, plus a snapshot for stats() from other threads.
+  NetServerStats totals;
+  mutable std::mutex statsMutex;
+  NetServerStats snapshot;
+
+  // Metrics: the endpoint (its own thread) renders from the snapshot and the extra callback.
+  std::unique_ptr<MetricsHttpServer> metrics;
+  mutable std::mutex extraMutex;
+  std::function<void(MetricsText&)> extraMetrics;
+};
+
+}  // namespace pc

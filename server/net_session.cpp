@@ -1,0 +1,375 @@
+#include "net_session.h"
+
+#include <variant>
+
+#include "common/log.h"
+
+namespace pc {
+
+namespace {
+
+// Before a client has shown a valid token it may send one small Hello, nothing bigger: an
+// unauthenticated peer never makes the server allocate the full message limit.
+constexpr std::size_t kMaxHelloFrameBytes = 4096;
+// A receive buffer grown past this by one large message (a full ack) is given back after it.
+constexpr std::size_t kKeptFrameCapacity = 64u << 10;
+
+std::uint32_t readLittleEndian32(const std::array<std::uint8_t, kFramePrefixBytes>& b) {
+  return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 |
+         std::uint32_t(b[3]) << 24;
+}
+
+// Causes that a client brings on itself: logged as warnings.
+bool misbehaviour(DisconnectCause c) {
+  switch (c) {
+    case DisconnectCause::ClientClosed:
+    case DisconnectCause::Rejected:
+    case DisconnectCause::Shutdown:
+      return false;
+    default:
+      return true;
+  }
+}
+
+const char* messageName(const SessionMessage& m) {
+  constexpr const char* kNames[] = {"Hello",      "Welcome",    "Reject", "SessionInfo",
+                                    "SceneState", "ViewerPose", "Ack",    "RepairRequest"};
+  static_assert(std::size(kNames) == std::variant_size_v<SessionMessage>);
+  return kNames[m.index()];
+}
+
+}  // namespace
+
+Session::Session(NetServer::Impl& server, tcp::socket socket, std::uint32_t id)
+    : server_(server), socket_(std::move(socket)), id_(id) {
+  boost::system::error_code ec;
+  auto remote = socket_.remote_endpoint(ec);
+  peer_ =
+      ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
+  acceptedAt_ = lastHeard_ = steadySeconds();
+  socket_.set_option(tcp::no_delay(true), ec);
+  // Flood limits; before the Hello the prefix check allows one small frame anyway.
+  messageBucket_.init(server_.options.maxMessagesPerSecond, server_.options.maxMessagesPerSecond,
+                      acceptedAt_);
+  byteBucket_.init(server_.maxReceiveBytesPerSecond, server_.maxReceiveBytesPerSecond, acceptedAt_);
+}
+
+void Session::close(DisconnectCause cause, const std::string& detail) {
+  if (closed_) return;
+  closed_ = true;
+  logEvent(misbehaviour(cause) ? LogLevel::Warn : LogLevel::Info, "client disconnected",
+           {{"session", id_},
+            {"peer", peer_},
+            {"name", name_},
+            {"cause", causeName(cause)},
+            {"detail", detail},
+            {"seconds", steadySeconds() - acceptedAt_}});
+  boost::system::error_code ec;
+  socket_.shutdown(tcp::socket::shutdown_both, ec);
+  socket_.close(ec);
+  server_.hub.removeViewer(id_);
+  server_.remove(id_, cause);
+  // After remove(): it counts this session as established while sender_ is set.
+  auto lock = server_.hub.lock();
+  sender_.reset();
+}
+
+void Session::refuse(DisconnectCause cause, const std::string& detail) {
+  if (closed_) return;
+  ++server_.totals.rejectedMessages[std::size_t(cause)];
+  close(cause, detail);
+}
+
+void Session::pollLocked(double now, std::uint64_t sceneSerial, const SharedBytes& sceneFrame,
+                         std::vector<Bytes>& datagrams, SharedBytes& scene) {
+  if (closed_ || !sender_) return;
+  if (sceneSerial != sceneSerialSent_ && sceneFrame) {
+    sceneSerialSent_ = sceneSerial;
+    scene = sceneFrame;
+  }
+  // Over TCP the sender is polled only while the queue is short: what it holds back stays
+  // one entry per brick (the newest version), never a growing backlog here.
+  if (!udpTarget_ && queuedBytes_ >= server_.options.tcpDatagramQueueBytes) {
+    ++tcpQueueFullPolls_;
+    return;
+  }
+  datagrams = sender_->poll(now);
+  pendingBricks_ = sender_->pendingBricks();
+  resends_ = sender_->stats().resends;
+  repairedFragments_ = sender_->stats().repairedFragments;
+}
+
+void Session::send(double now, std::vector<Bytes> datagrams, const SharedBytes& scene) {
+  if (closed_) return;
+  if (scene) enqueue(scene);
+  for (Bytes& d : datagrams) {
+    if (closed_) return;
+    if (udpTarget_) {
+      // Sent with every other session's datagrams of this poll (Impl::flushUdp).
+      server_.udpBatch.push_back({this, *udpTarget_, std::move(d)});
+      continue;
+    }
+    enqueue(share(datagramFrame(d)));
+    ++datagrams_;
+  }
+  checkTimeouts(now);
+}
+
+void Session::udpSent(std::size_t bytes, bool ok) {
+  if (!ok) {
+    ++udpDropped_;
+    return;
+  }
+  bytesSent_ += bytes;
+  ++datagrams_;
+}
+
+void Session::checkTimeouts(double now) {
+  if (closed_) return;
+  if (!sender_ && !closeAfterFlush_ && now - acceptedAt_ > server_.options.helloTimeout) {
+    close(DisconnectCause::HelloTimeout,
+          "no Hello within " + std::to_string(server_.options.helloTimeout) + " s");
+  } else if (writing_ && now - writeStartedAt_ > server_.options.writeStallSeconds) {
+    close(DisconnectCause::NotReading,
+          "no write progress for " + std::to_string(server_.options.writeStallSeconds) + " s");
+  } else if (sender_ && now - lastHeard_ > server_.options.silenceTimeout) {
+    close(DisconnectCause::Silent,
+          "no message for " + std::to_string(server_.options.silenceTimeout) + " s");
+  }
+}
+
+NetClientInfo Session::info(double now) const {
+  NetClientInfo c;
+  c.sessionId = id_;
+  c.name = name_;
+  c.peer = peer_;
+  c.udp = udpTarget_.has_value();
+  c.connectedSeconds = now - acceptedAt_;
+  c.bytesSent = bytesSent_;
+  c.datagrams = datagrams_;
+  c.udpDropped = udpDropped_;
+  c.bytesReceived = bytesReceived_;
+  c.messagesReceived = messagesReceived_;
+  c.pendingBricks = pendingBricks_;
+  c.resends = resends_;
+  c.repairedFragments = repairedFragments_;
+  return c;
+}
+
+void Session::readPrefix() {
+  auto self = shared_from_this();
+  asio::async_read(socket_, asio::buffer(prefix_),
+                   [self](boost::system::error_code ec, std::size_t) { self->onPrefix(ec); });
+}
+
+void Session::onPrefix(boost::system::error_code ec) {
+  if (closed_) return;
+  if (ec) {
+    return close(DisconnectCause::ClientClosed, ec == asio::error::eof
+                                                    ? "connection closed by the client"
+                                                    : "read failed: " + ec.message());
+  }
+  // Every check on the prefix alone, before the frame's buffer is allocated.
+  const std::size_t limit = sender_ ? server_.maxMessageBytes : kMaxHelloFrameBytes;
+  const std::size_t announced = readLittleEndian32(prefix_) + kFramePrefixBytes;
+  if (announced > limit) {
+    return refuse(DisconnectCause::Oversized,
+                  "frame of " + std::to_string(announced) + " bytes announced, the cap is " +
+                      std::to_string(limit) + (sender_ ? "" : " before a Hello"));
+  }
+  auto size = frameSize(prefix_, limit);
+  if (!size) return refuse(DisconnectCause::Malformed, "bad frame: " + size.error().message);
+  const double now = steadySeconds();
+  if (!messageBucket_.take(1, now)) {
+    return refuse(DisconnectCause::Flood, "more than " +
+                                              std::to_string(server_.options.maxMessagesPerSecond) +
+                                              " messages per second");
+  }
+  if (!byteBucket_.take(double(*size), now)) {
+    return refuse(
+        DisconnectCause::Flood,
+        "more than " + std::to_string(server_.maxReceiveBytesPerSecond) + " bytes per second");
+  }
+  frame_.assign(prefix_.begin(), prefix_.end());
+  frame_.resize(*size);
+  auto self = shared_from_this();
+  asio::async_read(socket_,
+                   asio::buffer(frame_.data() + kFramePrefixBytes, *size - kFramePrefixBytes),
+                   [self](boost::system::error_code ec2, std::size_t) { self->onFrame(ec2); });
+}
+
+void Session::onFrame(boost::system::error_code ec) {
+  if (closed_) return;
+  if (ec) return close(DisconnectCause::ClientClosed, "read failed: " + ec.message());
+  bytesReceived_ += frame_.size();
+  ++messagesReceived_;
+  lastHeard_ = steadySeconds();
+  switch (classifyFrame(frame_)) {
+    case FrameKind::SessionMessage:
+      break;
+    case FrameKind::Datagram:
+      return refuse(DisconnectCause::WrongDirection,
+                    "a datagram frame: only the server sends datagrams");
+    case FrameKind::Unknown:
+      return refuse(DisconnectCause::Malformed, "not a session message frame");
+  }
+  auto message = decodeMessage(frame_);
+  if (!message) return refuse(DisconnectCause::Malformed, message.error().message);
+  if (frame_.capacity() > kKeptFrameCapacity) Bytes().swap(frame_);
+  if (!handle(*message)) return;
+  readPrefix();
+}
+
+bool Session::handle(const SessionMessage& message) {
+  if (!sender_) {
+    const HelloMsg* hello = std::get_if<HelloMsg>(&message);
+    if (!hello) {
+      refuse(DisconnectCause::Protocol,
+             std::string("expected Hello as the first message, got ") + messageName(message));
+      return false;
+    }
+    return onHello(*hello);
+  }
+  if (std::holds_alternative<HelloMsg>(message)) {
+    refuse(DisconnectCause::Protocol, "a second Hello");
+    return false;
+  }
+  if (std::holds_alternative<WelcomeMsg>(message) || std::holds_alternative<RejectMsg>(message) ||
+      std::holds_alternative<SessionInfoMsg>(message) ||
+      std::holds_alternative<SceneStateMsg>(message)) {
+    refuse(DisconnectCause::WrongDirection,
+           std::string(messageName(message)) + " from a client: only the server sends it");
+    return false;
+  }
+  if (auto invalid = checkSize(message)) {
+    refuse(DisconnectCause::Invalid, *invalid);
+    return false;
+  }
+  if (const auto* pose = std::get_if<ViewerPoseMsg>(&message))
+    server_.hub.setViewer(id_, pose->position);
+  Status status;
+  {
+    auto lock = server_.hub.lock();
+    status = sender_->onMessage(message, steadySeconds());
+  }
+  if (!status) {
+    refuse(DisconnectCause::Invalid, status.error().message);
+    return false;
+  }
+  return true;
+}
+
+std::optional<std::string> Session::checkSize(const SessionMessage& message) const {
+  const std::uint64_t bricks = server_.fieldBricks;
+  if (const auto* ack = std::get_if<AckMsg>(&message)) {
+    std::uint64_t covered = 0;
+    for (const AckRange& r : ack->ranges) covered += r.count;
+    if (ack->ranges.size() > bricks || covered > bricks) {
+      return "ack with " + std::to_string(ack->ranges.size()) + " ranges covering " +
+             std::to_string(covered) + " bricks; the field has " + std::to_string(bricks);
+    }
+  } else if (const auto* repair = std::get_if<RepairRequestMsg>(&message)) {
+    if (repair->bricks.size() > bricks) {
+      return "repair request naming " + std::to_string(repair->bricks.size()) +
+             " bricks; the field has " + std::to_string(bricks);
+    }
+  }
+  return std::nullopt;
+}
+
+bool Session::onHello(const HelloMsg& hello) {
+  name_ = hello.clientName.substr(0, 64);
+  std::optional<RejectMsg> reject = checkHello(hello, server_.options.token);
+  RejectCause cause = RejectCause::Auth;
+  if (reject) {
+    const bool versionOk =
+        hello.protocolVersion >= kMinProtocolVersion && hello.protocolVersion <= kProtocolVersion;
+    cause = versionOk ? RejectCause::Auth : RejectCause::Version;
+  } else if (server_.established >= server_.options.maxClients) {
+    reject = RejectMsg{kProtocolVersion, "server full: " + std::to_string(server_.established) +
+                                             " clients connected, the cap is " +
+                                             std::to_string(server_.options.maxClients)};
+    cause = RejectCause::ServerFull;
+  }
+  if (reject) {
+    logEvent(LogLevel::Warn, "client rejected",
+             {{"session", id_},
+              {"peer", peer_},
+              {"name", name_},
+              {"cause", causeName(cause)},
+              {"reason", reject->reason}});
+    ++server_.totals.rejected;
+    ++server_.totals.rejects[std::size_t(cause)];
+    // Nothing but the Reject goes out; the connection closes once it is written.
+    closeAfterFlush_ = true;
+    enqueue(share(encodeMessage(*reject)));
+    return false;
+  }
+  const bool useUdp = !server_.options.tcpOnly && hello.wantsUdp && hello.udpPort != 0;
+  if (useUdp) {
+    boost::system::error_code ec;
+    // Datagrams go only to the address the session came from: a client cannot aim the
+    // server at a third party.
+    udpTarget_ = udp::endpoint(socket_.remote_endpoint(ec).address(), hello.udpPort);
+    if (ec) {
+      close(DisconnectCause::ClientClosed, "no remote address: " + ec.message());
+      return false;
+    }
+  }
+  SessionInfoMsg info;
+  SharedBytes scene;
+  {
+    auto lock = server_.hub.lock();
+    info = server_.hub.publisher().sessionInfo();
+    sender_ = std::make_unique<StreamSender>(server_.hub.publisher(), id_, server_.options.sender,
+                                             &server_.changeCache);
+    scene = server_.hub.sceneFrame();
+    sceneSerialSent_ = server_.hub.sceneSerial();
+  }
+  ++server_.established;
+  ++server_.totals.sessions;
+  logEvent(LogLevel::Info, "client joined",
+           {{"session", id_},
+            {"peer", peer_},
+            {"name", name_},
+            {"transport", useUdp ? "udp" : "tcp"},
+            {"udp_port", useUdp ? int(hello.udpPort) : 0}});
+  enqueue(share(encodeMessage(WelcomeMsg{kProtocolVersion, id_})));
+  enqueue(share(encodeMessage(info)));
+  if (scene) enqueue(scene);
+  return !closed_;
+}
+
+void Session::enqueue(SharedBytes bytes) {
+  if (closed_) return;
+  if (queuedBytes_ + bytes->size() > server_.options.maxWriteQueueBytes) {
+    return close(
+        DisconnectCause::NotReading,
+        "write queue over " + std::to_string(server_.options.maxWriteQueueBytes) + " bytes");
+  }
+  queuedBytes_ += bytes->size();
+  writes_.push_back(std::move(bytes));
+  if (!writing_) writeNext();
+}
+
+void Session::writeNext() {
+  writing_ = true;
+  writeStartedAt_ = steadySeconds();
+  auto self = shared_from_this();
+  asio::async_write(
+      socket_, asio::buffer(*writes_.front()),
+      [self](boost::system::error_code ec, std::size_t n) { self->onWritten(ec, n); });
+}
+
+void Session::onWritten(boost::system::error_code ec, std::size_t n) {
+  if (closed_) return;
+  if (ec) return close(DisconnectCause::ClientClosed, "write failed: " + ec.message());
+  bytesSent_ += n;
+  queuedBytes_ -= writes_.front()->size();
+  writes_.pop_front();
+  if (!writes_.empty()) return writeNext();
+  writing_ = false;
+  if (closeAfterFlush_) close(DisconnectCause::Rejected, "Reject written");
+}
+
+}  // namespace pc

@@ -1,0 +1,107 @@
+// One client's connection on the server's network thread (internal to the server's network
+// layer): the handshake, the limits every client is held to, and its bounded write queue.
+#pragma once
+
+#include <array>
+#include <deque>
+#include <optional>
+#include <string>
+
+#include "net_server_impl.h"
+#include "protocol/net_framing.h"
+#include "protocol/session_messages.h"
+
+namespace pc {
+
+// A token bucket: `rate` per second, holding at most `burst`.
+struct Bucket {
+  double tokens = 0, rate = 0, burst = 0, at = 0;
+  void init(double r, double b, double now) {
+    rate = r;
+    burst = tokens = b;
+    at = now;
+  }
+  // False when taking `n` would leave the bucket in debt.
+  bool take(double n, double now) {
+    tokens = std::min(burst, tokens + (now - at) * rate);
+    at = now;
+    tokens -= n;
+    return tokens >= 0;
+  }
+};
+
+// One client's connection: reads frames, answers the handshake, feeds its StreamSender, and
+// writes through a bounded queue. Lives on the network thread only; async handlers hold a
+// shared_ptr so it outlives any operation still in flight after close().
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  Session(NetServer::Impl& server, tcp::socket socket, std::uint32_t id);
+
+  void start() { readPrefix(); }
+  bool welcomed() const { return sender_ != nullptr; }
+
+  // Ends the session now: the socket closes, pending operations complete with errors and
+  // find the session closed. The cause is logged (one structured event) and counted once.
+  void close(DisconnectCause cause, const std::string& detail);
+
+  // A message this client must not have sent: counted by cause, then the session ends.
+  void refuse(DisconnectCause cause, const std::string& detail);
+
+  // Called by the server's poll with the hub locked: datagrams and scene state to send.
+  void pollLocked(double now, std::uint64_t sceneSerial, const SharedBytes& sceneFrame,
+                  std::vector<Bytes>& datagrams, SharedBytes& scene);
+
+  // Called by the server's poll without the hub lock.
+  void send(double now, std::vector<Bytes> datagrams, const SharedBytes& scene);
+
+  bool closed() const { return closed_; }
+  // What became of a datagram of flushUdp: a full socket buffer drops it (UDP loss, which the
+  // protocol repairs).
+  void udpSent(std::size_t bytes, bool ok);
+
+  void checkTimeouts(double now);
+
+  NetClientInfo info(double now) const;
+  std::uint64_t tcpQueueFullPolls() const { return tcpQueueFullPolls_; }
+
+ private:
+  void readPrefix();
+  void onPrefix(boost::system::error_code ec);
+  void onFrame(boost::system::error_code ec);
+
+  // False when the session ended. A client changes nothing but its own pose and acks: the
+  // session is the connection, so nothing it sends can name another session.
+  bool handle(const SessionMessage& message);
+
+  // What an ack or repair request may make the sender do is bounded by the field: a valid ack
+  // lists each brick at most once, a repair request need not name one twice. Beyond that it is
+  // work (and log lines) a client could multiply at will.
+  std::optional<std::string> checkSize(const SessionMessage& message) const;
+
+  bool onHello(const HelloMsg& hello);
+  void enqueue(SharedBytes bytes);
+  void writeNext();
+  void onWritten(boost::system::error_code ec, std::size_t n);
+
+  NetServer::Impl& server_;
+  tcp::socket socket_;
+  std::uint32_t id_;
+  std::string peer_, name_;
+  bool closed_ = false, closeAfterFlush_ = false;
+  std::array<std::uint8_t, kFramePrefixBytes> prefix_{};
+  Bytes frame_;
+  std::deque<SharedBytes> writes_;
+  std::size_t queuedBytes_ = 0;
+  bool writing_ = false;
+  double writeStartedAt_ = 0, acceptedAt_ = 0, lastHeard_ = 0;
+  std::optional<udp::endpoint> udpTarget_;
+  std::unique_ptr<StreamSender> sender_;  // created and used with the hub locked
+  std::uint64_t sceneSerialSent_ = 0;
+  std::uint64_t bytesSent_ = 0, bytesReceived_ = 0, datagrams_ = 0, udpDropped_ = 0;
+  std::uint64_t messagesReceived_ = 0, tcpQueueFullPolls_ = 0;
+  std::size_t pendingBricks_ = 0;
+  std::uint64_t resends_ = 0, repairedFragments_ = 0;
+  Bucket messageBucket_, byteBucket_;
+};
+
+}  // namespace pc
