@@ -654,6 +654,38 @@ bool loadImageInBounds(tinygltf::Image* image, const int index, std::string* err
   return tinygltf::LoadImageData(image, index, err, warn, width, height, bytes, size, nullptr);
 }
 
+// A buffer or image URI may name any path. tinygltf's own reader sizes a file by seeking to its
+// end, which for a directory gives 2^63 - 1 bytes and an allocation that throws, and its
+// existence check opens the file, which blocks on a FIFO until something writes to it. These
+// look without opening, and read regular files only.
+bool pathExists(const std::string& path, void*) {
+  std::error_code ec;
+  return std::filesystem::exists(path, ec);
+}
+
+bool readRegularFile(std::vector<unsigned char>* out, std::string* err, const std::string& path,
+                     void*) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::is_regular_file(status)) {
+    if (err) *err += "'" + path + "' is not a regular file\n";
+    return false;
+  }
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  std::ifstream in(path, std::ios::binary);
+  if (ec || !in) {
+    if (err) *err += "cannot open '" + path + "'\n";
+    return false;
+  }
+  out->resize(std::size_t(size));
+  in.read(reinterpret_cast<char*>(out->data()), std::streamsize(size));
+  if (in.gcount() != std::streamsize(size)) {
+    if (err) *err += "cannot read '" + path + "'\n";
+    return false;
+  }
+  return true;
+}
+
 // tinygltf says only "Invalid glTF binary" for a cut-off .glb; the header tells us more.
 Status checkGlbLength(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -687,8 +719,15 @@ Result<Scene> loadGltf(const std::filesystem::path& path) {
   if (ext == ".glb")
     if (Status s = checkGlbLength(path); !s) return s.error();
   loader.SetImageLoader(loadImageInBounds, &model);
-  bool ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, file)
-                          : loader.LoadASCIIFromFile(&model, &err, &warn, file);
+  loader.SetFsCallbacks({&pathExists, &tinygltf::ExpandFilePath, &readRegularFile,
+                         &tinygltf::WriteWholeFile, nullptr});
+  bool ok = false;
+  try {
+    ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, file)
+                       : loader.LoadASCIIFromFile(&model, &err, &warn, file);
+  } catch (const std::exception& e) {  // allocations sized by the file (std::bad_alloc)
+    return Error{file + ": cannot parse glTF: " + e.what()};
+  }
   // Refuse what we cannot honour before anything else: tinygltf itself ignores the list.
   for (const std::string& req : model.extensionsRequired)
     if (!kSupportedExtensions.count(req))

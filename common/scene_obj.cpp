@@ -17,6 +17,10 @@
 namespace pc::scene_detail {
 
 Status loadImageFile(const std::filesystem::path& path, Texture& out) {
+  // A FIFO would block the load until something wrote to it; a directory is no image.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    return Error{path.string() + ": cannot read image: not a regular file"};
   int w = 0, h = 0, comps = 0;
   stbi_uc* data = stbi_load(path.string().c_str(), &w, &h, &comps, 4);
   if (!data) {

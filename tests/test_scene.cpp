@@ -1,6 +1,7 @@
 // Scene loading: the built-in room, small generated glTF/OBJ files (features and broken
 // files), sidecars, animation, and the shared scenes where ../shared/scenes is present.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cmath>
 #include <cstring>
@@ -794,6 +795,31 @@ TEST(BadFiles, WorldPositionsPastTheFloatRange) {
   writeFile(dir / "scaled.json", R"({"unit_scale": 1e20})");
   expectError(pc::loadScene(dir / "large.gltf", dir / "scaled.json"), "large.gltf",
               "non-finite world position");
+}
+
+// A glTF URI naming a directory made tinygltf allocate 2^63 - 1 bytes for it (std::bad_alloc
+// ended the process); a glTF URI or an OBJ texture naming a FIFO blocked the load until
+// something wrote to it. Only regular files are read.
+TEST(BadFiles, UrisNamingADirectoryOrAFifo) {
+  TempDir dir;
+  fs::create_directories(dir / "folder");
+  writeFile(dir / "folder.gltf", quadGltf("folder"));
+  expectError(pc::loadScene(dir / "folder.gltf", emptySidecar(dir)), "folder.gltf",
+              "folder' is not a regular file");
+  ASSERT_EQ(::mkfifo((dir / "pipe").c_str(), 0600), 0);
+  writeFile(dir / "pipe.gltf", quadGltf("pipe"));
+  expectError(pc::loadScene(dir / "pipe.gltf", emptySidecar(dir)), "pipe.gltf",
+              "pipe' is not a regular file");
+  // An OBJ texture that is a FIFO: a warning naming it, and the scene loads.
+  writeFile(dir / "t.mtl", "newmtl t\nmap_Kd pipe\n");
+  writeFile(dir / "t.obj", "mtllib t.mtl\nusemtl t\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  auto obj = pc::loadScene(dir / "t.obj", emptySidecar(dir));
+  ASSERT_TRUE(obj.ok()) << obj.error().message;
+  EXPECT_TRUE(obj->textures.empty());
+  bool warned = false;
+  for (const std::string& w : obj->warnings)
+    warned = warned || w.find("pipe: cannot read image: not a regular file") != std::string::npos;
+  EXPECT_TRUE(warned);
 }
 
 TEST(BadFiles, GltfIndexOutOfRange) {
