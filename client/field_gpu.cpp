@@ -183,12 +183,10 @@ Status FieldGpu::createWritePass(int frameSlots) {
   bind(gpu::PC_FW_BIND_IRRADIANCE_OUT, storage);
   bind(gpu::PC_FW_BIND_DEPTH_OUT, storage);
   bind(gpu::PC_FW_BIND_OCCLUSION_OUT, storage);
-  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  li.bindingCount = std::uint32_t(bindings.size());
-  li.pBindings = bindings.data();
-  VkDescriptorSetLayout setLayout = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreateDescriptorSetLayout(device, &li, nullptr, &setLayout));
-  setLayout_ = vk::UniqueDescriptorSetLayout(device, setLayout);
+  auto dsl = vk::createDescriptorSetLayout(*ctx_, bindings);
+  if (!dsl) return dsl.error();
+  setLayout_ = std::move(dsl).value();
+  const VkDescriptorSetLayout setLayout = setLayout_.get();
   auto layout = vk::createPipelineLayout(*ctx_, setLayout);
   if (!layout) return layout.error();
   pipelineLayout_ = std::move(layout).value();

@@ -479,12 +479,10 @@ Status Renderer::createPipelines() {
         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT;
     list.push_back(lb);
   }
-  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  li.bindingCount = std::uint32_t(list.size());
-  li.pBindings = list.data();
-  VkDescriptorSetLayout setLayout = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreateDescriptorSetLayout(ctx_->device(), &li, nullptr, &setLayout));
-  setLayout_ = vk::UniqueDescriptorSetLayout(ctx_->device(), setLayout);
+  auto dsl = vk::createDescriptorSetLayout(*ctx_, list);
+  if (!dsl) return dsl.error();
+  setLayout_ = std::move(dsl).value();
+  const VkDescriptorSetLayout setLayout = setLayout_.get();
   auto layout = vk::createPipelineLayout(*ctx_, setLayout, VK_SHADER_STAGE_VERTEX_BIT,
                                          sizeof(gpu::ShadowPush));
   if (!layout) return layout.error();

@@ -277,17 +277,10 @@ Status VulkanTracer::Impl::createPipelines() {
     bindings.push_back(lb);
     flags.push_back(f);
   }
-  VkDescriptorSetLayoutBindingFlagsCreateInfo bfi{
-      VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_BINDING_FLAGS_CREATE_INFO};
-  bfi.bindingCount = std::uint32_t(flags.size());
-  bfi.pBindingFlags = flags.data();
-  VkDescriptorSetLayoutCreateInfo lci{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  lci.pNext = &bfi;
-  lci.bindingCount = std::uint32_t(bindings.size());
-  lci.pBindings = bindings.data();
-  VkDescriptorSetLayout dsl = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreateDescriptorSetLayout(ctx->device(), &lci, nullptr, &dsl));
-  setLayout = vk::UniqueDescriptorSetLayout(ctx->device(), dsl);
+  auto created = vk::createDescriptorSetLayout(*ctx, bindings, flags);
+  if (!created) return created.error();
+  setLayout = std::move(created).value();
+  const VkDescriptorSetLayout dsl = setLayout.get();
 
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 2},

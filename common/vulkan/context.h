@@ -309,6 +309,12 @@ void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 srcStage, VkAccess
 std::filesystem::path shaderPath(std::string_view name);
 Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name);
 Result<UniqueShaderModule> createShaderModule(const Context& ctx, std::span<const std::uint32_t> spirv);
+// A descriptor set layout of `bindings`; `flags`, where given, holds one
+// VkDescriptorBindingFlags per binding (VK_EXT_descriptor_indexing's partially bound and
+// variable-count arrays).
+Result<UniqueDescriptorSetLayout> createDescriptorSetLayout(
+    const Context& ctx, std::span<const VkDescriptorSetLayoutBinding> bindings,
+    std::span<const VkDescriptorBindingFlags> flags = {});
 // A pipeline layout of one descriptor set layout and, where pushBytes > 0, one push-constant
 // range from offset 0 for `pushStages`.
 Result<UniquePipelineLayout> createPipelineLayout(const Context& ctx,

@@ -23,6 +23,22 @@ Result<UniqueShaderModule> createShaderModule(const Context& ctx, std::span<cons
   return UniqueShaderModule(ctx.device(), module);
 }
 
+Result<UniqueDescriptorSetLayout> createDescriptorSetLayout(
+    const Context& ctx, std::span<const VkDescriptorSetLayoutBinding> bindings,
+    std::span<const VkDescriptorBindingFlags> flags) {
+  VkDescriptorSetLayoutBindingFlagsCreateInfo fi{
+      VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_BINDING_FLAGS_CREATE_INFO};
+  fi.bindingCount = std::uint32_t(flags.size());
+  fi.pBindingFlags = flags.data();
+  VkDescriptorSetLayoutCreateInfo ci{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  ci.pNext = flags.empty() ? nullptr : &fi;
+  ci.bindingCount = std::uint32_t(bindings.size());
+  ci.pBindings = bindings.data();
+  VkDescriptorSetLayout layout = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateDescriptorSetLayout(ctx.device(), &ci, nullptr, &layout));
+  return UniqueDescriptorSetLayout(ctx.device(), layout);
+}
+
 Result<UniquePipelineLayout> createPipelineLayout(const Context& ctx,
                                                   VkDescriptorSetLayout setLayout,
                                                   VkShaderStageFlags pushStages,
