@@ -1,7 +1,8 @@
-// Shared by the scene-file fuzz targets (fuzz_obj, fuzz_gltf): each input is written to a file
-// in a directory of its own (the loaders take paths, and a scene.json beside an input would be
-// read as its sidecar), loaded with loadScene and an empty sidecar, and then either refused
-// with an error that names the file or checked against what every user of a Scene relies on.
+// Shared by the scene-file fuzz targets (fuzz_obj, fuzz_gltf; fuzz_sidecar writes its inputs
+// with inputDir and writeInput too): each input is written to a file in a directory of its own
+// (the loaders take paths, and a scene.json beside an input would be read as its sidecar),
+// loaded with loadScene and an empty sidecar, and then either refused with an error that
+// names the file or checked against what every user of a Scene relies on.
 #pragma once
 
 #include <unistd.h>
