@@ -88,7 +88,7 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   std::vector<gpu::DrawData> draws = drawData(scene, gpuScene_->packed(), state);
 
   LightSet lights =
-      buildLights(scene, state, EmissiveLights::build(scene, state), options_.shadows);
+      buildLights(scene, state, EmissiveLights::build(scene, state, *emissive_), options_.shadows);
   // Counts are fixed at creation; a scene whose emitters changed count keeps what fits.
   const int lightCount = std::min(int(lights.lights.size()), lightCount_);
   const int matrixCount = std::min(int(lights.matrices.size()), matrixCount_);

@@ -168,6 +168,7 @@ class Renderer {
 
   const vk::Context* ctx_ = nullptr;
   const Scene* scene_ = nullptr;
+  std::optional<EmissiveSurfaces> emissive_;  // found once; each frame only places them
   FieldMirror* mirror_ = nullptr;
   RendererOptions options_;
   std::optional<GpuScene> gpuScene_;

@@ -178,6 +178,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   std::unique_ptr<Renderer> r(new Renderer);
   r->ctx_ = &ctx;
   r->scene_ = &scene;
+  r->emissive_.emplace(scene);
   r->mirror_ = &mirror;
   r->options_ = resolved;
 
@@ -240,8 +241,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
 
   // Light and shadow layer counts are fixed by the scene (animation moves lights, never adds).
   const SceneState state0 = evaluateScene(scene, 0.0);
-  const LightSet lights0 =
-      buildLights(scene, state0, EmissiveLights::build(scene, state0), options.shadows);
+  const LightSet lights0 = buildLights(
+      scene, state0, EmissiveLights::build(scene, state0, *r->emissive_), options.shadows);
   r->lightCount_ = int(lights0.lights.size());
   r->matrixCount_ = int(lights0.matrices.size());
   for (int a = 0; a < kShadowArrays; ++a) r->shadowLayers_[a] = lights0.layers[a];

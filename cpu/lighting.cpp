@@ -114,44 +114,69 @@ bool emissiveAsLights(EmissiveMode mode, double emissiveArea, double totalArea) 
   return false;
 }
 
-EmissiveLights EmissiveLights::build(const Scene& scene, const SceneState& state) {
-  EmissiveLights lights;
-  std::vector<Triangle> emissive;
-  double totalArea = 0.0, emissiveArea = 0.0;
+EmissiveSurfaces::EmissiveSurfaces(const Scene& scene) {
+  const SceneState rest = evaluateScene(scene, 0.0);
   for (std::size_t i = 0; i < scene.instances.size(); ++i) {
     const Instance& inst = scene.instances[i];
     if (inst.mesh < 0 || std::size_t(inst.mesh) >= scene.meshes.size()) continue;
     const Mesh& mesh = scene.meshes[inst.mesh];
     const Material* mat = materialOf(scene, mesh);
     const bool glows = mat && mat->isEmissive();
-    const glm::mat4 m = instanceTransform(scene, state, i);
-    // A mirroring transform flips the winding, and with it which side is the front.
-    const float side = glm::determinant(glm::mat3(m)) < 0.0f ? -1.0f : 1.0f;
+    const glm::mat4 m = instanceTransform(scene, rest, i);
     for (std::size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
       const std::uint32_t i0 = mesh.indices[t], i1 = mesh.indices[t + 1], i2 = mesh.indices[t + 2];
       if (std::max({i0, i1, i2}) >= mesh.positions.size()) continue;
       const glm::vec3 p0 = glm::vec3(m * glm::vec4(mesh.positions[i0], 1.0f));
       const glm::vec3 p1 = glm::vec3(m * glm::vec4(mesh.positions[i1], 1.0f));
       const glm::vec3 p2 = glm::vec3(m * glm::vec4(mesh.positions[i2], 1.0f));
-      const glm::vec3 cross = glm::cross(p1 - p0, p2 - p0);
-      const float twiceArea = glm::length(cross);
+      const float twiceArea = glm::length(glm::cross(p1 - p0, p2 - p0));
       if (twiceArea <= 0.0f) continue;
       const float area = 0.5f * twiceArea;
-      totalArea += area;
+      totalArea_ += area;
       if (!glows) continue;
-      emissiveArea += area;
+      emissiveArea_ += area;
       const glm::vec3 radiance = triangleRadiance(scene, mesh, *mat, i0, i1, i2);
       if (luminance(radiance) <= 0.0f) continue;
-      emissive.push_back({p0, p1 - p0, p2 - p0, side * cross / twiceArea, area, radiance});
+      sources_.push_back({i, i0, i1, i2, radiance});
     }
   }
+}
 
+EmissiveLights EmissiveLights::build(const Scene& scene, const SceneState& state) {
+  return build(scene, state, EmissiveSurfaces(scene));
+}
+
+EmissiveLights EmissiveLights::build(const Scene& scene, const SceneState& state,
+                                     const EmissiveSurfaces& surfaces) {
+  EmissiveLights lights;
   lights.sampledMaterials_.assign(scene.materials.size(), false);
-  if (!emissiveAsLights(scene.emissiveMode, emissiveArea, totalArea)) return lights;
+  if (!emissiveAsLights(scene.emissiveMode, surfaces.emissiveArea_, surfaces.totalArea_))
+    return lights;
   for (std::size_t m = 0; m < scene.materials.size(); ++m) {
     lights.sampledMaterials_[m] = scene.materials[m].isEmissive();
   }
-  lights.triangles_ = std::move(emissive);
+  // Only the emitting triangles are placed at `state`.
+  std::size_t placed = SIZE_MAX;
+  glm::mat4 m(1.0f);
+  float side = 1.0f;
+  for (const EmissiveSurfaces::Source& src : surfaces.sources_) {
+    if (src.instance != placed) {
+      placed = src.instance;
+      m = instanceTransform(scene, state, src.instance);
+      // A mirroring transform flips the winding, and with it which side is the front.
+      side = glm::determinant(glm::mat3(m)) < 0.0f ? -1.0f : 1.0f;
+    }
+    const Mesh& mesh = scene.meshes[scene.instances[src.instance].mesh];
+    const glm::vec3 p0 = glm::vec3(m * glm::vec4(mesh.positions[src.i0], 1.0f));
+    const glm::vec3 p1 = glm::vec3(m * glm::vec4(mesh.positions[src.i1], 1.0f));
+    const glm::vec3 p2 = glm::vec3(m * glm::vec4(mesh.positions[src.i2], 1.0f));
+    const glm::vec3 cross = glm::cross(p1 - p0, p2 - p0);
+    const float twiceArea = glm::length(cross);
+    if (twiceArea <= 0.0f) continue;
+    lights.triangles_.push_back(
+        {p0, p1 - p0, p2 - p0, side * cross / twiceArea, 0.5f * twiceArea, src.radiance});
+  }
+  if (lights.triangles_.empty()) return lights;
   double sum = 0.0;
   lights.cdf_.reserve(lights.triangles_.size());
   for (const Triangle& tri : lights.triangles_) {

@@ -92,12 +92,12 @@ Result<std::unique_ptr<EmbreeTracer>> EmbreeTracer::create(const Scene& scene,
 
 EmbreeTracer::EmbreeTracer(const Scene& scene, std::unique_ptr<EmbreeScene> embree,
                            const TracerOptions& options)
-    : scene_(scene), embree_(std::move(embree)), options_(options) {}
+    : scene_(scene), embree_(std::move(embree)), options_(options), surfaces_(scene) {}
 
 void EmbreeTracer::setState(const SceneState& state) {
   state_ = state;
   embree_->update(state);
-  emissive_ = EmissiveLights::build(scene_, state);
+  emissive_ = EmissiveLights::build(scene_, state, surfaces_);
 }
 
 UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {

@@ -30,6 +30,7 @@ class EmbreeTracer final : public Tracer {
   std::unique_ptr<EmbreeScene> embree_;
   TracerOptions options_;
   SceneState state_;
+  EmissiveSurfaces surfaces_;  // found once: setState only places them
   EmissiveLights emissive_;
 };
 

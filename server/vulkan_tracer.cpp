@@ -39,6 +39,7 @@ Result<std::unique_ptr<VulkanTracer>> VulkanTracer::create(const Scene& scene,
                                                            const VulkanTracerOptions& vulkan) {
   auto impl = std::make_unique<Impl>();
   impl->scene = &scene;
+  impl->surfaces = std::make_unique<EmissiveSurfaces>(scene);
   impl->options = options;
   if (Status s = impl->init(vulkan); !s) return s.error();
   std::unique_ptr<VulkanTracer> tracer(new VulkanTracer(std::move(impl)));
@@ -111,7 +112,7 @@ void VulkanTracer::setStateOnce(const SceneState& state) {
     g.cosInner = std::cos(std::min(l.innerConeAngle, l.outerConeAngle));
     lights.push_back(g);
   }
-  const EmissiveLights emissive = EmissiveLights::build(scene, state);
+  const EmissiveLights emissive = EmissiveLights::build(scene, state, *m.surfaces);
   std::vector<GpuEmissiveTriangle> tris;
   for (std::size_t k = 0; k < emissive.triangles().size(); ++k) {
     const EmissiveLights::Triangle& t = emissive.triangles()[k];

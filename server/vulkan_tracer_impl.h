@@ -14,6 +14,7 @@
 
 #include "../common/log.h"
 #include "../common/vulkan/texture_samplers.h"
+#include "../cpu/lighting.h"
 #include "../shaders/interop/gpu_trace.h"
 #include "probe_blend.h"
 #include "vulkan_accel.h"
@@ -95,6 +96,7 @@ using namespace vulkan_tracer_detail;
 
 struct VulkanTracer::Impl {
   const Scene* scene = nullptr;
+  std::unique_ptr<EmissiveSurfaces> surfaces;  // found once: each state only places them
   TracerOptions options;
   std::unique_ptr<vk::Context> ctx;
   vk::CommandPool commandPool;

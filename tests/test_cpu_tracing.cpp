@@ -320,6 +320,49 @@ TEST(DirectLight, SpotAndDirectionalLights) {
               3.0f * std::sqrt(0.5f), 1e-4f);
 }
 
+// The emitters are found once per scene (EmissiveSurfaces) and placed at each state: an
+// emitter on a turning instance must follow it, with the power it had at rest.
+TEST(EmissiveLights, SurfacesFoundOnceFollowAnAnimatedInstance) {
+  Scene scene = builtinScene();
+  std::size_t spinning = scene.instances.size();
+  for (std::size_t i = 0; i < scene.instances.size(); ++i)
+    if (scene.instances[i].animation >= 0) spinning = i;
+  ASSERT_LT(spinning, scene.instances.size());
+  // The spinning block glows (its own mesh and material); it is a small share of the room, so
+  // its triangles are sampled as lights.
+  Mesh glowing = scene.meshes[scene.instances[spinning].mesh];
+  Material lamp = scene.materials[glowing.material];
+  lamp.emissive = glm::vec3(4.0f);
+  glowing.material = int(scene.materials.size());
+  scene.materials.push_back(lamp);
+  scene.instances[spinning].mesh = int(scene.meshes.size());
+  scene.meshes.push_back(glowing);
+
+  const EmissiveSurfaces surfaces(scene);
+  const EmissiveLights rest = EmissiveLights::build(scene, evaluateScene(scene, 0.0), surfaces);
+  ASSERT_EQ(rest.count(), glowing.triangleCount());
+  for (double t : {0.0, 2.5, 7.0}) {
+    const SceneState state = evaluateScene(scene, t);
+    const EmissiveLights lights = EmissiveLights::build(scene, state, surfaces);
+    ASSERT_EQ(lights.count(), glowing.triangleCount()) << "t = " << t;
+    const glm::mat4& m = state.instanceTransforms[spinning];
+    for (std::size_t k = 0; k < lights.count(); ++k) {
+      const glm::vec3 p0 =
+          glm::vec3(m * glm::vec4(glowing.positions[glowing.indices[3 * k]], 1.0f));
+      EXPECT_NEAR(glm::distance(lights.triangles()[k].p0, p0), 0.0f, 1e-6f) << "t = " << t;
+    }
+    EXPECT_NEAR(lights.totalPower(), rest.totalPower(), 1e-5f * rest.totalPower());
+    // The same as finding the surfaces again at this state.
+    const EmissiveLights again = EmissiveLights::build(scene, state);
+    ASSERT_EQ(again.count(), lights.count());
+    EXPECT_EQ(again.triangles()[0].p0, lights.triangles()[0].p0);
+    EXPECT_EQ(again.cdf(), lights.cdf());
+  }
+  // At t = 2.5 the block has turned by 0.75 rad: its emitters are elsewhere than at rest.
+  const EmissiveLights turned = EmissiveLights::build(scene, evaluateScene(scene, 2.5), surfaces);
+  EXPECT_GT(glm::distance(turned.triangles()[0].p0, rest.triangles()[0].p0), 1e-3f);
+}
+
 TEST(DirectLight, ShadowedPointGetsNothing) {
   Scene scene = floorScene(true);
   auto embree = build(scene);
