@@ -774,8 +774,8 @@ TEST(BadFiles, GlbWithShortBuffer) {
 }
 
 // Finite file positions that a node's scale, or the sidecar's unit_scale, carries past the
-// float range: the scene's bounds were infinite, and every probe volume and acceleration
-// structure built from them with it.
+// float range: the scene's bounds were infinite, and so was every probe volume and
+// acceleration structure built from them.
 TEST(BadFiles, WorldPositionsPastTheFloatRange) {
   TempDir dir;
   writeBytes(dir / "quad.bin", quadBuffer());
