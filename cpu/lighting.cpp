@@ -184,7 +184,7 @@ EmissiveLights EmissiveLights::build(const Scene& scene, const SceneState& state
     lights.cdf_.push_back(static_cast<float>(sum));
   }
   for (float& c : lights.cdf_) c = static_cast<float>(c / sum);
-  if (!lights.cdf_.empty()) lights.cdf_.back() = 1.0f;
+  lights.cdf_.back() = 1.0f;  // not empty: the list has triangles
   lights.totalPower_ = static_cast<float>(sum);
   return lights;
 }

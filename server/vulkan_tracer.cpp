@@ -39,7 +39,7 @@ Result<std::unique_ptr<VulkanTracer>> VulkanTracer::create(const Scene& scene,
                                                            const VulkanTracerOptions& vulkan) {
   auto impl = std::make_unique<Impl>();
   impl->scene = &scene;
-  impl->surfaces = std::make_unique<EmissiveSurfaces>(scene);
+  impl->surfaces.emplace(scene);
   impl->options = options;
   if (Status s = impl->init(vulkan); !s) return s.error();
   std::unique_ptr<VulkanTracer> tracer(new VulkanTracer(std::move(impl)));

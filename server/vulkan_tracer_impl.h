@@ -96,7 +96,7 @@ using namespace vulkan_tracer_detail;
 
 struct VulkanTracer::Impl {
   const Scene* scene = nullptr;
-  std::unique_ptr<EmissiveSurfaces> surfaces;  // found once: each state only places them
+  std::optional<EmissiveSurfaces> surfaces;  // found once: each state only places them
   TracerOptions options;
   std::unique_ptr<vk::Context> ctx;
   vk::CommandPool commandPool;
