@@ -4,7 +4,6 @@
 
 #include "camera.h"
 #include "common/log.h"
-#include "cpu/path_tracer.h"
 #include "protocol/baked_file.h"
 
 namespace pc::client {

@@ -68,24 +68,15 @@ void addCube(LightSet& set, gpu::GpuLight& light, int array, glm::vec3 position,
 }
 
 void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const ShadowSettings& s) {
-  gpu::GpuLight g{};
-  g.position = l.position;
-  g.direction = glm::normalize(l.direction);
-  g.range = l.range;
-  g.power = l.color * l.intensity;
-  g.cosOuter = std::cos(l.outerConeAngle);
-  g.cosInner = std::cos(std::min(l.innerConeAngle, l.outerConeAngle));
-  g.shadowLayer = -1;
+  gpu::GpuLight g = packLight(l);
   const float diag = std::max(bounds.diagonal(), 1e-3f);
   const float nearPlane = 1e-3f * diag;
   float farPlane = farthestCorner(bounds, l.position) * 1.01f + nearPlane;
   if (l.range > 0.0f) farPlane = std::min(farPlane, l.range);
   farPlane = std::max(farPlane, 2.0f * nearPlane);
   if (l.type == LightType::Point) {
-    g.type = gpu::PC_LIGHT_POINT;
     addCube(set, g, kPointShadowArray, l.position, nearPlane, farPlane, s.pointSize, nullptr);
   } else if (l.type == LightType::Spot) {
-    g.type = gpu::PC_LIGHT_SPOT;
     const float fov = std::min(2.0f * l.outerConeAngle + 0.05f, glm::radians(170.0f));
     glm::vec3 up(0.0f, 1.0f, 0.0f);
     if (std::abs(glm::dot(up, g.direction)) > 0.99f) up = glm::vec3(1.0f, 0.0f, 0.0f);
@@ -100,7 +91,6 @@ void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const Shad
     set.views.push_back(shadowView(kLargeShadowArray, g.shadowLayer, m, g.position));
   } else {
     // The sun: an orthographic map fitted around the scene's bounds as the light sees them.
-    g.type = gpu::PC_LIGHT_DIRECTIONAL;
     const glm::vec3 centre = 0.5f * (bounds.lo + bounds.hi);
     glm::vec3 up(0.0f, 1.0f, 0.0f);
     if (std::abs(glm::dot(up, g.direction)) > 0.99f) up = glm::vec3(1.0f, 0.0f, 0.0f);

@@ -14,7 +14,8 @@
 #include <vector>
 
 #include "common/scene.h"
-#include "cpu/lighting.h"
+#include "common/emissive_lights.h"
+#include "common/light_pack.h"
 #include "shaders/interop/client_frame.h"
 
 namespace pc::client {

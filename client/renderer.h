@@ -21,7 +21,7 @@
 #include "common/result.h"
 #include "common/scene.h"
 #include "common/vulkan/context.h"
-#include "cpu/lighting.h"
+#include "common/emissive_lights.h"
 #include "field_gpu.h"
 #include "field_mirror.h"
 #include "gpu_scene.h"

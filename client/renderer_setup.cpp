@@ -449,27 +449,27 @@ Status Renderer::createPipelines() {
     std::uint32_t count;
   };
   const B bindings[] = {
-      {gpu::PC_BIND_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-      {gpu::PC_BIND_FIELD_DESC, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-      {gpu::PC_BIND_DRAWS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_LIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_SHADOW_MATRICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_PROBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_IRRADIANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_OCCLUSION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_SHADOW_MAPS, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, kShadowArrays},
-      {gpu::PC_BIND_TEXTURES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, textures},
-      {gpu::PC_BIND_G_VISIBILITY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_VERTICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_INDICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_VIS_SAMPLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_RASTER_TRIANGLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_RASTER_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_RASTER_COUNTERS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
-      {gpu::PC_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
-      {gpu::PC_BIND_HDR_TEXTURE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_BIND_OVERLAY, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
+      {gpu::PC_CLIENT_BIND_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_FIELD_DESC, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_DRAWS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_LIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_SHADOW_MATRICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_PROBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_IRRADIANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_CLIENT_BIND_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_CLIENT_BIND_OCCLUSION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_CLIENT_BIND_SHADOW_MAPS, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, kShadowArrays},
+      {gpu::PC_CLIENT_BIND_TEXTURES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, textures},
+      {gpu::PC_CLIENT_BIND_G_VISIBILITY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_CLIENT_BIND_VERTICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_INDICES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_VIS_SAMPLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_RASTER_TRIANGLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_RASTER_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_RASTER_COUNTERS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
+      {gpu::PC_CLIENT_BIND_HDR_TEXTURE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
+      {gpu::PC_CLIENT_BIND_OVERLAY, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
   std::vector<VkDescriptorSetLayoutBinding> list;
   for (const B& b : bindings) {
     VkDescriptorSetLayoutBinding lb{};
@@ -671,27 +671,27 @@ Status Renderer::writeDescriptors() {
     const VkDescriptorType ubo = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
     const VkDescriptorType ssbo = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
     const VkDescriptorType cis = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-    buffer(gpu::PC_BIND_FRAME, ubo, &frame);
-    buffer(gpu::PC_BIND_FIELD_DESC, ubo, &fieldDesc);
-    buffer(gpu::PC_BIND_DRAWS, ssbo, &draws);
-    buffer(gpu::PC_BIND_LIGHTS, ssbo, &lights);
-    buffer(gpu::PC_BIND_SHADOW_MATRICES, ssbo, &matrices);
-    buffer(gpu::PC_BIND_PROBES, ssbo, &probes);
-    buffer(gpu::PC_BIND_OVERLAY, ssbo, &overlay);
-    buffer(gpu::PC_BIND_VERTICES, ssbo, &vertices);
-    buffer(gpu::PC_BIND_INDICES, ssbo, &indices);
-    buffer(gpu::PC_BIND_VIS_SAMPLES, ssbo, &visSamples);
-    buffer(gpu::PC_BIND_RASTER_TRIANGLES, ssbo, &rasterTriangles);
-    buffer(gpu::PC_BIND_RASTER_JOBS, ssbo, &rasterJobs);
-    buffer(gpu::PC_BIND_RASTER_COUNTERS, ssbo, &rasterCounters);
-    image(gpu::PC_BIND_IRRADIANCE, cis, &irradiance, 1);
-    image(gpu::PC_BIND_DEPTH, cis, &depth, 1);
-    image(gpu::PC_BIND_OCCLUSION, cis, &occlusion, 1);
-    image(gpu::PC_BIND_SHADOW_MAPS, cis, shadows, kShadowArrays);
-    image(gpu::PC_BIND_TEXTURES, cis, textures.data(), std::uint32_t(textures.size()));
-    image(gpu::PC_BIND_G_VISIBILITY, cis, &gVisibility, 1);
-    image(gpu::PC_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, &hdrImage, 1);
-    image(gpu::PC_BIND_HDR_TEXTURE, cis, &hdrTexture, 1);
+    buffer(gpu::PC_CLIENT_BIND_FRAME, ubo, &frame);
+    buffer(gpu::PC_CLIENT_BIND_FIELD_DESC, ubo, &fieldDesc);
+    buffer(gpu::PC_CLIENT_BIND_DRAWS, ssbo, &draws);
+    buffer(gpu::PC_CLIENT_BIND_LIGHTS, ssbo, &lights);
+    buffer(gpu::PC_CLIENT_BIND_SHADOW_MATRICES, ssbo, &matrices);
+    buffer(gpu::PC_CLIENT_BIND_PROBES, ssbo, &probes);
+    buffer(gpu::PC_CLIENT_BIND_OVERLAY, ssbo, &overlay);
+    buffer(gpu::PC_CLIENT_BIND_VERTICES, ssbo, &vertices);
+    buffer(gpu::PC_CLIENT_BIND_INDICES, ssbo, &indices);
+    buffer(gpu::PC_CLIENT_BIND_VIS_SAMPLES, ssbo, &visSamples);
+    buffer(gpu::PC_CLIENT_BIND_RASTER_TRIANGLES, ssbo, &rasterTriangles);
+    buffer(gpu::PC_CLIENT_BIND_RASTER_JOBS, ssbo, &rasterJobs);
+    buffer(gpu::PC_CLIENT_BIND_RASTER_COUNTERS, ssbo, &rasterCounters);
+    image(gpu::PC_CLIENT_BIND_IRRADIANCE, cis, &irradiance, 1);
+    image(gpu::PC_CLIENT_BIND_DEPTH, cis, &depth, 1);
+    image(gpu::PC_CLIENT_BIND_OCCLUSION, cis, &occlusion, 1);
+    image(gpu::PC_CLIENT_BIND_SHADOW_MAPS, cis, shadows, kShadowArrays);
+    image(gpu::PC_CLIENT_BIND_TEXTURES, cis, textures.data(), std::uint32_t(textures.size()));
+    image(gpu::PC_CLIENT_BIND_G_VISIBILITY, cis, &gVisibility, 1);
+    image(gpu::PC_CLIENT_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, &hdrImage, 1);
+    image(gpu::PC_CLIENT_BIND_HDR_TEXTURE, cis, &hdrTexture, 1);
     vkUpdateDescriptorSets(ctx_->device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
   }
   return Status::success();

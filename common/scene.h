@@ -177,4 +177,8 @@ struct SceneState {
 };
 SceneState evaluateScene(const Scene& scene, double time);
 
+// The camera `index` of the scene, or one looking at the scene's bounds when it has none
+// (index 0 only); an error naming the index and the scene's camera count otherwise.
+Result<Camera> sceneCamera(const Scene& scene, int index);
+
 }  // namespace pc

@@ -25,7 +25,7 @@ bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && st
 
 struct Tracer {
   const EmbreeScene& scene;
-  const SceneState& state;
+  std::vector<gpu::GpuLight> lights;  // packLights of the state
   const EmissiveLights& emissive;
   DirectLightOptions direct;
   int maxBounces;
@@ -52,7 +52,7 @@ struct Tracer {
       // its surfaces, 7.7% brighter than at the origin.
       const glm::vec3 P = gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
       const glm::vec3 E =
-          directIrradiance(scene, state, emissive, sp.position, P, sp.normal, rng, direct);
+          directIrradiance(scene, lights, emissive, sp.position, P, sp.normal, rng, direct);
       L += throughput * sp.albedo * kInvPi * E;
       if (bounce >= maxBounces) break;
 
@@ -90,7 +90,7 @@ PathTraceResult pathTrace(const EmbreeScene& scene, const SceneState& state,
   // difference measures its noise.
   const int passSpp[2] = {spp / 2, spp - spp / 2};
 
-  const Tracer tracer{scene, state, emissive, DirectLightOptions{options.emissiveSamples},
+  const Tracer tracer{scene, packLights(state), emissive, DirectLightOptions{options.emissiveSamples},
                       options.maxBounces};
   const PinholeCamera pinhole(camera, width, height);
   Image halves[2] = {Image(width, height), Image(width, height)};
@@ -135,24 +135,6 @@ PathTraceResult pathTrace(const EmbreeScene& scene, const SceneState& state,
   result.samples = std::uint64_t(width) * std::uint64_t(height) * std::uint64_t(spp);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
-}
-
-Result<Camera> sceneCamera(const Scene& scene, int index) {
-  if (index >= 0 && std::size_t(index) < scene.cameras.size()) return scene.cameras[index];
-  if (!scene.cameras.empty() || index != 0) {
-    return Error{"camera " + std::to_string(index) + " not found; the scene has " +
-                 std::to_string(scene.cameras.size())};
-  }
-  // No camera in the scene: look at the bounds' centre from in front (+z), far enough back
-  // for the bounds to fill the default field of view.
-  Camera camera;
-  camera.name = "default";
-  const glm::vec3 centre = 0.5f * (scene.boundsMin + scene.boundsMax);
-  const float radius = 0.5f * glm::length(scene.boundsMax - scene.boundsMin);
-  const float distance = std::max(radius, 1e-3f) / std::tan(0.5f * camera.yfov);
-  camera.position = centre + glm::vec3(0.0f, 0.0f, distance);
-  camera.forward = glm::vec3(0.0f, 0.0f, -1.0f);
-  return camera;
 }
 
 Result<PathTraceResult> renderReference(const Scene& scene, const PathTraceOptions& options,

@@ -54,7 +54,4 @@ Result<PathTraceResult> renderReference(const Scene& scene, const PathTraceOptio
 // Tiles the renders are split into (for sizing a Progress).
 int pathTraceTileCount(int width, int height);
 
-// The camera `index` of the scene, or one looking at the scene's bounds when it has none.
-Result<Camera> sceneCamera(const Scene& scene, int index);
-
 }  // namespace pc

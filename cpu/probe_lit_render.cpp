@@ -26,6 +26,7 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
   const int width = options.width, height = options.height;
   const int primary = std::max(1, options.primarySamples);
   const DirectLightOptions direct{std::max(1, options.emissiveSamples)};
+  const std::vector<gpu::GpuLight> lights = packLights(state);
   const PinholeCamera pinhole(camera, width, height);
   const Sky& sky = scene.scene().sky;
   Image image(width, height);
@@ -48,7 +49,7 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
           // field update and the reference (path_tracer.cpp).
           const glm::vec3 P = gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
           const glm::vec3 E =
-              directIrradiance(scene, state, emissive, sp.position, P, sp.normal, rng, direct);
+              directIrradiance(scene, lights, emissive, sp.position, P, sp.normal, rng, direct);
           // The field's sampler applies its own normal and view biases, so it gets the
           // surface point itself; V points from the surface back toward the camera.
           const glm::vec4 indirect =

@@ -95,7 +95,7 @@ EmbreeTracer::EmbreeTracer(const Scene& scene, std::unique_ptr<EmbreeScene> embr
     : scene_(scene), embree_(std::move(embree)), options_(options), surfaces_(scene) {}
 
 void EmbreeTracer::setState(const SceneState& state) {
-  state_ = state;
+  lights_ = packLights(state);
   embree_->update(state);
   emissive_ = EmissiveLights::build(scene_, state, surfaces_);
 }
@@ -143,7 +143,7 @@ UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
         RayRng rng(std::uint32_t(request.rotationSeed), rayIndex);
         const glm::vec3 shadowOrigin =
             gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
-        glm::vec3 irradiance = directIrradiance(*embree_, state_, emissive_, sp.position,
+        glm::vec3 irradiance = directIrradiance(*embree_, lights_, emissive_, sp.position,
                                                 shadowOrigin, sp.normal, rng, lightOptions);
         glm::vec3 emitted = emissive_.sampled(sp.material) ? glm::vec3(0.0f) : sp.emission;
         glm::vec3 reflectance = sp.albedo * (1.0f / gpu::PC_PI);

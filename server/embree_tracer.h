@@ -29,7 +29,7 @@ class EmbreeTracer final : public Tracer {
   const Scene& scene_;
   std::unique_ptr<EmbreeScene> embree_;
   TracerOptions options_;
-  SceneState state_;
+  std::vector<gpu::GpuLight> lights_;  // the state's lights, packed once per state
   EmissiveSurfaces surfaces_;  // found once: setState only places them
   EmissiveLights emissive_;
 };

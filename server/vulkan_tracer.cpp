@@ -98,20 +98,7 @@ void VulkanTracer::setStateOnce(const SceneState& state) {
   m.tlasDirty = true;
 
   // Lights, and emissive triangles by the same rule as the CPU (EmissiveLights).
-  std::vector<GpuLight> lights;
-  for (const Light& l : state.lights) {
-    GpuLight g{};
-    g.position = l.position;
-    g.type = l.type == LightType::Directional ? PC_LIGHT_DIRECTIONAL
-             : l.type == LightType::Spot      ? PC_LIGHT_SPOT
-                                              : PC_LIGHT_POINT;
-    g.direction = glm::normalize(l.direction);
-    g.range = l.range;
-    g.power = l.color * l.intensity;
-    g.cosOuter = std::cos(l.outerConeAngle);
-    g.cosInner = std::cos(std::min(l.innerConeAngle, l.outerConeAngle));
-    lights.push_back(g);
-  }
+  const std::vector<GpuLight> lights = packLights(state);
   const EmissiveLights emissive = EmissiveLights::build(scene, state, *m.surfaces);
   std::vector<GpuEmissiveTriangle> tris;
   for (std::size_t k = 0; k < emissive.triangles().size(); ++k) {

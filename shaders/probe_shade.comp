@@ -47,10 +47,6 @@ layout(std430, set = 0, binding = PC_BIND_COUNTERS) buffer Counters { uint count
 layout(push_constant) uniform Push { TracePush push; };
 layout(set = 0, binding = PC_BIND_TEXTURES) uniform sampler2D textures[];
 
-// Shadow rays stop a hair short of the light, like the CPU's (cpu/lighting.cpp); the near end
-// is probe_shadow.rgen's.
-const float kShadowFarScale = 1.0f - 1e-4f;
-
 uint rngState;
 float rnd() {
   rngState = pcHash(rngState);
@@ -105,62 +101,13 @@ vec3 skyRadiance(vec3 dir) {
   return y >= 0.0f ? mix(params.skyHorizon, params.skyZenith, y) : mix(params.skyHorizon, params.skyGround, -y);
 }
 
-float rangeWindow(float d, float range) {
-  if (range <= 0.0f) return 1.0f;
-  float r = d / range;
-  float w = clamp(1.0f - r * r * r * r, 0.0f, 1.0f);
-  return w * w;
-}
-
-float spotFactor(GpuLight light, vec3 towardLight) {
-  float cosAngle = dot(-towardLight, light.direction);
-  if (light.cosInner - light.cosOuter <= 1e-6f) return cosAngle >= light.cosOuter ? 1.0f : 0.0f;
-  float t = clamp((cosAngle - light.cosOuter) / (light.cosInner - light.cosOuter), 0.0f, 1.0f);
-  return t * t * (3.0f - 2.0f * t);
-}
-
-// A punctual light's unshadowed irradiance at P and the shadow ray that decides it (`far` 0:
-// the light does not reach P), as cpu/lighting.cpp punctualSample.
+// A light's unshadowed irradiance at P and the shadow ray that decides it (`far` 0: the light
+// does not reach P): the shared light model, as the Embree tracer evaluates it.
 vec3 punctualSample(GpuLight light, vec3 P, vec3 N, out vec3 wi, out float far) {
-  far = 0.0f;
-  wi = vec3(0.0f);
-  if (light.type == PC_LIGHT_DIRECTIONAL) {
-    wi = -light.direction;
-    float cosTheta = dot(N, wi);
-    if (cosTheta <= 0.0f) return vec3(0.0f);
-    far = PC_MISS_DISTANCE;
-    return light.power * cosTheta;
-  }
-  vec3 toLight = light.position - P;
-  float d2 = dot(toLight, toLight);
-  if (d2 <= 0.0f) return vec3(0.0f);
-  float d = sqrt(d2);
-  wi = toLight / d;
-  float cosTheta = dot(N, wi);
-  if (cosTheta <= 0.0f) return vec3(0.0f);
-  float scale = cosTheta / d2 * rangeWindow(d, light.range);
-  if (light.type == PC_LIGHT_SPOT) scale *= spotFactor(light, wi);
-  if (scale <= 0.0f) return vec3(0.0f);
-  far = d * kShadowFarScale;
-  return light.power * scale;
-}
-
-// A fixed number of float steps along the normal (cpu/lighting.cpp offsetRayOrigin).
-vec3 offsetRayOrigin(vec3 P, vec3 n) {
-  const float kNearZero = 1.0f / 32.0f;
-  const float kAbsoluteStep = 1.0f / 65536.0f;
-  const float kUlpsPerUnitNormal = 256.0f;
-  vec3 o;
-  for (int c = 0; c < 3; ++c) {
-    float p = P[c];
-    if (abs(p) < kNearZero) {
-      o[c] = p + kAbsoluteStep * n[c];
-    } else {
-      int ulps = int(kUlpsPerUnitNormal * n[c]);
-      o[c] = intBitsToFloat(floatBitsToInt(p) + (p < 0.0f ? -ulps : ulps));
-    }
-  }
-  return o;
+  float distance;
+  vec3 irradiance = pcLightIrradiance(light, P, N, wi, distance);
+  far = distance * PC_SHADOW_FAR_SCALE;
+  return irradiance;
 }
 
 // First triangle whose cumulative probability exceeds u (std::upper_bound on the CDF).
@@ -186,27 +133,18 @@ void emissiveRequest(int s, int samples, vec3 P, vec3 shadowOrigin, vec3 N) {
     return;
   }
   GpuEmissiveTriangle tri = emissive[k];
-  float r = sqrt(rnd());
-  float v = rnd();
-  vec3 Q = tri.p0 + r * (1.0f - v) * tri.e1 + r * v * tri.e2;
-  vec3 toLight = Q - P;
-  float d2 = dot(toLight, toLight);
-  if (d2 <= 0.0f) {
-    noRequest(slot);
-    return;
-  }
-  float d = sqrt(d2);
-  vec3 wi = toLight / d;
-  float cosSurface = dot(N, wi);
-  float cosLight = -dot(tri.normal, wi);
-  if (cosSurface <= 0.0f || cosLight <= 0.0f) {
+  float u1 = rnd();
+  float u2 = rnd();
+  vec3 Q = pcTrianglePoint(tri.p0, tri.e1, tri.e2, u1, u2);
+  float geometry = pcEmitterGeometry(Q, tri.normal, P, N);
+  if (!(geometry > 0.0f)) {
     noRequest(slot);
     return;
   }
   // Aimed at a point lifted off the emitter, so that the emitter never shadows its own sample:
   // the ray runs from its origin straight to that point and stops just short of it, as on the
   // CPU (cpu/lighting.cpp).
-  vec3 target = offsetRayOrigin(Q, tri.normal);
+  vec3 target = pcOffsetRayOrigin(Q, tri.normal);
   vec3 toTarget = target - shadowOrigin;
   float targetDistance = length(toTarget);
   if (!(targetDistance > 0.0f)) {
@@ -214,8 +152,8 @@ void emissiveRequest(int s, int samples, vec3 P, vec3 shadowOrigin, vec3 N) {
     return;
   }
   float pdfArea = pTriangle / tri.area;
-  request(slot, shadowOrigin, toTarget / targetDistance, targetDistance * kShadowFarScale,
-          tri.radiance * (cosSurface * cosLight / (d2 * pdfArea)) / float(samples));
+  request(slot, shadowOrigin, toTarget / targetDistance, targetDistance * PC_SHADOW_FAR_SCALE,
+          tri.radiance * (geometry / pdfArea) / float(samples));
 }
 
 // Every slot's request for a lit surface point: the lights evaluated at P, the shadow rays from

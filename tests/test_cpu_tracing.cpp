@@ -274,10 +274,10 @@ TEST(DirectLight, PointLightMatchesInverseSquareCosine) {
   Rng rng(1);
   const glm::vec3 N(0, 1, 0);
   for (float x : {0.0f, 1.0f, 3.0f}) {
-    const glm::vec3 P = offsetRayOrigin({x, 0, 0}, N);
+    const glm::vec3 P = gpu::pcOffsetRayOrigin({x, 0, 0}, N);
     const float d2 = x * x + 4.0f;
     const float expected = 10.0f * (2.0f / std::sqrt(d2)) / d2;
-    const glm::vec3 E = directIrradiance(*embree, state, emissive, P, N, rng);
+    const glm::vec3 E = directIrradiance(*embree, packLights(state), emissive, P, N, rng);
     EXPECT_NEAR(E.x, expected, 1e-4f * expected) << "x = " << x;
     EXPECT_NEAR(E.y, 0.5f * expected, 1e-4f * expected);
     EXPECT_NEAR(E.z, 0.25f * expected, 1e-4f * expected);
@@ -302,12 +302,12 @@ TEST(DirectLight, SpotAndDirectionalLights) {
   spot.outerConeAngle = 0.5f;
   state.lights = {spot};
   // Inside the inner cone: full intensity; outside the outer cone: nothing.
-  EXPECT_NEAR(directIrradiance(*embree, state, emissive, offsetRayOrigin({0, 0, 0}, N), N, rng).x,
+  EXPECT_NEAR(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng).x,
               1.0f, 1e-4f);
-  EXPECT_EQ(directIrradiance(*embree, state, emissive, offsetRayOrigin({2, 0, 0}, N), N, rng).x,
+  EXPECT_EQ(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({2, 0, 0}, N), N, rng).x,
             0.0f);
   const float mid =
-      directIrradiance(*embree, state, emissive, offsetRayOrigin({0.8f, 0, 0}, N), N, rng).x;
+      directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({0.8f, 0, 0}, N), N, rng).x;
   EXPECT_GT(mid, 0.0f);  // between the cones (atan(0.4) = 0.38 rad): partly lit
   EXPECT_LT(mid, 4.0f * (2.0f / std::sqrt(4.64f)) / 4.64f);
 
@@ -316,7 +316,7 @@ TEST(DirectLight, SpotAndDirectionalLights) {
   sun.direction = glm::normalize(glm::vec3(1, -1, 0));
   sun.intensity = 3.0f;
   state.lights = {sun};
-  EXPECT_NEAR(directIrradiance(*embree, state, emissive, offsetRayOrigin({0, 0, 0}, N), N, rng).x,
+  EXPECT_NEAR(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng).x,
               3.0f * std::sqrt(0.5f), 1e-4f);
 }
 
@@ -372,9 +372,9 @@ TEST(DirectLight, ShadowedPointGetsNothing) {
   const glm::vec3 N(0, 1, 0);
   // The blocker spans x in [0.75, 1.25] at y = 1: it shadows x = 2 (line to the light
   // crosses y = 1 at x = 1), not x = -2.
-  EXPECT_EQ(directIrradiance(*embree, state, emissive, offsetRayOrigin({2, 0, 0}, N), N, rng),
+  EXPECT_EQ(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({2, 0, 0}, N), N, rng),
             glm::vec3(0.0f));
-  EXPECT_GT(directIrradiance(*embree, state, emissive, offsetRayOrigin({-2, 0, 0}, N), N, rng).x,
+  EXPECT_GT(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({-2, 0, 0}, N), N, rng).x,
             0.0f);
 }
 
@@ -406,16 +406,16 @@ TEST(DirectLight, EmissiveSquareMatchesFormFactor) {
   // Below the centre: four corner rectangles of half x half.
   const double centre = 4.0 * Le * cornerRectangleIrradiance(half, half, height);
   const glm::vec3 E =
-      directIrradiance(*embree, state, emissive, offsetRayOrigin({0, 0, 0}, N), N, rng, options);
+      directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng, options);
   EXPECT_NEAR(E.x, centre, 0.02 * centre);
   // Below a corner of the light, off-centre.
   const double corner = Le * cornerRectangleIrradiance(2 * half, 2 * half, height);
-  const glm::vec3 Ec = directIrradiance(*embree, state, emissive,
-                                        offsetRayOrigin({half, 0, half}, N), N, rng, options);
+  const glm::vec3 Ec = directIrradiance(*embree, packLights(state), emissive,
+                                        gpu::pcOffsetRayOrigin({half, 0, half}, N), N, rng, options);
   EXPECT_NEAR(Ec.x, corner, 0.02 * corner);
   // The emitter's back (its top) lights nothing, even for a receiver facing it.
   const glm::vec3 above =
-      directIrradiance(*embree, state, emissive, {0, 2, 0}, {0, -1, 0}, rng, options);
+      directIrradiance(*embree, packLights(state), emissive, {0, 2, 0}, {0, -1, 0}, rng, options);
   EXPECT_EQ(above, glm::vec3(0.0f));
   std::printf("emissive square: E %.5f vs %.5f (centre), %.5f vs %.5f (corner)\n", E.x, centre,
               Ec.x, corner);

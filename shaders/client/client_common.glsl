@@ -3,5 +3,5 @@
 #include "../interop/client_frame.h"
 #include "../interop/field_desc.h"
 
-layout(set = 0, binding = PC_BIND_FRAME) uniform FrameBlock { FrameUniforms frame; };
-layout(set = 0, binding = PC_BIND_DRAWS, std430) readonly buffer DrawBlock { DrawData draws[]; };
+layout(set = 0, binding = PC_CLIENT_BIND_FRAME) uniform FrameBlock { FrameUniforms frame; };
+layout(set = 0, binding = PC_CLIENT_BIND_DRAWS, std430) readonly buffer DrawBlock { DrawData draws[]; };

@@ -4,25 +4,11 @@
 // small where graphics units are few (an H100: docs/BENCHMARKS.md), and surfaces are shaded
 // once per distinct triangle of a pixel.
 // Needs client_common.glsl first.
-layout(set = 0, binding = PC_BIND_LIGHTS, std430) readonly buffer LightBlock { GpuLight lights[]; };
-layout(set = 0, binding = PC_BIND_SHADOW_MATRICES, std430) readonly buffer ShadowBlock {
+layout(set = 0, binding = PC_CLIENT_BIND_LIGHTS, std430) readonly buffer LightBlock { GpuLight lights[]; };
+layout(set = 0, binding = PC_CLIENT_BIND_SHADOW_MATRICES, std430) readonly buffer ShadowBlock {
   mat4 shadowMatrices[];
 };
-layout(set = 0, binding = PC_BIND_SHADOW_MAPS) uniform sampler2DArrayShadow shadowMaps[3];
-
-float rangeWindow(float distance, float range) {
-  if (range <= 0.0) return 1.0;
-  float r = distance / range;
-  float w = clamp(1.0 - r * r * r * r, 0.0, 1.0);
-  return w * w;
-}
-
-float spotFactor(GpuLight l, vec3 towardLight) {
-  float cosAngle = dot(-towardLight, normalize(l.direction));
-  if (l.cosInner - l.cosOuter <= 1e-6) return cosAngle >= l.cosOuter ? 1.0 : 0.0;
-  float t = clamp((cosAngle - l.cosOuter) / (l.cosInner - l.cosOuter), 0.0, 1.0);
-  return t * t * (3.0 - 2.0 * t);
-}
+layout(set = 0, binding = PC_CLIENT_BIND_SHADOW_MAPS) uniform sampler2DArrayShadow shadowMaps[3];
 
 // Cube face of direction v, in the order the client renders them: +x, -x, +y, -y, +z, -z.
 int cubeFace(vec3 v) {
@@ -73,38 +59,17 @@ float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
   return sum / 9.0;
 }
 
+// Every light at P, each shadowed by its map; the light itself is the shared light model
+// (shaders/interop/light_model.h), as the tracers evaluate it.
 vec3 directIrradiance(vec3 P, vec3 N) {
   vec3 E = vec3(0.0);
   for (int i = 0; i < frame.lightCount; ++i) {
     GpuLight l = lights[i];
-    if (l.type == PC_LIGHT_DIRECTIONAL) {
-      vec3 wi = -normalize(l.direction);
-      float cosTheta = dot(N, wi);
-      if (cosTheta <= 0.0) continue;
-      E += l.power * (cosTheta * shadowVisibility(l, P, N, 0.0));
-      continue;
-    }
-    vec3 toLight = l.position - P;
-    float d2 = dot(toLight, toLight);
-    if (d2 <= 0.0) continue;
-    float d = sqrt(d2);
-    vec3 wi = toLight / d;
-    float cosTheta = dot(N, wi);
-    if (cosTheta <= 0.0) continue;
-    float scale;
-    if (l.type == PC_LIGHT_AREA) {
-      // A patch of emitter: one-sided cosine emission; `range` holds the squared distance
-      // below which a patch stops brightening (its own size: the point-light form of a
-      // patch diverges where the area integral does not).
-      float cosLight = -dot(l.direction, wi);
-      if (cosLight <= 0.0) continue;
-      scale = cosTheta * cosLight / max(d2, l.range);
-    } else {
-      scale = cosTheta / d2 * rangeWindow(d, l.range);
-      if (l.type == PC_LIGHT_SPOT) scale *= spotFactor(l, wi);
-    }
-    if (scale <= 0.0) continue;
-    E += l.power * (scale * shadowVisibility(l, P, N, d));
+    vec3 wi;
+    float d;
+    vec3 irradiance = pcLightIrradiance(l, P, N, wi, d);
+    if (!(d > 0.0)) continue;  // behind P, outside its cone or range
+    E += irradiance * shadowVisibility(l, P, N, l.type == PC_LIGHT_DIRECTIONAL ? 0.0 : d);
   }
   return E;
 }

@@ -4,8 +4,8 @@
 #ifndef PC_CLIENT_GEOMETRY_GLSL
 #define PC_CLIENT_GEOMETRY_GLSL
 
-layout(set = 0, binding = PC_BIND_VERTICES, std430) readonly buffer VertexBlock { float vertexData[]; };
-layout(set = 0, binding = PC_BIND_INDICES, std430) readonly buffer IndexBlock { uint indexData[]; };
+layout(set = 0, binding = PC_CLIENT_BIND_VERTICES, std430) readonly buffer VertexBlock { float vertexData[]; };
+layout(set = 0, binding = PC_CLIENT_BIND_INDICES, std430) readonly buffer IndexBlock { uint indexData[]; };
 
 // The draw owning triangle id `triangle`: the last whose triangleBase is not above it.
 int drawOfTriangle(uint triangle) {

@@ -17,15 +17,15 @@ layout(constant_id = 1) const int TEXTURE_COUNT = 1;
 layout(constant_id = 2) const bool VIS_BUFFER = false;
 #include "client_surface.glsl"
 
-layout(set = 0, binding = PC_BIND_FIELD_DESC) uniform FieldBlock { FieldDesc field; };
-layout(set = 0, binding = PC_BIND_PROBES, std430) readonly buffer ProbeBlock { vec4 probes[]; };
-layout(set = 0, binding = PC_BIND_IRRADIANCE) uniform sampler2D irradianceAtlas;
-layout(set = 0, binding = PC_BIND_DEPTH) uniform sampler2D depthAtlas;
-layout(set = 0, binding = PC_BIND_OCCLUSION) uniform sampler2D occlusionAtlas;
-layout(set = 0, binding = PC_BIND_G_VISIBILITY) uniform usampler2DMSArray gVisibility;
+layout(set = 0, binding = PC_CLIENT_BIND_FIELD_DESC) uniform FieldBlock { FieldDesc field; };
+layout(set = 0, binding = PC_CLIENT_BIND_PROBES, std430) readonly buffer ProbeBlock { vec4 probes[]; };
+layout(set = 0, binding = PC_CLIENT_BIND_IRRADIANCE) uniform sampler2D irradianceAtlas;
+layout(set = 0, binding = PC_CLIENT_BIND_DEPTH) uniform sampler2D depthAtlas;
+layout(set = 0, binding = PC_CLIENT_BIND_OCCLUSION) uniform sampler2D occlusionAtlas;
+layout(set = 0, binding = PC_CLIENT_BIND_G_VISIBILITY) uniform usampler2DMSArray gVisibility;
 // Per sample: depth bits in the high word, the id in the low word (client_raster.glsl).
-layout(set = 0, binding = PC_BIND_VIS_SAMPLES, std430) readonly buffer VisBlock { uvec2 visSamples[]; };
-layout(set = 0, binding = PC_BIND_HDR_IMAGE, rgba32f) uniform writeonly image2DArray hdrImage;
+layout(set = 0, binding = PC_CLIENT_BIND_VIS_SAMPLES, std430) readonly buffer VisBlock { uvec2 visSamples[]; };
+layout(set = 0, binding = PC_CLIENT_BIND_HDR_IMAGE, rgba32f) uniform writeonly image2DArray hdrImage;
 
 // Fetch hooks of shaders/interop/probe_sampling.h: bilinear reads of a bordered tile, done by
 // the texture unit exactly as the CPU's bilinear() does on its copy of the atlas.

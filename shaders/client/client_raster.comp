@@ -14,11 +14,11 @@ layout(constant_id = 3) const bool CUT_OUTS = false;  // any cut-out material in
 #include "client_surface.glsl"
 #include "client_raster.glsl"
 
-layout(set = 0, binding = PC_BIND_RASTER_TRIANGLES, std430) writeonly buffer TriangleBlock {
+layout(set = 0, binding = PC_CLIENT_BIND_RASTER_TRIANGLES, std430) writeonly buffer TriangleBlock {
   RasterTriangle rasterTriangles[];
 };
-layout(set = 0, binding = PC_BIND_RASTER_JOBS, std430) writeonly buffer JobBlock { uvec2 jobs[]; };
-layout(set = 0, binding = PC_BIND_RASTER_COUNTERS, std430) buffer CounterBlock {
+layout(set = 0, binding = PC_CLIENT_BIND_RASTER_JOBS, std430) writeonly buffer JobBlock { uvec2 jobs[]; };
+layout(set = 0, binding = PC_CLIENT_BIND_RASTER_COUNTERS, std430) buffer CounterBlock {
   RasterCounters counters;
 };
 

@@ -10,7 +10,7 @@
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
 
-layout(set = 0, binding = PC_BIND_VIS_SAMPLES, std430) buffer VisBlock { uint64_t visSamples[]; };
+layout(set = 0, binding = PC_CLIENT_BIND_VIS_SAMPLES, std430) buffer VisBlock { uint64_t visSamples[]; };
 
 // Vulkan's standard sample locations, in 1/PC_RASTER_SUBPIXEL of a pixel from its corner.
 ivec2 sampleOffset(int s) {

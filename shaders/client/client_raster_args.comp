@@ -5,7 +5,7 @@
 #include "client_common.glsl"
 
 layout(local_size_x = 1) in;
-layout(set = 0, binding = PC_BIND_RASTER_COUNTERS, std430) buffer CounterBlock {
+layout(set = 0, binding = PC_CLIENT_BIND_RASTER_COUNTERS, std430) buffer CounterBlock {
   RasterCounters counters;
 };
 

@@ -12,7 +12,7 @@
 #extension GL_EXT_nonuniform_qualifier : require
 #include "client_geometry.glsl"
 
-layout(set = 0, binding = PC_BIND_TEXTURES) uniform sampler2D textures[TEXTURE_COUNT];
+layout(set = 0, binding = PC_CLIENT_BIND_TEXTURES) uniform sampler2D textures[TEXTURE_COUNT];
 
 struct Surface {
   vec3 position;

@@ -7,8 +7,8 @@
 #include "client_common.glsl"
 #include "../interop/tonemap.h"
 
-layout(set = 0, binding = PC_BIND_HDR_TEXTURE) uniform sampler2DArray hdrTexture;
-layout(set = 0, binding = PC_BIND_OVERLAY, std430) readonly buffer OverlayBlock { OverlayText overlay; };
+layout(set = 0, binding = PC_CLIENT_BIND_HDR_TEXTURE) uniform sampler2DArray hdrTexture;
+layout(set = 0, binding = PC_CLIENT_BIND_OVERLAY, std430) readonly buffer OverlayBlock { OverlayText overlay; };
 
 layout(location = 0) out vec4 outColor;
 // Stereo into one image twice the render width: the left eye in the left half.

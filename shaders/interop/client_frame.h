@@ -1,45 +1,39 @@
 // GPU-visible structs of the client renderer, shared by client/ and shaders/client/: the
-// per-frame uniforms, one record per draw, one per light, and the descriptor bindings. std140
+// per-frame uniforms, one record per draw and the descriptor bindings. std140
 // (uniforms) and std430 (buffers) agree on these layouts because every member is a scalar,
 // a vec4 or a mat4 placed on a 16-byte boundary; C++ checks the sizes with static_assert.
 #ifndef PC_CLIENT_FRAME_H
 #define PC_CLIENT_FRAME_H
 
+#include "light_model.h"
 #include "pc_interop.h"
 
 PC_BEGIN
 
 // Descriptor bindings of the client's one descriptor set (set 0).
-PC_CONST int PC_BIND_FRAME = 0;            // uniform FrameUniforms
-PC_CONST int PC_BIND_FIELD_DESC = 1;       // uniform FieldDesc
-PC_CONST int PC_BIND_DRAWS = 2;            // buffer DrawData[]
-PC_CONST int PC_BIND_LIGHTS = 3;           // buffer GpuLight[]
-PC_CONST int PC_BIND_SHADOW_MATRICES = 4;  // buffer mat4[] (one per shadow layer)
-PC_CONST int PC_BIND_PROBES = 5;           // buffer vec4[]: relocation offset xyz, state w
-PC_CONST int PC_BIND_IRRADIANCE = 6;       // sampler2D, linear
-PC_CONST int PC_BIND_DEPTH = 7;            // sampler2D, linear
-PC_CONST int PC_BIND_OCCLUSION = 8;        // sampler2D, linear
-PC_CONST int PC_BIND_SHADOW_MAPS = 9;      // sampler2DArrayShadow[3]: large maps, small maps, point-light cube faces
-PC_CONST int PC_BIND_TEXTURES = 10;        // sampler2D[textureCount]
-PC_CONST int PC_BIND_G_VISIBILITY = 11;    // usampler2DMSArray: draw's triangleBase + primitive + 1, 0: sky
-PC_CONST int PC_BIND_VERTICES = 12;        // buffer float[]: the packed Vertex records (8 floats)
-PC_CONST int PC_BIND_INDICES = 13;         // buffer uint[]: the packed index buffer
-PC_CONST int PC_BIND_HDR_IMAGE = 14;       // image2DArray rgba32f: the final linear frame
-PC_CONST int PC_BIND_HDR_TEXTURE = 15;     // sampler2DArray: the same image, read by tone mapping
-PC_CONST int PC_BIND_OVERLAY = 16;         // buffer OverlayText
+PC_CONST int PC_CLIENT_BIND_FRAME = 0;            // uniform FrameUniforms
+PC_CONST int PC_CLIENT_BIND_FIELD_DESC = 1;       // uniform FieldDesc
+PC_CONST int PC_CLIENT_BIND_DRAWS = 2;            // buffer DrawData[]
+PC_CONST int PC_CLIENT_BIND_LIGHTS = 3;           // buffer GpuLight[] (light_model.h)
+PC_CONST int PC_CLIENT_BIND_SHADOW_MATRICES = 4;  // buffer mat4[] (one per shadow layer)
+PC_CONST int PC_CLIENT_BIND_PROBES = 5;           // buffer vec4[]: relocation offset xyz, state w
+PC_CONST int PC_CLIENT_BIND_IRRADIANCE = 6;       // sampler2D, linear
+PC_CONST int PC_CLIENT_BIND_DEPTH = 7;            // sampler2D, linear
+PC_CONST int PC_CLIENT_BIND_OCCLUSION = 8;        // sampler2D, linear
+PC_CONST int PC_CLIENT_BIND_SHADOW_MAPS = 9;      // sampler2DArrayShadow[3]: large maps, small maps, point-light cube faces
+PC_CONST int PC_CLIENT_BIND_TEXTURES = 10;        // sampler2D[textureCount]
+PC_CONST int PC_CLIENT_BIND_G_VISIBILITY = 11;    // usampler2DMSArray: draw's triangleBase + primitive + 1, 0: sky
+PC_CONST int PC_CLIENT_BIND_VERTICES = 12;        // buffer float[]: the packed Vertex records (8 floats)
+PC_CONST int PC_CLIENT_BIND_INDICES = 13;         // buffer uint[]: the packed index buffer
+PC_CONST int PC_CLIENT_BIND_HDR_IMAGE = 14;       // image2DArray rgba32f: the final linear frame
+PC_CONST int PC_CLIENT_BIND_HDR_TEXTURE = 15;     // sampler2DArray: the same image, read by tone mapping
+PC_CONST int PC_CLIENT_BIND_OVERLAY = 16;         // buffer OverlayText
 // The compute rasterizer (RendererOptions::computeRaster; client_raster*.comp):
-PC_CONST int PC_BIND_VIS_SAMPLES = 17;       // buffer uint64 per sample: depth bits << 32 | visibility id
-PC_CONST int PC_BIND_RASTER_TRIANGLES = 18;  // buffer RasterTriangle[]: triangles split into tile jobs
-PC_CONST int PC_BIND_RASTER_JOBS = 19;       // buffer uvec2[]: (RasterTriangle index, tile y << 16 | x)
-PC_CONST int PC_BIND_RASTER_COUNTERS = 20;   // buffer RasterCounters
-PC_CONST int PC_BINDING_COUNT = 21;
-
-// Light kinds (GpuLight.type). Area lights are virtual point lights standing for a patch of
-// an emissive surface: they emit only to their front (cosine falloff), like the emitter.
-PC_CONST int PC_LIGHT_POINT = 0;
-PC_CONST int PC_LIGHT_SPOT = 1;
-PC_CONST int PC_LIGHT_DIRECTIONAL = 2;
-PC_CONST int PC_LIGHT_AREA = 3;
+PC_CONST int PC_CLIENT_BIND_VIS_SAMPLES = 17;       // buffer uint64 per sample: depth bits << 32 | visibility id
+PC_CONST int PC_CLIENT_BIND_RASTER_TRIANGLES = 18;  // buffer RasterTriangle[]: triangles split into tile jobs
+PC_CONST int PC_CLIENT_BIND_RASTER_JOBS = 19;       // buffer uvec2[]: (RasterTriangle index, tile y << 16 | x)
+PC_CONST int PC_CLIENT_BIND_RASTER_COUNTERS = 20;   // buffer RasterCounters
+PC_CONST int PC_CLIENT_BINDING_COUNT = 21;
 
 PC_CONST int PC_MAX_VIEWS = 2;
 
@@ -96,29 +90,6 @@ struct DrawData {
 struct ShadowPush {
   mat4 fromOrigin;
   vec4 origin;  // xyz; w unused
-};
-
-struct GpuLight {
-  vec3 position;  // also the origin of its shadow matrices (directional: the shadow map's eye)
-  int type;  // PC_LIGHT_*
-  // -- 16
-  vec3 direction;  // where the light travels (spot, directional); area: the emitter normal
-  float range;     // 0: unlimited
-  // -- 32
-  vec3 power;  // color x intensity: W/sr (point, spot), W/m^2 (directional);
-               // area: radiance x patch area (W/sr at normal incidence)
-  float cosOuter;
-  // -- 48
-  float cosInner;
-  int shadowLayer;     // first layer in its shadow array (6 for cube faces), -1: no shadow
-  int shadowArray;     // 0: large maps (sun, spots), 1: small maps (area lights), 2: point-light cubes
-  float normalOffset;  // world units per unit of distance (perspective) or absolute (sun)
-  // -- 64
-  int shadowMatrix;   // index of its first matrix in the shadow matrix buffer
-  float shadowTexel;  // 1 / shadow map resolution
-  float depthBias;    // subtracted from the receiver's shadow-map depth
-  int pad0;
-  // -- 80
 };
 
 // The field-write pass (client_field_write.comp, its own descriptor set): writes whole
@@ -191,7 +162,6 @@ PC_END
 static_assert(sizeof(pc::gpu::ClientView) == 144);
 static_assert(sizeof(pc::gpu::FrameUniforms) == 400);
 static_assert(sizeof(pc::gpu::DrawData) == 192);
-static_assert(sizeof(pc::gpu::GpuLight) == 80);
 static_assert(sizeof(pc::gpu::FieldWrite) == 16);
 static_assert(sizeof(pc::gpu::RasterTriangle) == 48);
 static_assert(sizeof(pc::gpu::RasterCounters) == 32);

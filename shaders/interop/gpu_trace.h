@@ -23,6 +23,7 @@
 #ifndef PC_GPU_TRACE_H
 #define PC_GPU_TRACE_H
 
+#include "light_model.h"
 #include "probe_math.h"
 
 PC_BEGIN
@@ -163,9 +164,6 @@ PC_CONST int PC_PACKED_DEPTH = (PC_DEPTH_TEXELS + 2) * (PC_DEPTH_TEXELS + 2) * 2
 PC_CONST int PC_PACKED_OCCLUSION = (PC_OCCLUSION_TEXELS + 2) * (PC_OCCLUSION_TEXELS + 2);
 PC_CONST int PC_PACKED_PROBE_FLOATS = PC_PACKED_IRRADIANCE + PC_PACKED_DEPTH + PC_PACKED_OCCLUSION;
 
-PC_CONST int PC_LIGHT_POINT = 0;
-PC_CONST int PC_LIGHT_SPOT = 1;
-PC_CONST int PC_LIGHT_DIRECTIONAL = 2;
 
 struct GpuVertex {
   vec3 position;  // object space
@@ -214,23 +212,6 @@ struct GpuMaterial {
   int alphaWrapU;  // the alpha texture's wrap modes (TextureWrap: 0 repeat, 1 clamp to edge,
   int alphaWrapV;  // 2 mirrored repeat), for the any-hit shader's own bilinear lookup
   int pad2;
-  // -- 64
-};
-
-struct GpuLight {
-  vec3 position;
-  int type;  // PC_LIGHT_*
-  // -- 16
-  vec3 direction;  // unit, where the light travels
-  float range;     // 0: unlimited
-  // -- 32
-  vec3 power;  // colour x intensity
-  float cosOuter;
-  // -- 48
-  float cosInner;
-  float pad0;
-  float pad1;
-  float pad2;
   // -- 64
 };
 
@@ -340,7 +321,6 @@ static_assert(sizeof(pc::gpu::GpuVertex) == 32);
 static_assert(sizeof(pc::gpu::GpuMesh) == 16);
 static_assert(sizeof(pc::gpu::GpuInstance) == 144);
 static_assert(sizeof(pc::gpu::GpuMaterial) == 64);
-static_assert(sizeof(pc::gpu::GpuLight) == 64);
 static_assert(sizeof(pc::gpu::GpuEmissiveTriangle) == 80);
 static_assert(sizeof(pc::gpu::GpuProbeRecord) == 32);
 static_assert(sizeof(pc::gpu::TracePush) == 16);
