@@ -210,7 +210,7 @@ void NetClient::Impl::receiveUdp() {
 // loop, and the counters.
 void NetClient::Impl::afterInput(double now) {
   bool clockChanged = false;
-  for (const SessionEvent& e : session.takeEvents()) {
+  for (const SessionEvent& e : session.events()) {
     if (e.kind == SessionEvent::Kind::Layout) onLayout(now);
     clockChanged |= e.kind == SessionEvent::Kind::SceneState;
   }

@@ -344,7 +344,7 @@ void Client::receiveUdp() {
 }
 
 void Client::afterInput(double now) {
-  for (SessionEvent& e : session_.takeEvents()) {
+  for (const SessionEvent& e : session_.events()) {
     switch (e.kind) {
       case SessionEvent::Kind::Welcomed:
         break;

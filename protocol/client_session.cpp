@@ -92,6 +92,7 @@ Error ClientSession::fail(std::string why, SessionPhase phase) {
 }
 
 Status ClientSession::onStreamBytes(std::span<const std::uint8_t> bytes, double now) {
+  events_.clear();
   if (phase_ == SessionPhase::Rejected || phase_ == SessionPhase::Failed) return Error{error_};
   if (!connectedPhase()) return Status::success();  // no connection these bytes could be from
   stats_.tcpBytes += bytes.size();
@@ -204,6 +205,7 @@ Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
 }
 
 Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now) {
+  events_.clear();
   ++stats_.udpDatagrams;
   stats_.udpBytes += bytes.size();
   if (!connectedPhase()) return Status::success();  // from no session of this client
@@ -247,12 +249,6 @@ void ClientSession::collectChanges(double now) {
     synced_ = true;
     syncSeconds_ = now - connectStartedAt_;
   }
-}
-
-std::vector<SessionEvent> ClientSession::takeEvents() {
-  std::vector<SessionEvent> out;
-  out.swap(events_);
-  return out;
 }
 
 std::vector<std::pair<int, int>> ClientSession::takeChangedBricks() {

@@ -10,7 +10,7 @@
 // One ClientSession serves a client's whole life, one session after another:
 //   connecting(now)            the caller starts opening a connection
 //   connected(now, udpPort)    it is open: send the returned Hello first
-//   onStreamBytes / onDatagram bytes as they arrive; takeEvents() after each call
+//   onStreamBytes / onDatagram bytes as they arrive; events() says what each call did
 //   poll(now)                  often (every few ms): frames to send, or an Error (a timeout)
 //   close()                    the connection is gone, whatever the reason
 // Any Error from onStreamBytes or poll ends the session (phase() Rejected or Failed, error()
@@ -125,8 +125,9 @@ class ClientSession {
   Status onStreamBytes(std::span<const std::uint8_t> bytes, double now);
   // One UDP datagram. Its status (also in its Datagram event) never ends the session.
   Status onDatagram(std::span<const std::uint8_t> bytes, double now);
-  // What the bytes given since the previous call did, in order. Take them after each call.
-  std::vector<SessionEvent> takeEvents();
+  // What the latest onStreamBytes or onDatagram call did, in order; the next call replaces
+  // them. Kept here rather than handed over, so that a datagram's event allocates nothing.
+  const std::vector<SessionEvent>& events() const { return events_; }
 
   // Frames to send now (acks, repair requests, the viewer pose), or an Error when a timeout
   // ended the session.

@@ -87,7 +87,6 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
       link.send(std::move(d), t);
     }
     for (auto& d : link.receive(t)) r.receiverErrors += !client.onDatagram(d, t).ok();
-    (void)client.takeEvents();  // nothing here needs them; taken so they do not pile up
     (void)client.takeChangedBricks();
     if (auto frames = client.poll(t)) {  // never an Error: the timeouts are off
       for (auto& m : *frames) control.send(std::move(m), t);

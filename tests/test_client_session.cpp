@@ -100,7 +100,6 @@ void join(ClientSession& session, const InMemoryServer& server, double t) {
   (void)session.connected(t, 4000);
   ASSERT_TRUE(session.onStreamBytes(server.handshake(), t).ok()) << session.error();
   ASSERT_TRUE(session.streaming());
-  (void)session.takeEvents();
 }
 
 // Runs the exchange until the session holds every brick; returns the time it did.
@@ -147,7 +146,7 @@ TEST(ClientSession, HandshakeThenStreamsUntilEveryBrickIsHeld) {
     const std::size_t take = std::min(n, bytes.size() - i);
     ASSERT_TRUE(session.onStreamBytes(std::span(bytes).subspan(i, take), 0.02).ok())
         << session.error();
-    for (SessionEvent& e : session.takeEvents()) events.push_back(std::move(e));
+    for (const SessionEvent& e : session.events()) events.push_back(e);
   }
   using K = SessionEvent::Kind;
   EXPECT_EQ(kinds(events), (std::vector<K>{K::Welcomed, K::Layout, K::SceneState}));
@@ -190,14 +189,13 @@ TEST(ClientSession, HandshakeThenStreamsUntilEveryBrickIsHeld) {
             session.bricksTotal());
   EXPECT_TRUE(session.takeChangedBricks().empty());
 
-  // Each datagram the session handled was an event; none was refused.
-  std::size_t datagrams = 0;
-  for (const SessionEvent& e : session.takeEvents()) {
-    ASSERT_EQ(e.kind, SessionEvent::Kind::Datagram);
-    EXPECT_TRUE(e.status.ok());
-    ++datagrams;
-  }
-  EXPECT_EQ(datagrams, session.stats().udpDatagrams);
+  // A datagram the session handled is an event of its own.
+  const auto heartbeat = server.sender->poll(t + 0.5);
+  ASSERT_FALSE(heartbeat.empty());
+  EXPECT_TRUE(session.onDatagram(heartbeat.front(), t + 0.5).ok());
+  ASSERT_EQ(session.events().size(), 1u);
+  EXPECT_EQ(session.events()[0].kind, SessionEvent::Kind::Datagram);
+  EXPECT_TRUE(session.events()[0].status.ok());
 }
 
 TEST(ClientSession, TcpOnlySessionTakesDatagramsFromTheStream) {
@@ -269,7 +267,7 @@ TEST(ClientSession, LayoutOverTheMemoryCapIsRefusedNamingBothSizes) {
     EXPECT_EQ(session->phase(), SessionPhase::Failed);
     EXPECT_EQ(session->receiver(), nullptr);
     EXPECT_EQ(session->stats().sessions, 0u);
-    for (const SessionEvent& e : session->takeEvents())
+    for (const SessionEvent& e : session->events())
       EXPECT_NE(e.kind, SessionEvent::Kind::Layout);
   }
   {
@@ -380,13 +378,14 @@ TEST(ClientSession, MalformedAndHostileFramesAreRefusedWithClearErrors) {
   Bytes datagram = server.sender->poll(0.1).front();
   datagram.back() ^= 0xFF;
   EXPECT_FALSE(session.onDatagram(datagram, 0.1).ok());
+  ASSERT_EQ(session.events().size(), 1u);
+  EXPECT_FALSE(session.events()[0].status.ok());
   EXPECT_TRUE(session.onStreamBytes(datagramFrame(datagram), 0.1).ok()) << session.error();
+  ASSERT_EQ(session.events().size(), 1u);
+  EXPECT_EQ(session.events()[0].kind, SessionEvent::Kind::Datagram);
+  EXPECT_FALSE(session.events()[0].status.ok());
   EXPECT_EQ(session.stats().badDatagrams, 2u);
   EXPECT_TRUE(session.streaming());
-  const auto events = session.takeEvents();
-  ASSERT_EQ(events.size(), 2u);
-  EXPECT_FALSE(events[0].status.ok());
-  EXPECT_FALSE(events[1].status.ok());
 }
 
 TEST(ClientSession, TimeoutsEndTheSession) {
@@ -436,12 +435,14 @@ TEST(ClientSession, DatagramsBeforeTheLayoutAreKeptForIt) {
   for (double t = 0; datagrams.size() < kMaxEarlyDatagrams + 5 && t < 5.0; t += 0.3)
     for (Bytes& d : server.sender->poll(t)) datagrams.push_back(std::move(d));
   ASSERT_GT(datagrams.size(), kMaxEarlyDatagrams);
-  for (const Bytes& d : datagrams) EXPECT_TRUE(session.onDatagram(d, 0.01).ok());
-  EXPECT_TRUE(session.takeEvents().empty());
+  for (const Bytes& d : datagrams) {
+    EXPECT_TRUE(session.onDatagram(d, 0.01).ok());
+    EXPECT_TRUE(session.events().empty()) << "kept, not handled";
+  }
   EXPECT_EQ(session.stats().droppedEarlyDatagrams, datagrams.size() - kMaxEarlyDatagrams);
 
   ASSERT_TRUE(session.onStreamBytes(server.handshake(), 0.02).ok()) << session.error();
-  const auto events = session.takeEvents();
+  const auto events = session.events();
   using K = SessionEvent::Kind;
   ASSERT_GE(events.size(), 3u);
   EXPECT_EQ(events[0].kind, K::Welcomed);
@@ -547,7 +548,6 @@ TEST(ClientSession, ConvergesOverALossyLink) {
       control.send(std::move(f), t);
     }
     for (Bytes& f : control.receive(t)) ASSERT_TRUE(server.sender->onMessage(f, t).ok());
-    (void)session.takeEvents();
     if (t > 3.0 && test::differingBricks(session.receiver()->field(),
                                          test::quantizedCopy(server.field)) == 0)
       break;
@@ -581,7 +581,7 @@ TEST(ClientSession, NewSessionResyncsFromNothing) {
   (void)session.connected(t + 2.0, 4000);
   ASSERT_TRUE(session.onStreamBytes(second.handshake(), t + 2.0).ok()) << session.error();
   using K = SessionEvent::Kind;
-  EXPECT_EQ(kinds(session.takeEvents()), (std::vector<K>{K::Welcomed, K::Layout, K::SceneState}));
+  EXPECT_EQ(kinds(session.events()), (std::vector<K>{K::Welcomed, K::Layout, K::SceneState}));
   EXPECT_EQ(session.sessionId(), 22u);
   EXPECT_EQ(session.bricksHeld(), 0);
   EXPECT_FALSE(session.synced());
