@@ -63,13 +63,13 @@ struct ClientSessionOptions {
 };
 
 enum class SessionPhase {
-  Idle,            // no connection: before the first, or after close()
-  Connecting,      // the caller is opening a connection
-  AwaitingWelcome, // Hello sent
-  AwaitingLayout,  // Welcome received, SessionInfo not yet
-  Streaming,       // SessionInfo taken: receiver() holds the session's field
-  Rejected,        // ended by the server's Reject
-  Failed,          // ended by an error or a timeout
+  Idle,             // no connection: before the first, or after close()
+  Connecting,       // the caller is opening a connection
+  AwaitingWelcome,  // Hello sent
+  AwaitingLayout,   // Welcome received, SessionInfo not yet
+  Streaming,        // SessionInfo taken: receiver() holds the session's field
+  Rejected,         // ended by the server's Reject
+  Failed,           // ended by an error or a timeout
 };
 
 struct SessionEvent {

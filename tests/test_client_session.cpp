@@ -558,15 +558,24 @@ TEST(ClientSession, ConvergesOverALossyLink) {
   EXPECT_TRUE(session.synced());
   EXPECT_TRUE(session.streaming());
   EXPECT_GT(session.stats().badDatagrams, 0u) << "corrupt datagrams are refused";
+  // Bricks changed many times over, each named once: a caller applies it once.
+  const auto changed = session.takeChangedBricks();
+  EXPECT_EQ(int(changed.size()), session.bricksTotal());
+  const std::set<std::pair<int, int>> distinct(changed.begin(), changed.end());
+  EXPECT_EQ(distinct.size(), changed.size());
   EXPECT_EQ(test::differingBricks(session.receiver()->field(), test::quantizedCopy(server.field)),
             0);
 }
 
 TEST(ClientSession, NewSessionResyncsFromNothing) {
-  ClientSession session({});
+  ClientSessionOptions o;
+  o.poseInterval = 60.0;  // one pose per session, as it starts
+  ClientSession session(o);
+  session.setViewer(glm::vec3(1.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f));
   InMemoryServer first(21);
   join(session, first, 0.0);
   const double t = syncWith(first, session, 0.0);
+  EXPECT_FALSE(session.poseDue(t));
   const Bytes stale = first.sender->poll(t + 1.5).front();  // a heartbeat at least
 
   // The server goes away; a new one (another session id, a newer field) takes the client.
@@ -585,6 +594,7 @@ TEST(ClientSession, NewSessionResyncsFromNothing) {
   EXPECT_EQ(session.sessionId(), 22u);
   EXPECT_EQ(session.bricksHeld(), 0);
   EXPECT_FALSE(session.synced());
+  EXPECT_TRUE(session.poseDue(t + 2.0)) << "the new server learns the viewer at once";
 
   // A datagram of the old session is refused, naming both sessions.
   Status s = session.onDatagram(stale, t + 2.0);
