@@ -1,10 +1,11 @@
-// The client's network side: a TCP session with the server (hello, session info, scene-state
-// sync, acks, repair requests, viewer poses) and a UDP socket for brick datagrams, on its own
-// thread running a Boost.Asio io_context. Received bricks go from the StreamReceiver into the
-// FieldMirror (which is thread-safe); the frame loop only reads the mirror and the synced
-// animation clock, so it never waits for the network. When the server goes away the client
-// keeps its mirror, reconnects with exponential backoff and resyncs in a new session.
-// Asio stays inside net_client.cpp.
+// The client's network side: the sockets of a session with the server (TCP, and UDP for brick
+// datagrams) on its own thread running a Boost.Asio io_context, around a ClientSession
+// (protocol/client_session.h), which holds the session's rules: hello, session info and its
+// memory cap, scene-state clock, acks, repair requests, viewer poses, timeouts. Received bricks
+// go from the session's receiver into the FieldMirror (which is thread-safe); the frame loop
+// only reads the mirror and the synced animation clock, so it never waits for the network.
+// When the server goes away the client keeps its mirror, reconnects with exponential backoff
+// and resyncs in a new session. Asio stays inside net_client.cpp.
 #pragma once
 
 #include <cstdint>
@@ -29,13 +30,14 @@ struct NetClientOptions {
                                        // front of this client); 0: this client's own port
   double backoffInitial = 0.05;       // s before the first reconnect attempt
   double backoffMax = 0.4;            // s: the cap keeps a returning server found within it
-  double connectTimeout = 2.0;        // s for TCP connect plus the handshake
+  // The session's (ClientSessionOptions):
+  double connectTimeout = 2.0;        // s for resolve and TCP connect plus the handshake
   double silenceTimeout = 2.0;        // s without any bytes from the server: it is gone
-  double pollInterval = 0.005;        // s between receiver polls
+  double pollInterval = 0.005;        // s between session polls
   double poseInterval = 0.1;          // s between viewer poses
   // The most memory a server's field layout (SessionInfo) may make this client allocate for
-  // its copies of the field (mirrorMemoryBytes); a larger layout ends the session with an
-  // error naming both sizes. The shared scenes need under 200 MiB.
+  // its copies of the field (mirrorMemoryBytes, protocol/client_session.h); a larger layout
+  // ends the session with an error naming both sizes. The shared scenes need under 200 MiB.
   std::uint64_t maxMirrorBytes = std::uint64_t(1) << 30;
   ReceiverOptions receiver;
 };
@@ -84,12 +86,7 @@ class NetClient {
   std::unique_ptr<Impl> impl_;
 };
 
-// Steady-clock seconds, the client's clock for the mirror and the receiver.
+// Steady-clock seconds, the client's clock for the mirror and the session.
 double netClockSeconds();
-
-// What a session with this layout makes the client hold on the CPU: the receiver's field and
-// the mirror's copy (atlases with borders, probe records) and the receiver's quantized codes
-// per brick. Counts per axis are clamped to 1..1024 (mirrorField refuses anything else).
-std::uint64_t mirrorMemoryBytes(const SessionInfoMsg& info);
 
 }  // namespace pc::client

@@ -15,9 +15,7 @@
 #include <random>
 #include <thread>
 
-#include "protocol/net_framing.h"
-#include "protocol/session_messages.h"
-#include "protocol/stream_receiver.h"
+#include "protocol/client_session.h"
 #include "shared_decoder.h"
 
 namespace pc::load {
@@ -34,11 +32,6 @@ double nowSeconds() {
       .count();
 }
 
-// A client sends only small messages; more than this queued means the server is not reading.
-constexpr std::size_t kMaxWriteQueueBytes = 1u << 20;
-// UDP datagrams that arrive before SessionInfo (the server sends them as soon as the Hello is
-// in, while Welcome and SessionInfo are still on their way over TCP) are kept this many.
-constexpr std::size_t kMaxEarlyDatagrams = 64;
 // Publish times of this many recent field versions are kept per client.
 constexpr std::size_t kMaxVersions = 1024;
 // Applied updates whose publish time has not arrived yet wait this long, then count as
@@ -82,6 +75,8 @@ struct LoadGenerator::Impl {
   // Runs fn(worker) on every worker's own thread (or here once the threads are gone) and
   // waits, so reports and windows never race the clients' handlers.
   void onEveryWorker(const std::function<void(Worker&)>& fn);
+  // What keeping a decoded field would cost, once per run (it allocates one).
+  void measureLayout(const SessionInfoMsg& info);
 
   LoadOptions options;
   tcp::endpoint endpoint;
@@ -99,14 +94,49 @@ struct LoadGenerator::Impl {
   bool layoutMeasured = false;
 };
 
-// One simulated client: a sequence of sessions. Lives on its worker's thread only; handlers
-// carry the connection number they were started for and do nothing once it has changed.
+void LoadGenerator::Impl::measureLayout(const SessionInfoMsg& info) {
+  std::lock_guard lock(mutex);
+  if (layoutMeasured) return;
+  layoutMeasured = true;
+  if (auto full = mirrorField(info)) {
+    const double atlasFloats = double(full->irradiance.texels.size() + full->depth.texels.size() +
+                                      full->occlusion.texels.size());
+    decodedFieldMb = atlasFloats * sizeof(float) / 1e6;
+    std::size_t bricks = 0;
+    for (const auto& c : full->brickVersions) bricks += c.size();
+    brickCodesMb = double(bricks) * double(quantizeBrick(*full, 0, 0).codes.size()) *
+                   sizeof(std::uint16_t) / 1e6;
+  }
+}
+
+namespace {
+
+ClientSessionOptions sessionOptions(const LoadGenerator::Impl& gen, int index) {
+  const LoadOptions& o = gen.options;
+  ClientSessionOptions s;
+  s.token = o.token;
+  s.name = "loadgen-" + std::to_string(index);
+  s.connectTimeout = o.connectTimeout;
+  s.silenceTimeout = o.silenceTimeout;
+  s.poseInterval = o.poseInterval;
+  s.maxMirrorBytes = o.maxMirrorBytes;
+  s.receiver.keepField = o.keepField;
+  s.receiver.decoder = o.shareDecoding ? gen.decoder.get() : nullptr;
+  return s;
+}
+
+}  // namespace
+
+// One simulated client: a sequence of sessions of one ClientSession, which holds the
+// protocol; this class holds the sockets, the simulated viewer, churn and the figures. Lives
+// on its worker's thread only; handlers carry the connection number they were started for
+// and do nothing once it has changed.
 class Client {
  public:
   Client(LoadGenerator::Impl& gen, Worker& worker, int index, double firstConnectAt)
-      : gen_(gen), o_(gen.options), worker_(worker), index_(index), tcp_(worker.io),
-        udp_(worker.io), rng_(gen.options.seed * 7919 + std::uint64_t(index)),
-        nextConnectAt_(firstConnectAt) {
+      : gen_(gen), o_(gen.options), worker_(worker), index_(index),
+        session_(sessionOptions(gen, index)), tcp_(worker.io), udp_(worker.io),
+        rng_(gen.options.seed * 7919 + std::uint64_t(index)), nextConnectAt_(firstConnectAt) {
     std::uniform_real_distribution<double> phase(0.0, 6.283185307179586);
     posePhase_ = phase(rng_);
   }
@@ -118,6 +148,7 @@ class Client {
                       std::uint64_t& unmatched);
 
  private:
+  // Session: the session's layout arrived (ClientSession streaming).
   enum class State { Idle, Connecting, Session, Done };
 
   struct Window {
@@ -131,16 +162,15 @@ class Client {
 
   void connect(double now);
   void endSession(double now, const std::string& error);
-  void readPrefix();
-  void onFrame(double now);
-  void handle(const SessionMessage& message, double now);
-  void onSessionInfo(const SessionInfoMsg& info, double now);
-  void onSceneState(const SceneStateMsg& state, double now);
-  void onDatagram(std::span<const std::uint8_t> bytes, double now);
+  void readStream();
   void receiveUdp();
+  void afterInput(double now);
+  void onLayout(double now);
+  void onSceneState(const SceneStateMsg& state, double now);
+  void onDatagram(const Status& status, double now);
   void send(Bytes frame);
   void writeNext();
-  void sendPose(double now);
+  void simulateViewer(double now);
   void sampleStaleness(double now);
   // Publish time of a field version on this client's clock; nullopt when unknown.
   std::optional<double> publishTime(std::uint64_t version) const;
@@ -152,6 +182,7 @@ class Client {
   const LoadOptions& o_;
   Worker& worker_;
   int index_;
+  ClientSession session_;
   tcp::socket tcp_;
   udp::socket udp_;
   std::mt19937_64 rng_;
@@ -159,13 +190,9 @@ class Client {
 
   State state_ = State::Idle;
   std::uint64_t connection_ = 0;
-  double nextConnectAt_ = 0, connectStartedAt_ = 0, sessionStartedAt_ = 0, sessionEndsAt_ = 0;
-  double lastHeard_ = 0, lastDatagramAt_ = 0, lastPoseAt_ = -1e30, lastStaleSampleAt_ = -1e30;
-  std::uint32_t sessionId_ = 0;
-  std::optional<StreamReceiver> receiver_;
+  double nextConnectAt_ = 0, sessionStartedAt_ = 0, sessionEndsAt_ = 0;
+  double lastDatagramAt_ = 0, lastStaleSampleAt_ = -1e30;
   std::uint64_t infoVersion_ = 0;  // field version at join: bricks up to it are the initial sync
-  std::vector<std::vector<bool>> held_;
-  int bricksTotal_ = 0, bricksHeld_ = 0;
   bool synced_ = false;
   double syncSeconds_ = -1;
   std::uint64_t maxHeld_ = 0, lastApplied_ = 0, lastRepairs_ = 0, lastGapReports_ = 0,
@@ -173,11 +200,8 @@ class Client {
   std::deque<std::pair<std::uint64_t, double>> versions_;  // (field version, publish time)
   std::deque<std::pair<std::uint64_t, double>> pending_;   // (version, applied at)
   std::optional<double> clockOffset_;  // client clock - server clock
-  double animationTime_ = 0;
-  std::deque<Bytes> early_;
 
-  std::array<std::uint8_t, kFramePrefixBytes> prefix_{};
-  Bytes frame_;
+  std::array<std::uint8_t, 4096> readBuffer_{};
   std::array<std::uint8_t, 2048> udpBuffer_{};
   std::deque<Bytes> writes_;
   std::size_t queuedBytes_ = 0;
@@ -194,24 +218,21 @@ void Client::tick(double now) {
       if (now >= nextConnectAt_) connect(now);
       return;
     case State::Connecting:
-      if (now - connectStartedAt_ > o_.connectTimeout)
-        endSession(now, "no session within " + std::to_string(o_.connectTimeout) + " s");
-      return;
     case State::Session:
       break;
   }
-  if (now - lastHeard_ > o_.silenceTimeout)
-    return endSession(now, "server silent for " + std::to_string(o_.silenceTimeout) + " s");
-  for (Bytes& f : receiver_->poll(now)) send(std::move(f));
+  if (session_.poseDue(now)) simulateViewer(now);
+  auto frames = session_.poll(now);  // the connect and silence timeouts too
+  if (!frames) return endSession(now, frames.error().message);
+  for (Bytes& f : *frames) send(std::move(f));
   if (state_ != State::Session) return;  // a send may have failed
-  const ReceiverStats& rs = receiver_->stats();
+  const ReceiverStats& rs = session_.receiver()->stats();
   window_.repairs += rs.repairBricks - lastRepairs_;
   window_.gapReports += rs.gapReports - lastGapReports_;
   window_.stale += rs.stale - lastStale_;
   lastRepairs_ = rs.repairBricks;
   lastGapReports_ = rs.gapReports;
   lastStale_ = rs.stale;
-  if (now - lastPoseAt_ >= o_.poseInterval) sendPose(now);
   if (now - lastStaleSampleAt_ >= kStalenessSampleInterval) sampleStaleness(now);
   resolvePending(now);
   if (sessionEndsAt_ > 0 && now >= sessionEndsAt_) endSession(now, "");
@@ -229,9 +250,7 @@ void Client::connect(double now) {
   ++window_.sessions;
   const std::uint64_t id = ++connection_;
   state_ = State::Connecting;
-  connectStartedAt_ = now;
-  sessionId_ = 0;
-  early_.clear();
+  session_.connecting(now);
 
   // A fresh UDP socket (and port) per session: datagrams still in flight for the previous
   // session never reach this one.
@@ -248,16 +267,10 @@ void Client::connect(double now) {
     if (id != connection_ || worker_.stopping) return;
     const double t = nowSeconds();
     if (ec) return endSession(t, "connect: " + ec.message());
-    lastHeard_ = t;
     boost::system::error_code ignored;
     tcp_.set_option(tcp::no_delay(true), ignored);
-    HelloMsg hello;
-    hello.authToken = o_.token;
-    hello.clientName = "loadgen-" + std::to_string(index_);
-    hello.wantsUdp = !o_.tcpOnly;
-    hello.udpPort = udpPort;
-    send(encodeMessage(hello));
-    readPrefix();
+    send(session_.connected(t, udpPort));
+    readStream();
   });
 }
 
@@ -275,12 +288,11 @@ void Client::endSession(double now, const std::string& error) {
   if (synced_) --gen_.synced;
   if (state_ == State::Session || state_ == State::Connecting) ++gen_.sessionsEnded;
   synced_ = false;
-  receiver_.reset();
+  session_.close();
   writes_.clear();
   queuedBytes_ = 0;
   writing_ = false;
   pending_.clear();
-  early_.clear();
   if (!error.empty()) {
     ++window_.errors;
     window_.lastError = error;
@@ -297,104 +309,67 @@ void Client::shutdown() {
   state_ = State::Done;
 }
 
-void Client::readPrefix() {
+void Client::readStream() {
   const std::uint64_t id = connection_;
-  asio::async_read(tcp_, asio::buffer(prefix_), [this, id](boost::system::error_code ec, std::size_t) {
+  tcp_.async_read_some(asio::buffer(readBuffer_), [this, id](boost::system::error_code ec,
+                                                             std::size_t n) {
     if (id != connection_ || worker_.stopping) return;
     const double now = nowSeconds();
     if (ec) {
       return endSession(now, ec == asio::error::eof ? "connection closed by the server"
                                                     : "read: " + ec.message());
     }
-    auto size = frameSize(prefix_, kMaxSessionMessageBytes);
-    if (!size) return endSession(now, "bad frame from the server: " + size.error().message);
-    frame_.assign(prefix_.begin(), prefix_.end());
-    frame_.resize(*size);
-    asio::async_read(tcp_, asio::buffer(frame_.data() + kFramePrefixBytes, *size - kFramePrefixBytes),
-                     [this, id](boost::system::error_code ec2, std::size_t) {
-                       if (id != connection_ || worker_.stopping) return;
-                       const double t = nowSeconds();
-                       if (ec2) return endSession(t, "read: " + ec2.message());
-                       onFrame(t);
-                     });
+    window_.bytesDown += n;
+    Status status = session_.onStreamBytes(std::span(readBuffer_.data(), n), now);
+    afterInput(now);
+    if (!status) return endSession(now, status.error().message);
+    readStream();
   });
 }
 
-void Client::onFrame(double now) {
+void Client::receiveUdp() {
   const std::uint64_t id = connection_;
-  lastHeard_ = now;
-  window_.bytesDown += frame_.size();
-  switch (classifyFrame(frame_)) {
-    case FrameKind::Datagram:
-      onDatagram(datagramOfFrame(frame_), now);
-      break;
-    case FrameKind::SessionMessage: {
-      auto message = decodeMessage(frame_);
-      if (!message) return endSession(now, "bad message from the server: " + message.error().message);
-      handle(*message, now);
-      break;
+  udp_.async_receive(asio::buffer(udpBuffer_), [this, id](boost::system::error_code ec,
+                                                          std::size_t n) {
+    if (id != connection_ || worker_.stopping) return;
+    // Errors on a UDP socket are per datagram (an ICMP error, a truncated read): keep going.
+    if (!ec && n <= kMaxDatagramBytes) {
+      const double now = nowSeconds();
+      window_.bytesDown += n;
+      (void)session_.onDatagram(std::span(udpBuffer_.data(), n), now);
+      afterInput(now);
     }
-    case FrameKind::Unknown:
-      return endSession(now, "unknown frame from the server");
-  }
-  if (id == connection_) readPrefix();
+    if (id == connection_) receiveUdp();
+  });
 }
 
-void Client::handle(const SessionMessage& message, double now) {
-  if (const auto* welcome = std::get_if<WelcomeMsg>(&message)) {
-    Status version = checkServerVersion(welcome->protocolVersion);
-    if (!version) return endSession(now, version.error().message);
-    sessionId_ = welcome->sessionId;
-  } else if (const auto* reject = std::get_if<RejectMsg>(&message)) {
-    endSession(now, "rejected: " + reject->reason);
-  } else if (const auto* info = std::get_if<SessionInfoMsg>(&message)) {
-    onSessionInfo(*info, now);
-  } else if (const auto* state = std::get_if<SceneStateMsg>(&message)) {
-    onSceneState(*state, now);
-  } else {
-    endSession(now, "unexpected message from the server");
+void Client::afterInput(double now) {
+  for (const SessionEvent& e : session_.events()) {
+    switch (e.kind) {
+      case SessionEvent::Kind::Welcomed:
+        break;
+      case SessionEvent::Kind::Layout:
+        onLayout(now);
+        break;
+      case SessionEvent::Kind::SceneState:
+        onSceneState(e.scene, now);
+        break;
+      case SessionEvent::Kind::Datagram:
+        onDatagram(e.status, now);
+        break;
+    }
   }
 }
 
-void Client::onSessionInfo(const SessionInfoMsg& info, double now) {
-  if (state_ != State::Connecting) return endSession(now, "a second SessionInfo");
-  ReceiverOptions ro;
-  ro.keepField = o_.keepField;
-  ro.decoder = o_.shareDecoding ? gen_.decoder.get() : nullptr;
-  auto created = StreamReceiver::create(info, sessionId_, ro);
-  if (!created) return endSession(now, "session info: " + created.error().message);
-  receiver_.emplace(std::move(created).value());
-  {
-    // What keeping a decoded field would cost, once per run (it allocates one).
-    std::lock_guard lock(gen_.mutex);
-    if (!gen_.layoutMeasured) {
-      gen_.layoutMeasured = true;
-      if (auto full = mirrorField(info)) {
-        const double atlasFloats = double(full->irradiance.texels.size() + full->depth.texels.size() +
-                                          full->occlusion.texels.size());
-        gen_.decodedFieldMb = atlasFloats * sizeof(float) / 1e6;
-        std::size_t bricks = 0;
-        for (const auto& c : full->brickVersions) bricks += c.size();
-        gen_.brickCodesMb = double(bricks) * double(quantizeBrick(*full, 0, 0).codes.size()) *
-                            sizeof(std::uint16_t) / 1e6;
-      }
-    }
-  }
-  const Field& layout = receiver_->field();
-  held_.assign(layout.cascadeCount(), {});
-  bricksTotal_ = bricksHeld_ = 0;
-  for (int k = 0; k < layout.cascadeCount(); ++k) {
-    held_[k].assign(layout.brickVersions[k].size(), false);
-    bricksTotal_ += int(layout.brickVersions[k].size());
-  }
+void Client::onLayout(double now) {
+  gen_.measureLayout(session_.info());
   state_ = State::Session;
   ++gen_.inSession;
   sessionStartedAt_ = now;
   lastDatagramAt_ = now;
-  lastPoseAt_ = -1e30;
   synced_ = false;
   syncSeconds_ = -1;
-  infoVersion_ = info.fieldVersion;
+  infoVersion_ = session_.info().fieldVersion;
   maxHeld_ = lastApplied_ = lastRepairs_ = lastGapReports_ = lastStale_ = 0;
   versions_.clear();
   pending_.clear();
@@ -405,16 +380,9 @@ void Client::onSessionInfo(const SessionInfoMsg& info, double now) {
   } else {
     sessionEndsAt_ = 0;
   }
-  std::deque<Bytes> early = std::move(early_);
-  early_.clear();
-  for (const Bytes& d : early) {
-    if (state_ != State::Session) break;
-    onDatagram(d, now);
-  }
 }
 
 void Client::onSceneState(const SceneStateMsg& state, double now) {
-  animationTime_ = state.animationTime;
   if (state.fieldVersion == 0) return;  // a server without publish times
   if (!o_.sameClock) {
     const double offset = now - state.publishTime;
@@ -461,40 +429,32 @@ void Client::resolvePending(double now) {
   });
 }
 
-void Client::onDatagram(std::span<const std::uint8_t> bytes, double now) {
-  if (!receiver_) {
-    // Before SessionInfo: kept for when the receiver exists.
-    if (state_ == State::Connecting && early_.size() < kMaxEarlyDatagrams)
-      early_.emplace_back(bytes.begin(), bytes.end());
-    return;
-  }
+// One datagram the session handled (its layout had arrived): the gap since the previous one,
+// its error, and the bricks it changed, whose latency is measured from here.
+void Client::onDatagram(const Status& status, double now) {
   if (inWindow(now)) window_.maxGap = std::max(window_.maxGap, now - lastDatagramAt_);
   lastDatagramAt_ = now;
   ++window_.datagrams;
-  Status status = receiver_->onDatagram(bytes, now);
   if (!status) {
     ++window_.errors;
     window_.lastError = status.error().message;
     gen_.noteError(status.error().message);
   }
-  const std::uint64_t applied = receiver_->stats().applied;
+  const StreamReceiver& receiver = *session_.receiver();
+  const std::uint64_t applied = receiver.stats().applied;
   if (applied == lastApplied_) return;
   window_.applied += applied - lastApplied_;
   lastApplied_ = applied;
-  for (auto [k, b] : receiver_->takeChangedBricks()) {
-    const std::uint64_t version = receiver_->brickVersion(k, b);
+  for (auto [k, b] : session_.takeChangedBricks()) {
+    const std::uint64_t version = receiver.brickVersion(k, b);
     maxHeld_ = std::max(maxHeld_, version);
-    if (!held_[k][b]) {
-      held_[k][b] = true;
-      ++bricksHeld_;
-    }
     // Versions up to the one at join were published before the session: initial sync.
     if (version > infoVersion_) recordLatency(version, now);
   }
-  if (!synced_ && bricksHeld_ == bricksTotal_) {
+  if (!synced_ && session_.synced()) {
     synced_ = true;
     ++gen_.synced;
-    syncSeconds_ = now - connectStartedAt_;
+    syncSeconds_ = session_.syncSeconds();
   }
 }
 
@@ -514,40 +474,22 @@ void Client::sampleStaleness(double now) {
   window_.maxStaleness = std::max(window_.maxStaleness, staleness);
 }
 
-void Client::receiveUdp() {
-  const std::uint64_t id = connection_;
-  udp_.async_receive(asio::buffer(udpBuffer_), [this, id](boost::system::error_code ec, std::size_t n) {
-    if (id != connection_ || worker_.stopping) return;
-    // Errors on a UDP socket are per datagram (an ICMP error, a truncated read): keep going.
-    if (!ec && n <= kMaxDatagramBytes) {
-      const double now = nowSeconds();
-      lastHeard_ = now;
-      window_.bytesDown += n;
-      onDatagram(std::span(udpBuffer_.data(), n), now);
-    }
-    if (id == connection_) receiveUdp();
-  });
-}
-
-void Client::sendPose(double now) {
-  // A slow loop through the first cascade's volume, each client at its own phase.
-  lastPoseAt_ = now;
-  const gpu::CascadeDesc& c = receiver_->field().desc.cascades[0];
+// A slow loop through the first cascade's volume, each client at its own phase; the session
+// sends it.
+void Client::simulateViewer(double now) {
+  const gpu::CascadeDesc& c = session_.receiver()->field().desc.cascades[0];
   const glm::vec3 lo = c.origin;
   const glm::vec3 size = c.spacing * glm::vec3(c.counts - 1);
   const double a = posePhase_ + 6.283185307179586 * now / o_.posePeriod;
   const glm::vec3 unit(0.5f + 0.35f * float(std::cos(a)), 0.5f + 0.15f * float(std::sin(2 * a)),
                        0.5f + 0.35f * float(std::sin(a)));
-  ViewerPoseMsg pose;
-  pose.position = lo + unit * size;
-  pose.orientation = glm::angleAxis(float(-a), glm::vec3(0, 1, 0));
-  pose.time = animationTime_;
-  send(encodeMessage(pose));
+  session_.setViewer(lo + unit * size, glm::angleAxis(float(-a), glm::vec3(0, 1, 0)));
 }
 
 void Client::send(Bytes f) {
   if (state_ != State::Connecting && state_ != State::Session) return;
-  if (queuedBytes_ + f.size() > kMaxWriteQueueBytes) return endSession(nowSeconds(), "server not reading");
+  if (queuedBytes_ + f.size() > kMaxClientQueuedBytes)
+    return endSession(nowSeconds(), "server not reading");
   queuedBytes_ += f.size();
   window_.bytesUp += f.size();
   writes_.push_back(std::move(f));
@@ -557,7 +499,8 @@ void Client::send(Bytes f) {
 void Client::writeNext() {
   writing_ = true;
   const std::uint64_t id = connection_;
-  asio::async_write(tcp_, asio::buffer(writes_.front()), [this, id](boost::system::error_code ec, std::size_t) {
+  asio::async_write(tcp_, asio::buffer(writes_.front()), [this, id](boost::system::error_code ec,
+                                                                    std::size_t) {
     if (id != connection_ || worker_.stopping) return;
     if (ec) return endSession(nowSeconds(), "write: " + ec.message());
     queuedBytes_ -= writes_.front().size();

@@ -1,9 +1,11 @@
 // probecast-loadgen's engine: many protocol-only clients in one process, without rendering.
-// Each client is a real session (TCP hello with the token, session info, scene states, acks,
-// repair requests, moving viewer poses, brick datagrams over UDP or TCP, a StreamReceiver of
-// its own), and all of them share a few network threads (one Boost.Asio io_context each), not
-// a thread per client. Clients join over a ramp and, with churn, leave and rejoin. Asio stays
-// inside the .cpp files.
+// Each client is a real session, the ClientSession every client runs (protocol/
+// client_session.h: TCP hello with the token, session info, scene states, acks, repair
+// requests, viewer poses, brick datagrams over UDP or TCP into a StreamReceiver of its own);
+// this engine adds what makes them many in one: a few network threads shared by all clients
+// (one Boost.Asio io_context each, not a thread per client), simulated moving viewers, joins
+// over a ramp, churn (leaving and rejoining), and the figures. Asio stays inside the .cpp
+// files.
 //
 // Update latency is measured from the server's publish to the client's apply: SceneState
 // carries each field version's publish time, and a brick update names the field version it
@@ -39,6 +41,9 @@ struct LoadOptions {
   double silenceTimeout = 3.0;    // s without bytes from the server ends a session as an error
   double pollInterval = 0.01;     // s between each thread's pass over its clients
   double poseInterval = 0.1;      // s between viewer poses
+  // The most a SessionInfo may make a client allocate (ClientSessionOptions::maxMirrorBytes):
+  // a larger layout ends the session with an error naming both sizes.
+  std::uint64_t maxMirrorBytes = std::uint64_t(1) << 30;
   double posePeriod = 10.0;       // s per loop of the simulated viewer path
   // A client starves when, in the measured window, it received no datagram for longer than
   // this, or stayed behind the newest announced field version for longer than this, or a

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <iterator>
 
 #include "protocol/datagram.h"
 #include "protocol/session_generated.h"
@@ -179,6 +180,13 @@ std::vector<std::uint8_t> encodeMessage(const SessionMessage& message) {
   auto root = net::CreateSessionMessage(fbb, bodyType(message), body);
   net::FinishSizePrefixedSessionMessageBuffer(fbb, root);
   return std::vector<std::uint8_t>(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+}
+
+const char* sessionMessageName(const SessionMessage& message) {
+  constexpr const char* kNames[] = {"Hello",      "Welcome",    "Reject", "SessionInfo",
+                                    "SceneState", "ViewerPose", "Ack",    "RepairRequest"};
+  static_assert(std::size(kNames) == std::variant_size_v<SessionMessage>);
+  return kNames[message.index()];
 }
 
 Result<std::size_t> messageFrameSize(std::span<const std::uint8_t> prefix) {

@@ -120,6 +120,9 @@ struct RepairRequestMsg {
 using SessionMessage = std::variant<HelloMsg, WelcomeMsg, RejectMsg, SessionInfoMsg, SceneStateMsg,
                                     ViewerPoseMsg, AckMsg, RepairRequestMsg>;
 
+// The message's name as the schema spells it ("Hello", "SessionInfo", ...), for errors.
+const char* sessionMessageName(const SessionMessage& message);
+
 // Size-prefixed flatbuffer: 4-byte little-endian length, then the message.
 std::vector<std::uint8_t> encodeMessage(const SessionMessage& message);
 // Whole frame, size prefix included.

@@ -1,6 +1,9 @@
 #include "stream_simulation.h"
 
 #include <algorithm>
+#include <limits>
+
+#include "protocol/client_session.h"
 
 namespace pc {
 
@@ -34,12 +37,21 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
   (void)publisher.publish(server, 0.0);
   StreamSender sender(publisher, sessionId, o.sender);
 
-  // The client learns the layout through the wire form of SessionInfo, as it would over TCP.
-  auto info = decodeMessage(encodeMessage(publisher.sessionInfo()));
-  auto receiverOr =
-      StreamReceiver::create(std::get<SessionInfoMsg>(info.value()), sessionId, o.receiver);
-  if (!receiverOr) return r;
-  StreamReceiver receiver = std::move(receiverOr.value());
+  // The client is the one every client runs, ClientSession, and learns its session through
+  // the wire form of Welcome and SessionInfo, as it would over TCP. Its timeouts are off: the
+  // fault phase may be longer than any of them, and what is measured here is the stream.
+  ClientSessionOptions clientOptions;
+  clientOptions.receiver = o.receiver;
+  clientOptions.connectTimeout = std::numeric_limits<double>::infinity();
+  clientOptions.silenceTimeout = std::numeric_limits<double>::infinity();
+  ClientSession client(clientOptions);
+  client.connecting(0.0);
+  (void)client.connected(0.0, 1);  // the Hello: this server needs nothing from it
+  std::vector<std::uint8_t> handshake = encodeMessage(WelcomeMsg{kProtocolVersion, sessionId});
+  const std::vector<std::uint8_t> info = encodeMessage(publisher.sessionInfo());
+  handshake.insert(handshake.end(), info.begin(), info.end());
+  if (!client.onStreamBytes(handshake, 0.0) || !client.streaming()) return r;
+  const StreamReceiver& receiver = *client.receiver();
 
   FaultLink link(o.seed);
   ReliableLink control;
@@ -74,8 +86,11 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
       r.maxDatagramBytes = std::max(r.maxDatagramBytes, d.size());
       link.send(std::move(d), t);
     }
-    for (auto& d : link.receive(t)) r.receiverErrors += !receiver.onDatagram(d, t).ok();
-    for (auto& m : receiver.poll(t)) control.send(std::move(m), t);
+    for (auto& d : link.receive(t)) r.receiverErrors += !client.onDatagram(d, t).ok();
+    (void)client.takeChangedBricks();
+    if (auto frames = client.poll(t)) {  // never an Error: the timeouts are off
+      for (auto& m : *frames) control.send(std::move(m), t);
+    }
     for (auto& m : control.receive(t)) (void)sender.onMessage(m, t);
 
     r.maxReassemblyBytes = std::max(r.maxReassemblyBytes, receiver.reassembler().pendingBytes());

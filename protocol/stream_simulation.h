@@ -1,6 +1,6 @@
 // A whole stream in memory: a server field that changes, a FieldPublisher and StreamSender on
-// one side, a StreamReceiver on the other, datagrams over a FaultLink and session messages over
-// a ReliableLink. Runs a calm warm-up, a fault phase, then calm again until the receiver holds
+// one side, a ClientSession (with its StreamReceiver) on the other, datagrams over a FaultLink
+// and session messages over a ReliableLink. Runs a calm warm-up, a fault phase, then calm again until the receiver holds
 // every brick's current version; reports how long that took and the peak sizes of every queue
 // and buffer. Used by the protocol tests and `probecast-bench faults`.
 #pragma once

@@ -7,6 +7,7 @@
 
 #include <cstring>
 
+#include "protocol/client_session.h"
 #include "test_net_support.h"
 
 namespace pc::nettest {
@@ -358,7 +359,7 @@ TEST(NetHostileServer, HugeFieldLayoutIsRefusedBeforeAllocating) {
   info.cascades.resize(1);
   info.cascades[0].counts = glm::ivec3(253, 253, 61);
   info.cascades[0].scroll = glm::ivec3(0);
-  const std::uint64_t needed = client::mirrorMemoryBytes(info);
+  const std::uint64_t needed = mirrorMemoryBytes(info);
   EXPECT_GT(needed, std::uint64_t(30) << 30);
   FakeServer fake(info);
   client::FieldMirror mirror;
@@ -378,7 +379,7 @@ TEST(NetHostileServer, HugeFieldLayoutIsRefusedBeforeAllocating) {
 
 TEST(NetHostileServer, MirrorCapIsExact) {
   const SessionInfoMsg info = builtinInfo();
-  const std::uint64_t needed = client::mirrorMemoryBytes(info);
+  const std::uint64_t needed = mirrorMemoryBytes(info);
   std::printf("built-in field: %.1f MiB of mirror memory\n", double(needed) / (1 << 20));
   FakeServer fake(info);
   {

@@ -1,0 +1,292 @@
+#include "client_session.h"
+
+#include <algorithm>
+
+#include "protocol/brick_codec.h"
+#include "protocol/net_framing.h"
+
+namespace pc {
+
+std::uint64_t mirrorMemoryBytes(const SessionInfoMsg& info) {
+  using namespace gpu;
+  constexpr std::uint64_t kTileFloats =
+      std::uint64_t(PC_IRRADIANCE_TEXELS + 2) * (PC_IRRADIANCE_TEXELS + 2) * 3 +
+      std::uint64_t(PC_DEPTH_TEXELS + 2) * (PC_DEPTH_TEXELS + 2) * 2 +
+      std::uint64_t(PC_OCCLUSION_TEXELS + 2) * (PC_OCCLUSION_TEXELS + 2);
+  constexpr std::uint64_t kSlotBytes = kTileFloats * sizeof(float) + sizeof(ProbeRecord);
+  constexpr std::uint64_t kBrickCodeBytes = brick_layout::kCodes * sizeof(std::uint16_t);
+  std::uint64_t bricks = 0;
+  for (const CascadeDesc& c : info.cascades) {
+    const auto perAxis = [](int n) { return std::uint64_t(std::clamp(n, 1, 1024) + 3) / 4; };
+    bricks += perAxis(c.counts.x) * perAxis(c.counts.y) * perAxis(c.counts.z);
+  }
+  const std::uint64_t slots = bricks * PC_PROBES_PER_BRICK;
+  // Two fields (the receiver's and the renderer's mirror) and one set of codes.
+  return 2 * slots * kSlotBytes + bricks * kBrickCodeBytes;
+}
+
+void AnimationClock::update(double animationTime, double now) {
+  if (known_ && now > wall_ + 1e-3) {
+    // The rate the server's clock advanced at (0 when it is frozen), so extrapolating between
+    // states never runs past a stopped clock. Clamped: jitter only nudges it.
+    rate_ = std::clamp((animationTime - animation_) / (now - wall_), 0.0, 2.0);
+  }
+  known_ = true;
+  animation_ = animationTime;
+  wall_ = now;
+}
+
+std::optional<double> AnimationClock::at(double now) const {
+  if (!known_) return std::nullopt;
+  // While the server is away the clock runs on at the last rate: the scene keeps moving and
+  // the next scene state corrects it.
+  return animation_ + rate_ * (now - wall_);
+}
+
+ClientSession::ClientSession(ClientSessionOptions options) : options_(std::move(options)) {}
+
+bool ClientSession::connectedPhase() const {
+  return phase_ == SessionPhase::AwaitingWelcome || phase_ == SessionPhase::AwaitingLayout ||
+         phase_ == SessionPhase::Streaming;
+}
+
+void ClientSession::connecting(double now) {
+  close();
+  phase_ = SessionPhase::Connecting;
+  connectStartedAt_ = now;
+  error_.clear();
+  sessionId_ = 0;
+  ++stats_.connectAttempts;
+}
+
+std::vector<std::uint8_t> ClientSession::connected(double now, std::uint16_t udpPort) {
+  phase_ = SessionPhase::AwaitingWelcome;
+  lastHeard_ = now;
+  HelloMsg hello;
+  hello.authToken = options_.token;
+  hello.clientName = options_.name;
+  hello.wantsUdp = udpPort != 0;
+  hello.udpPort = udpPort;
+  return encodeMessage(hello);
+}
+
+void ClientSession::close() {
+  phase_ = SessionPhase::Idle;
+  receiver_.reset();
+  frame_ = {};  // released: a server may have sent one frame of megabytes
+  frameBytes_ = 0;
+  early_.clear();
+  events_.clear();
+  held_.clear();
+  changed_.clear();
+  changedList_.clear();
+  lastApplied_ = 0;
+  bricksHeld_ = bricksTotal_ = 0;
+  synced_ = false;
+}
+
+Error ClientSession::fail(std::string why, SessionPhase phase) {
+  phase_ = phase;
+  error_ = std::move(why);
+  return Error{error_};
+}
+
+Status ClientSession::onStreamBytes(std::span<const std::uint8_t> bytes, double now) {
+  events_.clear();
+  if (phase_ == SessionPhase::Rejected || phase_ == SessionPhase::Failed) return Error{error_};
+  if (!connectedPhase()) return Status::success();  // no connection these bytes could be from
+  stats_.tcpBytes += bytes.size();
+  lastHeard_ = now;
+  while (!bytes.empty()) {
+    if (frame_.size() < kFramePrefixBytes) {
+      const std::size_t take = std::min(kFramePrefixBytes - frame_.size(), bytes.size());
+      frame_.insert(frame_.end(), bytes.begin(), bytes.begin() + std::ptrdiff_t(take));
+      bytes = bytes.subspan(take);
+      if (frame_.size() < kFramePrefixBytes) break;
+      // Refused on the prefix alone: a frame over the limit is never read.
+      auto size = frameSize(frame_, kMaxSessionMessageBytes);
+      if (!size) return fail("bad frame from the server: " + size.error().message);
+      frameBytes_ = *size;
+    }
+    const std::size_t take = std::min(frameBytes_ - frame_.size(), bytes.size());
+    frame_.insert(frame_.end(), bytes.begin(), bytes.begin() + std::ptrdiff_t(take));
+    bytes = bytes.subspan(take);
+    if (frame_.size() < frameBytes_) break;
+    Status handled = onFrame(frame_, now);
+    frame_.clear();
+    frameBytes_ = 0;
+    if (!handled) return handled;
+  }
+  return Status::success();
+}
+
+Status ClientSession::onFrame(std::span<const std::uint8_t> frame, double now) {
+  switch (classifyFrame(frame)) {
+    case FrameKind::Datagram:
+      ++stats_.tcpDatagrams;
+      (void)handleDatagram(datagramOfFrame(frame), now);
+      return Status::success();
+    case FrameKind::SessionMessage: {
+      auto message = decodeMessage(frame);
+      if (!message) return fail("bad message from the server: " + message.error().message);
+      return onMessage(*message, now);
+    }
+    case FrameKind::Unknown:
+      break;
+  }
+  return fail("unknown frame from the server (neither a session message nor a datagram)");
+}
+
+Status ClientSession::onMessage(SessionMessage& message, double now) {
+  const std::string name = sessionMessageName(message);
+  if (std::holds_alternative<HelloMsg>(message) || std::holds_alternative<ViewerPoseMsg>(message) ||
+      std::holds_alternative<AckMsg>(message) || std::holds_alternative<RepairRequestMsg>(message))
+    return fail(name + " from the server: only a client sends it");
+  if (const auto* reject = std::get_if<RejectMsg>(&message)) {
+    ++stats_.rejects;
+    return fail("rejected: " + reject->reason.substr(0, kMaxQuotedReasonBytes),
+                SessionPhase::Rejected);
+  }
+  if (const auto* welcome = std::get_if<WelcomeMsg>(&message)) {
+    if (phase_ != SessionPhase::AwaitingWelcome) return fail("a second Welcome");
+    Status version = checkServerVersion(welcome->protocolVersion);
+    if (!version) return fail(version.error().message);
+    sessionId_ = welcome->sessionId;
+    phase_ = SessionPhase::AwaitingLayout;
+    events_.push_back(SessionEvent{SessionEvent::Kind::Welcomed, {}, {}});
+    return Status::success();
+  }
+  // The rest belongs to a session: the Welcome comes first.
+  if (phase_ == SessionPhase::AwaitingWelcome) return fail(name + " before Welcome");
+  if (const auto* info = std::get_if<SessionInfoMsg>(&message)) return onSessionInfo(*info, now);
+  auto& state = std::get<SceneStateMsg>(message);
+  clock_.update(state.animationTime, now);
+  events_.push_back(SessionEvent{SessionEvent::Kind::SceneState, std::move(state), {}});
+  return Status::success();
+}
+
+Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
+  if (phase_ == SessionPhase::Streaming) return fail("a second SessionInfo");
+  // Checked before anything is laid out: a hostile or broken server could otherwise make this
+  // client allocate tens of GiB (mirrorField accepts up to 4M probe slots).
+  const std::uint64_t needed = mirrorMemoryBytes(info);
+  if (needed > options_.maxMirrorBytes) {
+    const auto mib = [](std::uint64_t b) { return std::to_string((b + (1u << 20) - 1) >> 20); };
+    return fail("session info: the server's field layout (" +
+                std::to_string(info.cascades.size()) + " cascades) needs about " + mib(needed) +
+                " MiB of mirror memory, over this client's cap of " +
+                mib(options_.maxMirrorBytes) + " MiB (maxMirrorBytes)");
+  }
+  auto created = StreamReceiver::create(info, sessionId_, options_.receiver);
+  if (!created) return fail(created.error().message);  // mirrorField names "session info"
+  receiver_.emplace(std::move(created).value());
+  info_ = info;
+  const Field& layout = receiver_->field();
+  held_.assign(std::size_t(layout.cascadeCount()), {});
+  changed_.assign(std::size_t(layout.cascadeCount()), {});
+  bricksTotal_ = bricksHeld_ = 0;
+  for (int k = 0; k < layout.cascadeCount(); ++k) {
+    held_[k].assign(layout.brickVersions[k].size(), false);
+    changed_[k].assign(layout.brickVersions[k].size(), false);
+    bricksTotal_ += int(layout.brickVersions[k].size());
+  }
+  changedList_.clear();
+  lastApplied_ = 0;
+  synced_ = false;
+  syncSeconds_ = -1;
+  lastPoseAt_ = -1e30;  // the server learns the viewer at once
+  phase_ = SessionPhase::Streaming;
+  ++stats_.sessions;
+  events_.push_back(SessionEvent{SessionEvent::Kind::Layout, {}, {}});
+  std::deque<std::vector<std::uint8_t>> early = std::move(early_);
+  early_.clear();
+  for (const auto& d : early) (void)handleDatagram(d, now);
+  return Status::success();
+}
+
+Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now) {
+  events_.clear();
+  ++stats_.udpDatagrams;
+  stats_.udpBytes += bytes.size();
+  if (!connectedPhase()) return Status::success();  // from no session of this client
+  lastHeard_ = now;
+  return handleDatagram(bytes, now);
+}
+
+Status ClientSession::handleDatagram(std::span<const std::uint8_t> bytes, double now) {
+  if (phase_ == SessionPhase::AwaitingWelcome || phase_ == SessionPhase::AwaitingLayout) {
+    // Before SessionInfo: kept for when the receiver exists.
+    if (early_.size() < kMaxEarlyDatagrams) {
+      early_.emplace_back(bytes.begin(), bytes.end());
+    } else {
+      ++stats_.droppedEarlyDatagrams;
+    }
+    return Status::success();
+  }
+  if (phase_ != SessionPhase::Streaming) return Status::success();
+  Status status = receiver_->onDatagram(bytes, now);
+  if (!status) ++stats_.badDatagrams;
+  collectChanges(now);
+  events_.push_back(SessionEvent{SessionEvent::Kind::Datagram, {}, status});
+  return status;
+}
+
+void ClientSession::collectChanges(double now) {
+  const std::uint64_t applied = receiver_->stats().applied;
+  if (applied == lastApplied_) return;  // the common case under load: nothing to scan
+  lastApplied_ = applied;
+  for (auto [k, b] : receiver_->takeChangedBricks()) {
+    if (!held_[k][b]) {
+      held_[k][b] = true;
+      ++bricksHeld_;
+    }
+    if (!changed_[k][b]) {
+      changed_[k][b] = true;
+      changedList_.emplace_back(k, b);
+    }
+  }
+  if (!synced_ && bricksHeld_ == bricksTotal_) {
+    synced_ = true;
+    syncSeconds_ = now - connectStartedAt_;
+  }
+}
+
+std::vector<std::pair<int, int>> ClientSession::takeChangedBricks() {
+  std::vector<std::pair<int, int>> out;
+  out.swap(changedList_);
+  for (auto [k, b] : out) changed_[k][b] = false;
+  return out;
+}
+
+Result<std::vector<std::vector<std::uint8_t>>> ClientSession::poll(double now) {
+  std::vector<std::vector<std::uint8_t>> out;
+  if (phase_ == SessionPhase::Idle || phase_ == SessionPhase::Rejected ||
+      phase_ == SessionPhase::Failed)
+    return out;
+  if (phase_ != SessionPhase::Streaming && now - connectStartedAt_ > options_.connectTimeout)
+    return fail("no session within " + std::to_string(options_.connectTimeout) + " s");
+  if (phase_ != SessionPhase::Connecting && now - lastHeard_ > options_.silenceTimeout)
+    return fail("server silent for " + std::to_string(options_.silenceTimeout) + " s");
+  if (phase_ != SessionPhase::Streaming) return out;
+  out = receiver_->poll(now);
+  if (viewer_ && poseDue(now)) {
+    ViewerPoseMsg pose = *viewer_;
+    pose.time = clock_.at(now).value_or(0.0);
+    out.push_back(encodeMessage(pose));
+    lastPoseAt_ = now;
+  }
+  return out;
+}
+
+void ClientSession::setViewer(glm::vec3 position, glm::quat orientation) {
+  ViewerPoseMsg pose;
+  pose.position = position;
+  pose.orientation = orientation;
+  viewer_ = pose;
+}
+
+bool ClientSession::poseDue(double now) const {
+  return phase_ == SessionPhase::Streaming && now - lastPoseAt_ >= options_.poseInterval;
+}
+
+}  // namespace pc

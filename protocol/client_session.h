@@ -1,0 +1,194 @@
+// Client side of a session, without sockets or clocks: the one state machine behind
+// probecast-client (client/net_client.cpp), probecast-loadgen (loadgen/load_generator.cpp) and
+// the in-memory stream simulation. Fed the bytes of the TCP stream, the UDP datagrams and the
+// time, it says what to send (Hello, acks, repair requests, viewer poses) and what happened
+// (events, state), and it holds every rule of the client's side: the handshake and its order,
+// the checks of SessionInfo including the memory cap, the animation clock, the cadence of acks,
+// repairs and poses, the connect and silence timeouts, and the caps on what a server can make
+// it hold. The caller owns the sockets, retries and what it does with the bricks.
+//
+// One ClientSession serves a client's whole life, one session after another:
+//   connecting(now)            the caller starts opening a connection
+//   connected(now, udpPort)    it is open: send the returned Hello first
+//   onStreamBytes / onDatagram bytes as they arrive; events() says what each call did
+//   poll(now)                  often (every few ms): frames to send, or an Error (a timeout)
+//   close()                    the connection is gone, whatever the reason
+// Any Error from onStreamBytes or poll ends the session (phase() Rejected or Failed, error()
+// says why); the caller closes the connection, calls close() and may connect again. The
+// animation clock and the counters carry over from one session to the next.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/result.h"
+#include "protocol/session_messages.h"
+#include "protocol/stream_receiver.h"
+
+namespace pc {
+
+// What a session with this layout makes a client hold on the CPU: the receiver's field and a
+// renderer's copy of it (atlases with borders, probe records) and the receiver's quantized
+// codes per brick. Counts per axis are clamped to 1..1024 (mirrorField refuses anything else).
+std::uint64_t mirrorMemoryBytes(const SessionInfoMsg& info);
+
+// A client sends only small messages: more than this queued for the server means the server
+// is not reading, and the caller ends the session.
+inline constexpr std::size_t kMaxClientQueuedBytes = 1u << 20;
+// UDP datagrams that arrive between the Hello and SessionInfo (the server sends them as soon
+// as the Hello is in, while Welcome and SessionInfo are still on their way over TCP) are kept
+// for the session's receiver, this many at most.
+inline constexpr std::size_t kMaxEarlyDatagrams = 64;
+// A Reject's reason is quoted in the error up to this many bytes: a server could send 4 MiB.
+inline constexpr std::size_t kMaxQuotedReasonBytes = 200;
+
+struct ClientSessionOptions {
+  std::string token;  // the server's shared secret, sent in the Hello
+  std::string name = "probecast-client";
+  double connectTimeout = 2.0;  // s from connecting() to SessionInfo
+  double silenceTimeout = 2.0;  // s without any bytes from the server, once connected
+  double poseInterval = 0.1;    // s between viewer poses
+  // The most a SessionInfo may make this client allocate (mirrorMemoryBytes); a larger layout
+  // ends the session with an error naming both sizes. The shared scenes need under 200 MiB.
+  std::uint64_t maxMirrorBytes = std::uint64_t(1) << 30;
+  ReceiverOptions receiver;
+};
+
+enum class SessionPhase {
+  Idle,             // no connection: before the first, or after close()
+  Connecting,       // the caller is opening a connection
+  AwaitingWelcome,  // Hello sent
+  AwaitingLayout,   // Welcome received, SessionInfo not yet
+  Streaming,        // SessionInfo taken: receiver() holds the session's field
+  Rejected,         // ended by the server's Reject
+  Failed,           // ended by an error or a timeout
+};
+
+struct SessionEvent {
+  enum class Kind {
+    Welcomed,    // the server took the Hello (sessionId())
+    Layout,      // SessionInfo taken: receiver() holds the new session's empty field
+    SceneState,  // a scene state arrived (scene); clock() has taken it
+    Datagram,    // a datagram was handled (either transport); status says whether it was refused
+  };
+  Kind kind;
+  SceneStateMsg scene;  // Kind::SceneState
+  Status status;        // Kind::Datagram
+};
+
+struct ClientSessionStats {
+  std::uint64_t connectAttempts = 0;  // connecting() calls
+  std::uint64_t sessions = 0;         // SessionInfo taken
+  std::uint64_t rejects = 0;
+  std::uint64_t tcpBytes = 0, udpBytes = 0;  // received
+  std::uint64_t udpDatagrams = 0, tcpDatagrams = 0;
+  std::uint64_t badDatagrams = 0;           // refused by the receiver (or a fragment of them)
+  std::uint64_t droppedEarlyDatagrams = 0;  // past kMaxEarlyDatagrams before SessionInfo
+};
+
+// The server's animation clock as a client sees it: the latest scene state's time, run on at
+// the rate the states advanced (0 when the server's clock stands still).
+class AnimationClock {
+ public:
+  void update(double animationTime, double now);
+  // Nothing before the first scene state.
+  std::optional<double> at(double now) const;
+
+ private:
+  bool known_ = false;
+  double animation_ = 0, wall_ = 0, rate_ = 1.0;
+};
+
+class ClientSession {
+ public:
+  explicit ClientSession(ClientSessionOptions options);
+
+  // The caller starts opening a connection; the connect timeout runs from here. Ends whatever
+  // session there was.
+  void connecting(double now);
+  // The connection is open: the Hello frame, to send before anything else. udpPort 0 asks for
+  // datagrams over the TCP stream.
+  std::vector<std::uint8_t> connected(double now, std::uint16_t udpPort);
+  // The connection is gone or was closed: the session's receiver is released.
+  void close();
+
+  // Bytes read from the TCP stream, in any pieces: each frame is handled once it is whole,
+  // its size checked from its prefix before the body is awaited. An Error ends the session.
+  Status onStreamBytes(std::span<const std::uint8_t> bytes, double now);
+  // One UDP datagram. Its status (also in its Datagram event) never ends the session.
+  Status onDatagram(std::span<const std::uint8_t> bytes, double now);
+  // What the latest onStreamBytes or onDatagram call did, in order; the next call replaces
+  // them. Kept here rather than handed over, so that a datagram's event allocates nothing.
+  const std::vector<SessionEvent>& events() const { return events_; }
+
+  // Frames to send now (acks, repair requests, the viewer pose), or an Error when a timeout
+  // ended the session.
+  Result<std::vector<std::vector<std::uint8_t>>> poll(double now);
+
+  // The viewer sent to the server every poseInterval while streaming; its time is the clock's.
+  void setViewer(glm::vec3 position, glm::quat orientation);
+  // Whether poll would send a pose now (for callers that compute it only when it is due).
+  bool poseDue(double now) const;
+
+  // Bricks (cascade, brick) changed since the previous call, each once, for the caller to
+  // read from receiver()->field() or brickVersion().
+  std::vector<std::pair<int, int>> takeChangedBricks();
+
+  SessionPhase phase() const { return phase_; }
+  bool streaming() const { return phase_ == SessionPhase::Streaming; }
+  // Why the latest session ended (empty while none did).
+  const std::string& error() const { return error_; }
+  std::uint32_t sessionId() const { return sessionId_; }
+  // The session's receiver from SessionInfo until close() or the next connecting().
+  const StreamReceiver* receiver() const { return receiver_ ? &*receiver_ : nullptr; }
+  const SessionInfoMsg& info() const { return info_; }
+  int bricksHeld() const { return bricksHeld_; }
+  int bricksTotal() const { return bricksTotal_; }
+  // The session holds a version of every brick; syncSeconds: connecting() -> that moment.
+  bool synced() const { return synced_; }
+  double syncSeconds() const { return syncSeconds_; }
+  const AnimationClock& clock() const { return clock_; }
+  const ClientSessionStats& stats() const { return stats_; }
+  const ClientSessionOptions& options() const { return options_; }
+
+ private:
+  Error fail(std::string why, SessionPhase phase = SessionPhase::Failed);
+  Status onFrame(std::span<const std::uint8_t> frame, double now);
+  Status onMessage(SessionMessage& message, double now);
+  Status onSessionInfo(const SessionInfoMsg& info, double now);
+  Status handleDatagram(std::span<const std::uint8_t> bytes, double now);
+  void collectChanges(double now);
+  bool connectedPhase() const;
+
+  ClientSessionOptions options_;
+  SessionPhase phase_ = SessionPhase::Idle;
+  std::string error_;
+  double connectStartedAt_ = 0, lastHeard_ = 0, lastPoseAt_ = -1e30;
+  std::uint32_t sessionId_ = 0;
+  SessionInfoMsg info_;
+  std::optional<StreamReceiver> receiver_;
+  std::vector<std::uint8_t> frame_;  // the TCP frame being read, prefix first
+  std::size_t frameBytes_ = 0;       // its whole size, once the prefix is in
+  std::deque<std::vector<std::uint8_t>> early_;
+  std::vector<SessionEvent> events_;
+  // Per brick: held at any version this session; changed since takeChangedBricks.
+  std::vector<std::vector<bool>> held_, changed_;
+  std::vector<std::pair<int, int>> changedList_;
+  std::uint64_t lastApplied_ = 0;
+  int bricksHeld_ = 0, bricksTotal_ = 0;
+  bool synced_ = false;
+  double syncSeconds_ = -1;
+  std::optional<ViewerPoseMsg> viewer_;
+  AnimationClock clock_;
+  ClientSessionStats stats_;
+};
+
+}  // namespace pc
