@@ -227,7 +227,7 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
                       VK_ACCESS_2_TRANSFER_WRITE_BIT,
                       kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                       kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-    m.recordWavefront(n, rayCount, sliced);
+    m.recordWavefront(n, rayCount);
 
     // Changed bricks: this slice's into the list; after the last, the list packed for the host.
     m.timer.begin(cmd, "changes");

@@ -48,6 +48,13 @@ struct VulkanTracerOptions {
   // not made and reports VK_ERROR_DEVICE_LOST, as a GPU lost in it would; every call from
   // there on fails. 0: never. Serves the tests of what the server does when its GPU fails.
   int failSubmission = 0;
+  // Diagnostics (probecast-bench gpu-trace --pipeline-statistics): each pipeline's compiler
+  // statistics (registers, shared memory, ...) in the log, where the driver reports them.
+  bool pipelineStatistics = false;
+  // Diagnostics (probecast-bench gpu-trace --shadow-slot-times): a timestamp pair per shadow
+  // slot's launch (a pass "shadow slot N" each) instead of one over them all, and each slot's
+  // shadow-ray count in the log. The pairs serialize the launches; single rounds only.
+  bool shadowSlotTimes = false;
 };
 
 // Probe rays per pass of an update (the slices' size): at most `maxPassRays` (what the buffers

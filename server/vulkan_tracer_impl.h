@@ -111,14 +111,7 @@ struct VulkanTracer::Impl {
   std::vector<int> recordInstance;  // record -> Scene::instances index
   std::vector<int> staticMeshes;    // static record -> its world-space GpuMesh entry
   int staticCount = 0;
-  // Timing experiments (probe_blend.comp, probe_shade.comp: kVariant): PC_BLEND_VARIANT and
-  // PC_SHADE_VARIANT pick a variant that drops one step; 0, the default, is the real pass.
-  int blendVariant = 0;
-  int shadeVariant = 0;
-  int overlapVariant = 0;
-  // PC_SHADOW_SLOT_TIMES=1 (diagnostics): a timestamp pair per shadow slot's launch instead of
-  // one over them all, and each slot's shadow-ray count in the log.
-  bool shadowSlotTimes = false;
+  bool shadowSlotTimes = false;      // VulkanTracerOptions::shadowSlotTimes
   bool boundedShadowLaunch = false;  // VulkanTracerOptions::boundedShadowLaunch
   // Submissions made, and the one that fails as a lost device would (VulkanTracerOptions).
   int submissions = 0, failSubmission = 0;
@@ -220,14 +213,17 @@ struct VulkanTracer::Impl {
   Status init(const VulkanTracerOptions& vulkan);
   Status uploadScene();
   Status createPipelines();
-  // A compute pipeline of `name` with its specialization constants (constant_id i = value i;
-  // none when empty).
-  Result<vk::UniquePipeline> computePipeline(const char* name, const std::vector<int>& constants);
+  // A compute pipeline of `name` with its specialization constants (none when empty).
+  struct SpecConstant {
+    std::uint32_t id;  // the shader's constant_id
+    int value;         // ints and bools (VkBool32) alike
+  };
+  Result<vk::UniquePipeline> computePipeline(const char* name,
+                                             const std::vector<SpecConstant>& constants);
   // The compiler's statistics of a pipeline, logged where the context captures them.
   void logStatistics(const char* name, VkPipeline pipeline) const;
   // The blend pipeline for `rayCount` rays per probe: its shared scratch is sized for the
-  // group (blendGroupProbes) at that ray count, rebuilt when the count changes.
-  int blendGroupProbes(int rayCount) const;
+  // group (pcBlendProbes) at that ray count, rebuilt when the count changes.
   Status ensureBlendPipeline(int rayCount);
   void writeDescriptors();
   int shadowSlots() const;
@@ -250,7 +246,7 @@ struct VulkanTracer::Impl {
   void recordResolve(int probeCount, int rayCount);
   void dispatchRows(std::uint64_t groups);
   // Trace, shade, shadow rays and blend for the `probeCount` probes of the current inputs.
-  void recordWavefront(int probeCount, int rayCount, bool sliced);
+  void recordWavefront(int probeCount, int rayCount);
   bool loggedSlices = false;  // the first update in slices is reported in the log
 };
 

@@ -22,26 +22,11 @@
 // once, up front, instead of per texel and per border texel.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
-#extension GL_KHR_shader_subgroup_ballot : require
 #include "field_buffers.glsl"
 #include "interop/probe_update.h"
 
 layout(local_size_x = PC_BLEND_THREADS) in;
 
-// Timing experiments only (PC_BLEND_VARIANT, read by server/vulkan_tracer_setup.cpp): a nonzero value
-// drops or changes one step so that a per-pass GPU time can be attributed to it; the fields it
-// gives may be wrong. 0, the default, is the blend itself. The variants:
-//   1 no tiles (step 2 skipped)          2 no irradiance/occlusion texels  3 no depth texels
-//   4 no borders (step 3 skipped)        5 rays without their shadow slots' light (rays[] only)
-//   6 no ray reads (step 0 from constants)  7 no classification/relocation (step 1 skipped)
-//   8 tile sums without atlas reads/writes  9 tile sums in arrays even for four probes
-//  10 one probe per workgroup (the host dispatches one group per request)
-//  11 workgroup-scope barrier before the borders instead of memoryBarrierBuffer
-//  12 at most two probes per workgroup (the host dispatches accordingly)
-//  13 the rays only (step 0, then nothing)   14 steps 0 and 1 only
-//  15 every lane of a subgroup reads its first lane's tap ray (no shared-memory bank conflicts)
-//  16 tap blocks made up from their index instead of loaded (no tap-list reads but the headers)
-layout(constant_id = 0) const int kVariant = 0;
 // Rays the shared scratch holds: pcBlendScratch for this pipeline's ray count (the host
 // always specializes it; the default, a literal as specialization constants need, is the
 // most any ray count needs: PC_MAX_RAYS_PER_PROBE + PC_BLEND_MAX_PROBES).
@@ -85,12 +70,8 @@ uvec2 tapHeader(int t) {
   return (t & 1) == 0 ? pair.xy : pair.zw;
 }
 
-// The block of four taps starting at word `first` (a multiple of four); variant 16 (timing
-// experiment) makes one up instead of reading it.
-uvec4 tapBlock(uint first) {
-  if (kVariant == 16) return (uvec4(first) * uvec4(37u, 41u, 43u, 47u) & 255u) | 0x34000000u;
-  return taps[first >> 2];
-}
+// The block of four taps starting at word `first` (a multiple of four).
+uvec4 tapBlock(uint first) { return taps[first >> 2]; }
 
 // A tap word's ray and weight.
 int tapRay(uint word) { return int(word & 0xffffu); }
@@ -105,13 +86,13 @@ void main() {
   const int ni = PC_IRRADIANCE_TEXELS, nd = PC_DEPTH_TEXELS, no = PC_OCCLUSION_TEXELS;
   int tid = int(gl_LocalInvocationIndex);
   int rayCount = params.rayCount;
-  int groupProbes = kVariant == 10 ? 1 : kVariant == 12 ? min(2, pcBlendProbes(rayCount)) : pcBlendProbes(rayCount);
+  int groupProbes = pcBlendProbes(rayCount);
   int firstRequest = (int(gl_WorkGroupID.y) * PC_DISPATCH_ROWS + int(gl_WorkGroupID.x)) * groupProbes;
   if (firstRequest >= params.probeCount) return;  // uniform across the workgroup
   int probesHere = min(groupProbes, params.probeCount - firstRequest);
   int rowStride = rayCount + 1;  // of the shared ray rows
   // Groups of four probes sum their tiles in vec4s (step 2).
-  const bool fourLanes = groupProbes == 4 && K == 4 && kVariant != 9;
+  const bool fourLanes = groupProbes == 4 && K == 4;
 
   // ---- each probe's cascade: ray reach and tile origins ----
   if (tid < probesHere) {
@@ -139,33 +120,23 @@ void main() {
       int item = min(first + u * PC_BLEND_THREADS, items - 1);  // past the end: a repeat, not stored
       int k = item % probesHere, ray = item / probesHere;
       at[u] = pcProbeRayLaunchIndex(firstRequest + k, ray, params.probeCount, rayCount);
-      r[u] = kVariant == 6 ? vec4(0.5f, 0.5f, 0.5f, float(ray % 7) - 1.0f) : rays[at[u]];  // timing experiment
-      mask0[u] = kVariant == 5 || kVariant == 6 || lightsInRays ? 0u : shadowMask[at[u]];
+      r[u] = rays[at[u]];
+      mask0[u] = lightsInRays ? 0u : shadowMask[at[u]];
     }
     [[unroll]] for (int u = 0; u < kLoads; ++u) {
       int item = first + u * PC_BLEND_THREADS;
       if (item >= items) break;
       int k = item % probesHere, ray = item / probesHere;
       float d = r[u].w;
-      sRay[k * rowStride + ray] = vec4(kVariant == 5 || kVariant == 6 || lightsInRays ? r[u].xyz : pcAddVisibleLight(at[u], r[u].xyz, mask0[u]), d);
+      sRay[k * rowStride + ray] = vec4(lightsInRays ? r[u].xyz : pcAddVisibleLight(at[u], r[u].xyz, mask0[u]), d);
       int slot = depthAt(fourLanes, k, ray, rowStride);
       sDepth[slot >> 2][slot & 3] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
     }
   }
   barrier();
-  if (kVariant == 13) {  // timing experiment: the ray reads alone
-    if (tid < probesHere && isnan(sRay[tid * rowStride].x)) changes[firstRequest + tid] = 1.0f;
-    return;
-  }
 
   // ---- 1. classification and relocation: a power-of-two share of the threads per probe ----
-  if (kVariant == 7) {  // timing experiment: no classification
-    if (tid < probesHere) {
-      sInside[tid] = false;
-      sAlpha[tid] = 0.5f;
-      sMaxChange[tid] = 0u;
-    }
-  } else {
+  {
     int share = PC_BLEND_THREADS / groupProbes;
     int k = tid / share, lane = tid - k * share;
     uint backfaces = 0u;
@@ -234,16 +205,13 @@ void main() {
     }
   }
   barrier();
-  if (kVariant == 14) return;  // timing experiment: rays and classification alone
 
   // ---- 2. tiles: irradiance and occlusion (one texel per thread of the first n_i^2), depth
   // (the other threads, several texels each); texels of inside probes are left alone. Groups
   // of four probes sum in vec4s, probe k in component k (the same sums in the same order as
   // the arrays that fewer probes use; the blend takes 0.62 ms on an H200, 0.71 with the arrays) ----
   const int irrTexelCount = ni * ni, depthTexelCount = nd * nd;
-  if (kVariant == 1 || (kVariant == 2 && tid < irrTexelCount) || (kVariant == 3 && tid >= irrTexelCount)) {
-    // timing experiments: no tiles, no irradiance/occlusion texels, no depth texels
-  } else if (tid < irrTexelCount) {
+  if (tid < irrTexelCount) {
     float dmax = field.occlusionDistance;
     vec3 irrSum[K];
     float irrWeight[K], open[K], occWeight[K];
@@ -264,7 +232,7 @@ void main() {
         [[unroll]] for (int u = 0; u < 4; ++u) {
           if (4u * b + uint(u) >= h.x) break;
           float w = tapWeight(block[u]);
-          int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
+          int ray = tapRay(block[u]);
           vec4 r0 = sRay[ray], r1 = sRay[rowStride + ray], r2 = sRay[2 * rowStride + ray], r3 = sRay[3 * rowStride + ray];
           vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
           op += vec4(greaterThan(d, vec4(dmax))) * w;
@@ -307,10 +275,6 @@ void main() {
       if (k >= probesHere) break;
       if (sInside[k]) continue;
       ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
-      if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
-        if (isnan(irrSum[k].x + irrWeight[k] + open[k] + occWeight[k])) changes[firstRequest + k] = 1.0f;
-        continue;
-      }
       if (irrWeight[k] > 0.0f) {
         int i = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
         vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
@@ -341,7 +305,7 @@ void main() {
           [[unroll]] for (int u = 0; u < 4; ++u) {
             if (4u * b + uint(u) >= h.x) break;
             float w = tapWeight(block[u]);
-            int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
+            int ray = tapRay(block[u]);
             vec4 dist = sDepth[ray];
             s1 += w * dist;
             s2 += w * dist * dist;
@@ -375,20 +339,12 @@ void main() {
       [[unroll]] for (int k = 0; k < K; ++k) {
         if (k >= probesHere) break;
         if (sInside[k] || !(depthWeight[k] > 0.0f)) continue;
-        if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
-          if (isnan(m1[k] + m2[k])) changes[firstRequest + k] = 1.0f;
-          continue;
-        }
         int i = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
         depthTexels[i] = mix(vec2(m1[k], m2[k]) / depthWeight[k], depthTexels[i], sAlpha[k]);
       }
     }
   }
-  if (kVariant == 11) {  // timing experiment: workgroup scope suffices for the borders
-    groupMemoryBarrier();
-  } else {
-    memoryBarrierBuffer();
-  }
+  memoryBarrierBuffer();
   barrier();
 
   // ---- 3. borders: each border texel copies its interior source (pcBorderSource) ----
@@ -396,7 +352,7 @@ void main() {
   // columns: 4 (s - 1) of them per channel.
   const int si = ni + 2, sd = nd + 2, so = no + 2;
   const int bi = 4 * (si - 1), bd = 4 * (sd - 1), bo = 4 * (so - 1);
-  for (int item = tid; item < (kVariant == 4 ? 0 : probesHere * (bi + bd + bo)); item += PC_BLEND_THREADS) {
+  for (int item = tid; item < probesHere * (bi + bd + bo); item += PC_BLEND_THREADS) {
     int k = item / (bi + bd + bo), b = item % (bi + bd + bo);
     if (sInside[k]) continue;
     int s, n;

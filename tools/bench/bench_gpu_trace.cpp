@@ -45,7 +45,7 @@ Benchmark addGpuTrace(CLI::App& app) {
   static std::size_t shadowMemoryMiB = 0, passRays = 0;
   static std::vector<int> counts;
   static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false,
-              singleBounce = false;
+              singleBounce = false, pipelineStatistics = false, shadowSlotTimes = false;
   static float roulette = pc::TracerOptions{}.shadowRouletteShare;
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
@@ -76,6 +76,11 @@ Benchmark addGpuTrace(CLI::App& app) {
       "--pass-rays", passRays,
       "the most probe rays one pass of a GPU update holds; larger updates run in slices "
       "of their probes (0: as many as the device's buffers and memory allow)");
+  cmd->add_flag("--pipeline-statistics", pipelineStatistics,
+                "log each GPU pipeline's compiler statistics (registers, shared memory), where "
+                "the driver reports them");
+  cmd->add_flag("--shadow-slot-times", shadowSlotTimes,
+                "time each shadow slot's launch apart (serializes them) and log its shadow rays");
   addRenderOptions(*cmd, setup);
   return {cmd, [] {
             auto scene = loadBenchScene(scenePath, sidecar);
@@ -92,6 +97,8 @@ Benchmark addGpuTrace(CLI::App& app) {
             vo.boundedShadowLaunch = boundedShadowLaunch;
             vo.shadowMemoryBudget = shadowMemoryMiB << 20;
             vo.maxPassRays = passRays;
+            vo.pipelineStatistics = pipelineStatistics;
+            vo.shadowSlotTimes = shadowSlotTimes;
             TracerOptions options;
             options.shadowRouletteShare = roulette;
             auto gpu = VulkanTracer::create(*scene, options, vo);
