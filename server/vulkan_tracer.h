@@ -71,16 +71,16 @@ class VulkanTracer final : public Tracer {
                                                       const VulkanTracerOptions& vulkan);
   ~VulkanTracer() override;
   std::string name() const override;
-  // setState, update and traceOnly throw TracerFailure (tracer.h) where the GPU fails: a lost
-  // device, memory it lacks, an update past the device's limits. The field then holds the last
-  // completed update, and every later call fails too.
-  void setState(const SceneState& state) override;
-  UpdateStats update(Field& field, const UpdateRequest& request) override;
+  // setState, update and traceOnly return an Error where the GPU fails: a lost device, memory
+  // it lacks, an update past the device's limits. The field then holds the last completed
+  // update, and every later call fails too (tracer.h).
+  Status setState(const SceneState& state) override;
+  Result<UpdateStats> update(Field& field, const UpdateRequest& request) override;
 
   // Runs only update()'s trace pass on the same probe rays (closest hits, stored for shading:
   // no shading, shadow rays, blending or readback) and returns its GPU milliseconds: the raw
   // rate the full update is measured against.
-  double traceOnly(Field& field, const UpdateRequest& request);
+  Result<double> traceOnly(Field& field, const UpdateRequest& request);
 
   const vk::Context& context() const;
   std::uint32_t validationErrorCount() const { return context().validationErrorCount(); }

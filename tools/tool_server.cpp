@@ -175,9 +175,7 @@ int main(int argc, char** argv) {
 
   // Before the main loop, a signal found between warm-up updates ends the process: a large
   // scene's warm-up on the CPU can take minutes, and SIGTERM must not wait for it.
-  struct Interrupted {
-    int signal;
-  };
+  int interruptedBy = 0;
   auto pendingSignal = [&signals] {
     timespec now{0, 0};
     const int sig = sigtimedwait(&signals, nullptr, &now);
@@ -195,8 +193,8 @@ int main(int argc, char** argv) {
     if (!baked) return pc::logError(baked.error().message), 1;
     field = std::move(baked).value();
   } else {
-    // A fresh field, warmed up with a short bake.
-    auto warmUp = [&](pc::Tracer& t) {
+    // A fresh field, warmed up with a short bake; stopped by a signal (interruptedBy).
+    auto warmUp = [&](pc::Tracer& t) -> pc::Status {
       pc::FieldSettings settings;
       settings.raysPerProbe = rays;
       field = pc::Field::create(
@@ -207,7 +205,7 @@ int main(int argc, char** argv) {
       const double began = pc::steadySeconds();
       double logged = began;
       bake.progress = [&](int done, int total) {
-        if (const int sig = pendingSignal()) throw Interrupted{sig};
+        if ((interruptedBy = pendingSignal()) != 0) return false;
         const double now = pc::steadySeconds();
         if (now - logged >= 5.0 && done < total) {  // a slow warm-up says how far it is
           char line[128];
@@ -216,29 +214,33 @@ int main(int argc, char** argv) {
           pc::logInfo(line);
           logged = now;
         }
+        return true;
       };
       pc::logInfo("warm-up: " + std::to_string(warmup) + " updates of " +
                   std::to_string(field.desc.probeCount) + " probes on " + t.name());
-      t.setState(pc::evaluateScene(*scene, loop.startTime));
-      pc::bakeField(field, t, bake);
+      if (pc::Status s = t.setState(pc::evaluateScene(*scene, loop.startTime)); !s) return s;
+      auto baked = pc::bakeField(field, t, bake);
+      if (!baked) return baked.error();
+      return pc::Status::success();
     };
-    try {
-      try {
-        warmUp(**tracer);
-      } catch (const pc::TracerFailure& e) {
-        // No client yet: the warm-up starts over on the fallback, from a fresh field.
-        pc::logError(std::string("warm-up bake failed: ") + e.what());
-        if (!loop.fallback) return 1;
-        auto cpu = loop.fallback();
-        if (!cpu) return pc::logError("fallback tracer: " + cpu.error().message), 1;
-        pc::logWarn("the warm-up and the field updates go on with the " + (*cpu)->name() +
-                    " tracer");
-        tracer = std::move(cpu);
-        loop.fallback = nullptr;
-        warmUp(**tracer);
-      }
-    } catch (const Interrupted& i) {
-      pc::logInfo(std::string("shutting down (") + signalName(i.signal) + ") during the warm-up");
+    pc::Status warm = warmUp(**tracer);
+    if (!warm && interruptedBy == 0) {
+      // No client yet: the warm-up starts over on the fallback, from a fresh field.
+      pc::logError("warm-up bake failed: " + warm.error().message);
+      if (!loop.fallback) return 1;
+      auto cpu = loop.fallback();
+      if (!cpu) return pc::logError("fallback tracer: " + cpu.error().message), 1;
+      pc::logWarn("the warm-up and the field updates go on with the " + (*cpu)->name() +
+                  " tracer");
+      tracer = std::move(cpu);
+      loop.fallback = nullptr;
+      warm = warmUp(**tracer);
+      if (!warm && interruptedBy == 0)
+        return pc::logError("warm-up bake failed: " + warm.error().message), 1;
+    }
+    if (interruptedBy != 0) {
+      pc::logInfo(std::string("shutting down (") + signalName(interruptedBy) +
+                  ") during the warm-up");
       return 0;
     }
   }
