@@ -34,6 +34,15 @@ const char* rasterizerName(Rasterizer r) {
 
 namespace {
 
+// Depth attachments (shadow maps, the main pass's depth) and colour attachments, as barriers
+// name them.
+constexpr VkPipelineStageFlags2 kDepthStages =
+    VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
+constexpr VkAccessFlags2 kDepthAccess =
+    VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+constexpr VkPipelineStageFlags2 kColorStage = VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
+constexpr VkAccessFlags2 kColorWrite = VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
+
 void setViewport(VkCommandBuffer cmd, std::uint32_t width, std::uint32_t height) {
   const VkViewport vp{0.0f, 0.0f, float(width), float(height), 0.0f, 1.0f};
   const VkRect2D scissor{{0, 0}, {width, height}};
@@ -159,34 +168,51 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   Slot& slot = *slots_[current_];
   updateFrameData(slot, input);
   vk::GpuTimer& timer = *slot.timer;
-  const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
-  const VkPipelineLayout layout = pipelineLayout_.get();
-  const PackedScene& packed = gpuScene_->packed();
-  // Draws every draw whose world bounds touch one of the views' frusta (a cube face sees about
-  // a sixth of a scene, a camera often less).
-  auto drawScene = [&](std::initializer_list<glm::mat4> views) {
-    const VkDeviceSize zero = 0;
-    const VkBuffer vb = gpuScene_->vertices();
-    vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &zero);
-    vkCmdBindIndexBuffer(cmd, gpuScene_->indices(), 0, VK_INDEX_TYPE_UINT32);
-    for (std::size_t d = 0; d < packed.drawInstances.size(); ++d) {
-      if (d < slot.boxLo.size() &&
-          std::none_of(views.begin(), views.end(), [&](const glm::mat4& v) {
-            return boxTouchesFrustum(v, slot.boxLo[d], slot.boxHi[d]);
-          }))
-        continue;
-      const MeshRange& m = packed.meshes[scene_->instances[packed.drawInstances[d]].mesh];
-      // firstInstance carries the draw's index: the shaders read draws[gl_InstanceIndex].
-      vkCmdDrawIndexed(cmd, m.indexCount, 1, m.firstIndex, m.vertexOffset, std::uint32_t(d));
-      ++stats_.drawCalls;
-      stats_.triangles += m.indexCount / 3;
-    }
-  };
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &slot.set, 0,
-                          nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipelineLayout_.get(), 0, 1,
+                          &slot.set, 0, nullptr);
 
   timer.reset(cmd);
   timer.begin(cmd, "upload");
+  recordFieldUploads(cmd, input);
+  timer.end(cmd);
+  timer.begin(cmd, "shadows");
+  recordShadowMaps(cmd, slot);
+  timer.end(cmd);
+  timer.begin(cmd, "main");
+  recordVisibility(cmd, slot);
+  timer.end(cmd);
+  timer.begin(cmd, "probe");
+  recordLighting(cmd, slot);
+  timer.end(cmd);
+  timer.begin(cmd, "tonemap");
+  recordTonemap(cmd, target);
+  timer.end(cmd);
+}
+
+// Draws every draw whose world bounds touch one of the views' frusta (a cube face sees about
+// a sixth of a scene, a camera often less).
+void Renderer::drawScene(VkCommandBuffer cmd, const Slot& slot,
+                         std::initializer_list<glm::mat4> views) {
+  const PackedScene& packed = gpuScene_->packed();
+  const VkDeviceSize zero = 0;
+  const VkBuffer vb = gpuScene_->vertices();
+  vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &zero);
+  vkCmdBindIndexBuffer(cmd, gpuScene_->indices(), 0, VK_INDEX_TYPE_UINT32);
+  for (std::size_t d = 0; d < packed.drawInstances.size(); ++d) {
+    if (d < slot.boxLo.size() &&
+        std::none_of(views.begin(), views.end(), [&](const glm::mat4& v) {
+          return boxTouchesFrustum(v, slot.boxLo[d], slot.boxHi[d]);
+        }))
+      continue;
+    const MeshRange& m = packed.meshes[scene_->instances[packed.drawInstances[d]].mesh];
+    // firstInstance carries the draw's index: the shaders read draws[gl_InstanceIndex].
+    vkCmdDrawIndexed(cmd, m.indexCount, 1, m.firstIndex, m.vertexOffset, std::uint32_t(d));
+    ++stats_.drawCalls;
+    stats_.triangles += m.indexCount / 3;
+  }
+}
+
+void Renderer::recordFieldUploads(VkCommandBuffer cmd, const FrameInput& input) {
   const double clock =
       input.clock
           ? *input.clock
@@ -195,55 +221,52 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   const FieldUploadStats uploads = field_->recordUploads(cmd, current_, *mirror_, clock);
   stats_.bricksUploaded = uploads.bricks;
   stats_.bricksFading = uploads.fading;
-  timer.end(cmd);
+}
 
-  // ---- shadow maps (only the layers whose light or casters changed: ShadowCache) ----
-  timer.begin(cmd, "shadows");
-  const VkPipelineStageFlags2 depthStages =
-      VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
-  const VkAccessFlags2 depthAccess = VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
-                                     VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
-  const VkImageAspectFlags depthAspect = VK_IMAGE_ASPECT_DEPTH_BIT;
-  // Layout changes of the layers drawn this frame (all layers the first time, when the arrays
-  // are undefined); the others keep their depth and stay readable.
-  auto shadowBarriers = [&](bool toAttachment) {
-    std::vector<VkImageMemoryBarrier2> barriers;
-    auto add = [&](VkImage image, std::uint32_t layer, std::uint32_t count) {
-      VkImageMemoryBarrier2 b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER_2};
-      if (toAttachment) {
-        b.srcStageMask = kShaderStages;      // read by the lighting pass (compute)
-        b.srcAccessMask = VK_ACCESS_2_NONE;  // earlier reads only: an execution dependency
-        b.dstStageMask = depthStages;
-        b.dstAccessMask = depthAccess;
-        b.oldLayout = slot.shadowsFresh ? VK_IMAGE_LAYOUT_UNDEFINED
-                                        : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-        b.newLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-      } else {
-        b.srcStageMask = depthStages;
-        b.srcAccessMask = depthAccess;
-        b.dstStageMask = kShaderStages;
-        b.dstAccessMask = VK_ACCESS_2_SHADER_SAMPLED_READ_BIT;
-        b.oldLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-        b.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-      }
-      b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-      b.image = image;
-      b.subresourceRange = {depthAspect, 0, 1, layer, count};
-      barriers.push_back(b);
-    };
-    if (slot.shadowsFresh) {
-      for (const ShadowArray& sa : shadowArrays_) add(sa.image.get(), 0, VK_REMAINING_ARRAY_LAYERS);
+// Layout changes of the shadow layers drawn this frame (all layers the first time, when the
+// arrays are undefined), to depth attachments or back to sampled; the others keep their depth
+// and stay readable.
+void Renderer::recordShadowBarriers(VkCommandBuffer cmd, const Slot& slot, bool toAttachment) {
+  std::vector<VkImageMemoryBarrier2> barriers;
+  auto add = [&](VkImage image, std::uint32_t layer, std::uint32_t count) {
+    VkImageMemoryBarrier2 b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER_2};
+    if (toAttachment) {
+      b.srcStageMask = kShaderStages;      // read by the lighting pass (compute)
+      b.srcAccessMask = VK_ACCESS_2_NONE;  // earlier reads only: an execution dependency
+      b.dstStageMask = kDepthStages;
+      b.dstAccessMask = kDepthAccess;
+      b.oldLayout = slot.shadowsFresh ? VK_IMAGE_LAYOUT_UNDEFINED
+                                      : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+      b.newLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
     } else {
-      for (const ShadowView& v : slot.shadowViews)
-        add(shadowArrays_[v.array].image.get(), std::uint32_t(v.layer), 1);
+      b.srcStageMask = kDepthStages;
+      b.srcAccessMask = kDepthAccess;
+      b.dstStageMask = kShaderStages;
+      b.dstAccessMask = VK_ACCESS_2_SHADER_SAMPLED_READ_BIT;
+      b.oldLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+      b.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
     }
-    if (barriers.empty()) return;
-    VkDependencyInfo di{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
-    di.imageMemoryBarrierCount = std::uint32_t(barriers.size());
-    di.pImageMemoryBarriers = barriers.data();
-    vkCmdPipelineBarrier2(cmd, &di);
+    b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    b.image = image;
+    b.subresourceRange = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 1, layer, count};
+    barriers.push_back(b);
   };
-  shadowBarriers(true);
+  if (slot.shadowsFresh) {
+    for (const ShadowArray& sa : shadowArrays_) add(sa.image.get(), 0, VK_REMAINING_ARRAY_LAYERS);
+  } else {
+    for (const ShadowView& v : slot.shadowViews)
+      add(shadowArrays_[v.array].image.get(), std::uint32_t(v.layer), 1);
+  }
+  if (barriers.empty()) return;
+  VkDependencyInfo di{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+  di.imageMemoryBarrierCount = std::uint32_t(barriers.size());
+  di.pImageMemoryBarriers = barriers.data();
+  vkCmdPipelineBarrier2(cmd, &di);
+}
+
+// The shadow maps: only the layers whose light or casters changed (ShadowCache).
+void Renderer::recordShadowMaps(VkCommandBuffer cmd, const Slot& slot) {
+  recordShadowBarriers(cmd, slot, true);
   for (const ShadowView& v : slot.shadowViews) {
     const ShadowArray& sa = shadowArrays_[v.array];
     const bool large = sa.large;
@@ -263,76 +286,72 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                       large ? largeShadowPipeline_.get() : smallShadowPipeline_.get());
     setViewport(cmd, size, size);
     const gpu::ShadowPush push{v.fromOrigin, glm::vec4(v.origin, 0.0f)};
-    vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof push, &push);
-    drawScene({v.viewProj});
+    vkCmdPushConstants(cmd, pipelineLayout_.get(), VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof push,
+                       &push);
+    drawScene(cmd, slot, {v.viewProj});
     vkCmdEndRendering(cmd);
   }
-  shadowBarriers(false);
-  timer.end(cmd);
+  recordShadowBarriers(cmd, slot, false);
+}
 
-  // ---- main pass: the visibility buffer ----
-  timer.begin(cmd, "main");
-  const VkPipelineStageFlags2 colorStage = VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
-  const VkAccessFlags2 colorWrite = VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
-  auto toColor = [&](const Target& t) {
-    // Contents are discarded: the previous frame's probe pass read them (compute stage).
-    return ImageBarrier{t.image.get(),
-                        VK_IMAGE_ASPECT_COLOR_BIT,
-                        VK_IMAGE_LAYOUT_UNDEFINED,
-                        VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-                        VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                        VK_ACCESS_2_NONE,
-                        colorStage,
-                        colorWrite};
-  };
-  if (computeRaster()) {
-    recordComputeRaster(cmd, slot);
-  } else {
-    imageBarriers(cmd, {toColor(visibility_),
-                        {depth_.image.get(), depthAspect, VK_IMAGE_LAYOUT_UNDEFINED,
-                         VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, depthStages, VK_ACCESS_2_NONE,
-                         depthStages, depthAccess}});
-    VkRenderingAttachmentInfo visibility{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    visibility.imageView = visibility_.arrayView.get();
-    visibility.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-    visibility.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // id 0: the sky
-    visibility.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    visibility.clearValue.color.uint32[0] = 0;
-    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    depth.imageView = depth_.arrayView.get();
-    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-    depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-    depth.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
-    depth.clearValue.depthStencil = {0.0f, 0};  // reversed depth: 0 is infinitely far
-    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
-    ri.renderArea = {{0, 0}, {w, h}};
-    ri.layerCount = 1;
-    ri.viewMask = options_.views == 2 ? 0b11u : 0u;
-    ri.colorAttachmentCount = 1;
-    ri.pColorAttachments = &visibility;
-    ri.pDepthAttachment = &depth;
-    vkCmdBeginRendering(cmd, &ri);
-    setViewport(cmd, w, h);
-    if (prepassPipeline_) {
-      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, prepassPipeline_.get());
-      drawScene({slot.cameraViews[0], slot.cameraViews[1]});
-    }
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scenePipeline_.get());
-    drawScene({slot.cameraViews[0], slot.cameraViews[1]});
-    vkCmdEndRendering(cmd);
+// The visibility buffer drawn by the fixed-function pipeline, the depth pre-pass first where
+// it is on.
+void Renderer::recordFixedFunctionRaster(VkCommandBuffer cmd, const Slot& slot) {
+  const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
+  // Contents are discarded: the previous frame's probe pass read them (compute stage).
+  imageBarriers(cmd, {{visibility_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT,
+                       VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                       VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_NONE, kColorStage,
+                       kColorWrite},
+                      {depth_.image.get(), VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                       VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, kDepthStages, VK_ACCESS_2_NONE,
+                       kDepthStages, kDepthAccess}});
+  VkRenderingAttachmentInfo visibility{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  visibility.imageView = visibility_.arrayView.get();
+  visibility.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+  visibility.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // id 0: the sky
+  visibility.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  visibility.clearValue.color.uint32[0] = 0;
+  VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  depth.imageView = depth_.arrayView.get();
+  depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+  depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  depth.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  depth.clearValue.depthStencil = {0.0f, 0};  // reversed depth: 0 is infinitely far
+  VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
+  ri.renderArea = {{0, 0}, {w, h}};
+  ri.layerCount = 1;
+  ri.viewMask = options_.views == 2 ? 0b11u : 0u;
+  ri.colorAttachmentCount = 1;
+  ri.pColorAttachments = &visibility;
+  ri.pDepthAttachment = &depth;
+  vkCmdBeginRendering(cmd, &ri);
+  setViewport(cmd, w, h);
+  if (prepassPipeline_) {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, prepassPipeline_.get());
+    drawScene(cmd, slot, {slot.cameraViews[0], slot.cameraViews[1]});
   }
-  auto toRead = [&](const Target& t) {
-    return ImageBarrier{t.image.get(),
-                        VK_IMAGE_ASPECT_COLOR_BIT,
-                        VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
-                        colorStage,
-                        colorWrite,
-                        VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
-  };
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scenePipeline_.get());
+  drawScene(cmd, slot, {slot.cameraViews[0], slot.cameraViews[1]});
+  vkCmdEndRendering(cmd);
+}
+
+// The main pass, the visibility buffer: drawn by the compute rasterizer or the fixed-function
+// pipeline, then made readable for the lighting pass.
+void Renderer::recordVisibility(VkCommandBuffer cmd, Slot& slot) {
+  if (computeRaster())
+    recordComputeRaster(cmd, slot);
+  else
+    recordFixedFunctionRaster(cmd, slot);
   // The compute rasterizer leaves the visibility image a never-drawn placeholder.
-  ImageBarrier visibilityRead = toRead(visibility_);
+  ImageBarrier visibilityRead{visibility_.image.get(),
+                              VK_IMAGE_ASPECT_COLOR_BIT,
+                              VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                              VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                              kColorStage,
+                              kColorWrite,
+                              VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                              VK_ACCESS_2_SHADER_SAMPLED_READ_BIT};
   if (computeRaster()) visibilityRead.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
   imageBarriers(cmd, {visibilityRead,
                       {hdr_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
@@ -340,18 +359,21 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                        VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
                        VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                        VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT}});
-  timer.end(cmd);
+}
 
-  // ---- lighting pass: direct light and the field, per distinct sample (compute) ----
-  timer.begin(cmd, "probe");
+// The lighting pass: direct light and the field, per distinct sample (compute).
+void Renderer::recordLighting(VkCommandBuffer cmd, const Slot& slot) {
+  const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
   // Bound here: the field's write pass binds its own compute set during the uploads.
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &slot.set, 0, nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout_.get(), 0, 1,
+                          &slot.set, 0, nullptr);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, indirectPipeline_.get());
   vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, std::uint32_t(options_.views));
-  timer.end(cmd);
+}
 
-  // ---- tone mapping and overlay ----
-  timer.begin(cmd, "tonemap");
+// Tone mapping and the overlay into `target`, left in its final layout.
+void Renderer::recordTonemap(VkCommandBuffer cmd, const OutputTarget& target) {
+  const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
   auto pipeline = tonemapPipeline(target.format);
   imageBarriers(cmd, {{hdr_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_GENERAL,
                        VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
@@ -359,8 +381,8 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
                        VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
                        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT | VK_ACCESS_2_TRANSFER_READ_BIT},
                       {target.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                       VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, colorStage, VK_ACCESS_2_NONE,
-                       colorStage, colorWrite}});
+                       VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, kColorStage, VK_ACCESS_2_NONE,
+                       kColorStage, kColorWrite}});
   VkRenderingAttachmentInfo out{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
   out.imageView = target.view;
   out.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
@@ -385,10 +407,9 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   const bool present = target.finalLayout == VK_IMAGE_LAYOUT_PRESENT_SRC_KHR;
   imageBarriers(cmd,
                 {{target.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-                  target.finalLayout, colorStage, colorWrite,
+                  target.finalLayout, kColorStage, kColorWrite,
                   present ? VK_PIPELINE_STAGE_2_NONE : VK_PIPELINE_STAGE_2_COPY_BIT,
                   present ? VK_ACCESS_2_NONE : VK_ACCESS_2_TRANSFER_READ_BIT}});
-  timer.end(cmd);
 }
 
 void Renderer::recordComputeRaster(VkCommandBuffer cmd, Slot& slot) {

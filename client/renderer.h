@@ -9,6 +9,7 @@
 
 #include <array>
 #include <glm/glm.hpp>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <optional>
@@ -159,11 +160,31 @@ class Renderer {
   bool sideBySide() const { return options_.views == 2 && options_.sideBySide; }
   bool computeRaster() const { return options_.rasterizer == Rasterizer::Compute; }
   struct Slot;
+  // create's steps, in order.
+  void chooseViewDefaults();  // near plane and ambient term from the scene
+  Status createSceneBuffers();
+  Status createField();
+  void countLights();   // light, matrix and shadow layer counts (fixed by the scene)
+  void measureDraws();  // drawBounds_
+  Status createSamplers();
+  Status createShadowArrays();
+  Status createShadowArray(int array, int size, bool large);
   Status createTargets();
   Status createPipelines();
+  Status createFrameSlot();
+  Status createDescriptorSets();
   Status writeDescriptors();
   Result<VkPipeline> tonemapPipeline(VkFormat format);
   void updateFrameData(Slot& slot, const FrameInput& input);
+  // recordFrame's passes, in order.
+  void recordFieldUploads(VkCommandBuffer cmd, const FrameInput& input);
+  void recordShadowMaps(VkCommandBuffer cmd, const Slot& slot);
+  void recordShadowBarriers(VkCommandBuffer cmd, const Slot& slot, bool toAttachment);
+  void recordVisibility(VkCommandBuffer cmd, Slot& slot);
+  void recordFixedFunctionRaster(VkCommandBuffer cmd, const Slot& slot);
+  void recordLighting(VkCommandBuffer cmd, const Slot& slot);
+  void recordTonemap(VkCommandBuffer cmd, const OutputTarget& target);
+  void drawScene(VkCommandBuffer cmd, const Slot& slot, std::initializer_list<glm::mat4> views);
   void collectTimings(Slot& slot);
 
   const vk::Context* ctx_ = nullptr;

@@ -146,9 +146,10 @@ Renderer::~Renderer() {
 
 VkResult Renderer::waitIdle() const { return ctx_->waitIdle(); }
 
-Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const Scene& scene,
-                                                   FieldMirror& mirror,
-                                                   const RendererOptions& options) {
+namespace {
+
+// The options checked against the device, with the rasterizer Auto picks.
+Result<RendererOptions> checkedOptions(const vk::Context& ctx, const RendererOptions& options) {
   if (options.width <= 0 || options.height <= 0) return Error{"render size must be positive"};
   if (options.views != 1 && options.views != 2) return Error{"views must be 1 or 2"};
   if (options.msaa != 2 && options.msaa != 4 && options.msaa != 8)
@@ -162,204 +163,240 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
         "the Vulkan device lacks the geometryShader feature, which the client's "
         "visibility buffer needs for primitive ids in fragment shaders"};
   RendererOptions resolved = options;
-  {
-    VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
-    VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
-    f2.pNext = &v12;
-    vkGetPhysicalDeviceFeatures2(ctx.physicalDevice(), &f2);
-    const bool computeCapable = f2.features.shaderInt64 && v12.shaderBufferInt64Atomics;
-    if (options.rasterizer == Rasterizer::Compute && !computeCapable)
-      return Error{
-          "the compute rasterizer needs shaderInt64 and shaderBufferInt64Atomics, "
-          "which this Vulkan device lacks (use the fixed-function rasterizer)"};
-    if (options.rasterizer == Rasterizer::Auto)
-      resolved.rasterizer = computeCapable ? Rasterizer::Compute : Rasterizer::FixedFunction;
-  }
+  VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  f2.pNext = &v12;
+  vkGetPhysicalDeviceFeatures2(ctx.physicalDevice(), &f2);
+  const bool computeCapable = f2.features.shaderInt64 && v12.shaderBufferInt64Atomics;
+  if (options.rasterizer == Rasterizer::Compute && !computeCapable)
+    return Error{
+        "the compute rasterizer needs shaderInt64 and shaderBufferInt64Atomics, "
+        "which this Vulkan device lacks (use the fixed-function rasterizer)"};
+  if (options.rasterizer == Rasterizer::Auto)
+    resolved.rasterizer = computeCapable ? Rasterizer::Compute : Rasterizer::FixedFunction;
+  return resolved;
+}
+
+}  // namespace
+
+Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const Scene& scene,
+                                                   FieldMirror& mirror,
+                                                   const RendererOptions& options) {
+  auto resolved = checkedOptions(ctx, options);
+  if (!resolved) return resolved.error();
   std::unique_ptr<Renderer> r(new Renderer);
   r->ctx_ = &ctx;
   r->scene_ = &scene;
   r->emissive_.emplace(scene);
   r->mirror_ = &mirror;
-  r->options_ = resolved;
+  r->options_ = *resolved;
+  r->chooseViewDefaults();
+  // Each step uses what the ones before it made: the shadow arrays the light counts, the
+  // frame slots the draws and the lights, the descriptors all of it.
+  if (Status s = r->createSceneBuffers(); !s) return s.error();
+  if (Status s = r->createField(); !s) return s.error();
+  r->countLights();
+  r->measureDraws();
+  if (Status s = r->createSamplers(); !s) return s.error();
+  if (Status s = r->createShadowArrays(); !s) return s.error();
+  auto pool = vk::CommandPool::create(ctx);
+  if (!pool) return pool.error();
+  r->commandPool_.emplace(std::move(pool).value());
+  if (Status s = r->createTargets(); !s) return s.error();
+  if (Status s = r->createPipelines(); !s) return s.error();
+  for (int i = 0; i < kFrameSlots; ++i) {
+    if (Status s = r->createFrameSlot(); !s) return s.error();
+  }
+  if (Status s = r->createDescriptorSets(); !s) return s.error();
+  if (Status s = r->writeDescriptors(); !s) return s.error();
+  return r;
+}
 
+void Renderer::chooseViewDefaults() {
+  const Scene& scene = *scene_;
   const float diagonal = std::max(glm::length(scene.boundsMax - scene.boundsMin), 1e-3f);
-  r->nearPlane_ = 5e-4f * diagonal;
-  if (options.ambient) {
-    r->ambient_ = *options.ambient;
+  nearPlane_ = 5e-4f * diagonal;
+  if (options_.ambient) {
+    ambient_ = *options_.ambient;
   } else {
     // A plain ambient term: the irradiance an open sky would give (pi x its mean radiance),
     // or a dim grey in closed, sky-less scenes so their shapes stay visible.
     const Sky& sky = scene.sky;
     const glm::vec3 mean = 0.5f * sky.horizon + 0.25f * (sky.zenith + sky.ground);
-    r->ambient_ = sky.isBlack() ? glm::vec3(0.1f) : 3.14159265f * mean;
+    ambient_ = sky.isBlack() ? glm::vec3(0.1f) : 3.14159265f * mean;
   }
+}
 
-  auto gpuScene = GpuScene::create(ctx, scene, options.textureMipmaps);
+// The scene's geometry and textures, and the compute rasterizer's work lists.
+Status Renderer::createSceneBuffers() {
+  const vk::Context& ctx = *ctx_;
+  auto gpuScene = GpuScene::create(ctx, *scene_, options_.textureMipmaps);
   if (!gpuScene) return gpuScene.error();
-  r->gpuScene_.emplace(std::move(gpuScene).value());
+  gpuScene_.emplace(std::move(gpuScene).value());
   // Visibility ids are 32-bit with 0 for the sky (client_frame.h, DrawData).
-  if (r->gpuScene_->packed().triangleIds >= 0xFFFFFFFFull)
+  if (gpuScene_->packed().triangleIds >= 0xFFFFFFFFull)
     return Error{"scene has too many triangles over its instances for 32-bit visibility ids"};
-  {
-    // The compute rasterizer's work lists: a clipped triangle yields a few pieces, most of
-    // them small enough for their own thread; tile jobs are capped at 4M (32 MiB). What does
-    // not fit is counted (FrameTimings::rasterDropped), never written out of bounds.
-    const bool on = r->computeRaster();
-    const std::uint64_t pieces =
-        2 * r->gpuScene_->packed().triangleIds * std::uint64_t(options.views);
-    r->rasterTriangleCapacity_ =
-        on ? std::uint32_t(std::min<std::uint64_t>(pieces + 1024, 1u << 22)) : 1;
-    r->rasterJobCapacity_ = on ? (1u << 22) : 1;
-    const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-    auto make = [&](std::size_t bytes, VkBufferUsageFlags usage, vk::Buffer& out) -> Status {
-      auto b = vk::Buffer::create(ctx, bytes, usage, vk::MemoryUsage::DeviceLocal);
-      if (!b) return b.error();
-      out = std::move(b).value();
-      return Status::success();
-    };
-    for (Status st :
-         {make(r->rasterTriangleCapacity_ * sizeof(gpu::RasterTriangle), storage,
-               r->rasterTriangles_),
-          make(r->rasterJobCapacity_ * sizeof(glm::uvec2), storage, r->rasterJobs_),
-          make(sizeof(gpu::RasterCounters),
-               storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
-                   VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
-               r->rasterCounters_)}) {
-      if (!st) return st.error();
-    }
+  // The compute rasterizer's work lists: a clipped triangle yields a few pieces, most of
+  // them small enough for their own thread; tile jobs are capped at 4M (32 MiB). What does
+  // not fit is counted (FrameTimings::rasterDropped), never written out of bounds.
+  const bool on = computeRaster();
+  const std::uint64_t pieces =
+      2 * gpuScene_->packed().triangleIds * std::uint64_t(options_.views);
+  rasterTriangleCapacity_ =
+      on ? std::uint32_t(std::min<std::uint64_t>(pieces + 1024, 1u << 22)) : 1;
+  rasterJobCapacity_ = on ? (1u << 22) : 1;
+  const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  auto make = [&](std::size_t bytes, VkBufferUsageFlags usage, vk::Buffer& out) -> Status {
+    auto b = vk::Buffer::create(ctx, bytes, usage, vk::MemoryUsage::DeviceLocal);
+    if (!b) return b.error();
+    out = std::move(b).value();
+    return Status::success();
+  };
+  for (Status st :
+       {make(rasterTriangleCapacity_ * sizeof(gpu::RasterTriangle), storage, rasterTriangles_),
+        make(rasterJobCapacity_ * sizeof(glm::uvec2), storage, rasterJobs_),
+        make(sizeof(gpu::RasterCounters),
+             storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+                 VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT,
+             rasterCounters_)}) {
+    if (!st) return st.error();
   }
+  return Status::success();
+}
 
-  auto field = FieldGpu::create(ctx, mirror.desc(), kFrameSlots, options.bricksPerFrame,
-                                options.fieldFadeSeconds);
+Status Renderer::createField() {
+  auto field = FieldGpu::create(*ctx_, mirror_->desc(), kFrameSlots, options_.bricksPerFrame,
+                                options_.fieldFadeSeconds);
   if (!field) return field.error();
-  r->field_.emplace(std::move(field).value());
+  field_.emplace(std::move(field).value());
   // The field present at start-up (a baked file) goes up before the first frame; later bricks
   // stream in through the frames' upload budget.
-  mirror.markAllPending();
-  Status uploaded = r->field_->uploadAll(mirror);
-  if (!uploaded) return uploaded.error();
+  mirror_->markAllPending();
+  return field_->uploadAll(*mirror_);
+}
 
+void Renderer::countLights() {
+  const Scene& scene = *scene_;
   // Light and shadow layer counts are fixed by the scene (animation moves lights, never adds).
   const SceneState state0 = evaluateScene(scene, 0.0);
   const LightSet lights0 = buildLights(
-      scene, state0, EmissiveLights::build(scene, state0, *r->emissive_), options.shadows);
-  r->lightCount_ = int(lights0.lights.size());
-  r->matrixCount_ = int(lights0.matrices.size());
-  for (int a = 0; a < kShadowArrays; ++a) r->shadowLayers_[a] = lights0.layers[a];
-  r->areaLights_ = lights0.areaLightCount;
-  r->shadowCache_.reset(r->shadowLayers_);
+      scene, state0, EmissiveLights::build(scene, state0, *emissive_), options_.shadows);
+  lightCount_ = int(lights0.lights.size());
+  matrixCount_ = int(lights0.matrices.size());
+  for (int a = 0; a < kShadowArrays; ++a) shadowLayers_[a] = lights0.layers[a];
+  areaLights_ = lights0.areaLightCount;
+  shadowCache_.reset(shadowLayers_);
+}
+
+void Renderer::measureDraws() {
   // Object-space bounds of every draw's mesh: which shadow layers a moving instance can touch.
-  {
-    const PackedScene& packed = r->gpuScene_->packed();
-    for (int instance : packed.drawInstances) {
-      const MeshRange& m = packed.meshes[scene.instances[std::size_t(instance)].mesh];
-      LocalBounds b{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
-      for (std::uint32_t i = m.firstIndex; i < m.firstIndex + m.indexCount; ++i) {
-        const glm::vec3 p =
-            packed.vertices[std::size_t(packed.indices[i] + m.vertexOffset)].position;
-        b.lo = glm::min(b.lo, p);
-        b.hi = glm::max(b.hi, p);
-      }
-      r->drawBounds_.push_back(b);
+  const PackedScene& packed = gpuScene_->packed();
+  for (int instance : packed.drawInstances) {
+    const MeshRange& m = packed.meshes[scene_->instances[std::size_t(instance)].mesh];
+    LocalBounds b{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    for (std::uint32_t i = m.firstIndex; i < m.firstIndex + m.indexCount; ++i) {
+      const glm::vec3 p =
+          packed.vertices[std::size_t(packed.indices[i] + m.vertexOffset)].position;
+      b.lo = glm::min(b.lo, p);
+      b.hi = glm::max(b.hi, p);
     }
+    drawBounds_.push_back(b);
   }
+}
 
-  auto linear = createSampler(ctx, VK_FILTER_LINEAR, false);
+Status Renderer::createSamplers() {
+  auto linear = createSampler(*ctx_, VK_FILTER_LINEAR, false);
   if (!linear) return linear.error();
-  r->linearSampler_ = std::move(linear).value();
-  auto nearest = createSampler(ctx, VK_FILTER_NEAREST, false);
+  linearSampler_ = std::move(linear).value();
+  auto nearest = createSampler(*ctx_, VK_FILTER_NEAREST, false);
   if (!nearest) return nearest.error();
-  r->nearestSampler_ = std::move(nearest).value();
-  auto shadow = createSampler(ctx, VK_FILTER_LINEAR, true);
+  nearestSampler_ = std::move(nearest).value();
+  auto shadow = createSampler(*ctx_, VK_FILTER_LINEAR, true);
   if (!shadow) return shadow.error();
-  r->shadowSampler_ = std::move(shadow).value();
+  shadowSampler_ = std::move(shadow).value();
+  return Status::success();
+}
 
-  // Shadow maps: at least one layer each, so the descriptors are always valid. Emitter maps
-  // are many and small: D16 halves their memory.
-  auto shadowArray = [&](int a, int size, bool large) -> Status {
-    ShadowArray& sa = r->shadowArrays_[a];
-    sa.size = size;
-    sa.large = large;
-    const VkFormat format = large ? kLargeShadowFormat : kSmallShadowFormat;
-    const int layers = r->shadowLayers_[a];
-    vk::Image& image = sa.image;
-    vk::UniqueImageView& arrayView = sa.view;
-    std::vector<vk::UniqueImageView>& layerViews = sa.layerViews;
-    vk::ImageDesc d;
-    d.format = format;
-    d.width = d.height = std::uint32_t(size);
-    d.layers = std::uint32_t(std::max(1, layers));
-    d.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
-    auto img = vk::Image::create(ctx, d);
-    if (!img) return img.error();
-    image = std::move(img).value();
-    auto view = makeView(ctx, image.get(), format, VK_IMAGE_VIEW_TYPE_2D_ARRAY,
-                         VK_IMAGE_ASPECT_DEPTH_BIT, 0, d.layers);
-    if (!view) return view.error();
-    arrayView = std::move(view).value();
-    for (std::uint32_t l = 0; l < d.layers; ++l) {
-      auto lv = makeView(ctx, image.get(), format, VK_IMAGE_VIEW_TYPE_2D, VK_IMAGE_ASPECT_DEPTH_BIT,
-                         l, 1);
-      if (!lv) return lv.error();
-      layerViews.push_back(std::move(lv).value());
-    }
+// Shadow maps: at least one layer each, so the descriptors are always valid. Emitter maps
+// are many and small: D16 halves their memory.
+Status Renderer::createShadowArrays() {
+  if (Status s = createShadowArray(kLargeShadowArray, options_.shadows.largeSize, true); !s)
+    return s;
+  if (Status s = createShadowArray(kSmallShadowArray, options_.shadows.smallSize, false); !s)
+    return s;
+  return createShadowArray(kPointShadowArray, options_.shadows.pointSize, true);
+}
+
+Status Renderer::createShadowArray(int a, int size, bool large) {
+  ShadowArray& sa = shadowArrays_[a];
+  sa.size = size;
+  sa.large = large;
+  const VkFormat format = large ? kLargeShadowFormat : kSmallShadowFormat;
+  const int layers = shadowLayers_[a];
+  vk::ImageDesc d;
+  d.format = format;
+  d.width = d.height = std::uint32_t(size);
+  d.layers = std::uint32_t(std::max(1, layers));
+  d.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  auto img = vk::Image::create(*ctx_, d);
+  if (!img) return img.error();
+  sa.image = std::move(img).value();
+  auto view = makeView(*ctx_, sa.image.get(), format, VK_IMAGE_VIEW_TYPE_2D_ARRAY,
+                       VK_IMAGE_ASPECT_DEPTH_BIT, 0, d.layers);
+  if (!view) return view.error();
+  sa.view = std::move(view).value();
+  for (std::uint32_t l = 0; l < d.layers; ++l) {
+    auto lv = makeView(*ctx_, sa.image.get(), format, VK_IMAGE_VIEW_TYPE_2D,
+                       VK_IMAGE_ASPECT_DEPTH_BIT, l, 1);
+    if (!lv) return lv.error();
+    sa.layerViews.push_back(std::move(lv).value());
+  }
+  return Status::success();
+}
+
+// One frame slot: its command buffer, fence, per-frame buffers and timer.
+Status Renderer::createFrameSlot() {
+  const vk::Context& ctx = *ctx_;
+  const std::size_t drawCount = std::max<std::size_t>(1, gpuScene_->packed().drawInstances.size());
+  auto slot = std::make_unique<Slot>();
+  auto cmd = commandPool_->allocate();
+  if (!cmd) return cmd.error();
+  slot->cmd = *cmd;
+  VkFenceCreateInfo fi{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+  fi.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+  VkFence fence = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateFence(ctx.device(), &fi, nullptr, &fence));
+  slot->fence = vk::UniqueFence(ctx.device(), fence);
+  auto buffer = [&](std::size_t bytes, VkBufferUsageFlags usage, vk::Buffer& out) -> Status {
+    auto b = vk::Buffer::create(ctx, bytes, usage, vk::MemoryUsage::Upload);
+    if (!b) return b.error();
+    out = std::move(b).value();
     return Status::success();
   };
-  Status s = shadowArray(kLargeShadowArray, options.shadows.largeSize, true);
-  if (!s) return s.error();
-  s = shadowArray(kSmallShadowArray, options.shadows.smallSize, false);
-  if (!s) return s.error();
-  s = shadowArray(kPointShadowArray, options.shadows.pointSize, true);
-  if (!s) return s.error();
-
-  auto pool = vk::CommandPool::create(ctx);
-  if (!pool) return pool.error();
-  r->commandPool_.emplace(std::move(pool).value());
-
-  s = r->createTargets();
-  if (!s) return s.error();
-  s = r->createPipelines();
-  if (!s) return s.error();
-
-  const std::size_t drawCount =
-      std::max<std::size_t>(1, r->gpuScene_->packed().drawInstances.size());
-  for (int i = 0; i < kFrameSlots; ++i) {
-    auto slot = std::make_unique<Slot>();
-    auto cmd = r->commandPool_->allocate();
-    if (!cmd) return cmd.error();
-    slot->cmd = *cmd;
-    VkFenceCreateInfo fi{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    fi.flags = VK_FENCE_CREATE_SIGNALED_BIT;
-    VkFence fence = VK_NULL_HANDLE;
-    PC_VK_TRY(vkCreateFence(ctx.device(), &fi, nullptr, &fence));
-    slot->fence = vk::UniqueFence(ctx.device(), fence);
-    auto buffer = [&](std::size_t bytes, VkBufferUsageFlags usage, vk::Buffer& out) -> Status {
-      auto b = vk::Buffer::create(ctx, bytes, usage, vk::MemoryUsage::Upload);
-      if (!b) return b.error();
-      out = std::move(b).value();
-      return Status::success();
-    };
-    const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-    for (Status st :
-         {buffer(sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, slot->frame),
-          buffer(drawCount * sizeof(gpu::DrawData), storage, slot->draws),
-          buffer(std::max(1, r->lightCount_) * sizeof(gpu::GpuLight), storage, slot->lights),
-          buffer(std::max(1, r->matrixCount_) * sizeof(glm::mat4), storage, slot->matrices),
-          buffer(sizeof(gpu::OverlayText), storage, slot->overlay)}) {
-      if (!st) return st.error();
-    }
-    auto stats = vk::Buffer::create(ctx, sizeof(gpu::RasterCounters),
-                                    VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::Readback);
-    if (!stats) return stats.error();
-    slot->rasterStats = std::move(stats).value();
-    auto timer = vk::GpuTimer::create(ctx, 16);
-    if (!timer) return timer.error();
-    slot->timer.emplace(std::move(timer).value());
-    r->slots_.push_back(std::move(slot));
+  const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  for (Status st :
+       {buffer(sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, slot->frame),
+        buffer(drawCount * sizeof(gpu::DrawData), storage, slot->draws),
+        buffer(std::max(1, lightCount_) * sizeof(gpu::GpuLight), storage, slot->lights),
+        buffer(std::max(1, matrixCount_) * sizeof(glm::mat4), storage, slot->matrices),
+        buffer(sizeof(gpu::OverlayText), storage, slot->overlay)}) {
+    if (!st) return st.error();
   }
+  auto stats = vk::Buffer::create(ctx, sizeof(gpu::RasterCounters),
+                                  VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::Readback);
+  if (!stats) return stats.error();
+  slot->rasterStats = std::move(stats).value();
+  auto timer = vk::GpuTimer::create(ctx, 16);
+  if (!timer) return timer.error();
+  slot->timer.emplace(std::move(timer).value());
+  slots_.push_back(std::move(slot));
+  return Status::success();
+}
 
-  // One descriptor set per slot: the slot's own buffers, the shared images.
-  const std::uint32_t textures = std::uint32_t(r->gpuScene_->textureCount());
+// One descriptor set per slot: the slot's own buffers, the shared images.
+Status Renderer::createDescriptorSets() {
+  const VkDevice device = ctx_->device();
+  const std::uint32_t textures = std::uint32_t(gpuScene_->textureCount());
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2 * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 11 * kFrameSlots},
@@ -370,19 +407,17 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const vk::Context& ctx, const
   pi.poolSizeCount = 4;
   pi.pPoolSizes = sizes;
   VkDescriptorPool dp = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreateDescriptorPool(ctx.device(), &pi, nullptr, &dp));
-  r->descriptorPool_ = vk::UniqueDescriptorPool(ctx.device(), dp);
-  for (auto& slot : r->slots_) {
+  PC_VK_TRY(vkCreateDescriptorPool(device, &pi, nullptr, &dp));
+  descriptorPool_ = vk::UniqueDescriptorPool(device, dp);
+  for (auto& slot : slots_) {
     VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     ai.descriptorPool = dp;
     ai.descriptorSetCount = 1;
-    const VkDescriptorSetLayout layout = r->setLayout_.get();
+    const VkDescriptorSetLayout layout = setLayout_.get();
     ai.pSetLayouts = &layout;
-    PC_VK_TRY(vkAllocateDescriptorSets(ctx.device(), &ai, &slot->set));
+    PC_VK_TRY(vkAllocateDescriptorSets(device, &ai, &slot->set));
   }
-  s = r->writeDescriptors();
-  if (!s) return s.error();
-  return r;
+  return Status::success();
 }
 
 Status Renderer::createTargets() {

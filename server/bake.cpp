@@ -9,7 +9,7 @@ void restartHistory(Field& field) {
   for (ProbeRecord& p : field.probes) p.updates = std::min<std::uint32_t>(p.updates, 1);
 }
 
-BakeStats bakeField(Field& field, Tracer& tracer, const BakeOptions& options) {
+Result<BakeStats> bakeField(Field& field, Tracer& tracer, const BakeOptions& options) {
   BakeStats stats;
   const auto t0 = std::chrono::steady_clock::now();
   const float hysteresis = field.settings.hysteresis;
@@ -24,13 +24,20 @@ BakeStats bakeField(Field& field, Tracer& tracer, const BakeOptions& options) {
       restartHistory(field);
     }
     request.rotationSeed = options.seed * std::uint32_t(options.updates) + std::uint32_t(i);
-    UpdateStats u = tracer.update(field, request);
-    stats.probeRays += u.probeRays;
-    stats.shadowRays += u.shadowRays;
-    stats.traceMs += u.traceMs;
-    stats.blendMs += u.blendMs;
+    Result<UpdateStats> u = tracer.update(field, request);
+    if (!u) {
+      field.settings.hysteresis = hysteresis;
+      return u.error();
+    }
+    stats.probeRays += u->probeRays;
+    stats.shadowRays += u->shadowRays;
+    stats.traceMs += u->traceMs;
+    stats.blendMs += u->blendMs;
     ++stats.updates;
-    if (options.progress) options.progress(i + 1, options.updates);
+    if (options.progress && !options.progress(i + 1, options.updates)) {
+      stats.stopped = i + 1 < options.updates;
+      break;
+    }
   }
   field.settings.hysteresis = hysteresis;
   stats.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

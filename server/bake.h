@@ -17,7 +17,8 @@ struct BakeOptions {
   float convergeHysteresis = 0.5f;
   std::uint32_t seed = 1;          // rotation seeds are seed * updates + i
   int shading = kShadeDefault;
-  std::function<void(int done, int total)> progress;
+  // Called after each update; false stops the bake there (BakeStats::stopped).
+  std::function<bool(int done, int total)> progress;
 };
 
 struct BakeStats {
@@ -25,9 +26,12 @@ struct BakeStats {
   std::uint64_t probeRays = 0, shadowRays = 0;
   int updates = 0;
   double traceMs = 0, blendMs = 0;
+  bool stopped = false;  // the progress callback stopped the bake before its last update
 };
 
-BakeStats bakeField(Field& field, Tracer& tracer, const BakeOptions& options);
+// The tracer's Error where an update fails: the field is then as the last completed update
+// left it, part way to converged.
+Result<BakeStats> bakeField(Field& field, Tracer& tracer, const BakeOptions& options);
 
 // Restarts every probe's running mean, keeping its current value as one sample.
 void restartHistory(Field& field);

@@ -86,7 +86,7 @@ Result<std::unique_ptr<EmbreeTracer>> EmbreeTracer::create(const Scene& scene,
   auto embree = EmbreeScene::create(scene);
   if (!embree) return embree.error();
   std::unique_ptr<EmbreeTracer> tracer(new EmbreeTracer(scene, std::move(embree).value(), options));
-  tracer->setState(evaluateScene(scene, 0.0));
+  if (Status s = tracer->setState(evaluateScene(scene, 0.0)); !s) return s.error();
   return tracer;
 }
 
@@ -94,13 +94,14 @@ EmbreeTracer::EmbreeTracer(const Scene& scene, std::unique_ptr<EmbreeScene> embr
                            const TracerOptions& options)
     : scene_(scene), embree_(std::move(embree)), options_(options), surfaces_(scene) {}
 
-void EmbreeTracer::setState(const SceneState& state) {
+Status EmbreeTracer::setState(const SceneState& state) {
   lights_ = packLights(state);
   embree_->update(state);
   emissive_ = EmissiveLights::build(scene_, state, surfaces_);
+  return Status::success();
 }
 
-UpdateStats EmbreeTracer::update(Field& field, const UpdateRequest& request) {
+Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& request) {
   UpdateStats stats;
   const auto t0 = Clock::now();
   const int rayCount = field.settings.raysPerProbe;

@@ -15,8 +15,9 @@ class EmbreeTracer final : public Tracer {
  public:
   static Result<std::unique_ptr<EmbreeTracer>> create(const Scene& scene, const TracerOptions& options);
   std::string name() const override { return "embree"; }
-  void setState(const SceneState& state) override;
-  UpdateStats update(Field& field, const UpdateRequest& request) override;
+  // Neither fails: the scene and its buffers were made by create.
+  Status setState(const SceneState& state) override;
+  Result<UpdateStats> update(Field& field, const UpdateRequest& request) override;
 
   // Traces the same probe rays as update() (closest hit only, no shading or blending) and
   // returns the milliseconds taken; `hits` counts rays that hit geometry.

@@ -18,20 +18,24 @@ UpdateStats FieldLoop::update(const SceneState& state, std::uint64_t tick) {
   request.probes = scheduler_.plan(field_, tick, hub_.viewers());
   request.changeThreshold = options_.changeThreshold;
   while (tracer_) {
-    try {
-      tracer_->setState(state);
-      return tracer_->update(field_, request);
-    } catch (const TracerFailure& e) {
-      logError("field update " + std::to_string(tick) + " failed: " + e.what());
-      {
-        std::lock_guard lock(statsMutex_);
-        ++stats_.tracerFailures;
-        stats_.lastFailure = e.what();
-      }
-      if (!fallBack()) break;
+    Result<UpdateStats> updated = moveAndUpdate(state, request);
+    if (updated) return std::move(updated).value();
+    const std::string& why = updated.error().message;
+    logError("field update " + std::to_string(tick) + " failed: " + why);
+    {
+      std::lock_guard lock(statsMutex_);
+      ++stats_.tracerFailures;
+      stats_.lastFailure = why;
     }
+    if (!fallBack()) break;
   }
   return {};
+}
+
+Result<UpdateStats> FieldLoop::moveAndUpdate(const SceneState& state,
+                                             const UpdateRequest& request) {
+  if (Status s = tracer_->setState(state); !s) return s.error();
+  return tracer_->update(field_, request);
 }
 
 bool FieldLoop::fallBack() {

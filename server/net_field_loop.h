@@ -28,10 +28,11 @@ struct FieldLoopOptions {
   std::filesystem::path dumpField;  // at the freeze, the exact field is written here
   SchedulerOptions scheduler;
   float changeThreshold = 0.0f;
-  // Where the tracer fails (TracerFailure: a GPU lost or out of memory), the field thread makes
-  // this one and goes on with it from the field as the last completed update left it, redoing
-  // the failed tick's update. Without one, or where it fails too, the field stays as it is and
-  // is still published every tick: clients keep what they hold and the scene keeps moving.
+  // Where the tracer fails (an Error from setState or update: a GPU lost or out of memory),
+  // the field thread makes this one and goes on with it from the field as the last completed
+  // update left it, redoing the failed tick's update. Without one, or where it fails too, the
+  // field stays as it is and is still published every tick: clients keep what they hold and
+  // the scene keeps moving.
   std::function<Result<std::unique_ptr<Tracer>>()> fallback;
 };
 
@@ -47,7 +48,7 @@ struct FieldLoopStats {
   std::uint64_t updates = 0;  // ticks that traced (not frozen)
   double updateSeconds = 0, publishSeconds = 0;  // totals
   std::string tracer;                            // the tracer's name; empty once none is left
-  std::uint64_t tracerFailures = 0;              // TracerFailures caught
+  std::uint64_t tracerFailures = 0;              // tracer calls that failed
   std::string lastFailure;                       // the latest one's message
 };
 
@@ -91,6 +92,8 @@ class FieldLoop {
   void tickOnce(double elapsed, double now, std::uint64_t tick);
   // The tick's update on the current tracer, and on the fallback where that one fails.
   UpdateStats update(const SceneState& state, std::uint64_t tick);
+  // The current tracer's setState, then its update.
+  Result<UpdateStats> moveAndUpdate(const SceneState& state, const UpdateRequest& request);
   // Replaces the failed tracer with the fallback; false where there is none to go on with.
   bool fallBack();
   static void sleepSeconds(double s);

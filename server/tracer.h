@@ -6,7 +6,6 @@
 
 #include <cstdint>
 #include <memory>
-#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -51,25 +50,20 @@ struct UpdateStats {
   int bricksChanged = 0;
 };
 
-// What Tracer::update and setState throw when the backend can no longer run: a GPU lost or
-// out of memory (what() names the call and the error). The field is left as the last
-// completed update left it (a backend writes the host field only once an update completed),
-// and the tracer fails every later call: the caller goes on with another backend
-// (FieldLoopOptions::fallback) or without updates.
-class TracerFailure : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
+// setState and update return an Error where the backend can no longer run: a GPU lost or out
+// of memory, an update past the device's limits (the message names the call and the error).
+// The field is left as the last completed update left it (a backend writes the host field
+// only once an update completed), and the tracer fails every later call: the caller goes on
+// with another backend (FieldLoopOptions::fallback) or without updates.
 class Tracer {
  public:
   virtual ~Tracer() = default;
   virtual std::string name() const = 0;
   // Moves lights and animated instances to `state` (refit or rebuild as needed).
-  virtual void setState(const SceneState& state) = 0;
+  virtual Status setState(const SceneState& state) = 0;
   // Runs one update on `field`. On return the field's version is bumped when any brick
   // changed, and those bricks carry the new version.
-  virtual UpdateStats update(Field& field, const UpdateRequest& request) = 0;
+  virtual Result<UpdateStats> update(Field& field, const UpdateRequest& request) = 0;
 };
 
 struct TracerOptions {

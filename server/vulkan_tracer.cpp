@@ -41,13 +41,13 @@ Result<std::unique_ptr<VulkanTracer>> VulkanTracer::create(const Scene& scene,
   impl->scene = &scene;
   impl->surfaces.emplace(scene);
   impl->options = options;
-  if (Status s = impl->init(vulkan); !s) return s.error();
-  std::unique_ptr<VulkanTracer> tracer(new VulkanTracer(std::move(impl)));
   try {
-    tracer->setState(evaluateScene(scene, 0.0));
-  } catch (const TracerFailure& e) {
-    return Error{e.what()};
+    if (Status s = impl->init(vulkan); !s) return s.error();
+  } catch (const Failure& e) {  // the first buffers (ensureRequestCapacity)
+    return Error{std::string("vulkan tracer: create: ") + e.what()};
   }
+  std::unique_ptr<VulkanTracer> tracer(new VulkanTracer(std::move(impl)));
+  if (Status s = tracer->setState(evaluateScene(scene, 0.0)); !s) return s.error();
   return tracer;
 }
 
@@ -66,8 +66,8 @@ std::string VulkanTracer::name() const { return "vulkan (" + impl_->ctx->deviceN
 
 const vk::Context& VulkanTracer::context() const { return *impl_->ctx; }
 
-void VulkanTracer::setState(const SceneState& state) {
-  impl_->guarded([&] { setStateOnce(state); });
+Status VulkanTracer::setState(const SceneState& state) {
+  return impl_->guarded("setState", [&] { setStateOnce(state); });
 }
 
 void VulkanTracer::setStateOnce(const SceneState& state) {
@@ -151,8 +151,8 @@ void VulkanTracer::setStateOnce(const SceneState& state) {
   replace(m.emissive, tris.data(), tris.size() * sizeof(GpuEmissiveTriangle));
 }
 
-UpdateStats VulkanTracer::update(Field& field, const UpdateRequest& request) {
-  return impl_->guarded([&] { return updateOnce(field, request); });
+Result<UpdateStats> VulkanTracer::update(Field& field, const UpdateRequest& request) {
+  return impl_->guarded("update", [&] { return updateOnce(field, request); });
 }
 
 // The host field is written only after the last submission completed, so a failure in any of
@@ -214,7 +214,7 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
                       VK_ACCESS_2_TRANSFER_WRITE_BIT,
                       kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                       kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-    m.recordWavefront(n, rayCount, sliced);
+    m.recordWavefront(n, rayCount);
 
     // Changed bricks: this slice's into the list; after the last, the list packed for the host.
     m.timer.begin(cmd, "changes");
@@ -335,8 +335,8 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
   return stats;
 }
 
-double VulkanTracer::traceOnly(Field& field, const UpdateRequest& request) {
-  return impl_->guarded([&] { return traceOnlyOnce(field, request); });
+Result<double> VulkanTracer::traceOnly(Field& field, const UpdateRequest& request) {
+  return impl_->guarded("traceOnly", [&] { return traceOnlyOnce(field, request); });
 }
 
 double VulkanTracer::traceOnlyOnce(Field& field, const UpdateRequest& request) {

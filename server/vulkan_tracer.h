@@ -48,6 +48,13 @@ struct VulkanTracerOptions {
   // not made and reports VK_ERROR_DEVICE_LOST, as a GPU lost in it would; every call from
   // there on fails. 0: never. Serves the tests of what the server does when its GPU fails.
   int failSubmission = 0;
+  // Diagnostics (probecast-bench gpu-trace --pipeline-statistics): each pipeline's compiler
+  // statistics (registers, shared memory, ...) in the log, where the driver reports them.
+  bool pipelineStatistics = false;
+  // Diagnostics (probecast-bench gpu-trace --shadow-slot-times): a timestamp pair per shadow
+  // slot's launch (a pass "shadow slot N" each) instead of one over them all, and each slot's
+  // shadow-ray count in the log. The pairs serialize the launches; single rounds only.
+  bool shadowSlotTimes = false;
 };
 
 // Probe rays per pass of an update (the slices' size): at most `maxPassRays` (what the buffers
@@ -64,16 +71,16 @@ class VulkanTracer final : public Tracer {
                                                       const VulkanTracerOptions& vulkan);
   ~VulkanTracer() override;
   std::string name() const override;
-  // setState, update and traceOnly throw TracerFailure (tracer.h) where the GPU fails: a lost
-  // device, memory it lacks, an update past the device's limits. The field then holds the last
-  // completed update, and every later call fails too.
-  void setState(const SceneState& state) override;
-  UpdateStats update(Field& field, const UpdateRequest& request) override;
+  // setState, update and traceOnly return an Error where the GPU fails: a lost device, memory
+  // it lacks, an update past the device's limits. The field then holds the last completed
+  // update, and every later call fails too (tracer.h).
+  Status setState(const SceneState& state) override;
+  Result<UpdateStats> update(Field& field, const UpdateRequest& request) override;
 
   // Runs only update()'s trace pass on the same probe rays (closest hits, stored for shading:
   // no shading, shadow rays, blending or readback) and returns its GPU milliseconds: the raw
   // rate the full update is measured against.
-  double traceOnly(Field& field, const UpdateRequest& request);
+  Result<double> traceOnly(Field& field, const UpdateRequest& request);
 
   const vk::Context& context() const;
   std::uint32_t validationErrorCount() const { return context().validationErrorCount(); }

@@ -9,7 +9,9 @@
 #include <chrono>
 #include <cstring>
 #include <optional>
+#include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "../common/log.h"
@@ -38,20 +40,25 @@ inline constexpr VkPipelineStageFlags2 kComputeStage = VK_PIPELINE_STAGE_2_COMPU
 inline constexpr VkAccessFlags2 kShaderRW =
     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
 
-// Failures on the update path throw TracerFailure (tracer.h), never abort: a server whose GPU
-// is lost or out of memory goes on with another backend, and its clients with it.
-[[noreturn]] inline void fail(const std::string& message) {
-  throw TracerFailure("vulkan tracer: " + message);
-}
+// Failures deep in an update (a lost device, memory the GPU lacks) throw a Failure, never
+// abort; the Tracer calls catch it and return it as their Error (Impl::guarded), so nothing
+// outside these files sees the exception. A server whose GPU fails goes on with another
+// backend, and its clients with it.
+class Failure : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
-// The buffer, or a TracerFailure naming it: resources the update cannot do without.
+[[noreturn]] inline void fail(const std::string& message) { throw Failure(message); }
+
+// The buffer, or a Failure naming it: resources the update cannot do without.
 template <typename T>
 T orFail(Result<T> r, const char* what) {
   if (!r) fail(std::string(what) + ": " + r.error().message);
   return std::move(r).value();
 }
 
-// A call's VkResult, as a TracerFailure naming the call where it failed (a lost device, memory).
+// A call's VkResult, as a Failure naming the call where it failed (a lost device, memory).
 inline void checkCall(VkResult result, const char* call) {
   if (result != VK_SUCCESS) fail(vk::vkErrorMessage(call, result));
 }
@@ -111,29 +118,33 @@ struct VulkanTracer::Impl {
   std::vector<int> recordInstance;  // record -> Scene::instances index
   std::vector<int> staticMeshes;    // static record -> its world-space GpuMesh entry
   int staticCount = 0;
-  // Timing experiments (probe_blend.comp, probe_shade.comp: kVariant): PC_BLEND_VARIANT and
-  // PC_SHADE_VARIANT pick a variant that drops one step; 0, the default, is the real pass.
-  int blendVariant = 0;
-  int shadeVariant = 0;
-  int overlapVariant = 0;
-  // PC_SHADOW_SLOT_TIMES=1 (diagnostics): a timestamp pair per shadow slot's launch instead of
-  // one over them all, and each slot's shadow-ray count in the log.
-  bool shadowSlotTimes = false;
+  bool shadowSlotTimes = false;      // VulkanTracerOptions::shadowSlotTimes
   bool boundedShadowLaunch = false;  // VulkanTracerOptions::boundedShadowLaunch
   // Submissions made, and the one that fails as a lost device would (VulkanTracerOptions).
   int submissions = 0, failSubmission = 0;
   // The first failure's message: once set, every call fails with it (a lost device stays lost).
   std::string failure;
-  // Runs `f` (a Tracer call), unless an earlier call failed; remembers a failure it throws.
+  // Runs `f`, the body of the Tracer call `call`, unless an earlier call failed: its value (a
+  // Status where it returns nothing), or the Failure it throws as an Error naming the call,
+  // remembered for every later call.
   template <typename F>
-  auto guarded(F&& f) {
+  auto guarded(const char* call, F&& f) {
+    using Value = decltype(f());
+    using Out = std::conditional_t<std::is_void_v<Value>, Status, Result<Value>>;
+    const std::string prefix = std::string("vulkan tracer: ") + call + ": ";
     if (!failure.empty())
-      throw TracerFailure(failure + " (failed earlier; the tracer is unusable)");
+      return Out(Error{prefix + "refused, the tracer is unusable since an earlier call failed (" +
+                       failure + ")"});
     try {
-      return f();
-    } catch (const TracerFailure& e) {
-      failure = e.what();
-      throw;
+      if constexpr (std::is_void_v<Value>) {
+        f();
+        return Out(Status::success());
+      } else {
+        return Out(f());
+      }
+    } catch (const Failure& e) {
+      failure = prefix + e.what();
+      return Out(Error{failure});
     }
   }
   SceneAccel accel;
@@ -220,14 +231,17 @@ struct VulkanTracer::Impl {
   Status init(const VulkanTracerOptions& vulkan);
   Status uploadScene();
   Status createPipelines();
-  // A compute pipeline of `name` with its specialization constants (constant_id i = value i;
-  // none when empty).
-  Result<vk::UniquePipeline> computePipeline(const char* name, const std::vector<int>& constants);
+  // A compute pipeline of `name` with its specialization constants (none when empty).
+  struct SpecConstant {
+    std::uint32_t id;  // the shader's constant_id
+    int value;         // ints and bools (VkBool32) alike
+  };
+  Result<vk::UniquePipeline> computePipeline(const char* name,
+                                             const std::vector<SpecConstant>& constants);
   // The compiler's statistics of a pipeline, logged where the context captures them.
   void logStatistics(const char* name, VkPipeline pipeline) const;
   // The blend pipeline for `rayCount` rays per probe: its shared scratch is sized for the
-  // group (blendGroupProbes) at that ray count, rebuilt when the count changes.
-  int blendGroupProbes(int rayCount) const;
+  // group (pcBlendProbes) at that ray count, rebuilt when the count changes.
   Status ensureBlendPipeline(int rayCount);
   void writeDescriptors();
   int shadowSlots() const;
@@ -250,7 +264,7 @@ struct VulkanTracer::Impl {
   void recordResolve(int probeCount, int rayCount);
   void dispatchRows(std::uint64_t groups);
   // Trace, shade, shadow rays and blend for the `probeCount` probes of the current inputs.
-  void recordWavefront(int probeCount, int rayCount, bool sliced);
+  void recordWavefront(int probeCount, int rayCount);
   bool loggedSlices = false;  // the first update in slices is reported in the log
 };
 

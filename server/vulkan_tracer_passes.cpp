@@ -142,8 +142,8 @@ void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, in
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1,
                           &traceSet, 0, nullptr);
   const std::uint64_t maxWidth = std::min<std::uint64_t>(maxLaunchWidth(), 1u << 30);
-  // Per-slot timestamps (PC_SHADOW_SLOT_TIMES) in single rounds only: several rounds are one
-  // timed span, which they would cut.
+  // Per-slot timestamps (VulkanTracerOptions::shadowSlotTimes) in single rounds only: several
+  // rounds are one timed span, which they would cut.
   const bool slotTimes = shadowSlotTimes && roundSlots >= shadowSlots();
   for (int slot = 0; slot < slots; ++slot) {
     const std::uint64_t listStart = std::uint64_t(slot) * rayCount;
@@ -176,7 +176,7 @@ void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, in
 // The wavefront (gpu_trace.h): trace, shade, shadow rays, then the blend adds the visible light
 // and blends; with more shadow slots than a round holds, shade and shadow rays once per round,
 // each round's light added to the rays by the resolve pass.
-void VulkanTracer::Impl::recordWavefront(int n, int rayCount, bool sliced) {
+void VulkanTracer::Impl::recordWavefront(int n, int rayCount) {
   const int slots = shadowSlots();
   const int rounds = pcShadowRounds(slots, roundSlots);
   if (rounds != loggedRounds) {
@@ -189,37 +189,6 @@ void VulkanTracer::Impl::recordWavefront(int n, int rayCount, bool sliced) {
               " MiB shadow memory budget or, in one buffer, the " +
               std::to_string(maxBufferBytes >> 20) + " MiB storage-buffer range");
     loggedRounds = std::max(rounds, 1);
-  }
-  const int groupProbes = blendGroupProbes(rayCount);
-  auto recordBlend = [&] {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, blendPipeline.get());
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set,
-                            0, nullptr);
-    dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
-  };
-  if (overlapVariant != 0 && rounds <= 1 && !sliced) {
-    // Timing experiment (PC_OVERLAP_VARIANT): one span over the passes, some barriers left
-    // out so that passes may run at once; fields are wrong. 8 every barrier, 1 trace with
-    // shade, 4 shadow trace with blend, 5 both, 16 trace with blend, 17 trace, shade and blend.
-    const int v = overlapVariant;
-    auto rtToCs = [&] { vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW); };
-    auto csToAll = [&] {
-      vk::memoryBarrier(cmd, kComputeStage | kRayStage, kShaderRW,
-                        kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                        kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
-    };
-    timer.begin(cmd, "overlap span");
-    recordTrace(n, rayCount);
-    if (v & 16) recordBlend();
-    if (!(v & 1)) rtToCs();
-    recordShade(n, rayCount, 0);
-    csToAll();
-    if (slots > 0) recordShadowTrace(slots, std::uint64_t(n) * std::uint64_t(rayCount), 0);
-    if (!(v & 4)) rtToCs();
-    if (!(v & 16)) recordBlend();
-    timer.end(cmd);
-    vk::memoryBarrier(cmd, kComputeStage | kRayStage, kShaderRW, kComputeStage, kShaderRW);
-    return;
   }
   timer.begin(cmd, "trace");
   recordTrace(n, rayCount);
@@ -257,7 +226,11 @@ void VulkanTracer::Impl::recordWavefront(int n, int rayCount, bool sliced) {
   if (!roundTimes) timer.end(cmd);
 
   timer.begin(cmd, "blend");
-  recordBlend();
+  const int groupProbes = pcBlendProbes(rayCount);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, blendPipeline.get());
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set,
+                          0, nullptr);
+  dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
   timer.end(cmd);
   vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);
 }

@@ -1,7 +1,5 @@
 // The Vulkan tracer's creation: device and queues, the scene's buffers, textures and
 // acceleration structures, descriptor layouts and pipelines.
-#include <cstdlib>  // std::getenv: the diagnostics and timing variants
-
 #include "vulkan_tracer_impl.h"
 
 namespace pc {
@@ -52,9 +50,8 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   co.deviceNameFilter = vulkan.deviceNameFilter;
   boundedShadowLaunch = vulkan.boundedShadowLaunch;
   failSubmission = vulkan.failSubmission;
-  // Diagnostics: PC_PIPELINE_STATS=1 logs each pipeline's compiler statistics (registers,
-  // shared memory, ...) where the driver reports them.
-  co.pipelineStatistics = std::getenv("PC_PIPELINE_STATS") != nullptr;
+  shadowSlotTimes = vulkan.shadowSlotTimes;
+  co.pipelineStatistics = vulkan.pipelineStatistics;
   auto c = vk::Context::create(co);
   if (!c) return c.error();
   ctx = std::move(c).value();
@@ -393,21 +390,8 @@ Status VulkanTracer::Impl::createPipelines() {
   if (!st) return st.error();
   shadowTable = std::move(st).value();
 
-  auto variantOf = [](const char* variable) {
-    const char* v = std::getenv(variable);
-    const int n = v ? std::atoi(v) : 0;
-    if (n != 0)
-      logWarn(std::string(variable) + "=" + std::to_string(n) +
-              ": timing experiment, fields may be wrong");
-    return n;
-  };
-  blendVariant = variantOf("PC_BLEND_VARIANT");
-  shadeVariant = variantOf("PC_SHADE_VARIANT");
-  overlapVariant = variantOf("PC_OVERLAP_VARIANT");
-  shadowSlotTimes = std::getenv("PC_SHADOW_SLOT_TIMES") != nullptr;
-  // constant_id 0: kVariant, 1: kRoulette
   auto shade = computePipeline("probe_shade.comp.spv",
-                               {shadeVariant, options.shadowRouletteShare > 0.0f ? 1 : 0});
+                               {{1, options.shadowRouletteShare > 0.0f ? 1 : 0}});  // kRoulette
   if (!shade) return shade.error();
   shadePipeline = std::move(shade).value();
   auto ch = computePipeline("brick_changes.comp.spv", {});
@@ -422,8 +406,8 @@ Status VulkanTracer::Impl::createPipelines() {
   return ensureBlendPipeline(FieldSettings{}.raysPerProbe);
 }
 
-Result<vk::UniquePipeline> VulkanTracer::Impl::computePipeline(const char* name,
-                                                               const std::vector<int>& constants) {
+Result<vk::UniquePipeline> VulkanTracer::Impl::computePipeline(
+    const char* name, const std::vector<SpecConstant>& constants) {
   auto m = vk::loadShader(*ctx, name);
   if (!m) return m.error();
   VkComputePipelineCreateInfo cci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
@@ -432,10 +416,13 @@ Result<vk::UniquePipeline> VulkanTracer::Impl::computePipeline(const char* name,
   cci.stage.module = m->get();
   cci.stage.pName = "main";
   std::vector<VkSpecializationMapEntry> entries;
-  for (std::size_t i = 0; i < constants.size(); ++i)
-    entries.push_back({std::uint32_t(i), std::uint32_t(i * sizeof(int)), sizeof(int)});
+  std::vector<int> values;
+  for (const SpecConstant& c : constants) {
+    entries.push_back({c.id, std::uint32_t(values.size() * sizeof(int)), sizeof(int)});
+    values.push_back(c.value);
+  }
   const VkSpecializationInfo spec{std::uint32_t(entries.size()), entries.data(),
-                                  constants.size() * sizeof(int), constants.data()};
+                                  values.size() * sizeof(int), values.data()};
   if (!constants.empty()) cci.stage.pSpecializationInfo = &spec;
   cci.layout = pipelineLayout.get();
   if (ctx->capturesStatistics()) cci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
@@ -450,18 +437,10 @@ void VulkanTracer::Impl::logStatistics(const char* name, VkPipeline pipeline) co
     logInfo(std::string(name) + " " + line);
 }
 
-int VulkanTracer::Impl::blendGroupProbes(int rayCount) const {
-  // Variants 10 and 12 are timing experiments (probe_blend.comp).
-  return blendVariant == 10   ? 1
-         : blendVariant == 12 ? std::min(2, pcBlendProbes(rayCount))
-                              : pcBlendProbes(rayCount);
-}
-
 Status VulkanTracer::Impl::ensureBlendPipeline(int rayCount) {
-  const int scratch = pcBlendScratch(blendGroupProbes(rayCount), rayCount);
+  const int scratch = pcBlendScratch(pcBlendProbes(rayCount), rayCount);
   if (blendPipeline && scratch == blendScratch) return Status::success();
-  // constant_id 0: kVariant, 1: the shared scratch's entries.
-  auto blend = computePipeline("probe_blend.comp.spv", {blendVariant, scratch});
+  auto blend = computePipeline("probe_blend.comp.spv", {{1, scratch}});  // kScratch
   if (!blend) return blend.error();
   blendPipeline = std::move(blend).value();
   blendScratch = scratch;

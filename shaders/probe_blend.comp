@@ -22,26 +22,11 @@
 // once, up front, instead of per texel and per border texel.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
-#extension GL_KHR_shader_subgroup_ballot : require
 #include "field_buffers.glsl"
 #include "interop/probe_update.h"
 
 layout(local_size_x = PC_BLEND_THREADS) in;
 
-// Timing experiments only (PC_BLEND_VARIANT, read by server/vulkan_tracer_setup.cpp): a nonzero value
-// drops or changes one step so that a per-pass GPU time can be attributed to it; the fields it
-// gives may be wrong. 0, the default, is the blend itself. The variants:
-//   1 no tiles (step 2 skipped)          2 no irradiance/occlusion texels  3 no depth texels
-//   4 no borders (step 3 skipped)        5 rays without their shadow slots' light (rays[] only)
-//   6 no ray reads (step 0 from constants)  7 no classification/relocation (step 1 skipped)
-//   8 tile sums without atlas reads/writes  9 tile sums in arrays even for four probes
-//  10 one probe per workgroup (the host dispatches one group per request)
-//  11 workgroup-scope barrier before the borders instead of memoryBarrierBuffer
-//  12 at most two probes per workgroup (the host dispatches accordingly)
-//  13 the rays only (step 0, then nothing)   14 steps 0 and 1 only
-//  15 every lane of a subgroup reads its first lane's tap ray (no shared-memory bank conflicts)
-//  16 tap blocks made up from their index instead of loaded (no tap-list reads but the headers)
-layout(constant_id = 0) const int kVariant = 0;
 // Rays the shared scratch holds: pcBlendScratch for this pipeline's ray count (the host
 // always specializes it; the default, a literal as specialization constants need, is the
 // most any ray count needs: PC_MAX_RAYS_PER_PROBE + PC_BLEND_MAX_PROBES).
@@ -85,318 +70,343 @@ uvec2 tapHeader(int t) {
   return (t & 1) == 0 ? pair.xy : pair.zw;
 }
 
-// The block of four taps starting at word `first` (a multiple of four); variant 16 (timing
-// experiment) makes one up instead of reading it.
-uvec4 tapBlock(uint first) {
-  if (kVariant == 16) return (uvec4(first) * uvec4(37u, 41u, 43u, 47u) & 255u) | 0x34000000u;
-  return taps[first >> 2];
-}
+// The block of four taps starting at word `first` (a multiple of four).
+uvec4 tapBlock(uint first) { return taps[first >> 2]; }
 
 // A tap word's ray and weight.
 int tapRay(uint word) { return int(word & 0xffffu); }
 float tapWeight(uint word) { return unpackHalf2x16(word).y; }
 
+// The workgroup's share of the update: its requests, and how their rays lie in shared memory.
+struct Group {
+  int first;       // the first of its requests
+  int probes;      // its requests: pcBlendProbes, or fewer in the last group
+  int perGroup;    // pcBlendProbes for this ray count (what the host dispatched for)
+  int rayCount;
+  int rowStride;   // of the shared ray rows: rayCount + 1
+  bool fourLanes;  // groups of four probes sum their tiles in vec4s, probe k in component k
+};
+
 // Where probe k's depth-moment distance of `ray` lies in sDepth (in floats).
-int depthAt(bool fourLanes, int k, int ray, int rowStride) { return fourLanes ? 4 * ray + k : k * rowStride + ray; }
+int depthAt(Group g, int k, int ray) { return g.fourLanes ? 4 * ray + k : k * g.rowStride + ray; }
 
-bool closer(float d, int i, float bestD, int bestI) { return d < bestD || (d == bestD && i < bestI); }
+bool closer(float d, int i, float bestD, int bestI) {
+  return d < bestD || (d == bestD && i < bestI);
+}
 
-void main() {
-  const int ni = PC_IRRADIANCE_TEXELS, nd = PC_DEPTH_TEXELS, no = PC_OCCLUSION_TEXELS;
-  int tid = int(gl_LocalInvocationIndex);
-  int rayCount = params.rayCount;
-  int groupProbes = kVariant == 10 ? 1 : kVariant == 12 ? min(2, pcBlendProbes(rayCount)) : pcBlendProbes(rayCount);
-  int firstRequest = (int(gl_WorkGroupID.y) * PC_DISPATCH_ROWS + int(gl_WorkGroupID.x)) * groupProbes;
-  if (firstRequest >= params.probeCount) return;  // uniform across the workgroup
-  int probesHere = min(groupProbes, params.probeCount - firstRequest);
-  int rowStride = rayCount + 1;  // of the shared ray rows
-  // Groups of four probes sum their tiles in vec4s (step 2).
-  const bool fourLanes = groupProbes == 4 && K == 4 && kVariant != 9;
+// Each probe's cascade, looked up once: its ray reach and its tiles' origins (bordered).
+void lookUpTiles(Group g, int tid) {
+  if (tid >= g.probes) return;
+  ivec2 ref = requests[g.first + tid];
+  CascadeDesc c = field.cascades[ref.x];
+  sMaxDistance[tid] = c.maxRayDistance;
+  sIrradianceOrigin[tid] = pcAtlasTileOrigin(c, ref.y, PC_IRRADIANCE_TEXELS + 2);
+  sDepthOrigin[tid] = pcAtlasTileOrigin(c, ref.y, PC_DEPTH_TEXELS + 2);
+  sOcclusionOrigin[tid] = pcAtlasTileOrigin(c, ref.y, PC_OCCLUSION_TEXELS + 2);
+}
 
-  // ---- each probe's cascade: ray reach and tile origins ----
-  if (tid < probesHere) {
-    ivec2 ref = requests[firstRequest + tid];
-    CascadeDesc c = field.cascades[ref.x];
-    sMaxDistance[tid] = c.maxRayDistance;
-    sIrradianceOrigin[tid] = pcAtlasTileOrigin(c, ref.y, ni + 2);
-    sDepthOrigin[tid] = pcAtlasTileOrigin(c, ref.y, nd + 2);
-    sOcclusionOrigin[tid] = pcAtlasTileOrigin(c, ref.y, no + 2);
-  }
-  barrier();
-
-  // ---- 0. the rays: the group's requests are neighbours in launch order, so the reads of
-  // one ray of all of them are contiguous. kLoads items per thread at a time, their loads
-  // issued together (then the dependent shadow-light loads), rather than one round trip per item ----
+// Step 0, the rays into shared memory, each with the light of its visible shadow slots. The
+// group's requests are neighbours in launch order, so the reads of one ray of all of them are
+// contiguous. kLoads items per thread at a time, their loads issued together (then the
+// dependent shadow-light loads), rather than one round trip per item.
+void gatherRays(Group g, int tid) {
   const int kLoads = 4;
   // No shadow slots, or the rounds' resolve passes added their light already.
   const bool lightsInRays = params.shadowSlots == 0 || params.lightsResolved != 0;
-  int items = probesHere * rayCount;
+  int items = g.probes * g.rayCount;
   for (int first = tid; first < items; first += kLoads * PC_BLEND_THREADS) {
     vec4 r[kLoads];
     uint mask0[kLoads];
     uint at[kLoads];
     [[unroll]] for (int u = 0; u < kLoads; ++u) {
-      int item = min(first + u * PC_BLEND_THREADS, items - 1);  // past the end: a repeat, not stored
-      int k = item % probesHere, ray = item / probesHere;
-      at[u] = pcProbeRayLaunchIndex(firstRequest + k, ray, params.probeCount, rayCount);
-      r[u] = kVariant == 6 ? vec4(0.5f, 0.5f, 0.5f, float(ray % 7) - 1.0f) : rays[at[u]];  // timing experiment
-      mask0[u] = kVariant == 5 || kVariant == 6 || lightsInRays ? 0u : shadowMask[at[u]];
+      // Past the end: a repeat, not stored.
+      int item = min(first + u * PC_BLEND_THREADS, items - 1);
+      int k = item % g.probes, ray = item / g.probes;
+      at[u] = pcProbeRayLaunchIndex(g.first + k, ray, params.probeCount, g.rayCount);
+      r[u] = rays[at[u]];
+      mask0[u] = lightsInRays ? 0u : shadowMask[at[u]];
     }
     [[unroll]] for (int u = 0; u < kLoads; ++u) {
       int item = first + u * PC_BLEND_THREADS;
       if (item >= items) break;
-      int k = item % probesHere, ray = item / probesHere;
+      int k = item % g.probes, ray = item / g.probes;
       float d = r[u].w;
-      sRay[k * rowStride + ray] = vec4(kVariant == 5 || kVariant == 6 || lightsInRays ? r[u].xyz : pcAddVisibleLight(at[u], r[u].xyz, mask0[u]), d);
-      int slot = depthAt(fourLanes, k, ray, rowStride);
-      sDepth[slot >> 2][slot & 3] = d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
+      vec3 radiance = lightsInRays ? r[u].xyz : pcAddVisibleLight(at[u], r[u].xyz, mask0[u]);
+      sRay[k * g.rowStride + ray] = vec4(radiance, d);
+      int slot = depthAt(g, k, ray);
+      sDepth[slot >> 2][slot & 3] =
+          d < 0.0f ? -d * PC_BACKFACE_DEPTH_SCALE : min(d, sMaxDistance[k]);
     }
   }
-  barrier();
-  if (kVariant == 13) {  // timing experiment: the ray reads alone
-    if (tid < probesHere && isnan(sRay[tid * rowStride].x)) changes[firstRequest + tid] = 1.0f;
-    return;
-  }
+}
 
-  // ---- 1. classification and relocation: a power-of-two share of the threads per probe ----
-  if (kVariant == 7) {  // timing experiment: no classification
-    if (tid < probesHere) {
-      sInside[tid] = false;
-      sAlpha[tid] = 0.5f;
-      sMaxChange[tid] = 0u;
+// Step 1's reduction over probe k's rays by its `share` threads (this one is `lane` of them):
+// the backface count and the closest back and front hits, left in the shared entry of lane 0.
+void reduceHits(Group g, int tid, int k, int lane, int share) {
+  uint backfaces = 0u;
+  float backDist = PC_MISS_DISTANCE, frontDist = PC_MISS_DISTANCE;
+  int backRay = g.rayCount, frontRay = g.rayCount;
+  for (int ray = k < g.probes ? lane : g.rayCount; ray < g.rayCount; ray += share) {
+    float d = sRay[k * g.rowStride + ray].w;
+    if (d < 0.0f) {
+      ++backfaces;
+      if (-d < backDist) backDist = -d, backRay = ray;
+    } else if (d < frontDist) {
+      frontDist = d, frontRay = ray;
     }
-  } else {
-    int share = PC_BLEND_THREADS / groupProbes;
-    int k = tid / share, lane = tid - k * share;
-    uint backfaces = 0u;
-    float backDist = PC_MISS_DISTANCE, frontDist = PC_MISS_DISTANCE;
-    int backRay = rayCount, frontRay = rayCount;
-    for (int ray = k < probesHere ? lane : rayCount; ray < rayCount; ray += share) {
-      float d = sRay[k * rowStride + ray].w;
-      if (d < 0.0f) {
-        ++backfaces;
-        if (-d < backDist) backDist = -d, backRay = ray;
-      } else if (d < frontDist) {
-        frontDist = d, frontRay = ray;
+  }
+  sBackfaces[tid] = backfaces;
+  sBackDist[tid] = backDist;
+  sBackRay[tid] = backRay;
+  sFrontDist[tid] = frontDist;
+  sFrontRay[tid] = frontRay;
+  barrier();
+  for (int stride = share / 2; stride > 0; stride /= 2) {
+    if (lane < stride) {
+      int o = tid + stride;
+      sBackfaces[tid] += sBackfaces[o];
+      if (closer(sBackDist[o], sBackRay[o], sBackDist[tid], sBackRay[tid])) {
+        sBackDist[tid] = sBackDist[o];
+        sBackRay[tid] = sBackRay[o];
+      }
+      if (closer(sFrontDist[o], sFrontRay[o], sFrontDist[tid], sFrontRay[tid])) {
+        sFrontDist[tid] = sFrontDist[o];
+        sFrontRay[tid] = sFrontRay[o];
       }
     }
-    sBackfaces[tid] = backfaces;
-    sBackDist[tid] = backDist;
-    sBackRay[tid] = backRay;
-    sFrontDist[tid] = frontDist;
-    sFrontRay[tid] = frontRay;
     barrier();
-    for (int stride = share / 2; stride > 0; stride /= 2) {
-      if (lane < stride) {
-        int o = tid + stride;
-        sBackfaces[tid] += sBackfaces[o];
-        if (closer(sBackDist[o], sBackRay[o], sBackDist[tid], sBackRay[tid])) {
-          sBackDist[tid] = sBackDist[o];
-          sBackRay[tid] = sBackRay[o];
-        }
-        if (closer(sFrontDist[o], sFrontRay[o], sFrontDist[tid], sFrontRay[tid])) {
-          sFrontDist[tid] = sFrontDist[o];
-          sFrontRay[tid] = sFrontRay[o];
-        }
-      }
-      barrier();
-    }
-    if (lane == 0 && k < probesHere) {
-      int request = firstRequest + k;
-      ivec2 ref = requests[request];
-      CascadeDesc c = field.cascades[ref.x];
-      int record = c.firstProbe + ref.y;
-      GpuProbeRecord r = probes[record];
-      float backfaceFraction = float(sBackfaces[tid]) / float(max(rayCount, 1));
-      vec3 backDir = sBackRay[tid] < rayCount ? rayDirs[sBackRay[tid]].xyz : vec3(0.0f);
-      vec3 frontDir = sFrontRay[tid] < rayCount ? rayDirs[sFrontRay[tid]].xyz : vec3(0.0f);
-      int oldState = r.state;
-      vec3 oldOffset = r.offset;
-      bool inside = pcProbeInside(backfaceFraction, oldState);
-      r.offset = pcRelocate(r.offset, inside, sBackDist[tid], backDir, sFrontDist[tid], frontDir,
-                            0.2f * c.spacing, 0.45f * c.spacing);
-      bool moved = length(r.offset - oldOffset) > 0.01f * c.spacing;
-      sInside[k] = inside;
-      if (inside) {
-        // Inside geometry: never sampled, history dropped, tiles left alone.
-        r.state = PC_PROBE_INSIDE;
-        r.updates = 0u;
-        changes[request] = (oldState != PC_PROBE_INSIDE || moved) ? uintBitsToFloat(kInfinityBits) : 0.0f;
-      } else {
-        float reach = sqrt(3.0f) * c.spacing;
-        r.state = (sBackfaces[tid] == 0u && sFrontDist[tid] > reach) ? PC_PROBE_SLEEPING : PC_PROBE_ACTIVE;
-        bool hasHistory = r.updates > 0u && !moved;
-        sAlpha[k] = hasHistory ? min(params.hysteresis, float(r.updates) / float(r.updates + 1u)) : 0.0f;
-        r.updates = hasHistory ? r.updates + 1u : 1u;
-        sMaxChange[k] = (oldState != r.state || moved) ? kInfinityBits : 0u;
-      }
-      probes[record] = r;
-    }
   }
-  barrier();
-  if (kVariant == 14) return;  // timing experiment: rays and classification alone
+}
 
-  // ---- 2. tiles: irradiance and occlusion (one texel per thread of the first n_i^2), depth
-  // (the other threads, several texels each); texels of inside probes are left alone. Groups
-  // of four probes sum in vec4s, probe k in component k (the same sums in the same order as
-  // the arrays that fewer probes use; the blend takes 0.62 ms on an H200, 0.71 with the arrays) ----
-  const int irrTexelCount = ni * ni, depthTexelCount = nd * nd;
-  if (kVariant == 1 || (kVariant == 2 && tid < irrTexelCount) || (kVariant == 3 && tid >= irrTexelCount)) {
-    // timing experiments: no tiles, no irradiance/occlusion texels, no depth texels
-  } else if (tid < irrTexelCount) {
-    float dmax = field.occlusionDistance;
-    vec3 irrSum[K];
-    float irrWeight[K], open[K], occWeight[K];
-    [[unroll]] for (int k = 0; k < K; ++k) {
-      irrSum[k] = vec3(0.0f);
-      irrWeight[k] = open[k] = occWeight[k] = 0.0f;
-    }
-    uvec2 h = tapHeader(tid);
-    // Taps come four at a time, the next block loaded while this one is summed.
-    const uint blockStride = 4u * uint(irrTexelCount);
-    uint blocks = (h.x + 3u) / 4u;
-    uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
-    if (fourLanes) {  // the same sums, probe k in component k
-      vec4 sr = vec4(0.0f), sg = vec4(0.0f), sb = vec4(0.0f), wi = vec4(0.0f), op = vec4(0.0f), wo = vec4(0.0f);
-      for (uint b = 0u; b < blocks; ++b) {
-        uvec4 block = nextBlock;
-        if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
-        [[unroll]] for (int u = 0; u < 4; ++u) {
-          if (4u * b + uint(u) >= h.x) break;
-          float w = tapWeight(block[u]);
-          int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
-          vec4 r0 = sRay[ray], r1 = sRay[rowStride + ray], r2 = sRay[2 * rowStride + ray], r3 = sRay[3 * rowStride + ray];
-          vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
-          op += vec4(greaterThan(d, vec4(dmax))) * w;
-          wo += w;
-          vec4 lit = vec4(greaterThanEqual(d, vec4(0.0f))) * w;
-          sr += lit * vec4(r0.x, r1.x, r2.x, r3.x);
-          sg += lit * vec4(r0.y, r1.y, r2.y, r3.y);
-          sb += lit * vec4(r0.z, r1.z, r2.z, r3.z);
-          wi += lit;
-        }
-      }
-      [[unroll]] for (int k = 0; k < K; ++k) {
-        irrSum[k] = vec3(sr[k], sg[k], sb[k]);
-        irrWeight[k] = wi[k];
-        open[k] = op[k];
-        occWeight[k] = wo[k];
-      }
-      blocks = 0u;
-    }
-    for (uint b = 0u; b < blocks; ++b) {
-      uvec4 block = nextBlock;
-      if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
-      [[unroll]] for (int u = 0; u < 4; ++u) {
-        if (4u * b + uint(u) >= h.x) break;
-        float w = tapWeight(block[u]);
-        int ray = tapRay(block[u]);
-        [[unroll]] for (int k = 0; k < K; ++k) {
-          if (k >= probesHere) break;
-          vec4 r = sRay[k * rowStride + ray];
-          open[k] += r.w > dmax ? w : 0.0f;
-          occWeight[k] += w;
-          if (r.w >= 0.0f) {  // backface hits carry no light
-            irrSum[k] += w * r.xyz;
-            irrWeight[k] += w;
-          }
-        }
-      }
-    }
-    [[unroll]] for (int k = 0; k < K; ++k) {
-      if (k >= probesHere) break;
-      if (sInside[k]) continue;
-      ivec2 texel = ivec2(1 + tid % ni, 1 + tid / ni);
-      if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
-        if (isnan(irrSum[k].x + irrWeight[k] + open[k] + occWeight[k])) changes[firstRequest + k] = 1.0f;
-        continue;
-      }
-      if (irrWeight[k] > 0.0f) {
-        int i = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
-        vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
-        vec3 old = irradianceTexels[i].xyz;
-        vec3 blended = mix(sample_, old, sAlpha[k]);
-        vec3 delta = abs(blended - old);
-        atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
-        irradianceTexels[i] = vec4(blended, 0.0f);
-      }
-      if (occWeight[k] > 0.0f) {
-        int i = pcOcclusionIndex(sOcclusionOrigin[k] + texel);
-        occlusionTexels[i] = mix(open[k] / occWeight[k], occlusionTexels[i], sAlpha[k]);
-      }
-    }
+// Step 1 for probe k, from the reduction in entry `tid`: its state, offset and history, the
+// blend weight of its tiles (sAlpha) and the change it reports so far.
+void classifyProbe(Group g, int k, int tid) {
+  int request = g.first + k;
+  ivec2 ref = requests[request];
+  CascadeDesc c = field.cascades[ref.x];
+  int record = c.firstProbe + ref.y;
+  GpuProbeRecord r = probes[record];
+  float backfaceFraction = float(sBackfaces[tid]) / float(max(g.rayCount, 1));
+  vec3 backDir = sBackRay[tid] < g.rayCount ? rayDirs[sBackRay[tid]].xyz : vec3(0.0f);
+  vec3 frontDir = sFrontRay[tid] < g.rayCount ? rayDirs[sFrontRay[tid]].xyz : vec3(0.0f);
+  int oldState = r.state;
+  vec3 oldOffset = r.offset;
+  bool inside = pcProbeInside(backfaceFraction, oldState);
+  r.offset = pcRelocate(r.offset, inside, sBackDist[tid], backDir, sFrontDist[tid], frontDir,
+                        0.2f * c.spacing, 0.45f * c.spacing);
+  bool moved = length(r.offset - oldOffset) > 0.01f * c.spacing;
+  sInside[k] = inside;
+  if (inside) {
+    // Inside geometry: never sampled, history dropped, tiles left alone.
+    r.state = PC_PROBE_INSIDE;
+    r.updates = 0u;
+    bool changed = oldState != PC_PROBE_INSIDE || moved;
+    changes[request] = changed ? uintBitsToFloat(kInfinityBits) : 0.0f;
   } else {
-    for (int t = tid - irrTexelCount; t < depthTexelCount; t += PC_BLEND_THREADS - irrTexelCount) {
-      float m1[K], m2[K], depthWeight[K];
-      [[unroll]] for (int k = 0; k < K; ++k) m1[k] = m2[k] = depthWeight[k] = 0.0f;
-      uvec2 h = tapHeader(irrTexelCount + t);
-      const uint blockStride = 4u * uint(depthTexelCount);
-      uint blocks = (h.x + 3u) / 4u;
-      uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
-      if (fourLanes) {  // the same sums, probe k in component k
-        vec4 s1 = vec4(0.0f), s2 = vec4(0.0f), sw = vec4(0.0f);
-        for (uint b = 0u; b < blocks; ++b) {
-          uvec4 block = nextBlock;
-          if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
-          [[unroll]] for (int u = 0; u < 4; ++u) {
-            if (4u * b + uint(u) >= h.x) break;
-            float w = tapWeight(block[u]);
-            int ray = kVariant == 15 ? subgroupBroadcastFirst(tapRay(block[u])) : tapRay(block[u]);  // 15: timing experiment
-            vec4 dist = sDepth[ray];
-            s1 += w * dist;
-            s2 += w * dist * dist;
-            sw += w;
-          }
-        }
-        [[unroll]] for (int k = 0; k < K; ++k) {
-          m1[k] = s1[k];
-          m2[k] = s2[k];
-          depthWeight[k] = sw[k];
-        }
-        blocks = 0u;
-      }
-      for (uint b = 0u; b < blocks; ++b) {
-        uvec4 block = nextBlock;
-        if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
-        [[unroll]] for (int u = 0; u < 4; ++u) {
-          if (4u * b + uint(u) >= h.x) break;
-          float w = tapWeight(block[u]);
-          int ray = tapRay(block[u]);
-          [[unroll]] for (int k = 0; k < K; ++k) {
-            if (k >= probesHere) break;
-            int slot = depthAt(fourLanes, k, ray, rowStride);
-            float dist = sDepth[slot >> 2][slot & 3];
-            m1[k] += w * dist;
-            m2[k] += w * dist * dist;
-            depthWeight[k] += w;
-          }
-        }
-      }
-      [[unroll]] for (int k = 0; k < K; ++k) {
-        if (k >= probesHere) break;
-        if (sInside[k] || !(depthWeight[k] > 0.0f)) continue;
-        if (kVariant == 8) {  // timing experiment: keep the sums, skip the atlas
-          if (isnan(m1[k] + m2[k])) changes[firstRequest + k] = 1.0f;
-          continue;
-        }
-        int i = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
-        depthTexels[i] = mix(vec2(m1[k], m2[k]) / depthWeight[k], depthTexels[i], sAlpha[k]);
-      }
-    }
+    float reach = sqrt(3.0f) * c.spacing;
+    bool asleep = sBackfaces[tid] == 0u && sFrontDist[tid] > reach;
+    r.state = asleep ? PC_PROBE_SLEEPING : PC_PROBE_ACTIVE;
+    bool hasHistory = r.updates > 0u && !moved;
+    float runningMean = float(r.updates) / float(r.updates + 1u);
+    sAlpha[k] = hasHistory ? min(params.hysteresis, runningMean) : 0.0f;
+    r.updates = hasHistory ? r.updates + 1u : 1u;
+    sMaxChange[k] = (oldState != r.state || moved) ? kInfinityBits : 0u;
   }
-  if (kVariant == 11) {  // timing experiment: workgroup scope suffices for the borders
-    groupMemoryBarrier();
-  } else {
-    memoryBarrierBuffer();
-  }
-  barrier();
+  probes[record] = r;
+}
 
-  // ---- 3. borders: each border texel copies its interior source (pcBorderSource) ----
-  // Border texels of a tile of size s = n + 2, walked as top row, bottom row, left and right
-  // columns: 4 (s - 1) of them per channel.
+// Step 1, classification and relocation: a power-of-two share of the threads per probe.
+void classifyAndRelocate(Group g, int tid) {
+  int share = PC_BLEND_THREADS / g.perGroup;
+  int k = tid / share, lane = tid - k * share;
+  reduceHits(g, tid, k, lane, share);
+  if (lane == 0 && k < g.probes) classifyProbe(g, k, tid);
+}
+
+// The sums of one texel's taps (from word `h.y`, `h.x` of them) come in two layouts with the
+// same sums in the same order: a group of four probes sums in vec4s, probe k in component k
+// (the blend takes 0.62 ms on an H200, 0.71 with the arrays); fewer probes sum in arrays.
+// Taps come four at a time, the next block loaded while this one is summed.
+
+// Irradiance and occlusion sums of one texel for a group of four probes: irradiance over
+// front-face hits, occlusion the weight of rays past `dmax`.
+void irradianceSumsInLanes(Group g, uvec2 h, float dmax, out vec3 irrSum[K],
+                           out float irrWeight[K], out float open[K], out float occWeight[K]) {
+  vec4 sr = vec4(0.0f), sg = vec4(0.0f), sb = vec4(0.0f);
+  vec4 wi = vec4(0.0f), op = vec4(0.0f), wo = vec4(0.0f);
+  const uint blockStride = 4u * uint(PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS);
+  uint blocks = (h.x + 3u) / 4u;
+  uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
+  for (uint b = 0u; b < blocks; ++b) {
+    uvec4 block = nextBlock;
+    if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+    [[unroll]] for (int u = 0; u < 4; ++u) {
+      if (4u * b + uint(u) >= h.x) break;
+      float w = tapWeight(block[u]);
+      int ray = tapRay(block[u]);
+      vec4 r0 = sRay[ray], r1 = sRay[g.rowStride + ray];
+      vec4 r2 = sRay[2 * g.rowStride + ray], r3 = sRay[3 * g.rowStride + ray];
+      vec4 d = vec4(r0.w, r1.w, r2.w, r3.w);
+      op += vec4(greaterThan(d, vec4(dmax))) * w;
+      wo += w;
+      vec4 lit = vec4(greaterThanEqual(d, vec4(0.0f))) * w;
+      sr += lit * vec4(r0.x, r1.x, r2.x, r3.x);
+      sg += lit * vec4(r0.y, r1.y, r2.y, r3.y);
+      sb += lit * vec4(r0.z, r1.z, r2.z, r3.z);
+      wi += lit;
+    }
+  }
+  [[unroll]] for (int k = 0; k < K; ++k) {
+    irrSum[k] = vec3(sr[k], sg[k], sb[k]);
+    irrWeight[k] = wi[k];
+    open[k] = op[k];
+    occWeight[k] = wo[k];
+  }
+}
+
+// The same sums for groups of fewer probes.
+void irradianceSumsInArrays(Group g, uvec2 h, float dmax, out vec3 irrSum[K],
+                            out float irrWeight[K], out float open[K], out float occWeight[K]) {
+  [[unroll]] for (int k = 0; k < K; ++k) {
+    irrSum[k] = vec3(0.0f);
+    irrWeight[k] = open[k] = occWeight[k] = 0.0f;
+  }
+  const uint blockStride = 4u * uint(PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS);
+  uint blocks = (h.x + 3u) / 4u;
+  uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
+  for (uint b = 0u; b < blocks; ++b) {
+    uvec4 block = nextBlock;
+    if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+    [[unroll]] for (int u = 0; u < 4; ++u) {
+      if (4u * b + uint(u) >= h.x) break;
+      float w = tapWeight(block[u]);
+      int ray = tapRay(block[u]);
+      [[unroll]] for (int k = 0; k < K; ++k) {
+        if (k >= g.probes) break;
+        vec4 r = sRay[k * g.rowStride + ray];
+        open[k] += r.w > dmax ? w : 0.0f;
+        occWeight[k] += w;
+        if (r.w >= 0.0f) {  // backface hits carry no light
+          irrSum[k] += w * r.xyz;
+          irrWeight[k] += w;
+        }
+      }
+    }
+  }
+}
+
+// Step 2 for irradiance/occlusion texel t (row-major in the tile's interior) of every probe
+// of the group not inside geometry: the new sample blended with the old texel, and the
+// probe's largest change of an encoded irradiance texel.
+void blendIrradianceAndOcclusion(Group g, int t) {
+  const int ni = PC_IRRADIANCE_TEXELS;
+  vec3 irrSum[K];
+  float irrWeight[K], open[K], occWeight[K];
+  uvec2 h = tapHeader(t);
+  float dmax = field.occlusionDistance;
+  if (g.fourLanes)
+    irradianceSumsInLanes(g, h, dmax, irrSum, irrWeight, open, occWeight);
+  else
+    irradianceSumsInArrays(g, h, dmax, irrSum, irrWeight, open, occWeight);
+  [[unroll]] for (int k = 0; k < K; ++k) {
+    if (k >= g.probes) break;
+    if (sInside[k]) continue;
+    ivec2 texel = ivec2(1 + t % ni, 1 + t / ni);
+    if (irrWeight[k] > 0.0f) {
+      int i = pcIrradianceIndex(sIrradianceOrigin[k] + texel);
+      vec3 sample_ = pcEncodeIrradiance(PC_PI * irrSum[k] / irrWeight[k]);
+      vec3 old = irradianceTexels[i].xyz;
+      vec3 blended = mix(sample_, old, sAlpha[k]);
+      vec3 delta = abs(blended - old);
+      atomicMax(sMaxChange[k], floatBitsToUint(max(delta.x, max(delta.y, delta.z))));
+      irradianceTexels[i] = vec4(blended, 0.0f);
+    }
+    if (occWeight[k] > 0.0f) {
+      int i = pcOcclusionIndex(sOcclusionOrigin[k] + texel);
+      occlusionTexels[i] = mix(open[k] / occWeight[k], occlusionTexels[i], sAlpha[k]);
+    }
+  }
+}
+
+// Depth-moment sums (distance, distance squared, weight) of one depth texel for a group of
+// four probes: a ray's four distances side by side, one 16-byte read per tap.
+void depthSumsInLanes(uvec2 h, out float m1[K], out float m2[K], out float depthWeight[K]) {
+  vec4 s1 = vec4(0.0f), s2 = vec4(0.0f), sw = vec4(0.0f);
+  const uint blockStride = 4u * uint(PC_DEPTH_TEXELS * PC_DEPTH_TEXELS);
+  uint blocks = (h.x + 3u) / 4u;
+  uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
+  for (uint b = 0u; b < blocks; ++b) {
+    uvec4 block = nextBlock;
+    if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+    [[unroll]] for (int u = 0; u < 4; ++u) {
+      if (4u * b + uint(u) >= h.x) break;
+      float w = tapWeight(block[u]);
+      int ray = tapRay(block[u]);
+      vec4 dist = sDepth[ray];
+      s1 += w * dist;
+      s2 += w * dist * dist;
+      sw += w;
+    }
+  }
+  [[unroll]] for (int k = 0; k < K; ++k) {
+    m1[k] = s1[k];
+    m2[k] = s2[k];
+    depthWeight[k] = sw[k];
+  }
+}
+
+// The same sums for groups of fewer probes.
+void depthSumsInArrays(Group g, uvec2 h, out float m1[K], out float m2[K],
+                       out float depthWeight[K]) {
+  [[unroll]] for (int k = 0; k < K; ++k) m1[k] = m2[k] = depthWeight[k] = 0.0f;
+  const uint blockStride = 4u * uint(PC_DEPTH_TEXELS * PC_DEPTH_TEXELS);
+  uint blocks = (h.x + 3u) / 4u;
+  uvec4 nextBlock = blocks > 0u ? tapBlock(h.y) : uvec4(0u);
+  for (uint b = 0u; b < blocks; ++b) {
+    uvec4 block = nextBlock;
+    if (b + 1u < blocks) nextBlock = tapBlock(h.y + (b + 1u) * blockStride);
+    [[unroll]] for (int u = 0; u < 4; ++u) {
+      if (4u * b + uint(u) >= h.x) break;
+      float w = tapWeight(block[u]);
+      int ray = tapRay(block[u]);
+      [[unroll]] for (int k = 0; k < K; ++k) {
+        if (k >= g.probes) break;
+        int slot = depthAt(g, k, ray);
+        float dist = sDepth[slot >> 2][slot & 3];
+        m1[k] += w * dist;
+        m2[k] += w * dist * dist;
+        depthWeight[k] += w;
+      }
+    }
+  }
+}
+
+// Step 2 for depth texel t (row-major in the tile's interior) of every probe of the group not
+// inside geometry: the new moments blended with the old texel.
+void blendDepth(Group g, int t) {
+  const int nd = PC_DEPTH_TEXELS;
+  float m1[K], m2[K], depthWeight[K];
+  uvec2 h = tapHeader(PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS + t);  // after irradiance's
+  if (g.fourLanes)
+    depthSumsInLanes(h, m1, m2, depthWeight);
+  else
+    depthSumsInArrays(g, h, m1, m2, depthWeight);
+  [[unroll]] for (int k = 0; k < K; ++k) {
+    if (k >= g.probes) break;
+    if (sInside[k] || !(depthWeight[k] > 0.0f)) continue;
+    int i = pcDepthIndex(sDepthOrigin[k] + ivec2(1 + t % nd, 1 + t / nd));
+    depthTexels[i] = mix(vec2(m1[k], m2[k]) / depthWeight[k], depthTexels[i], sAlpha[k]);
+  }
+}
+
+// Step 3, the tiles' borders: each border texel copies its interior source (pcBorderSource).
+// Border texels of a tile of size s = n + 2, walked as top row, bottom row, left and right
+// columns: 4 (s - 1) of them per channel.
+void copyBorders(Group g, int tid) {
+  const int ni = PC_IRRADIANCE_TEXELS, nd = PC_DEPTH_TEXELS, no = PC_OCCLUSION_TEXELS;
   const int si = ni + 2, sd = nd + 2, so = no + 2;
   const int bi = 4 * (si - 1), bd = 4 * (sd - 1), bo = 4 * (so - 1);
-  for (int item = tid; item < (kVariant == 4 ? 0 : probesHere * (bi + bd + bo)); item += PC_BLEND_THREADS) {
+  for (int item = tid; item < g.probes * (bi + bd + bo); item += PC_BLEND_THREADS) {
     int k = item / (bi + bd + bo), b = item % (bi + bd + bo);
     if (sInside[k]) continue;
     int s, n;
@@ -413,7 +423,9 @@ void main() {
               : b < 3 * s - 2 ? ivec2(0, 1 + b - 2 * s)
               : ivec2(s - 1, 1 + b - (3 * s - 2));
     ivec2 src = pcBorderSource(bxy.x, bxy.y, n) + ivec2(1);
-    ivec2 o = channel == 0 ? sIrradianceOrigin[k] : channel == 1 ? sDepthOrigin[k] : sOcclusionOrigin[k];
+    ivec2 o = channel == 0   ? sIrradianceOrigin[k]
+              : channel == 1 ? sDepthOrigin[k]
+                             : sOcclusionOrigin[k];
     if (channel == 0) {
       irradianceTexels[pcIrradianceIndex(o + bxy)] = irradianceTexels[pcIrradianceIndex(o + src)];
     } else if (channel == 1) {
@@ -422,5 +434,37 @@ void main() {
       occlusionTexels[pcOcclusionIndex(o + bxy)] = occlusionTexels[pcOcclusionIndex(o + src)];
     }
   }
-  if (tid < probesHere && !sInside[tid]) changes[firstRequest + tid] = uintBitsToFloat(sMaxChange[tid]);
+}
+
+void main() {
+  Group g;
+  g.rayCount = params.rayCount;
+  g.perGroup = pcBlendProbes(g.rayCount);
+  g.first = (int(gl_WorkGroupID.y) * PC_DISPATCH_ROWS + int(gl_WorkGroupID.x)) * g.perGroup;
+  if (g.first >= params.probeCount) return;  // uniform across the workgroup
+  g.probes = min(g.perGroup, params.probeCount - g.first);
+  g.rowStride = g.rayCount + 1;
+  g.fourLanes = g.perGroup == 4 && K == 4;
+  int tid = int(gl_LocalInvocationIndex);
+
+  lookUpTiles(g, tid);
+  barrier();
+  gatherRays(g, tid);
+  barrier();
+  classifyAndRelocate(g, tid);
+  barrier();
+  // Step 2, the tiles: irradiance and occlusion one texel per thread of the first n_i^2, depth
+  // the other threads, several texels each; texels of inside probes are left alone.
+  const int irrTexelCount = PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS;
+  const int depthTexelCount = PC_DEPTH_TEXELS * PC_DEPTH_TEXELS;
+  if (tid < irrTexelCount) {
+    blendIrradianceAndOcclusion(g, tid);
+  } else {
+    for (int t = tid - irrTexelCount; t < depthTexelCount; t += PC_BLEND_THREADS - irrTexelCount)
+      blendDepth(g, t);
+  }
+  memoryBarrierBuffer();  // the borders read texels other threads wrote
+  barrier();
+  copyBorders(g, tid);
+  if (tid < g.probes && !sInside[tid]) changes[g.first + tid] = uintBitsToFloat(sMaxChange[tid]);
 }

@@ -17,11 +17,6 @@
 
 layout(local_size_x = PC_SHADE_THREADS) in;
 
-// Timing experiments only (PC_SHADE_VARIANT, read by server/vulkan_tracer_setup.cpp): a nonzero value
-// drops one step so that the pass's GPU time can be attributed; the fields it gives are wrong.
-// 0, the default, is the shading itself. 1 no field sampling (indirect 0), 2 no shadow-ray
-// requests (every slot written empty, nothing appended), 3 no textures, 4 all of 1-3.
-layout(constant_id = 0) const int kVariant = 0;
 // Whether the tracer plays shadow-ray roulette (TracerOptions::shadowRouletteShare > 0): the
 // pipeline is specialized on it, so that without it the pass does none of its work (on an
 // H200, pandora: 0.465 ms with the roulette's code present but off, 0.458 without it).
@@ -236,17 +231,15 @@ void shadeHit(GpuHit hit, vec3 dir) {
   bool sampled = false;
   if (mesh.material >= 0) {
     GpuMaterial m = materials[mesh.material];
-    bool textured = kVariant != 3 && kVariant != 4;  // timing experiment
-    albedo = m.baseColor * (textured ? textureRgb(m.baseColorTexture, uv) : vec3(1.0f));
+    albedo = m.baseColor * textureRgb(m.baseColorTexture, uv);
     if (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f)
-      emission = m.emissive * (textured ? textureRgb(m.emissiveTexture, uv) : vec3(1.0f));
+      emission = m.emissive * textureRgb(m.emissiveTexture, uv);
     sampled = m.sampled != 0;
   }
   albedoOverPi = albedo * (1.0f / PC_PI);
-  if (kVariant != 2 && kVariant != 4)  // else a timing experiment
-    directRequests(P, pcShadowOrigin(P, ng, pcTriangleExtent(p0, p1, p2)), N);
+  directRequests(P, pcShadowOrigin(P, ng, pcTriangleExtent(p0, p1, p2)), N);
   vec3 indirect = vec3(0.0f);
-  if ((params.shading & 1) == 0 && kVariant != 1 && kVariant != 4 && push.slotBase == 0) {
+  if ((params.shading & 1) == 0 && push.slotBase == 0) {
     float coverage = 0.0f;
     indirect = pcSampleField(field, P, N, -dir, PC_SAMPLE_NO_OCCLUSION, coverage).xyz;
   }

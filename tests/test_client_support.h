@@ -16,6 +16,7 @@
 #include "cpu/path_tracer.h"
 #include "server/bake.h"
 #include "server/tracer.h"
+#include "test_tracer_support.h"
 
 namespace pc::client::test {
 
@@ -53,7 +54,7 @@ inline Field bakeQuickly(const Scene& scene, int updates) {
   if (!tracer) return field;
   BakeOptions options;
   options.updates = updates;
-  bakeField(field, **tracer, options);
+  bakeOrFail(field, **tracer, options);
   return field;
 }
 

@@ -23,6 +23,7 @@
 #include "server/probe_scheduler.h"
 #include "shaders/interop/probe_math.h"
 #include "test_timing.h"
+#include "test_tracer_support.h"
 
 #include "test_meshes.h"
 
@@ -97,7 +98,7 @@ void runUpdates(Field& field, Tracer& tracer, int updates, std::uint32_t firstSe
   request.probes = allProbes(field);
   for (int i = 0; i < updates; ++i) {
     request.rotationSeed = firstSeed + std::uint32_t(i);
-    tracer.update(field, request);
+    updateOrFail(tracer, field, request);
   }
 }
 
@@ -123,7 +124,7 @@ FurnaceMeasurement measureFurnace(float albedo, float emission, int shading, int
   BakeOptions options;
   options.updates = updates;
   options.shading = shading;
-  bakeField(field, *tracer, options);
+  bakeOrFail(field, *tracer, options);
 
   FurnaceMeasurement m;
   double sum = 0;
@@ -355,7 +356,7 @@ TEST(FieldVersions, UpdatesBumpChangedBricksOnly) {
   UpdateRequest all;
   all.probes = allProbes(field);
   all.rotationSeed = 1;
-  UpdateStats s = tracer->update(field, all);
+  UpdateStats s = updateOrFail(*tracer, field, all);
   EXPECT_EQ(s.bricksChanged, 2);
   EXPECT_EQ(field.version, 1u);
   EXPECT_EQ(field.brickVersions[0][0], 1u);
@@ -368,7 +369,7 @@ TEST(FieldVersions, UpdatesBumpChangedBricksOnly) {
   for (const ProbeRef& p : all.probes)
     if (p.slot / gpu::PC_PROBES_PER_BRICK == 0) brick0.probes.push_back(p);
   ASSERT_EQ(brick0.probes.size(), 64u);
-  s = tracer->update(field, brick0);
+  s = updateOrFail(*tracer, field, brick0);
   EXPECT_EQ(s.bricksChanged, 1);
   EXPECT_EQ(s.probesUpdated, 64);
   EXPECT_EQ(field.version, 2u);
@@ -381,7 +382,7 @@ TEST(FieldVersions, UpdatesBumpChangedBricksOnly) {
   quiet.rotationSeed = 3;
   quiet.changeThreshold = 1e9f;
   const std::vector<float> before = field.irradiance.texels;
-  s = tracer->update(field, quiet);
+  s = updateOrFail(*tracer, field, quiet);
   EXPECT_EQ(s.bricksChanged, 0);
   EXPECT_EQ(field.version, 2u);
   EXPECT_EQ(field.brickVersions[0][0], 2u);
@@ -390,7 +391,7 @@ TEST(FieldVersions, UpdatesBumpChangedBricksOnly) {
 
   // Threshold 0 again: the fresh ray rotation changes some texel of both bricks.
   all.rotationSeed = 4;
-  s = tracer->update(field, all);
+  s = updateOrFail(*tracer, field, all);
   EXPECT_EQ(s.bricksChanged, 2);
   EXPECT_EQ(field.version, 3u);
   EXPECT_EQ(field.brickVersions[0][0], 3u);
@@ -541,7 +542,7 @@ Field bakeBuiltin(const Scene& scene, int updates, std::uint32_t seed) {
   BakeOptions options;
   options.updates = updates;
   options.seed = seed;
-  bakeField(field, *tracer, options);
+  bakeOrFail(field, *tracer, options);
   return field;
 }
 

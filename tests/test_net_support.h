@@ -25,6 +25,7 @@
 #include "server/net_field_loop.h"
 #include "server/net_server.h"
 #include "test_protocol_support.h"
+#include "test_tracer_support.h"
 
 namespace pc::nettest {
 
@@ -59,8 +60,8 @@ class TestServer {
     field_.sceneHash = scene_.hash;
     BakeOptions bake;
     bake.updates = 4;
-    tracer_->setState(evaluateScene(scene_, 0.0));
-    bakeField(field_, *tracer_, bake);
+    setStateOrFail(*tracer_, evaluateScene(scene_, 0.0));
+    bakeOrFail(field_, *tracer_, bake);
     hub_ = std::make_unique<FieldHub>(field_);
     (void)hub_->publish(field_, sceneStateMessage(evaluateScene(scene_, 0.0)), steadySeconds());
     net.port = port;

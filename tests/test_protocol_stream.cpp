@@ -16,6 +16,7 @@
 #include "server/bake.h"
 #include "server/tracer.h"
 #include "test_protocol_support.h"
+#include "test_tracer_support.h"
 
 namespace {
 
@@ -290,15 +291,15 @@ TEST(ProtocolStream, TracedFieldOfTheBuiltinScene) {
   ASSERT_TRUE(tracer.ok()) << tracer.error().message;
   BakeOptions bake;
   bake.updates = 6;
-  bakeField(server, **tracer, bake);
+  bakeOrFail(server, **tracer, bake);
   std::uint32_t seed = 1000;
   auto advance = [&](Field& f, double t) {
-    (*tracer)->setState(evaluateScene(scene, t));
+    setStateOrFail(**tracer, evaluateScene(scene, t));
     UpdateRequest req;
     req.rotationSeed = seed++;
     req.probes = allProbes(f);
     req.changeThreshold = 1e-4f;
-    (*tracer)->update(f, req);
+    updateOrFail(**tracer, f, req);
   };
   StreamSimulationOptions o = baseOptions(41);
   o.faults = harsh(0.3);

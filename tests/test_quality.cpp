@@ -53,7 +53,8 @@ Result<Field> bake(const Scene& scene, int updates) {
   if (!tracer) return tracer.error();
   BakeOptions options;
   options.updates = updates;
-  bakeField(field, **tracer, options);
+  auto baked = bakeField(field, **tracer, options);
+  if (!baked) return baked.error();
   return field;
 }
 

@@ -28,6 +28,7 @@
 #include "shaders/interop/gpu_trace.h"
 #include "shaders/interop/probe_update.h"
 #include "test_meshes.h"
+#include "test_tracer_support.h"
 
 namespace pc {
 namespace {
@@ -92,8 +93,8 @@ Backends makeBackends(const Scene& scene, int rays, std::string* why,
 void updateBoth(Backends& b, int updates, std::uint32_t firstSeed) {
   for (int i = 0; i < updates; ++i) {
     b.request.rotationSeed = firstSeed + std::uint32_t(i);
-    b.gpu->update(b.fg, b.request);
-    b.cpu->update(b.fc, b.request);
+    updateOrFail(*b.gpu, b.fg, b.request);
+    updateOrFail(*b.cpu, b.fc, b.request);
   }
 }
 
@@ -156,8 +157,8 @@ TEST(VulkanTracer, BuiltinSceneMatchesEmbree) {
   // runs this in about a second per update on two cores.
   BakeOptions bake;
   bake.updates = 6;
-  BakeStats sg = bakeField(fg, *gpu, bake);
-  BakeStats sc = bakeField(fc, **cpu, bake);
+  BakeStats sg = bakeOrFail(fg, *gpu, bake);
+  BakeStats sc = bakeOrFail(fc, **cpu, bake);
   std::printf("bake: vulkan %.0f ms (%.2f Mrays/s incl. shadow rays), embree %.0f ms\n", sg.ms,
               double(sg.probeRays + sg.shadowRays) / (sg.ms * 1e3), sc.ms);
   EXPECT_EQ(sg.probeRays, sc.probeRays);
@@ -177,14 +178,14 @@ TEST(VulkanTracer, BuiltinSceneMatchesEmbree) {
 
   // Move the light and the turning block (TLAS rebuild), then a few more updates each.
   const SceneState later = evaluateScene(scene, 3.0);
-  gpu->setState(later);
-  (*cpu)->setState(later);
+  setStateOrFail(*gpu, later);
+  setStateOrFail(**cpu, later);
   UpdateRequest request;
   request.probes = allProbes(fc);
   for (int i = 0; i < 2; ++i) {
     request.rotationSeed = 5000u + std::uint32_t(i);
-    UpdateStats ug = gpu->update(fg, request);
-    UpdateStats uc = (*cpu)->update(fc, request);
+    UpdateStats ug = updateOrFail(*gpu, fg, request);
+    UpdateStats uc = updateOrFail(**cpu, fc, request);
     EXPECT_EQ(ug.bricksChanged, uc.bricksChanged);
     EXPECT_FALSE(ug.gpuPasses.empty());
   }
@@ -207,8 +208,8 @@ TEST(VulkanTracer, FurnaceEnergyMatchesEmbreeAndTheory) {
   Field fc = Field::create(scene.volumes, FieldSettings{});
   BakeOptions bake;
   bake.updates = 48;
-  bakeField(fg, *gpu, bake);
-  bakeField(fc, **cpu, bake);
+  bakeOrFail(fg, *gpu, bake);
+  bakeOrFail(fc, **cpu, bake);
   FieldDifference d = compareFields(fg, fc);
   std::printf("furnace: irradiance rel diff %.2e, depth rel diff %.2e\n", d.irradiance, d.depth);
   EXPECT_GE(d.probes, 56);  // the 8 central probes see no wall within reach: sleeping
@@ -238,7 +239,7 @@ TEST(VulkanTracer, OnlyRequestedProbesChangeAndHostEditsReachTheGpu) {
   UpdateRequest request;
   request.rotationSeed = 1;
   request.probes = {{0, 0}, {0, 1}, {1, 0}};
-  UpdateStats s = gpu->update(f, request);
+  UpdateStats s = updateOrFail(*gpu, f, request);
   EXPECT_EQ(s.probesUpdated, 3);
   EXPECT_EQ(s.bricksChanged, 2);  // brick 0 of each cascade
   EXPECT_EQ(f.version, 1u);
@@ -253,7 +254,7 @@ TEST(VulkanTracer, OnlyRequestedProbesChangeAndHostEditsReachTheGpu) {
   restartHistory(f);
   f.probe(0, 0).updates = 0;
   request.rotationSeed = 2;
-  gpu->update(f, request);
+  updateOrFail(*gpu, f, request);
   EXPECT_EQ(f.probe(0, 0).updates, 1u);
   EXPECT_EQ(f.probe(0, 1).updates, 2u);
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
@@ -276,8 +277,8 @@ TEST(VulkanTracer, ExactShadowLaunchMatchesTheBoundedOne) {
   Field fb = Field::create(scene.volumes, FieldSettings{});
   BakeOptions bake;
   bake.updates = 3;
-  const BakeStats se = bakeField(fe, *exact, bake);
-  const BakeStats sb = bakeField(fb, *bounded, bake);
+  const BakeStats se = bakeOrFail(fe, *exact, bake);
+  const BakeStats sb = bakeOrFail(fb, *bounded, bake);
   EXPECT_GT(se.shadowRays, 0u);
   EXPECT_EQ(se.shadowRays, sb.shadowRays);
   expectIdenticalFields(fe, fb);
@@ -314,8 +315,8 @@ TEST(VulkanTracer, LightSampledEmittersMatchEmbree) {
   Field fc = Field::create(volumes, FieldSettings{});
   BakeOptions bake;
   bake.updates = 4;
-  bakeField(fg, *gpu, bake);
-  bakeField(fc, **cpu, bake);
+  bakeOrFail(fg, *gpu, bake);
+  bakeOrFail(fc, **cpu, bake);
   const FieldDifference d = compareFields(fg, fc);
   std::printf("cornell box (sampled emitter): %d active probes, irradiance rel diff %.2e, depth rel diff %.2e\n",
               d.probes, d.irradiance, d.depth);
@@ -347,8 +348,8 @@ TEST(VulkanTracer, MirroredAndSharedStaticInstancesMatchEmbree) {
   request.probes.pop_back();  // not a whole number of launch tiles
   for (int i = 0; i < 4; ++i) {
     request.rotationSeed = 700u + std::uint32_t(i);
-    const UpdateStats ug = gpu->update(fg, request);
-    const UpdateStats uc = cpu->update(fc, request);
+    const UpdateStats ug = updateOrFail(*gpu, fg, request);
+    const UpdateStats uc = updateOrFail(*cpu, fc, request);
     EXPECT_EQ(ug.bricksChanged, uc.bricksChanged);
   }
   const FieldDifference d = compareFields(fg, fc);
@@ -431,8 +432,8 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
   std::uint64_t shadowRays = 0;
   for (int i = 0; i < 2; ++i) {
     request.rotationSeed = 900u + std::uint32_t(i);
-    const UpdateStats ug = gpu->update(fg, request);
-    const UpdateStats uc = cpu->update(fc, request);
+    const UpdateStats ug = updateOrFail(*gpu, fg, request);
+    const UpdateStats uc = updateOrFail(*cpu, fc, request);
     EXPECT_NEAR(double(ug.shadowRays), double(uc.shadowRays), 0.01 * double(uc.shadowRays));
     shadowRays += ug.shadowRays;
   }
@@ -485,9 +486,9 @@ TEST(VulkanTracer, ShadowRoundsGiveTheFieldOfOneRound) {
   std::uint64_t rays1 = 0, raysR = 0;
   for (int i = 0; i < 2; ++i) {
     request.rotationSeed = 910u + std::uint32_t(i);
-    rays1 += oneRound->update(f1, request).shadowRays;
-    const UpdateStats sn = (*ranged)->update(fn, request);
-    const UpdateStats s = rounds->update(fr, request);
+    rays1 += updateOrFail(*oneRound, f1, request).shadowRays;
+    const UpdateStats sn = updateOrFail(**ranged, fn, request);
+    const UpdateStats s = updateOrFail(*rounds, fr, request);
     raysR += s.shadowRays;
     // Where the device has timestamps, the rounds are one timed span.
     auto has = [&](const UpdateStats& st, const char* pass) {
@@ -530,9 +531,9 @@ TEST(VulkanTracer, ShadowRouletteMatchesEmbreeAndKeepsTheMeanLight) {
   std::uint64_t gpuRays = 0, cpuRays = 0, plainRays = 0;
   for (int i = 0; i < 4; ++i) {
     request.rotationSeed = 700u + std::uint32_t(i);
-    gpuRays += gpu->update(fg, request).shadowRays;
-    cpuRays += cpu->update(fc, request).shadowRays;
-    plainRays += (*plain)->update(fp, request).shadowRays;
+    gpuRays += updateOrFail(*gpu, fg, request).shadowRays;
+    cpuRays += updateOrFail(*cpu, fc, request).shadowRays;
+    plainRays += updateOrFail(**plain, fp, request).shadowRays;
   }
   const FieldDifference d = compareFields(fg, fc);
   const double meanRoulette = meanIrradiance(fc), meanPlain = meanIrradiance(fp);
@@ -574,9 +575,9 @@ TEST(VulkanTracer, CutOutGrilleMatchesEmbree) {
     Field fo = Field::create(solid.volumes, fc.settings);
     for (int i = 0; i < 4; ++i) {
       request.rotationSeed = 1100u + std::uint32_t(i);
-      gpu->update(fg, request);
-      cpu->update(fc, request);
-      (*opaque)->update(fo, request);
+      updateOrFail(*gpu, fg, request);
+      updateOrFail(*cpu, fc, request);
+      updateOrFail(**opaque, fo, request);
     }
     const FieldDifference d = compareFields(fg, fc);
     const FieldDifference o = compareFields(fo, fc);
@@ -777,9 +778,9 @@ TEST(VulkanTracer, UpdateInSlicesGivesTheFieldOfOnePass) {
   for (int i = 0; i < 3; ++i) {
     UpdateRequest r = *requests[i];
     r.rotationSeed = 1400u + std::uint32_t(i);
-    const UpdateStats a = onePass->update(f1, r);
-    const UpdateStats b = slices.update(fs, r);
-    const UpdateStats c = slicesInRounds.update(fr, r);
+    const UpdateStats a = updateOrFail(*onePass, f1, r);
+    const UpdateStats b = updateOrFail(slices, fs, r);
+    const UpdateStats c = updateOrFail(slicesInRounds, fr, r);
     EXPECT_EQ(c.shadowRays, a.shadowRays);
     EXPECT_EQ(b.probesUpdated, a.probesUpdated);
     EXPECT_EQ(b.probeRays, a.probeRays);
@@ -851,9 +852,10 @@ Field smallField(const Scene& scene) {
 }
 
 // A GPU that fails (here the third submission reports VK_ERROR_DEVICE_LOST, as a lost device's
-// does) fails the update with a TracerFailure naming the call and the error, and leaves the
-// field as the last completed update left it, probe records included. Every later call fails
-// too, and the Embree backend goes on from that field.
+// does) fails the update with an Error naming the Tracer call, the Vulkan call and the error,
+// and leaves the field as the last completed update left it, probe records included. Every
+// later call is refused, naming the first failure, and the Embree backend goes on from that
+// field.
 TEST(VulkanTracer, AFailedUpdateLeavesTheFieldAsTheLastOneLeftIt) {
   const Scene scene = builtinScene();
   std::string why;
@@ -864,18 +866,16 @@ TEST(VulkanTracer, AFailedUpdateLeavesTheFieldAsTheLastOneLeftIt) {
   request.probes = allProbes(f);
   for (std::uint32_t seed : {1u, 2u}) {
     request.rotationSeed = seed;
-    gpu->update(f, request);
+    updateOrFail(*gpu, f, request);
   }
   ASSERT_EQ(f.version, 2u);
   const Field before = f;
 
   request.rotationSeed = 3;
-  std::string message;
-  try {
-    gpu->update(f, request);
-  } catch (const TracerFailure& e) {
-    message = e.what();
-  }
+  const Result<UpdateStats> failed = gpu->update(f, request);
+  ASSERT_FALSE(failed.ok());
+  const std::string& message = failed.error().message;
+  EXPECT_NE(message.find("update"), std::string::npos) << message;
   EXPECT_NE(message.find("vkQueueSubmit2"), std::string::npos) << message;
   EXPECT_NE(message.find("VK_ERROR_DEVICE_LOST"), std::string::npos) << message;
   auto expectUnchanged = [&] {
@@ -888,14 +888,24 @@ TEST(VulkanTracer, AFailedUpdateLeavesTheFieldAsTheLastOneLeftIt) {
     }
   };
   expectUnchanged();
-  EXPECT_THROW(gpu->update(f, request), TracerFailure);
-  EXPECT_THROW(gpu->setState(evaluateScene(scene, 0.0)), TracerFailure);
+  const Result<UpdateStats> again = gpu->update(f, request);
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.error().message.find("refused"), std::string::npos) << again.error().message;
+  EXPECT_NE(again.error().message.find("VK_ERROR_DEVICE_LOST"), std::string::npos)
+      << again.error().message;
+  const Status moved = gpu->setState(evaluateScene(scene, 0.0));
+  ASSERT_FALSE(moved.ok());
+  EXPECT_NE(moved.error().message.find("setState"), std::string::npos) << moved.error().message;
+  EXPECT_NE(moved.error().message.find("VK_ERROR_DEVICE_LOST"), std::string::npos)
+      << moved.error().message;
+  const Result<double> traced = gpu->traceOnly(f, request);
+  EXPECT_FALSE(traced.ok());
   expectUnchanged();
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
 
   auto cpu = makeEmbreeTracer(scene);
   ASSERT_TRUE(cpu.ok());
-  (*cpu)->update(f, request);
+  updateOrFail(**cpu, f, request);
   EXPECT_EQ(f.version, 3u);
   int continued = 0;  // probes whose running mean went on from the GPU's two updates
   for (const ProbeRecord& r : f.probes) continued += r.updates == 3u;

@@ -98,17 +98,21 @@ int main(int argc, char** argv) {
     pc::Progress progress("bake", std::uint64_t(updates));
     pc::BakeOptions options;
     options.updates = updates;
-    options.progress = [&](int, int) { progress.advance(); };
-    pc::BakeStats stats;
-    try {
-      (*tracer)->setState(pc::evaluateScene(*scene, time));
-      stats = pc::bakeField(field, **tracer, options);
-    } catch (const pc::TracerFailure& e) {
-      // Nothing written: a bake stopped part way is no baked field.
-      pc::logError(std::string("bake failed: ") + e.what() +
+    options.progress = [&](int, int) {
+      progress.advance();
+      return true;
+    };
+    // Nothing written where the tracer fails: a bake stopped part way is no baked field.
+    auto failed = [](const pc::Error& e) {
+      pc::logError("bake failed: " + e.message +
                    "; nothing written (--backend embree bakes on the CPU)");
       return 1;
-    }
+    };
+    if (pc::Status s = (*tracer)->setState(pc::evaluateScene(*scene, time)); !s)
+      return failed(s.error());
+    auto baked = pc::bakeField(field, **tracer, options);
+    if (!baked) return failed(baked.error());
+    const pc::BakeStats& stats = *baked;
     const double mrays = double(stats.probeRays + stats.shadowRays) / (stats.ms * 1e3);
     summary["bake"] = {{"updates", stats.updates},
                        {"seconds", stats.ms / 1000.0},

@@ -3,8 +3,6 @@
 #include <thread>
 
 #include "bench/bench.h"
-#include "common/log.h"
-#include "server/tracer.h"
 #include "tools/command_line.h"
 
 namespace pc::bench {
@@ -42,13 +40,7 @@ int main(int argc, char** argv) {
       pc::bench::addFaults(app), pc::bench::addStream(app), pc::bench::addLoad(app)};
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   for (auto& b : benches) {
-    if (!b.command->parsed()) continue;
-    try {
-      return b.run();
-    } catch (const pc::TracerFailure& e) {
-      pc::logError(std::string("tracer failed: ") + e.what());
-      return 1;
-    }
+    if (b.command->parsed()) return b.run();
   }
   return 1;
 }

@@ -198,7 +198,7 @@ class Buffer {
   T* as() const { return static_cast<T*>(mapped_); }
   // Makes GPU writes visible to the host (no-op on coherent memory). Call after the GPU work
   // that wrote the buffer finished. A lost device can fail it: the caller decides what that
-  // means (the tracer reports a TracerFailure, the client renderer stops).
+  // means (the tracer fails the call with an error, the client renderer stops).
   [[nodiscard]] VkResult invalidate() const;
   // Copies `bytes` to the start of a mapped buffer.
   void write(const void* data, std::size_t bytes, std::size_t offset = 0) const;

@@ -74,8 +74,9 @@ Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, i
   if (!tracer) return tracer.error();
   BakeOptions options;
   options.updates = updates;
-  BakeStats stats = bakeField(field, **tracer, options);
-  if (seconds) *seconds = stats.ms / 1000.0;
+  auto stats = bakeField(field, **tracer, options);
+  if (!stats) return stats.error();
+  if (seconds) *seconds = stats->ms / 1000.0;
   return field;
 }
 

@@ -29,7 +29,10 @@ EnergyResult measure(float albedo, float emission, int updates) {
   }
   BakeOptions options;
   options.updates = updates;
-  bakeField(field, **tracer, options);
+  if (auto baked = bakeField(field, **tracer, options); !baked) {
+    std::fprintf(stderr, "energy: %s\n", baked.error().message.c_str());
+    std::exit(1);
+  }
 
   EnergyResult r;
   r.expected = gpu::PC_PI * emission / (1.0 - albedo);

@@ -5,6 +5,7 @@
 // loss rates and seeds). Runs the same simulation as tests/test_protocol_stream.cpp.
 #include <algorithm>
 #include <cstdio>
+#include <optional>
 #include <sstream>
 
 #include "bench.h"
@@ -60,7 +61,10 @@ Benchmark addFaults(CLI::App& app) {
         initial.sceneHash = scene.hash;
         BakeOptions bake;
         bake.updates = 8;
-        bakeField(initial, **tracer, bake);
+        if (auto baked = bakeField(initial, **tracer, bake); !baked) {
+          std::fprintf(stderr, "faults: %s\n", baked.error().message.c_str());
+          return 1;
+        }
         int bricks = 0;
         for (int k = 0; k < initial.cascadeCount(); ++k)
           bricks += gpu::pcBrickCount(initial.cascade(k));
@@ -83,13 +87,18 @@ Benchmark addFaults(CLI::App& app) {
           for (int seed = 1; seed <= s.seeds; ++seed) {
             Field server = initial;
             std::uint32_t rotation = 5000;
+            std::optional<Error> failure;  // the first failed tracer call; the rest are skipped
             auto advance = [&](Field& f, double t) {
-              (*tracer)->setState(evaluateScene(scene, t));
+              if (failure) return;
+              if (Status s = (*tracer)->setState(evaluateScene(scene, t)); !s) {
+                failure = s.error();
+                return;
+              }
               UpdateRequest req;
               req.rotationSeed = rotation++;
               req.probes = allProbes(f);
               req.changeThreshold = 1e-4f;
-              (*tracer)->update(f, req);
+              if (auto updated = (*tracer)->update(f, req); !updated) failure = updated.error();
             };
             StreamSimulationOptions o;
             o.seed = std::uint64_t(seed) * 1000 + std::uint64_t(loss * 100);
@@ -108,6 +117,10 @@ Benchmark addFaults(CLI::App& app) {
             o.faults.jitter = 0.02;
             o.calm.delay = 0.01;
             auto r = runStreamSimulation(server, advance, o);
+            if (failure) {
+              std::fprintf(stderr, "faults: %s\n", failure->message.c_str());
+              return 1;
+            }
             allConverged &= r.converged;
             const double converge = r.converged ? r.convergeSeconds : o.settleLimitSeconds;
             worst = std::max(worst, converge);

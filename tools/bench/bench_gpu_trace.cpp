@@ -45,7 +45,7 @@ Benchmark addGpuTrace(CLI::App& app) {
   static std::size_t shadowMemoryMiB = 0, passRays = 0;
   static std::vector<int> counts;
   static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false,
-              singleBounce = false;
+              singleBounce = false, pipelineStatistics = false, shadowSlotTimes = false;
   static float roulette = pc::TracerOptions{}.shadowRouletteShare;
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
@@ -76,6 +76,11 @@ Benchmark addGpuTrace(CLI::App& app) {
       "--pass-rays", passRays,
       "the most probe rays one pass of a GPU update holds; larger updates run in slices "
       "of their probes (0: as many as the device's buffers and memory allow)");
+  cmd->add_flag("--pipeline-statistics", pipelineStatistics,
+                "log each GPU pipeline's compiler statistics (registers, shared memory), where "
+                "the driver reports them");
+  cmd->add_flag("--shadow-slot-times", shadowSlotTimes,
+                "time each shadow slot's launch apart (serializes them) and log its shadow rays");
   addRenderOptions(*cmd, setup);
   return {cmd, [] {
             auto scene = loadBenchScene(scenePath, sidecar);
@@ -92,6 +97,8 @@ Benchmark addGpuTrace(CLI::App& app) {
             vo.boundedShadowLaunch = boundedShadowLaunch;
             vo.shadowMemoryBudget = shadowMemoryMiB << 20;
             vo.maxPassRays = passRays;
+            vo.pipelineStatistics = pipelineStatistics;
+            vo.shadowSlotTimes = shadowSlotTimes;
             TracerOptions options;
             options.shadowRouletteShare = roulette;
             auto gpu = VulkanTracer::create(*scene, options, vo);
@@ -115,9 +122,19 @@ Benchmark addGpuTrace(CLI::App& app) {
             BakeOptions bake;
             bake.updates = setup.updates;
             if (singleBounce) bake.shading = kShadeNoIndirect;
-            const BakeStats gpuBake = bakeField(fg, **gpu, bake);
+            auto failed = [](const Error& e) {
+              std::fprintf(stderr, "gpu-trace: %s\n", e.message.c_str());
+              return 1;
+            };
+            auto gpuBaked = bakeField(fg, **gpu, bake);
+            if (!gpuBaked) return failed(gpuBaked.error());
+            const BakeStats gpuBake = *gpuBaked;
             BakeStats cpuBake;
-            if (cpu) cpuBake = bakeField(fc, *cpu, bake);
+            if (cpu) {
+              auto cpuBaked = bakeField(fc, *cpu, bake);
+              if (!cpuBaked) return failed(cpuBaked.error());
+              cpuBake = *cpuBaked;
+            }
 
             // ---- speed: raw ceiling and full updates on the same rays ----
             UpdateRequest request;
@@ -136,13 +153,18 @@ Benchmark addGpuTrace(CLI::App& app) {
               const auto start = std::chrono::steady_clock::now();
               for (int i = 0; std::chrono::steady_clock::now() - start < std::chrono::seconds(1); ++i) {
                 request.rotationSeed = 900000u + std::uint32_t(i);
-                (*gpu)->traceOnly(fg, request);
+                auto traced = (*gpu)->traceOnly(fg, request);
+                if (!traced) return failed(traced.error());
               }
             }
             for (int i = 0; i < updates; ++i) {
               request.rotationSeed = 100000u + std::uint32_t(i);
-              rawMs += (*gpu)->traceOnly(fg, request);
-              const UpdateStats s = (*gpu)->update(fg, request);
+              auto traced = (*gpu)->traceOnly(fg, request);
+              if (!traced) return failed(traced.error());
+              rawMs += *traced;
+              auto updated = (*gpu)->update(fg, request);
+              if (!updated) return failed(updated.error());
+              const UpdateStats& s = *updated;
               gpuMs += s.gpuMs;
               wallMs += s.totalMs;
               shadowRays += s.shadowRays;
@@ -155,7 +177,9 @@ Benchmark addGpuTrace(CLI::App& app) {
             for (int i = 0; cpu && i < updates; ++i) {
               request.rotationSeed = 100000u + std::uint32_t(i);
               embreeRawMs += cpu->traceOnly(fc, request, nullptr);
-              const UpdateStats e = cpu->update(fc, request);
+              auto updated = cpu->update(fc, request);
+              if (!updated) return failed(updated.error());
+              const UpdateStats& e = *updated;
               embreeMs += e.totalMs;
               embreeShadowRays += e.shadowRays;
             }

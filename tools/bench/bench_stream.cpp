@@ -147,12 +147,15 @@ Result<Field> startingField(const Scene& scene, Tracer& tracer, const StreamSetu
   Field field = Field::create(scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes,
                               settings);
   field.sceneHash = scene.hash;
-  tracer.setState(evaluateScene(scene, 0.0));
+  if (Status st = tracer.setState(evaluateScene(scene, 0.0)); !st) return st.error();
   BakeOptions bake;
   bake.updates = s.bakeUpdates;
   Progress progress("bake " + sceneSlug(scene), std::uint64_t(bake.updates));
-  bake.progress = [&](int, int) { progress.advance(); };
-  bakeField(field, tracer, bake);
+  bake.progress = [&](int, int) {
+    progress.advance();
+    return true;
+  };
+  if (auto baked = bakeField(field, tracer, bake); !baked) return baked.error();
   if (!cached.empty()) {
     std::error_code ec;
     fs::create_directories(cached.parent_path(), ec);
@@ -281,11 +284,19 @@ Benchmark addStream(CLI::App& app) {
               if (t >= nextTick) {
                 nextTick += tick;
                 const auto t0 = Clock::now();
-                (*tracer)->setState(evaluateScene(*scene, t));
+                if (Status st = (*tracer)->setState(evaluateScene(*scene, t)); !st) {
+                  std::fprintf(stderr, "stream: %s\n", st.error().message.c_str());
+                  return 1;
+                }
                 UpdateRequest req;
                 req.rotationSeed = rotation++;
                 req.probes = scheduler.plan(server, ticks + 1, viewers);
-                const UpdateStats us = (*tracer)->update(server, req);
+                auto updated = (*tracer)->update(server, req);
+                if (!updated) {
+                  std::fprintf(stderr, "stream: %s\n", updated.error().message.c_str());
+                  return 1;
+                }
+                const UpdateStats& us = *updated;
                 traceSeconds += std::chrono::duration<double>(Clock::now() - t0).count();
                 probeUpdates += std::uint64_t(us.probesUpdated);
                 brickChanges += std::uint64_t(us.bricksChanged);

@@ -52,7 +52,10 @@ Benchmark addTrace(CLI::App& app) {
             }
             BakeOptions warm;
             warm.updates = warmup;
-            bakeField(field, **tracer, warm);
+            if (auto baked = bakeField(field, **tracer, warm); !baked) {
+              std::fprintf(stderr, "trace: %s\n", baked.error().message.c_str());
+              return 1;
+            }
 
             UpdateRequest request;
             request.probes = allProbes(field);
@@ -63,7 +66,12 @@ Benchmark addTrace(CLI::App& app) {
               std::uint64_t h = 0;
               rawMs += (*tracer)->traceOnly(field, request, &h);
               hits += h;
-              UpdateStats s = (*tracer)->update(field, request);
+              auto updated = (*tracer)->update(field, request);
+              if (!updated) {
+                std::fprintf(stderr, "trace: %s\n", updated.error().message.c_str());
+                return 1;
+              }
+              const UpdateStats& s = *updated;
               fullMs += s.totalMs;
               shadeMs += s.traceMs;
               blendMs += s.blendMs;
