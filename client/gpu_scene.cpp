@@ -25,9 +25,9 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene, bo
   // Full mip chains (texture_mips.h) unless asked for level 0 alone; 1x1 stand-ins have one.
   auto addTexture = [&](int width, int height, std::span<const std::uint8_t> rgba) -> Status {
     const MipChain chain = mipmaps ? buildSrgbMipChain(width, height, rgba) : MipChain{};
-    const std::span<const std::uint8_t> texels =
-        mipmaps ? std::span<const std::uint8_t>(chain.rgba)
-                : rgba.first(std::size_t(width) * height * 4);
+    const std::span<const std::uint8_t> texels = mipmaps
+                                                     ? std::span<const std::uint8_t>(chain.rgba)
+                                                     : rgba.first(std::size_t(width) * height * 4);
     vk::ImageDesc d;
     d.format = VK_FORMAT_R8G8B8A8_SRGB;  // decoded to linear by the sampler, as the CPU's LUT
     d.width = std::uint32_t(width);

@@ -13,9 +13,9 @@
 #include <glm/glm.hpp>
 #include <vector>
 
-#include "common/scene.h"
 #include "common/emissive_lights.h"
 #include "common/light_pack.h"
+#include "common/scene.h"
 #include "shaders/interop/client_frame.h"
 
 namespace pc::client {
@@ -27,7 +27,7 @@ struct ShadowSettings {
   // resolution of a 1080p view with a 60-degree field of view, and a moving point light
   // redraws six faces a frame (a quarter of the texels of 2048^2 faces).
   int pointSize = 1024;
-  int areaLights = 16;   // about this many virtual point lights for all emitters together
+  int areaLights = 16;  // about this many virtual point lights for all emitters together
 };
 
 // Shadow map arrays: sun and spots, the emitters' virtual point lights, point-light cube faces.
@@ -52,7 +52,7 @@ struct LightSet {
   // Indexed by GpuLight::shadowMatrix (+ cube face): view-projections from the light's shadow
   // origin, its GpuLight::position (ShadowView::fromOrigin).
   std::vector<glm::mat4> matrices;
-  std::vector<ShadowView> views;    // the layers to render
+  std::vector<ShadowView> views;          // the layers to render
   int layers[kShadowArrays] = {0, 0, 0};  // per shadow array
   int areaLightCount = 0;
 };

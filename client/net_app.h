@@ -11,10 +11,10 @@ namespace pc::client {
 
 struct NetRunConfig {
   NetClientOptions net;
-  double duration = 0;  // wall-clock seconds to run; 0: ClientConfig::frames frames
-  double maxFps = 0;    // frames per second at most (0: as fast as the renderer goes)
-  int saveEvery = 1;    // write every Nth frame (0: only the last)
-  std::string summary;  // JSON summary written here at exit
+  double duration = 0;       // wall-clock seconds to run; 0: ClientConfig::frames frames
+  double maxFps = 0;         // frames per second at most (0: as fast as the renderer goes)
+  int saveEvery = 1;         // write every Nth frame (0: only the last)
+  std::string summary;       // JSON summary written here at exit
   double startupWait = 3.0;  // s the first frame may wait for a layout when no baked field is given
 };
 

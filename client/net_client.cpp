@@ -20,8 +20,7 @@ using asio::ip::udp;
 using Bytes = std::vector<std::uint8_t>;
 
 double netClockSeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 namespace {
@@ -67,8 +66,14 @@ ClientSessionOptions sessionOptions(const NetClientOptions& o) {
 // ClientSession's.
 struct NetClient::Impl {
   Impl(FieldMirror& m, NetClientOptions o)
-      : mirror(m), options(std::move(o)), session(sessionOptions(options)), tcpSocket(io),
-        udpSocket(io), pollTimer(io), retryTimer(io), resolver(io) {}
+      : mirror(m),
+        options(std::move(o)),
+        session(sessionOptions(options)),
+        tcpSocket(io),
+        udpSocket(io),
+        pollTimer(io),
+        retryTimer(io),
+        resolver(io) {}
 
   // Network thread only.
   void connect();
@@ -127,19 +132,19 @@ void NetClient::Impl::connect() {
       [this, id](boost::system::error_code ec, tcp::resolver::results_type results) {
         if (id != connection || stopping) return;
         if (ec) return fail("resolve " + options.host + ": " + ec.message());
-        asio::async_connect(tcpSocket, results, [this, id](boost::system::error_code ec2,
-                                                           const tcp::endpoint&) {
-          if (id != connection || stopping) return;
-          if (ec2) return fail("connect: " + ec2.message());
-          tcpOpen = true;
-          boost::system::error_code ignored;
-          tcpSocket.set_option(tcp::no_delay(true), ignored);
-          const std::uint16_t udpPort = options.tcpOnly            ? 0
-                                        : options.udpAdvertisePort ? options.udpAdvertisePort
-                                                                   : udpPortNumber;
-          send(session.connected(netClockSeconds(), udpPort));
-          readStream();
-        });
+        asio::async_connect(
+            tcpSocket, results, [this, id](boost::system::error_code ec2, const tcp::endpoint&) {
+              if (id != connection || stopping) return;
+              if (ec2) return fail("connect: " + ec2.message());
+              tcpOpen = true;
+              boost::system::error_code ignored;
+              tcpSocket.set_option(tcp::no_delay(true), ignored);
+              const std::uint16_t udpPort = options.tcpOnly            ? 0
+                                            : options.udpAdvertisePort ? options.udpAdvertisePort
+                                                                       : udpPortNumber;
+              send(session.connected(netClockSeconds(), udpPort));
+              readStream();
+            });
       });
 }
 
@@ -162,8 +167,8 @@ void NetClient::Impl::fail(const std::string& why) {
   if (rejected) backoff = options.backoffMax;
   {
     std::lock_guard lock(mutex);
-    if (stats.lastError != why || wasConnected) logWarn("server " + options.host + ":" +
-                                                        std::to_string(options.port) + ": " + why);
+    if (stats.lastError != why || wasConnected)
+      logWarn("server " + options.host + ":" + std::to_string(options.port) + ": " + why);
     stats.lastError = why;
     stats.connected = false;
     stats.synced = false;
@@ -179,16 +184,16 @@ void NetClient::Impl::fail(const std::string& why) {
 
 void NetClient::Impl::readStream() {
   const std::uint64_t id = connection;
-  tcpSocket.async_read_some(asio::buffer(readBuffer), [this, id](boost::system::error_code ec,
-                                                                 std::size_t n) {
-    if (id != connection || stopping) return;
-    if (ec) return fail(ec == asio::error::eof ? "connection closed" : "read: " + ec.message());
-    const double now = netClockSeconds();
-    Status status = session.onStreamBytes(std::span(readBuffer.data(), n), now);
-    afterInput(now);
-    if (!status) return fail(status.error().message);
-    if (id == connection) readStream();
-  });
+  tcpSocket.async_read_some(
+      asio::buffer(readBuffer), [this, id](boost::system::error_code ec, std::size_t n) {
+        if (id != connection || stopping) return;
+        if (ec) return fail(ec == asio::error::eof ? "connection closed" : "read: " + ec.message());
+        const double now = netClockSeconds();
+        Status status = session.onStreamBytes(std::span(readBuffer.data(), n), now);
+        afterInput(now);
+        if (!status) return fail(status.error().message);
+        if (id == connection) readStream();
+      });
 }
 
 void NetClient::Impl::receiveUdp() {

@@ -25,16 +25,16 @@ struct NetClientOptions {
   std::uint16_t port = 7450;
   std::string token;
   std::string name = "probecast-client";
-  bool tcpOnly = false;               // ask for datagrams over TCP
+  bool tcpOnly = false;                // ask for datagrams over TCP
   std::uint16_t udpAdvertisePort = 0;  // port the server should send datagrams to (a relay in
                                        // front of this client); 0: this client's own port
-  double backoffInitial = 0.05;       // s before the first reconnect attempt
-  double backoffMax = 0.4;            // s: the cap keeps a returning server found within it
+  double backoffInitial = 0.05;        // s before the first reconnect attempt
+  double backoffMax = 0.4;             // s: the cap keeps a returning server found within it
   // The session's (ClientSessionOptions):
-  double connectTimeout = 2.0;        // s for resolve and TCP connect plus the handshake
-  double silenceTimeout = 2.0;        // s without any bytes from the server: it is gone
-  double pollInterval = 0.005;        // s between session polls
-  double poseInterval = 0.1;          // s between viewer poses
+  double connectTimeout = 2.0;  // s for resolve and TCP connect plus the handshake
+  double silenceTimeout = 2.0;  // s without any bytes from the server: it is gone
+  double pollInterval = 0.005;  // s between session polls
+  double poseInterval = 0.1;    // s between viewer poses
   // The most memory a server's field layout (SessionInfo) may make this client allocate for
   // its copies of the field (mirrorMemoryBytes, protocol/client_session.h); a larger layout
   // ends the session with an error naming both sizes. The shared scenes need under 200 MiB.
@@ -48,12 +48,12 @@ struct NetClientStats {
   std::uint64_t connectAttempts = 0, sessions = 0, rejects = 0;
   std::uint64_t tcpBytes = 0, udpBytes = 0;  // received
   std::uint64_t udpDatagrams = 0, tcpDatagrams = 0, badDatagrams = 0;
-  std::uint64_t bricksApplied = 0;     // handed to the mirror
-  std::uint64_t layoutResets = 0;      // mirror reset to the server's layout
+  std::uint64_t bricksApplied = 0;  // handed to the mirror
+  std::uint64_t layoutResets = 0;   // mirror reset to the server's layout
   std::uint64_t serverFieldVersion = 0;
   int bricksHeld = 0, bricksTotal = 0;  // this session
-  double lastResyncSeconds = -1;  // connect -> every brick held, for the latest session
-  double lastSyncedAt = -1;       // steady seconds when the latest session became synced
+  double lastResyncSeconds = -1;        // connect -> every brick held, for the latest session
+  double lastSyncedAt = -1;             // steady seconds when the latest session became synced
   std::string lastError;
   ReceiverStats receiver;
 };

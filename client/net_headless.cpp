@@ -59,8 +59,7 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
   if (!config.probes.empty()) loadFallbackField(*scene, config, mirror);
 
   NetClient client(mirror, run.net);
-  client.setViewer(camera->position,
-                   glm::quatLookAt(glm::normalize(camera->forward), camera->up));
+  client.setViewer(camera->position, glm::quatLookAt(glm::normalize(camera->forward), camera->up));
   client.start();
   // Start-up only (no frame is waited for): without a baked field the renderer would be made
   // for no layout and rebuilt as soon as the server's arrives; a moment's wait saves that.
@@ -95,7 +94,8 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
     return input;
   };
 
-  auto writeSummary = [&](const NetClientStats& s, double seconds, double lastFrameTime, bool final) {
+  auto writeSummary = [&](const NetClientStats& s, double seconds, double lastFrameTime,
+                          bool final) {
     if (run.summary.empty()) return;
     const std::uint64_t bytes = s.tcpBytes + s.udpBytes;
     nlohmann::json j;
@@ -162,7 +162,8 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
     // local one.
     lastTime = client.animationTime().value_or(config.startTime + (now - start));
     auto images = (*renderer)->renderOffscreen(frameInput(lastTime));
-    if (!images) return logError("frame " + std::to_string(frame) + ": " + images.error().message), 1;
+    if (!images)
+      return logError("frame " + std::to_string(frame) + ": " + images.error().message), 1;
 
     const NetClientStats s = client.stats();
     everConnected = everConnected || s.connected;
@@ -210,12 +211,13 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
 
   const std::uint64_t bytes = s.tcpBytes + s.udpBytes;
   char line[256];
-  std::snprintf(line, sizeof line,
-                "%d frames in %.1f s (%.1f fps), %.1f kB/s received, %llu sessions, server field v%llu, "
-                "%d of %d bricks held, resync %.3f s",
-                frame, seconds, frame / std::max(seconds, 1e-9), bytes / std::max(seconds, 1e-9) / 1e3,
-                (unsigned long long)s.sessions, (unsigned long long)s.serverFieldVersion, s.bricksHeld,
-                s.bricksTotal, s.lastResyncSeconds);
+  std::snprintf(
+      line, sizeof line,
+      "%d frames in %.1f s (%.1f fps), %.1f kB/s received, %llu sessions, server field v%llu, "
+      "%d of %d bricks held, resync %.3f s",
+      frame, seconds, frame / std::max(seconds, 1e-9), bytes / std::max(seconds, 1e-9) / 1e3,
+      (unsigned long long)s.sessions, (unsigned long long)s.serverFieldVersion, s.bricksHeld,
+      s.bricksTotal, s.lastResyncSeconds);
   logInfo(line);
 
   writeSummary(s, seconds, lastFrameTime, true);

@@ -1,7 +1,5 @@
 // The renderer's frames: per-frame data, recording the passes (shadows, visibility, lighting
 // with the probe field, tone mapping, overlay), submission, timings and offscreen read-back.
-#include "renderer_internal.h"
-
 #include <algorithm>
 #include <chrono>
 #include <cstring>
@@ -9,6 +7,7 @@
 #include "camera.h"
 #include "common/log.h"
 #include "overlay_text.h"
+#include "renderer_internal.h"
 #include "vk_util.h"
 
 namespace pc::client {
@@ -199,8 +198,7 @@ void Renderer::drawScene(VkCommandBuffer cmd, const Slot& slot,
   vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &zero);
   vkCmdBindIndexBuffer(cmd, gpuScene_->indices(), 0, VK_INDEX_TYPE_UINT32);
   for (std::size_t d = 0; d < packed.drawInstances.size(); ++d) {
-    if (d < slot.boxLo.size() &&
-        std::none_of(views.begin(), views.end(), [&](const glm::mat4& v) {
+    if (d < slot.boxLo.size() && std::none_of(views.begin(), views.end(), [&](const glm::mat4& v) {
           return boxTouchesFrustum(v, slot.boxLo[d], slot.boxHi[d]);
         }))
       continue;
@@ -235,8 +233,8 @@ void Renderer::recordShadowBarriers(VkCommandBuffer cmd, const Slot& slot, bool 
       b.srcAccessMask = VK_ACCESS_2_NONE;  // earlier reads only: an execution dependency
       b.dstStageMask = kDepthStages;
       b.dstAccessMask = kDepthAccess;
-      b.oldLayout = slot.shadowsFresh ? VK_IMAGE_LAYOUT_UNDEFINED
-                                      : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+      b.oldLayout =
+          slot.shadowsFresh ? VK_IMAGE_LAYOUT_UNDEFINED : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
       b.newLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
     } else {
       b.srcStageMask = kDepthStages;
@@ -299,13 +297,13 @@ void Renderer::recordShadowMaps(VkCommandBuffer cmd, const Slot& slot) {
 void Renderer::recordFixedFunctionRaster(VkCommandBuffer cmd, const Slot& slot) {
   const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
   // Contents are discarded: the previous frame's probe pass read them (compute stage).
-  imageBarriers(cmd, {{visibility_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT,
-                       VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-                       VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_NONE, kColorStage,
-                       kColorWrite},
-                      {depth_.image.get(), VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                       VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, kDepthStages, VK_ACCESS_2_NONE,
-                       kDepthStages, kDepthAccess}});
+  imageBarriers(
+      cmd, {{visibility_.image.get(), VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+             VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+             VK_ACCESS_2_NONE, kColorStage, kColorWrite},
+            {depth_.image.get(), VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+             VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, kDepthStages, VK_ACCESS_2_NONE, kDepthStages,
+             kDepthAccess}});
   VkRenderingAttachmentInfo visibility{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
   visibility.imageView = visibility_.arrayView.get();
   visibility.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;

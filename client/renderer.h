@@ -18,11 +18,11 @@
 #include <string_view>
 #include <vector>
 
+#include "common/emissive_lights.h"
 #include "common/image.h"
 #include "common/result.h"
 #include "common/scene.h"
 #include "common/vulkan/context.h"
-#include "common/emissive_lights.h"
 #include "field_gpu.h"
 #include "field_mirror.h"
 #include "gpu_scene.h"
@@ -46,8 +46,8 @@ struct RendererOptions {
   bool sideBySide = false;
   int msaa = 4;  // samples per pixel: 2, 4 or 8
   ShadowSettings shadows;
-  int sampleFlags = 0;               // PC_SAMPLE_* for the field
-  int bricksPerFrame = 32;           // field upload budget per frame
+  int sampleFlags = 0;      // PC_SAMPLE_* for the field
+  int bricksPerFrame = 32;  // field upload budget per frame
   // A changed brick fades in over this long (the window uses 0.15 s); 0: at once, so that
   // headless images show exactly the field the mirror holds.
   double fieldFadeSeconds = 0.0;

@@ -1,10 +1,9 @@
 // The renderer's creation: render targets, pipelines (graphics and compute) and descriptors,
 // remade on resize.
-#include "renderer_internal.h"
-
 #include <algorithm>
 
 #include "overlay_text.h"
+#include "renderer_internal.h"
 #include "vk_util.h"
 
 namespace pc::client {
@@ -240,8 +239,7 @@ Status Renderer::createSceneBuffers() {
   // them small enough for their own thread; tile jobs are capped at 4M (32 MiB). What does
   // not fit is counted (FrameTimings::rasterDropped), never written out of bounds.
   const bool on = computeRaster();
-  const std::uint64_t pieces =
-      2 * gpuScene_->packed().triangleIds * std::uint64_t(options_.views);
+  const std::uint64_t pieces = 2 * gpuScene_->packed().triangleIds * std::uint64_t(options_.views);
   rasterTriangleCapacity_ =
       on ? std::uint32_t(std::min<std::uint64_t>(pieces + 1024, 1u << 22)) : 1;
   rasterJobCapacity_ = on ? (1u << 22) : 1;
@@ -295,8 +293,7 @@ void Renderer::measureDraws() {
     const MeshRange& m = packed.meshes[scene_->instances[std::size_t(instance)].mesh];
     LocalBounds b{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
     for (std::uint32_t i = m.firstIndex; i < m.firstIndex + m.indexCount; ++i) {
-      const glm::vec3 p =
-          packed.vertices[std::size_t(packed.indices[i] + m.vertexOffset)].position;
+      const glm::vec3 p = packed.vertices[std::size_t(packed.indices[i] + m.vertexOffset)].position;
       b.lo = glm::min(b.lo, p);
       b.hi = glm::max(b.hi, p);
     }

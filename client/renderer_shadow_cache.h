@@ -42,7 +42,7 @@ class ShadowCache {
     glm::mat4 viewProj{0.0f};
   };
   std::vector<Layer> layers_[kShadowArrays];  // [array][layer]
-  std::vector<glm::mat4> models_;  // the previous frame's draw transforms
+  std::vector<glm::mat4> models_;             // the previous frame's draw transforms
   bool fresh_ = true;
 };
 

@@ -53,7 +53,7 @@ class EmissiveLights {
     glm::vec3 p0, e1, e2;  // p0 + u e1 + v e2
     glm::vec3 normal;      // unit, front side
     float area;
-    glm::vec3 radiance;    // mean emitted radiance (textures averaged)
+    glm::vec3 radiance;  // mean emitted radiance (textures averaged)
   };
   const std::vector<Triangle>& triangles() const { return triangles_; }
   const std::vector<float>& cdf() const { return cdf_; }

@@ -1,9 +1,9 @@
 #include "field.h"
 
-#include "../shaders/interop/probe_update.h"
-
 #include <algorithm>
 #include <cmath>
+
+#include "../shaders/interop/probe_update.h"
 
 // The shared sampling code reads the field through these fetches; on the CPU they read the
 // atlases bilinearly, exactly as a GPU sampler with linear filtering would.
@@ -125,9 +125,11 @@ glm::vec3 Field::probePosition(int k, int slot) const {
 
 void Field::fixBorders(int k, int slot) {
   const CascadeDesc& c = desc.cascades[k];
-  fixTileBorder(irradiance, pcAtlasTileOrigin(c, slot, PC_IRRADIANCE_TEXELS + 2), PC_IRRADIANCE_TEXELS);
+  fixTileBorder(irradiance, pcAtlasTileOrigin(c, slot, PC_IRRADIANCE_TEXELS + 2),
+                PC_IRRADIANCE_TEXELS);
   fixTileBorder(depth, pcAtlasTileOrigin(c, slot, PC_DEPTH_TEXELS + 2), PC_DEPTH_TEXELS);
-  fixTileBorder(occlusion, pcAtlasTileOrigin(c, slot, PC_OCCLUSION_TEXELS + 2), PC_OCCLUSION_TEXELS);
+  fixTileBorder(occlusion, pcAtlasTileOrigin(c, slot, PC_OCCLUSION_TEXELS + 2),
+                PC_OCCLUSION_TEXELS);
 }
 
 glm::vec4 sampleField(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,

@@ -4,9 +4,8 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/glm.hpp>
+#include <vector>
 
 #include "../shaders/interop/probe_math.h"
 #include "scene.h"
@@ -19,12 +18,12 @@ inline constexpr int kMinRaysPerProbe = 16;
 inline constexpr int kMaxRaysPerProbe = 1024;
 
 struct FieldSettings {
-  int raysPerProbe = 256;        // kMinRaysPerProbe..kMaxRaysPerProbe (Field::create clamps)
+  int raysPerProbe = 256;  // kMinRaysPerProbe..kMaxRaysPerProbe (Field::create clamps)
   float hysteresis = 0.97f;
   float distanceExponent = 50.0f;
-  float normalBias = 0.1f;       // fraction of spacing
-  float viewBias = 0.3f;         // fraction of spacing
-  float maxRayDistance = 0.0f;   // world units; 0: 1.5 x the cage diagonal (see create)
+  float normalBias = 0.1f;         // fraction of spacing
+  float viewBias = 0.3f;           // fraction of spacing
+  float maxRayDistance = 0.0f;     // world units; 0: 1.5 x the cage diagonal (see create)
   float occlusionDistance = 1.0f;  // d_max, fraction of the finest spacing
   float blendMargin = 1.0f;        // fraction of a cascade's spacing
 };
@@ -51,9 +50,9 @@ class Field {
 
   gpu::FieldDesc desc{};
   FieldSettings settings;
-  Atlas irradiance;  // rgb: irradiance^(1/gamma), see PC_IRRADIANCE_GAMMA
-  Atlas depth;       // rg: mean and mean square of hit distance
-  Atlas occlusion;   // r: cos-weighted share of rays that travel past d_max
+  Atlas irradiance;                 // rgb: irradiance^(1/gamma), see PC_IRRADIANCE_GAMMA
+  Atlas depth;                      // rg: mean and mean square of hit distance
+  Atlas occlusion;                  // r: cos-weighted share of rays that travel past d_max
   std::vector<ProbeRecord> probes;  // field-wide slot index: cascades[k].firstProbe + slot
   std::vector<std::vector<std::uint64_t>> brickVersions;  // [cascade][brick]
   std::uint64_t version = 0;  // bumped by every update that changes something
@@ -62,8 +61,10 @@ class Field {
   int cascadeCount() const { return desc.cascadeCount; }
   const gpu::CascadeDesc& cascade(int k) const { return desc.cascades[k]; }
   ProbeRecord& probe(int k, int slot) { return probes[desc.cascades[k].firstProbe + slot]; }
-  const ProbeRecord& probe(int k, int slot) const { return probes[desc.cascades[k].firstProbe + slot]; }
-  int probeCount() const;  // real probes, not padding slots
+  const ProbeRecord& probe(int k, int slot) const {
+    return probes[desc.cascades[k].firstProbe + slot];
+  }
+  int probeCount() const;                          // real probes, not padding slots
   glm::vec3 probePosition(int k, int slot) const;  // world, relocated
 
   // Re-derives every tile's border from its interior (after interiors changed).

@@ -3,9 +3,8 @@
 #pragma once
 
 #include <filesystem>
-#include <vector>
-
 #include <glm/glm.hpp>
+#include <vector>
 
 #include "result.h"
 

@@ -7,10 +7,9 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <glm/glm.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "result.h"
 
@@ -34,9 +33,9 @@ struct Texture {
 
 struct Material {
   std::string name;
-  glm::vec3 baseColor{0.8f};     // linear albedo, multiplied by the texture
-  int baseColorTexture = -1;     // index into Scene::textures
-  glm::vec3 emissive{0.0f};      // linear emitted radiance, multiplied by the texture
+  glm::vec3 baseColor{0.8f};  // linear albedo, multiplied by the texture
+  int baseColorTexture = -1;  // index into Scene::textures
+  glm::vec3 emissive{0.0f};   // linear emitted radiance, multiplied by the texture
   int emissiveTexture = -1;
   // Cut-outs (foliage cards, grilles): the surface exists where baseAlpha x the alpha texture's
   // channel (bilinear, as Texture::sample gives it: colour channels decoded from sRGB, alpha
@@ -56,10 +55,10 @@ bool coveredAt(const Material& material, const std::vector<Texture>& textures, g
 
 struct Mesh {
   std::string name;
-  std::vector<glm::vec3> positions;  // object space
-  std::vector<glm::vec3> normals;    // one per position, unit length (generated when missing)
-  std::vector<glm::vec2> uvs;        // one per position, or empty; (0,0) is the image's top left
-                                     // (glTF convention; OBJ v is flipped on load)
+  std::vector<glm::vec3> positions;    // object space
+  std::vector<glm::vec3> normals;      // one per position, unit length (generated when missing)
+  std::vector<glm::vec2> uvs;          // one per position, or empty; (0,0) is the image's top left
+                                       // (glTF convention; OBJ v is flipped on load)
   std::vector<std::uint32_t> indices;  // triangles
   int material = 0;
   std::size_t triangleCount() const { return indices.size() / 3; }
@@ -76,10 +75,10 @@ struct Light {
   glm::vec3 direction{0.0f, -1.0f, 0.0f};  // where the light travels (spot, directional)
   glm::vec3 color{1.0f};
   float intensity = 1.0f;
-  float range = 0.0f;               // 0: unlimited (inverse square only)
-  float innerConeAngle = 0.0f;      // radians (spot)
+  float range = 0.0f;           // 0: unlimited (inverse square only)
+  float innerConeAngle = 0.0f;  // radians (spot)
   float outerConeAngle = 0.7853982f;
-  int animation = -1;               // index into Scene::animations
+  int animation = -1;  // index into Scene::animations
 };
 
 struct Camera {
@@ -110,8 +109,8 @@ struct ProbeVolume {
 // seconds; an instance on a path is translated by path(t) - points[0].
 struct Animation {
   enum class Kind { Path, Rotate } kind = Kind::Path;
-  std::vector<glm::vec3> points;  // Path: positions visited in order
-  float period = 4.0f;            // Path: seconds per loop
+  std::vector<glm::vec3> points;     // Path: positions visited in order
+  float period = 4.0f;               // Path: seconds per loop
   glm::vec3 axis{0.0f, 1.0f, 0.0f};  // Rotate
   glm::vec3 pivot{0.0f};             // Rotate: world-space point the axis goes through
   float radiansPerSecond = 0.5f;     // Rotate
@@ -131,8 +130,8 @@ enum class EmissiveMode { Auto, Lights, Field };
 
 struct Scene {
   std::string name;
-  std::filesystem::path source;  // file it came from, empty when built in
-  std::filesystem::path sidecar;  // scene.json that was applied, empty when none
+  std::filesystem::path source;       // file it came from, empty when built in
+  std::filesystem::path sidecar;      // scene.json that was applied, empty when none
   std::vector<std::string> warnings;  // non-fatal problems met while loading (missing textures)
   std::vector<Mesh> meshes;
   std::vector<Material> materials;
@@ -144,13 +143,13 @@ struct Scene {
   std::vector<ProbeVolume> volumes;  // empty: derive from bounds (see defaultVolumes)
   Sky sky;
   EmissiveMode emissiveMode = EmissiveMode::Auto;
-  float exposure = 1.0f;  // scale applied before tone mapping by every renderer
+  float exposure = 1.0f;   // scale applied before tone mapping by every renderer
   std::uint64_t hash = 0;  // of geometry, materials, lights: names the scene on the wire
 
   glm::vec3 boundsMin{0.0f}, boundsMax{0.0f};  // world, at time 0
-  std::size_t triangleCount() const;  // over instances (a mesh drawn twice counts twice)
-  bool hasLights() const;             // any light or emissive material
-  bool hasCutOuts() const;            // any drawn material that is a cut-out (Material::isCutOut)
+  std::size_t triangleCount() const;           // over instances (a mesh drawn twice counts twice)
+  bool hasLights() const;                      // any light or emissive material
+  bool hasCutOuts() const;  // any drawn material that is a cut-out (Material::isCutOut)
   // The material instance `inst` is drawn with, or null when its mesh or material is invalid.
   const Material* materialOf(const Instance& inst) const;
 };

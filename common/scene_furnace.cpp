@@ -52,7 +52,8 @@ Scene furnaceBox(float albedo, float emission, float size) {
   s.cameras.push_back(cam);
   s.boundsMin = glm::vec3(0.0f);
   s.boundsMax = glm::vec3(L);
-  s.hash = 0xF0A7ACE000000000ull ^ (std::uint64_t(albedo * 1000.0f) << 16) ^ std::uint64_t(emission * 1000.0f);
+  s.hash = 0xF0A7ACE000000000ull ^ (std::uint64_t(albedo * 1000.0f) << 16) ^
+           std::uint64_t(emission * 1000.0f);
   return s;
 }
 

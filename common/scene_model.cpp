@@ -148,9 +148,9 @@ std::vector<ProbeVolume> defaultVolumes(const Scene& scene, int maxProbesPerAxis
   float largest = std::max({extent.x, extent.y, extent.z});
   // A scene too small for its spacing to be a normal float (or empty, or unbounded) gets the
   // fallback volume: extent / spacing would overflow and the field's biases underflow.
-  const bool degenerate = !(largest > 0.0f) || !std::isfinite(largest) ||
-                          !(largest / float(2 * maxProbesPerAxis) >=
-                            std::numeric_limits<float>::min());
+  const bool degenerate =
+      !(largest > 0.0f) || !std::isfinite(largest) ||
+      !(largest / float(2 * maxProbesPerAxis) >= std::numeric_limits<float>::min());
   if (degenerate) {
     ProbeVolume v;
     v.origin = glm::vec3(-3.5f);

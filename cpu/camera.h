@@ -4,7 +4,6 @@
 
 #include <cmath>
 #include <cstdint>
-
 #include <glm/glm.hpp>
 
 #include "../common/scene.h"

@@ -4,11 +4,11 @@
 // Owns the Embree device and scene (RAII). Thread-safe for queries after update().
 #pragma once
 
+#include <embree3/rtcore.h>
+
+#include <glm/glm.hpp>
 #include <memory>
 #include <vector>
-
-#include <embree3/rtcore.h>
-#include <glm/glm.hpp>
 
 #include "../common/result.h"
 #include "../common/scene.h"
@@ -31,7 +31,7 @@ struct SurfacePoint {
   bool backface = false;            // the ray hit the back of the triangle's winding
   float extent = 0.0f;              // largest world coordinate of the triangle's corners
   glm::vec3 albedo{0.0f};
-  glm::vec3 emission{0.0f};         // radiance emitted toward the ray origin
+  glm::vec3 emission{0.0f};  // radiance emitted toward the ray origin
   int material = 0;
 };
 
@@ -72,8 +72,8 @@ class EmbreeScene {
   const Scene* scene_ = nullptr;
   RTCDevice device_ = nullptr;
   RTCScene rtcScene_ = nullptr;
-  std::vector<RTCGeometry> geometries_;                // per instance
-  std::vector<CutOut> cutOuts_;                        // per instance (unused when opaque)
+  std::vector<RTCGeometry> geometries_;               // per instance
+  std::vector<CutOut> cutOuts_;                       // per instance (unused when opaque)
   std::vector<std::vector<glm::vec3>> worldNormals_;  // per instance, per vertex
   std::vector<glm::mat4> transforms_;
   bool dynamic_ = false;  // any animated instance

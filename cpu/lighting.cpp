@@ -106,8 +106,8 @@ template glm::vec3 directIrradiance<Rng>(const EmbreeScene&, std::span<const gpu
                                          const EmissiveLights&, glm::vec3, glm::vec3, glm::vec3,
                                          Rng&, const DirectLightOptions&);
 template glm::vec3 directIrradiance<RayRng>(const EmbreeScene&, std::span<const gpu::GpuLight>,
-                                            const EmissiveLights&, glm::vec3, glm::vec3,
-                                            glm::vec3, RayRng&, const DirectLightOptions&);
+                                            const EmissiveLights&, glm::vec3, glm::vec3, glm::vec3,
+                                            RayRng&, const DirectLightOptions&);
 
 glm::vec3 sampleCosineHemisphere(glm::vec3 N, float u1, float u2) {
   // Uniform point on the unit disk, lifted onto the hemisphere (Malley's method).

@@ -43,7 +43,8 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLig
 extern template glm::vec3 directIrradiance<Rng>(const EmbreeScene&, std::span<const gpu::GpuLight>,
                                                 const EmissiveLights&, glm::vec3, glm::vec3,
                                                 glm::vec3, Rng&, const DirectLightOptions&);
-extern template glm::vec3 directIrradiance<RayRng>(const EmbreeScene&, std::span<const gpu::GpuLight>,
+extern template glm::vec3 directIrradiance<RayRng>(const EmbreeScene&,
+                                                   std::span<const gpu::GpuLight>,
                                                    const EmissiveLights&, glm::vec3, glm::vec3,
                                                    glm::vec3, RayRng&, const DirectLightOptions&);
 // The same with the shadow rays leaving from P itself (P already off its surface).

@@ -1,15 +1,15 @@
 #include "path_tracer.h"
-#include "render_setup.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <string>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include "camera.h"
+#include "render_setup.h"
 
 namespace pc {
 namespace {
@@ -90,8 +90,8 @@ PathTraceResult pathTrace(const EmbreeScene& scene, const SceneState& state,
   // difference measures its noise.
   const int passSpp[2] = {spp / 2, spp - spp / 2};
 
-  const Tracer tracer{scene, packLights(state), emissive, DirectLightOptions{options.emissiveSamples},
-                      options.maxBounces};
+  const Tracer tracer{scene, packLights(state), emissive,
+                      DirectLightOptions{options.emissiveSamples}, options.maxBounces};
   const PinholeCamera pinhole(camera, width, height);
   Image halves[2] = {Image(width, height), Image(width, height)};
 

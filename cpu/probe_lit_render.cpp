@@ -1,14 +1,14 @@
 #include "probe_lit_render.h"
-#include "render_setup.h"
-
-#include <algorithm>
-#include <cmath>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "camera.h"
 #include "path_tracer.h"
+#include "render_setup.h"
 
 namespace pc {
 namespace {

@@ -28,8 +28,7 @@ using Bytes = std::vector<std::uint8_t>;
 namespace {
 
 double nowSeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 // Publish times of this many recent field versions are kept per client.
@@ -134,9 +133,15 @@ ClientSessionOptions sessionOptions(const LoadGenerator::Impl& gen, int index) {
 class Client {
  public:
   Client(LoadGenerator::Impl& gen, Worker& worker, int index, double firstConnectAt)
-      : gen_(gen), o_(gen.options), worker_(worker), index_(index),
-        session_(sessionOptions(gen, index)), tcp_(worker.io), udp_(worker.io),
-        rng_(gen.options.seed * 7919 + std::uint64_t(index)), nextConnectAt_(firstConnectAt) {
+      : gen_(gen),
+        o_(gen.options),
+        worker_(worker),
+        index_(index),
+        session_(sessionOptions(gen, index)),
+        tcp_(worker.io),
+        udp_(worker.io),
+        rng_(gen.options.seed * 7919 + std::uint64_t(index)),
+        nextConnectAt_(firstConnectAt) {
     std::uniform_real_distribution<double> phase(0.0, 6.283185307179586);
     posePhase_ = phase(rng_);
   }
@@ -199,7 +204,7 @@ class Client {
                 lastStale_ = 0;
   std::deque<std::pair<std::uint64_t, double>> versions_;  // (field version, publish time)
   std::deque<std::pair<std::uint64_t, double>> pending_;   // (version, applied at)
-  std::optional<double> clockOffset_;  // client clock - server clock
+  std::optional<double> clockOffset_;                      // client clock - server clock
 
   std::array<std::uint8_t, 4096> readBuffer_{};
   std::array<std::uint8_t, 2048> udpBuffer_{};
@@ -311,36 +316,37 @@ void Client::shutdown() {
 
 void Client::readStream() {
   const std::uint64_t id = connection_;
-  tcp_.async_read_some(asio::buffer(readBuffer_), [this, id](boost::system::error_code ec,
-                                                             std::size_t n) {
-    if (id != connection_ || worker_.stopping) return;
-    const double now = nowSeconds();
-    if (ec) {
-      return endSession(now, ec == asio::error::eof ? "connection closed by the server"
-                                                    : "read: " + ec.message());
-    }
-    window_.bytesDown += n;
-    Status status = session_.onStreamBytes(std::span(readBuffer_.data(), n), now);
-    afterInput(now);
-    if (!status) return endSession(now, status.error().message);
-    readStream();
-  });
+  tcp_.async_read_some(
+      asio::buffer(readBuffer_), [this, id](boost::system::error_code ec, std::size_t n) {
+        if (id != connection_ || worker_.stopping) return;
+        const double now = nowSeconds();
+        if (ec) {
+          return endSession(now, ec == asio::error::eof ? "connection closed by the server"
+                                                        : "read: " + ec.message());
+        }
+        window_.bytesDown += n;
+        Status status = session_.onStreamBytes(std::span(readBuffer_.data(), n), now);
+        afterInput(now);
+        if (!status) return endSession(now, status.error().message);
+        readStream();
+      });
 }
 
 void Client::receiveUdp() {
   const std::uint64_t id = connection_;
-  udp_.async_receive(asio::buffer(udpBuffer_), [this, id](boost::system::error_code ec,
-                                                          std::size_t n) {
-    if (id != connection_ || worker_.stopping) return;
-    // Errors on a UDP socket are per datagram (an ICMP error, a truncated read): keep going.
-    if (!ec && n <= kMaxDatagramBytes) {
-      const double now = nowSeconds();
-      window_.bytesDown += n;
-      (void)session_.onDatagram(std::span(udpBuffer_.data(), n), now);
-      afterInput(now);
-    }
-    if (id == connection_) receiveUdp();
-  });
+  udp_.async_receive(asio::buffer(udpBuffer_),
+                     [this, id](boost::system::error_code ec, std::size_t n) {
+                       if (id != connection_ || worker_.stopping) return;
+                       // Errors on a UDP socket are per datagram (an ICMP error, a truncated read):
+                       // keep going.
+                       if (!ec && n <= kMaxDatagramBytes) {
+                         const double now = nowSeconds();
+                         window_.bytesDown += n;
+                         (void)session_.onDatagram(std::span(udpBuffer_.data(), n), now);
+                         afterInput(now);
+                       }
+                       if (id == connection_) receiveUdp();
+                     });
 }
 
 void Client::afterInput(double now) {
@@ -499,18 +505,18 @@ void Client::send(Bytes f) {
 void Client::writeNext() {
   writing_ = true;
   const std::uint64_t id = connection_;
-  asio::async_write(tcp_, asio::buffer(writes_.front()), [this, id](boost::system::error_code ec,
-                                                                    std::size_t) {
-    if (id != connection_ || worker_.stopping) return;
-    if (ec) return endSession(nowSeconds(), "write: " + ec.message());
-    queuedBytes_ -= writes_.front().size();
-    writes_.pop_front();
-    if (writes_.empty()) {
-      writing_ = false;
-    } else {
-      writeNext();
-    }
-  });
+  asio::async_write(tcp_, asio::buffer(writes_.front()),
+                    [this, id](boost::system::error_code ec, std::size_t) {
+                      if (id != connection_ || worker_.stopping) return;
+                      if (ec) return endSession(nowSeconds(), "write: " + ec.message());
+                      queuedBytes_ -= writes_.front().size();
+                      writes_.pop_front();
+                      if (writes_.empty()) {
+                        writing_ = false;
+                      } else {
+                        writeNext();
+                      }
+                    });
 }
 
 void Client::beginWindow(double now) {
@@ -549,12 +555,13 @@ ClientReport Client::report(double now, std::vector<float>& latency, std::vector
     r.starvedWhy = "no datagram for " + std::to_string(gap) + " s";
   } else if (window_.maxStaleness > o_.starveSeconds) {
     r.starved = true;
-    r.starvedWhy = "behind the newest field version for " + std::to_string(window_.maxStaleness) + " s";
+    r.starvedWhy =
+        "behind the newest field version for " + std::to_string(window_.maxStaleness) + " s";
   } else if (state_ == State::Session && !synced_ &&
              now - sessionStartedAt_ > o_.starveSeconds + o_.syncLimit) {
     r.starved = true;
-    r.starvedWhy = "not every brick held " + std::to_string(now - sessionStartedAt_) +
-                   " s into the session";
+    r.starvedWhy =
+        "not every brick held " + std::to_string(now - sessionStartedAt_) + " s into the session";
   }
   std::vector<float> own = window_.latencyMs;
   r.latencyMs = percentiles(own);

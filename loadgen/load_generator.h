@@ -44,7 +44,7 @@ struct LoadOptions {
   // The most a SessionInfo may make a client allocate (ClientSessionOptions::maxMirrorBytes):
   // a larger layout ends the session with an error naming both sizes.
   std::uint64_t maxMirrorBytes = std::uint64_t(1) << 30;
-  double posePeriod = 10.0;       // s per loop of the simulated viewer path
+  double posePeriod = 10.0;  // s per loop of the simulated viewer path
   // A client starves when, in the measured window, it received no datagram for longer than
   // this, or stayed behind the newest announced field version for longer than this, or a
   // session of it older than this plus the sync limit never held every brick.
@@ -77,8 +77,8 @@ Percentiles percentiles(std::vector<float>& samples);
 
 struct ClientReport {
   int index = 0;
-  std::uint64_t sessions = 0;       // started in the window
-  double sessionSeconds = 0;        // in a session during the window
+  std::uint64_t sessions = 0;  // started in the window
+  double sessionSeconds = 0;   // in a session during the window
   std::uint64_t bytesDown = 0, bytesUp = 0;
   double kbitDown = 0, kbitUp = 0;  // per second of the window
   std::uint64_t datagrams = 0, bricksApplied = 0, repairBricks = 0, staleUpdates = 0;
@@ -97,17 +97,17 @@ struct LoadReport {
   double seconds = 0;  // of the measured window
   int clients = 0;
   std::uint64_t sessionsStarted = 0, sessionsEnded = 0;
-  Percentiles latencyMs;    // every brick update applied in the window (publish -> apply)
-  Percentiles stalenessMs;  // per-client samples every 100 ms (0 while up to date)
+  Percentiles latencyMs;      // every brick update applied in the window (publish -> apply)
+  Percentiles stalenessMs;    // per-client samples every 100 ms (0 while up to date)
   Percentiles kbitPerClient;  // down, over clients
   std::uint64_t unmatchedUpdates = 0;  // applied versions whose publish time never arrived
   std::uint64_t bricksApplied = 0, repairBricks = 0, datagrams = 0, errors = 0;
   std::uint64_t gapReports = 0;
   int starvedClients = 0;
   std::uint64_t decodedPayloads = 0, sharedDecodes = 0, contentMismatches = 0;
-  double residentMb = 0;        // this process, at the report
-  double decodedFieldMb = 0;    // one decoded field of the server's layout (keepField's cost)
-  double brickCodesMb = 0;      // one client's brick codes if not shared
+  double residentMb = 0;      // this process, at the report
+  double decodedFieldMb = 0;  // one decoded field of the server's layout (keepField's cost)
+  double brickCodesMb = 0;    // one client's brick codes if not shared
   std::vector<std::string> errorSamples;  // a few distinct error messages
   std::vector<ClientReport> perClient;
 };

@@ -105,14 +105,16 @@ std::string reportTable(const LoadReport& r) {
   for (const std::string& e : r.errorSamples) s += "  error: " + e + "\n";
   int shown = 0;
   for (const ClientReport& c : r.perClient) {
-    if (c.starved && shown++ < 5) s += format("  client %d starved: %s\n", c.index, c.starvedWhy.c_str());
+    if (c.starved && shown++ < 5)
+      s += format("  client %d starved: %s\n", c.index, c.starvedWhy.c_str());
   }
   s += format("decoding: %llu payloads decoded, %llu shared, %llu content mismatches\n",
               (unsigned long long)r.decodedPayloads, (unsigned long long)r.sharedDecodes,
               (unsigned long long)r.contentMismatches);
-  s += format("memory: loadgen resident %.1f MB (%.2f MB per client); a decoded field would be "
-              "%.2f MB per client, unshared brick codes %.2f MB\n",
-              r.residentMb, r.residentMb / std::max(1, r.clients), r.decodedFieldMb, r.brickCodesMb);
+  s += format(
+      "memory: loadgen resident %.1f MB (%.2f MB per client); a decoded field would be "
+      "%.2f MB per client, unshared brick codes %.2f MB\n",
+      r.residentMb, r.residentMb / std::max(1, r.clients), r.decodedFieldMb, r.brickCodesMb);
   return s;
 }
 

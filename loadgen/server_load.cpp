@@ -21,8 +21,7 @@ namespace pc::load {
 namespace {
 
 double nowSeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 void sleepSeconds(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
@@ -115,8 +114,8 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   const std::string token = options.load.token.empty() ? "loadgen" : options.load.token;
   auto metricsPort = freeLocalPort();
   if (!metricsPort) return metricsPort.error();
-  sp.args = {"--scene", "builtin", "--bind", "127.0.0.1", "--port", "0", "--token", token,
-             "--metrics-port", std::to_string(*metricsPort)};
+  sp.args = {"--scene", "builtin", "--bind", "127.0.0.1",      "--port",
+             "0",       "--token", token,    "--metrics-port", std::to_string(*metricsPort)};
   sp.args.insert(sp.args.end(), options.serverArgs.begin(), options.serverArgs.end());
   auto server = ServerProcess::start(sp);
   if (!server) return server.error();
@@ -215,8 +214,7 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   result.fdsEnd = end->openFds;
   result.serverCpuMsPerS = (end->cpuSeconds - warm->cpuSeconds) * 1e3 / window;
   result.netCpuMsPerS = (end->threadCpu("pc-net") - warm->threadCpu("pc-net")) * 1e3 / window;
-  result.fieldCpuMsPerS =
-      (end->threadCpu("pc-field") - warm->threadCpu("pc-field")) * 1e3 / window;
+  result.fieldCpuMsPerS = (end->threadCpu("pc-field") - warm->threadCpu("pc-field")) * 1e3 / window;
   result.cpuMsPerClientS = result.netCpuMsPerS / double(lo.clients);
   result.processCpuMsPerClientS =
       (result.serverCpuMsPerS - result.serverIdleCpuMsPerS) / double(lo.clients);

@@ -13,7 +13,7 @@
 namespace pc::load {
 
 struct ServerLoadOptions {
-  std::string serverExecutable;        // probecast-server
+  std::string serverExecutable;         // probecast-server
   std::vector<std::string> serverArgs;  // besides --scene builtin, --bind, --port, --token
   std::string serverLog = "/dev/null";
   LoadOptions load;            // host, port and token are filled in
@@ -29,8 +29,8 @@ struct ServerLoadOptions {
 
 struct ServerLoadResult {
   LoadReport report;
-  bool allSynced = false;    // every client held every brick before the window
-  double joinSeconds = 0;    // from start to all synced
+  bool allSynced = false;          // every client held every brick before the window
+  double joinSeconds = 0;          // from start to all synced
   double serverIdleCpuMsPerS = 0;  // whole process, no clients (field thread, tracer workers)
   double netIdleCpuMsPerS = 0;     // the network thread ("pc-net"), no clients
   double serverCpuMsPerS = 0;      // whole process, during the window
@@ -39,13 +39,14 @@ struct ServerLoadResult {
   double fieldUpdatesPerS = 0;     // field versions published during the window (clients saw)
   // Network thread in the window / clients: what serving one client costs the server per
   // second. The idle figure is not subtracted: /proc counts thread CPU in 10 ms ticks, so a
-  // short idle measurement of a nearly idle thread is mostly rounding (it is printed instead). The network thread does all per-client work (sender polls,
-  // sends, session messages); the field thread's work does not depend on the client count
-  // and its CPU varies with what the two shared cores give it, so it is left out.
+  // short idle measurement of a nearly idle thread is mostly rounding (it is printed instead). The
+  // network thread does all per-client work (sender polls, sends, session messages); the field
+  // thread's work does not depend on the client count and its CPU varies with what the two shared
+  // cores give it, so it is left out.
   double cpuMsPerClientS = 0;
   // (whole process in the window - whole process idle) / clients: includes that variation.
   double processCpuMsPerClientS = 0;
-  double loadgenCpuMsPerS = 0;  // this process during the window
+  double loadgenCpuMsPerS = 0;         // this process during the window
   double rssWarmMb = 0, rssEndMb = 0;  // server, after the warm-up and at the window's end
   int fdsWarm = 0, fdsEnd = 0;
   // The server's own memory gauges at the window's end (its /metrics), MB: encoded updates,
@@ -54,7 +55,7 @@ struct ServerLoadResult {
   double encodeCacheMb = -1, encodeCacheBoundMb = -1, historyMb = -1, historyBoundMb = -1;
   double currentBricksMb = -1, changeCacheMb = -1;
   std::string metricsError;  // why they could not be read
-  std::string serverExit;  // empty when it exited cleanly on SIGTERM
+  std::string serverExit;    // empty when it exited cleanly on SIGTERM
 };
 
 // `progress` gets a line now and then (may be null).

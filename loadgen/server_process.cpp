@@ -7,10 +7,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
-#include <algorithm>
 #include <filesystem>
 #include <thread>
 
@@ -21,8 +21,7 @@ namespace pc::load {
 namespace {
 
 double nowSeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 }  // namespace
@@ -48,8 +47,8 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerProcessO
   for (std::string& a : argv) cargv.push_back(a.data());
   cargv.push_back(nullptr);
   pid_t pid = -1;
-  const int rc = posix_spawn(&pid, options.executable.c_str(), &actions, nullptr, cargv.data(),
-                             environ);
+  const int rc =
+      posix_spawn(&pid, options.executable.c_str(), &actions, nullptr, cargv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   close(pipeFds[1]);
   if (rc != 0) {
@@ -81,8 +80,8 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerProcessO
       const ssize_t n = read(server->stdout_, buf, sizeof buf);
       if (n > 0) out.append(buf, std::size_t(n));
       if (n == 0) {
-        return Error{options.executable + " exited before it was ready (log: " +
-                     options.logPath + ")"};
+        return Error{options.executable + " exited before it was ready (log: " + options.logPath +
+                     ")"};
       }
     }
   }

@@ -19,7 +19,7 @@ struct ServerProcessOptions {
   std::string executable;         // path of probecast-server
   std::vector<std::string> args;  // should include --port 0 and --token
   std::string logPath = "/dev/null";
-  double readyTimeout = 120.0;    // s for the warm-up bake and the listener
+  double readyTimeout = 120.0;  // s for the warm-up bake and the listener
 };
 
 class ServerProcess {

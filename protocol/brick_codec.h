@@ -40,7 +40,7 @@ inline constexpr std::size_t kCodes = kState + kSlots;
 // few times 1/256 anyway, and each further bit costs about one bit per changed code on the
 // wire (docs/BENCHMARKS.md, streaming bandwidth).
 inline constexpr int kIrradianceMantissaBits = 7;
-inline constexpr float kIrradianceRelativeBound = 1.0f / 256.0f;   // |e' - e| <= this * e
+inline constexpr float kIrradianceRelativeBound = 1.0f / 256.0f;    // |e' - e| <= this * e
 inline constexpr float kIrradianceAbsoluteBound = 1.0f / 32768.0f;  // for e < 2^-15
 // Depth mean and standard deviation: 16 bits over [0, maxRayDistance].
 inline constexpr float kDepthBound = 1.0f / 131070.0f;  // x maxRayDistance
@@ -73,10 +73,10 @@ struct BrickChange {
   // Mean |delta e| over all the brick's irradiance codes, unchanged ones included: ray noise
   // moves a few texels a lot, a moving light moves many texels together.
   float irradianceMean = 0;
-  float depth = 0;       // max |delta mean| / maxRayDistance
-  float occlusion = 0;   // max |delta|
-  float offset = 0;      // max |delta| of a relocation offset component / spacing
-  bool states = false;   // a probe state changed
+  float depth = 0;      // max |delta mean| / maxRayDistance
+  float occlusion = 0;  // max |delta|
+  float offset = 0;     // max |delta| of a relocation offset component / spacing
+  bool states = false;  // a probe state changed
 };
 BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b);
 

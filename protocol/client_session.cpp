@@ -172,10 +172,10 @@ Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
   const std::uint64_t needed = mirrorMemoryBytes(info);
   if (needed > options_.maxMirrorBytes) {
     const auto mib = [](std::uint64_t b) { return std::to_string((b + (1u << 20) - 1) >> 20); };
-    return fail("session info: the server's field layout (" +
-                std::to_string(info.cascades.size()) + " cascades) needs about " + mib(needed) +
-                " MiB of mirror memory, over this client's cap of " +
-                mib(options_.maxMirrorBytes) + " MiB (maxMirrorBytes)");
+    return fail("session info: the server's field layout (" + std::to_string(info.cascades.size()) +
+                " cascades) needs about " + mib(needed) +
+                " MiB of mirror memory, over this client's cap of " + mib(options_.maxMirrorBytes) +
+                " MiB (maxMirrorBytes)");
   }
   auto created = StreamReceiver::create(info, sessionId_, options_.receiver);
   if (!created) return fail(created.error().message);  // mirrorField names "session info"

@@ -19,7 +19,8 @@ Result<std::size_t> frameSize(std::span<const std::uint8_t> prefix, std::size_t 
     return Error{"frame of " + std::to_string(total) + " bytes exceeds the limit of " +
                  std::to_string(maxBytes)};
   }
-  if (total < kMinFrameBytes) return Error{"frame of " + std::to_string(total) + " bytes is too short"};
+  if (total < kMinFrameBytes)
+    return Error{"frame of " + std::to_string(total) + " bytes is too short"};
   return total;
 }
 

@@ -253,17 +253,39 @@ bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version
 void StreamSender::count(Reason reason) {
   SenderStats::Reasons& r = stats_.reasons;
   switch (reason) {
-    case Reason::First: ++r.first; break;
-    case Reason::Irradiance: ++r.irradiance; break;
-    case Reason::IrradianceMean: ++r.irradianceMean; break;
-    case Reason::Depth: ++r.depth; break;
-    case Reason::Occlusion: ++r.occlusion; break;
-    case Reason::Offset: ++r.offset; break;
-    case Reason::State: ++r.state; break;
-    case Reason::Settled: ++r.settled; break;
-    case Reason::Refresh: ++r.refresh; break;
-    case Reason::Repair: ++r.repair; break;
-    case Reason::Timeout: ++r.timeout; break;
+    case Reason::First:
+      ++r.first;
+      break;
+    case Reason::Irradiance:
+      ++r.irradiance;
+      break;
+    case Reason::IrradianceMean:
+      ++r.irradianceMean;
+      break;
+    case Reason::Depth:
+      ++r.depth;
+      break;
+    case Reason::Occlusion:
+      ++r.occlusion;
+      break;
+    case Reason::Offset:
+      ++r.offset;
+      break;
+    case Reason::State:
+      ++r.state;
+      break;
+    case Reason::Settled:
+      ++r.settled;
+      break;
+    case Reason::Refresh:
+      ++r.refresh;
+      break;
+    case Reason::Repair:
+      ++r.repair;
+      break;
+    case Reason::Timeout:
+      ++r.timeout;
+      break;
   }
 }
 

@@ -47,12 +47,12 @@
 namespace pc {
 
 struct SenderOptions {
-  double bytesPerSecond = 4e6;         // rate limit (token bucket), datagram bytes
-  double burstBytes = 256 * 1024;      // bucket size
-  double minResendTimeout = 0.05;      // s; the timeout is max(this, 2 x smoothed round trip)
-  double initialRtt = 0.1;             // s, until acks give samples
-  double settleTime = 0.2;             // s: a version this old is sent even below the thresholds
-  double refreshInterval = 1.0;        // s: an unacknowledged brick is sent at least this often
+  double bytesPerSecond = 4e6;     // rate limit (token bucket), datagram bytes
+  double burstBytes = 256 * 1024;  // bucket size
+  double minResendTimeout = 0.05;  // s; the timeout is max(this, 2 x smoothed round trip)
+  double initialRtt = 0.1;         // s, until acks give samples
+  double settleTime = 0.2;         // s: a version this old is sent even below the thresholds
+  double refreshInterval = 1.0;    // s: an unacknowledged brick is sent at least this often
   // s: a brick is sent self-contained at least this often even while the client acknowledges
   // versions that residuals could build on. Residuals on an acknowledged version are always
   // safe (the client applies them only on that exact version and asks for repair otherwise),
@@ -65,7 +65,7 @@ struct SenderOptions {
   // the brick's irradiance is below this. Set irradianceThreshold well above it: with ray
   // noise some texel always moves past a small maximum, while a moving light moves the mean.
   float irradianceMeanThreshold = 0.0f;
-  float depthThreshold = 0.005f;       // max |delta mean depth| / maxRayDistance
+  float depthThreshold = 0.005f;  // max |delta mean depth| / maxRayDistance
   float occlusionThreshold = 0.02f;
   // max |delta| of a relocation offset component, x the spacing. Relocation jitters with ray
   // noise by a few percent of the spacing, which moves the sampled light very little; a probe
@@ -86,12 +86,12 @@ struct SenderStats {
   std::uint64_t datagrams = 0, bytes = 0;
   std::uint64_t updates = 0, residualUpdates = 0, resends = 0, fragments = 0;
   std::uint64_t repairedFragments = 0;  // fragments sent again on a client's report of gaps
-  std::uint64_t skipped = 0;  // brick-polls held back by the perceptual thresholds
+  std::uint64_t skipped = 0;            // brick-polls held back by the perceptual thresholds
   // Why each update was sent (they add up to `updates`): the client held nothing of the brick
   // (or the sender knew of nothing it held); the change passed a threshold (by quantity:
-  // irradiance maximum, irradiance mean, depth, occlusion, relocation offset, probe state); the version was
-  // older than the settle time; the brick had not been sent for the refresh interval; the
-  // client asked for a repair; or the version was sent before and not acknowledged in time.
+  // irradiance maximum, irradiance mean, depth, occlusion, relocation offset, probe state); the
+  // version was older than the settle time; the brick had not been sent for the refresh interval;
+  // the client asked for a repair; or the version was sent before and not acknowledged in time.
   struct Reasons {
     std::uint64_t first = 0, irradiance = 0, irradianceMean = 0, depth = 0, occlusion = 0,
                   offset = 0, state = 0, settled = 0, refresh = 0, repair = 0, timeout = 0;
@@ -169,12 +169,21 @@ class StreamSender {
 
  private:
   enum class Reason : std::uint8_t {
-    First, Irradiance, IrradianceMean, Depth, Occlusion, Offset, State, Settled, Refresh,
-    Repair, Timeout
+    First,
+    Irradiance,
+    IrradianceMean,
+    Depth,
+    Occlusion,
+    Offset,
+    State,
+    Settled,
+    Refresh,
+    Repair,
+    Timeout
   };
   struct Track {
-    std::uint64_t acked = 0;  // what the client holds, from acks and repair requests
-    std::uint64_t sent = 0;   // newest version sent
+    std::uint64_t acked = 0;      // what the client holds, from acks and repair requests
+    std::uint64_t sent = 0;       // newest version sent
     std::uint32_t sentBytes = 0;  // its payload
     double sentAt = -1e30;
     bool resent = false;  // sent more than once: no round-trip sample (Karn)

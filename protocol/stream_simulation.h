@@ -1,8 +1,8 @@
 // A whole stream in memory: a server field that changes, a FieldPublisher and StreamSender on
 // one side, a ClientSession (with its StreamReceiver) on the other, datagrams over a FaultLink
-// and session messages over a ReliableLink. Runs a calm warm-up, a fault phase, then calm again until the receiver holds
-// every brick's current version; reports how long that took and the peak sizes of every queue
-// and buffer. Used by the protocol tests and `probecast-bench faults`.
+// and session messages over a ReliableLink. Runs a calm warm-up, a fault phase, then calm again
+// until the receiver holds every brick's current version; reports how long that took and the peak
+// sizes of every queue and buffer. Used by the protocol tests and `probecast-bench faults`.
 #pragma once
 
 #include <cstddef>
@@ -39,7 +39,7 @@ struct StreamSimulationOptions {
 
 struct StreamSimulationResult {
   bool converged = false;
-  double convergeSeconds = 0;  // after the faults stopped
+  double convergeSeconds = 0;    // after the faults stopped
   double heldEverySeconds = -1;  // when the receiver first held a version of every brick
   SenderStats sender;
   ReceiverStats receiver;

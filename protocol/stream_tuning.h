@@ -10,8 +10,8 @@
 namespace pc {
 
 struct StreamTuning {
-  float threshold = 0.008f;       // T; 0: every version exactly (no dead zone, no skipping)
-  float depthTolerance = 0.25f;   // dead zone of depth, x the texel's mean distance
+  float threshold = 0.008f;      // T; 0: every version exactly (no dead zone, no skipping)
+  float depthTolerance = 0.25f;  // dead zone of depth, x the texel's mean distance
   float occlusionTolerance = 0.02f;
 };
 

@@ -13,7 +13,8 @@ Result<BakeStats> bakeField(Field& field, Tracer& tracer, const BakeOptions& opt
   BakeStats stats;
   const auto t0 = std::chrono::steady_clock::now();
   const float hysteresis = field.settings.hysteresis;
-  const int converge = std::clamp(int(options.updates * options.convergeFraction), 0, options.updates);
+  const int converge =
+      std::clamp(int(options.updates * options.convergeFraction), 0, options.updates);
   UpdateRequest request;
   request.probes = allProbes(field);
   request.shading = options.shading;
@@ -40,7 +41,8 @@ Result<BakeStats> bakeField(Field& field, Tracer& tracer, const BakeOptions& opt
     }
   }
   field.settings.hysteresis = hysteresis;
-  stats.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  stats.ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return stats;
 }
 

@@ -13,9 +13,9 @@ namespace pc {
 
 struct BakeOptions {
   int updates = 96;
-  float convergeFraction = 0.5f;   // share of updates in the short-hysteresis phase
+  float convergeFraction = 0.5f;  // share of updates in the short-hysteresis phase
   float convergeHysteresis = 0.5f;
-  std::uint32_t seed = 1;          // rotation seeds are seed * updates + i
+  std::uint32_t seed = 1;  // rotation seeds are seed * updates + i
   int shading = kShadeDefault;
   // Called after each update; false stops the bake there (BakeStats::stopped).
   std::function<bool(int done, int total)> progress;

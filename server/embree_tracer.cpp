@@ -40,7 +40,8 @@ std::uint32_t spatialKey(const Field& field, glm::vec3 p) {
     v = (v | (v << 2)) & 0x09249249u;
     return v;
   };
-  return spread(std::uint32_t(q.x)) | spread(std::uint32_t(q.y)) << 1 | spread(std::uint32_t(q.z)) << 2;
+  return spread(std::uint32_t(q.x)) | spread(std::uint32_t(q.y)) << 1 |
+         spread(std::uint32_t(q.z)) << 2;
 }
 
 // Sorts by the upper 32 bits (LSD radix, 8 bits a pass, stable): linear time where the hit
@@ -165,17 +166,20 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
     std::vector<std::uint64_t> order;
     order.reserve(deferred.size());
     for (std::size_t r = 0; r < deferred.size(); ++r)
-      if (deferred[r].key != DeferredHit::kNone) order.push_back(std::uint64_t(deferred[r].key) << 32 | r);
+      if (deferred[r].key != DeferredHit::kNone)
+        order.push_back(std::uint64_t(deferred[r].key) << 32 | r);
     radixSortByHighWord(order);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, order.size(), 256), [&](const auto& range) {
-      for (std::size_t j = range.begin(); j != range.end(); ++j) {
-        const std::size_t r = std::size_t(order[j] & 0xFFFFFFFFu);
-        const DeferredHit& h = deferred[r];
-        const glm::vec3 V = -dirs[r % std::size_t(rayCount)];
-        results[r].radiance +=
-            h.reflectance * glm::vec3(sampleField(field, h.position, h.normal, V, gpu::PC_SAMPLE_NO_OCCLUSION));
-      }
-    });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, order.size(), 256), [&](const auto& range) {
+          for (std::size_t j = range.begin(); j != range.end(); ++j) {
+            const std::size_t r = std::size_t(order[j] & 0xFFFFFFFFu);
+            const DeferredHit& h = deferred[r];
+            const glm::vec3 V = -dirs[r % std::size_t(rayCount)];
+            results[r].radiance +=
+                h.reflectance *
+                glm::vec3(sampleField(field, h.position, h.normal, V, gpu::PC_SAMPLE_NO_OCCLUSION));
+          }
+        });
   }
   stats.traceMs = msSince(t0);
   stats.probeRays = std::uint64_t(probeCount) * rayCount;

@@ -13,7 +13,8 @@ namespace pc {
 
 class EmbreeTracer final : public Tracer {
  public:
-  static Result<std::unique_ptr<EmbreeTracer>> create(const Scene& scene, const TracerOptions& options);
+  static Result<std::unique_ptr<EmbreeTracer>> create(const Scene& scene,
+                                                      const TracerOptions& options);
   std::string name() const override { return "embree"; }
   // Neither fails: the scene and its buffers were made by create.
   Status setState(const SceneState& state) override;
@@ -26,12 +27,13 @@ class EmbreeTracer final : public Tracer {
   const EmbreeScene& embree() const { return *embree_; }
 
  private:
-  EmbreeTracer(const Scene& scene, std::unique_ptr<EmbreeScene> embree, const TracerOptions& options);
+  EmbreeTracer(const Scene& scene, std::unique_ptr<EmbreeScene> embree,
+               const TracerOptions& options);
   const Scene& scene_;
   std::unique_ptr<EmbreeScene> embree_;
   TracerOptions options_;
   std::vector<gpu::GpuLight> lights_;  // the state's lights, packed once per state
-  EmissiveSurfaces surfaces_;  // found once: setState only places them
+  EmissiveSurfaces surfaces_;          // found once: setState only places them
   EmissiveLights emissive_;
 };
 

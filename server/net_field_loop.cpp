@@ -104,8 +104,7 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
 }
 
 void appendFieldLoopMetrics(MetricsText& m, const FieldLoopStats& s) {
-  m.counter("probecast_field_ticks_total", "Field thread ticks (each publishes).",
-            double(s.ticks));
+  m.counter("probecast_field_ticks_total", "Field thread ticks (each publishes).", double(s.ticks));
   m.counter("probecast_field_updates_total", "Field updates traced.", double(s.updates));
   m.counter("probecast_field_tracer_failures_total",
             "Tracer failures (a GPU lost or out of memory); each moves updates to the fallback.",

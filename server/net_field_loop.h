@@ -22,9 +22,9 @@
 namespace pc {
 
 struct FieldLoopOptions {
-  double rate = 30.0;       // ticks per second
-  double startTime = 0.0;   // animation time of the first tick
-  double freezeAt = -1.0;   // animation time where the clock and the field stop (< 0: never)
+  double rate = 30.0;      // ticks per second
+  double startTime = 0.0;  // animation time of the first tick
+  double freezeAt = -1.0;  // animation time where the clock and the field stop (< 0: never)
   std::filesystem::path dumpField;  // at the freeze, the exact field is written here
   SchedulerOptions scheduler;
   float changeThreshold = 0.0f;

@@ -6,12 +6,11 @@
 
 #include <chrono>
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "common/field.h"
 #include "common/result.h"
@@ -22,8 +21,7 @@ namespace pc {
 
 // The server's clock: seconds on a monotonic clock. Publishing and every sender use it.
 inline double steadySeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 class FieldHub {

@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-
 #include <glm/gtc/packing.hpp>
+#include <limits>
 
 #include "../shaders/interop/probe_update.h"
 
@@ -107,8 +106,8 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
   const int oldState = record.state;
   const glm::vec3 oldOffset = record.offset;
   const bool inside = pcProbeInside(backfaceFraction, oldState);
-  record.offset = pcRelocate(record.offset, inside, closestBack, closestBackDir,
-                             closestFront, closestFrontDir, 0.2f * c.spacing, 0.45f * c.spacing);
+  record.offset = pcRelocate(record.offset, inside, closestBack, closestBackDir, closestFront,
+                             closestFrontDir, 0.2f * c.spacing, 0.45f * c.spacing);
   const bool moved = glm::length(record.offset - oldOffset) > 0.01f * c.spacing;
 
   if (inside) {
@@ -126,9 +125,9 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
   const bool hasHistory = record.updates > 0 && !moved;
   // Running mean for the first updates, exponential (hysteresis) after: converges in few
   // updates from nothing, yet keeps the temporal filtering of DDGI.
-  const float alpha =
-      hasHistory ? std::min(field.settings.hysteresis, float(record.updates) / float(record.updates + 1))
-                 : 0.0f;
+  const float alpha = hasHistory ? std::min(field.settings.hysteresis,
+                                            float(record.updates) / float(record.updates + 1))
+                                 : 0.0f;
   record.updates = hasHistory ? record.updates + 1 : 1;
 
   float maxChange = (oldState != record.state || moved) ? inf : 0.0f;

@@ -25,7 +25,8 @@ std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tic
       if (r.state == gpu::PC_PROBE_SLEEPING) period = options_.sleepingPeriod;
       if (r.state == gpu::PC_PROBE_INSIDE) period = options_.insidePeriod;
       // Stagger periodic probes by slot so each tick takes an even share.
-      const bool due = never || period <= 1 || (tick + std::uint64_t(s)) % std::uint64_t(period) == 0;
+      const bool due =
+          never || period <= 1 || (tick + std::uint64_t(s)) % std::uint64_t(period) == 0;
       if (!due) continue;
       float staleness = never ? 1e6f : float(tick - last);
       float distance = 0.0f;
@@ -38,15 +39,17 @@ std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tic
     }
   }
   if (options_.budget > 0 && int(candidates.size()) > options_.budget) {
-    std::nth_element(candidates.begin(), candidates.begin() + options_.budget, candidates.end(),
-                     [](const Candidate& a, const Candidate& b) { return a.priority > b.priority; });
+    std::nth_element(
+        candidates.begin(), candidates.begin() + options_.budget, candidates.end(),
+        [](const Candidate& a, const Candidate& b) { return a.priority > b.priority; });
     candidates.resize(options_.budget);
   }
   std::vector<ProbeRef> plan;
   plan.reserve(candidates.size());
   for (const Candidate& c : candidates) {
     plan.push_back(c.ref);
-    lastUpdate_[std::size_t(field.cascade(c.ref.cascade).firstProbe) + c.ref.slot] = std::max<std::uint64_t>(tick, 1);
+    lastUpdate_[std::size_t(field.cascade(c.ref.cascade).firstProbe) + c.ref.slot] =
+        std::max<std::uint64_t>(tick, 1);
   }
   // Probes sorted by cascade and slot trace with better memory locality.
   std::sort(plan.begin(), plan.end(), [](ProbeRef a, ProbeRef b) {

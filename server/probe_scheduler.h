@@ -4,18 +4,17 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/glm.hpp>
+#include <vector>
 
 #include "tracer.h"
 
 namespace pc {
 
 struct SchedulerOptions {
-  int sleepingPeriod = 8;   // ticks between updates of a sleeping probe
-  int insidePeriod = 16;    // ticks between retries of a probe inside geometry
-  int budget = 0;           // most probes per tick; 0: no limit
+  int sleepingPeriod = 8;  // ticks between updates of a sleeping probe
+  int insidePeriod = 16;   // ticks between retries of a probe inside geometry
+  int budget = 0;          // most probes per tick; 0: no limit
 };
 
 class ProbeScheduler {

@@ -76,7 +76,8 @@ struct TracerOptions {
   float shadowRouletteShare = 0.25f;
 };
 
-Result<std::unique_ptr<Tracer>> makeEmbreeTracer(const Scene& scene, const TracerOptions& options = {});
+Result<std::unique_ptr<Tracer>> makeEmbreeTracer(const Scene& scene,
+                                                 const TracerOptions& options = {});
 
 struct VulkanTracerOptions;
 

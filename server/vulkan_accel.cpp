@@ -14,10 +14,12 @@ VkDeviceAddress alignUp(VkDeviceAddress v, VkDeviceAddress a) { return (v + a - 
 // the buffer is over-allocated so the aligned address stays inside it.
 constexpr VkDeviceSize kScratchAlignment = 256;
 
-Result<vk::Buffer> scratchBuffer(const vk::Context& ctx, VkDeviceSize size, VkDeviceAddress* aligned) {
-  auto b = vk::Buffer::create(ctx, size + kScratchAlignment,
-                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
-                              vk::MemoryUsage::DeviceLocal);
+Result<vk::Buffer> scratchBuffer(const vk::Context& ctx, VkDeviceSize size,
+                                 VkDeviceAddress* aligned) {
+  auto b = vk::Buffer::create(
+      ctx, size + kScratchAlignment,
+      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
+      vk::MemoryUsage::DeviceLocal);
   if (b) *aligned = alignUp(b->address(), kScratchAlignment);
   return b;
 }
@@ -41,7 +43,8 @@ Result<AccelerationStructure> AccelerationStructure::create(const vk::Context& c
   ci.size = size;
   ci.type = type;
   PC_VK_TRY(ctx.rt().createAccelerationStructure(ctx.device(), &ci, nullptr, &as.handle_));
-  VkAccelerationStructureDeviceAddressInfoKHR ai{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_DEVICE_ADDRESS_INFO_KHR};
+  VkAccelerationStructureDeviceAddressInfoKHR ai{
+      VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_DEVICE_ADDRESS_INFO_KHR};
   ai.accelerationStructure = as.handle_;
   as.address_ = ctx.rt().getAccelerationStructureDeviceAddress(ctx.device(), &ai);
   return as;
@@ -54,7 +57,9 @@ void AccelerationStructure::release() {
   handle_ = VK_NULL_HANDLE;
 }
 
-AccelerationStructure::AccelerationStructure(AccelerationStructure&& o) noexcept { *this = std::move(o); }
+AccelerationStructure::AccelerationStructure(AccelerationStructure&& o) noexcept {
+  *this = std::move(o);
+}
 
 AccelerationStructure& AccelerationStructure::operator=(AccelerationStructure&& o) noexcept {
   if (this == &o) return *this;
@@ -77,8 +82,9 @@ struct BottomLevelJob {
 
 // Builds `jobs` in one submission, then compacts them (a second submission): compaction
 // typically halves a structure built for fast tracing, and a smaller structure caches better.
-Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices, std::uint32_t vertexStride,
-                         const vk::Buffer& indices, std::vector<BottomLevelJob>& jobs) {
+Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices,
+                         std::uint32_t vertexStride, const vk::Buffer& indices,
+                         std::vector<BottomLevelJob>& jobs) {
   if (jobs.empty()) return Status::success();
   std::vector<std::vector<VkAccelerationStructureGeometryKHR>> geometries(jobs.size());
   std::vector<std::vector<VkAccelerationStructureBuildRangeInfoKHR>> ranges(jobs.size());
@@ -95,7 +101,8 @@ Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices, std
       auto& t = g.geometry.triangles;
       t = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_TRIANGLES_DATA_KHR};
       t.vertexFormat = VK_FORMAT_R32G32B32_SFLOAT;
-      t.vertexData.deviceAddress = vertices.address() + VkDeviceAddress(r.firstVertex) * vertexStride;
+      t.vertexData.deviceAddress =
+          vertices.address() + VkDeviceAddress(r.firstVertex) * vertexStride;
       t.vertexStride = vertexStride;
       t.maxVertex = r.vertexCount > 0 ? r.vertexCount - 1 : 0;
       t.indexType = VK_INDEX_TYPE_UINT32;
@@ -104,15 +111,18 @@ Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices, std
       ranges[j].push_back({r.triangleCount, 0, 0, 0});
       counts.push_back(r.triangleCount);
     }
-    VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+    VkAccelerationStructureBuildGeometryInfoKHR info{
+        VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
     info.type = VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR;
     info.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR |
                  VK_BUILD_ACCELERATION_STRUCTURE_ALLOW_COMPACTION_BIT_KHR;
     info.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
     info.geometryCount = std::uint32_t(geometries[j].size());
     info.pGeometries = geometries[j].data();
-    VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
-    ctx.rt().getAccelerationStructureBuildSizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR,
+    VkAccelerationStructureBuildSizesInfoKHR sizes{
+        VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
+    ctx.rt().getAccelerationStructureBuildSizes(ctx.device(),
+                                                VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR,
                                                 &info, counts.data(), &sizes);
     auto as = AccelerationStructure::create(ctx, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
                                             sizes.accelerationStructureSize);
@@ -152,7 +162,8 @@ Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices, std
   std::vector<VkAccelerationStructureKHR> handles;
   for (const auto& as : built) handles.push_back(as.get());
   Status st = ctx.submitAndWait([&](VkCommandBuffer cmd) {
-    ctx.rt().cmdBuildAccelerationStructures(cmd, std::uint32_t(builds.size()), builds.data(), rangePtrs.data());
+    ctx.rt().cmdBuildAccelerationStructures(cmd, std::uint32_t(builds.size()), builds.data(),
+                                            rangePtrs.data());
     if (!pool) return;
     vkCmdResetQueryPool(cmd, pool, 0, std::uint32_t(handles.size()));
     vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
@@ -165,22 +176,24 @@ Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices, std
   if (!st) return st.error();
   std::vector<VkDeviceSize> compacted(jobs.size(), 0);
   if (pool) {
-    PC_VK_TRY(vkGetQueryPoolResults(ctx.device(), pool, 0, std::uint32_t(jobs.size()),
-                                    compacted.size() * sizeof(VkDeviceSize), compacted.data(), sizeof(VkDeviceSize),
-                                    VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+    PC_VK_TRY(vkGetQueryPoolResults(
+        ctx.device(), pool, 0, std::uint32_t(jobs.size()), compacted.size() * sizeof(VkDeviceSize),
+        compacted.data(), sizeof(VkDeviceSize), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
   }
   // Structures that report no size (or no gain) stay as built.
   std::vector<std::pair<std::size_t, AccelerationStructure>> copies;
   for (std::size_t j = 0; j < jobs.size(); ++j) {
     if (compacted[j] == 0 || compacted[j] >= built[j].size()) continue;
-    auto as = AccelerationStructure::create(ctx, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR, compacted[j]);
+    auto as = AccelerationStructure::create(ctx, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
+                                            compacted[j]);
     if (!as) return as.error();
     copies.emplace_back(j, std::move(as).value());
   }
   if (!copies.empty()) {
     st = ctx.submitAndWait([&](VkCommandBuffer cmd) {
       for (const auto& [j, as] : copies) {
-        VkCopyAccelerationStructureInfoKHR ci{VK_STRUCTURE_TYPE_COPY_ACCELERATION_STRUCTURE_INFO_KHR};
+        VkCopyAccelerationStructureInfoKHR ci{
+            VK_STRUCTURE_TYPE_COPY_ACCELERATION_STRUCTURE_INFO_KHR};
         ci.src = built[j].get();
         ci.dst = as.get();
         ci.mode = VK_COPY_ACCELERATION_STRUCTURE_MODE_COMPACT_KHR;
@@ -199,7 +212,8 @@ Status buildBottomLevels(const vk::Context& ctx, const vk::Buffer& vertices, std
 Result<SceneAccel> SceneAccel::build(const vk::Context& ctx, const vk::Buffer& vertices,
                                      std::uint32_t vertexStride, const vk::Buffer& indices,
                                      const std::vector<MeshRange>& staticGeometries,
-                                     const std::vector<MeshRange>& meshes, const std::vector<bool>& meshNeeded,
+                                     const std::vector<MeshRange>& meshes,
+                                     const std::vector<bool>& meshNeeded,
                                      std::size_t instanceCapacity) {
   SceneAccel s;
   s.ctx_ = &ctx;
@@ -215,30 +229,34 @@ Result<SceneAccel> SceneAccel::build(const vk::Context& ctx, const vk::Buffer& v
     if (m < meshNeeded.size() && meshNeeded[m] && meshes[m].triangleCount > 0)
       jobs.push_back({{meshes[m]}, &s.blas_[m]});
   }
-  if (Status st = buildBottomLevels(ctx, vertices, vertexStride, indices, jobs); !st) return st.error();
+  if (Status st = buildBottomLevels(ctx, vertices, vertexStride, indices, jobs); !st)
+    return st.error();
 
   // ---- top level: sized for every instance ----
   s.instanceCapacity_ = std::max<std::size_t>(instanceCapacity, 1);
-  auto inst = vk::Buffer::create(ctx, s.instanceCapacity_ * sizeof(VkAccelerationStructureInstanceKHR),
-                                 VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR |
-                                     VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
-                                 vk::MemoryUsage::Upload);
+  auto inst =
+      vk::Buffer::create(ctx, s.instanceCapacity_ * sizeof(VkAccelerationStructureInstanceKHR),
+                         VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR |
+                             VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
+                         vk::MemoryUsage::Upload);
   if (!inst) return inst.error();
   s.instances_ = std::move(inst).value();
   VkAccelerationStructureGeometryKHR g{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
   g.geometryType = VK_GEOMETRY_TYPE_INSTANCES_KHR;
   g.geometry.instances = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_INSTANCES_DATA_KHR};
   g.geometry.instances.data.deviceAddress = s.instances_.address();
-  VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+  VkAccelerationStructureBuildGeometryInfoKHR info{
+      VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
   info.type = VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR;
   info.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
   info.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
   info.geometryCount = 1;
   info.pGeometries = &g;
   const auto maxInstances = std::uint32_t(s.instanceCapacity_);
-  VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
-  ctx.rt().getAccelerationStructureBuildSizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info,
-                                              &maxInstances, &sizes);
+  VkAccelerationStructureBuildSizesInfoKHR sizes{
+      VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
+  ctx.rt().getAccelerationStructureBuildSizes(
+      ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info, &maxInstances, &sizes);
   auto tlas = AccelerationStructure::create(ctx, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR,
                                             sizes.accelerationStructureSize);
   if (!tlas) return tlas.error();
@@ -254,8 +272,9 @@ void SceneAccel::setInstances(const std::vector<TopLevelInstance>& instances) {
   std::uint32_t n = 0;
   for (std::size_t i = 0; i < instances.size() && n < instanceCapacity_; ++i) {
     const TopLevelInstance& t = instances[i];
-    const AccelerationStructure* blas =
-        t.mesh < 0 ? &static_ : std::size_t(t.mesh) < blas_.size() ? &blas_[t.mesh] : nullptr;
+    const AccelerationStructure* blas = t.mesh < 0                           ? &static_
+                                        : std::size_t(t.mesh) < blas_.size() ? &blas_[t.mesh]
+                                                                             : nullptr;
     if (!blas || !blas->get()) continue;
     VkAccelerationStructureInstanceKHR inst{};
     // VkTransformMatrixKHR is 3x4 row-major; glm is column-major.
@@ -278,7 +297,8 @@ void SceneAccel::recordTopLevelBuild(VkCommandBuffer cmd) {
   g.geometryType = VK_GEOMETRY_TYPE_INSTANCES_KHR;
   g.geometry.instances = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_INSTANCES_DATA_KHR};
   g.geometry.instances.data.deviceAddress = instances_.address();
-  VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+  VkAccelerationStructureBuildGeometryInfoKHR info{
+      VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
   info.type = VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR;
   info.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
   info.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
@@ -294,7 +314,8 @@ void SceneAccel::recordTopLevelBuild(VkCommandBuffer cmd) {
                     VK_ACCESS_2_ACCELERATION_STRUCTURE_READ_BIT_KHR | VK_ACCESS_2_SHADER_READ_BIT);
   ctx_->rt().cmdBuildAccelerationStructures(cmd, 1, &info, &ranges);
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
-                    VK_ACCESS_2_ACCELERATION_STRUCTURE_WRITE_BIT_KHR, VK_PIPELINE_STAGE_2_RAY_TRACING_SHADER_BIT_KHR,
+                    VK_ACCESS_2_ACCELERATION_STRUCTURE_WRITE_BIT_KHR,
+                    VK_PIPELINE_STAGE_2_RAY_TRACING_SHADER_BIT_KHR,
                     VK_ACCESS_2_ACCELERATION_STRUCTURE_READ_BIT_KHR);
 }
 

@@ -7,9 +7,8 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/glm.hpp>
+#include <vector>
 
 #include "../common/scene.h"
 #include "../common/vulkan/context.h"
@@ -26,7 +25,8 @@ class AccelerationStructure {
   AccelerationStructure& operator=(const AccelerationStructure&) = delete;
 
   // Creates the structure with storage for `size` bytes (from the build sizes query).
-  static Result<AccelerationStructure> create(const vk::Context& ctx, VkAccelerationStructureTypeKHR type,
+  static Result<AccelerationStructure> create(const vk::Context& ctx,
+                                              VkAccelerationStructureTypeKHR type,
                                               VkDeviceSize size);
   VkAccelerationStructureKHR get() const { return handle_; }
   VkDeviceAddress address() const { return address_; }
@@ -68,7 +68,8 @@ class SceneAccel {
   static Result<SceneAccel> build(const vk::Context& ctx, const vk::Buffer& vertices,
                                   std::uint32_t vertexStride, const vk::Buffer& indices,
                                   const std::vector<MeshRange>& staticGeometries,
-                                  const std::vector<MeshRange>& meshes, const std::vector<bool>& meshNeeded,
+                                  const std::vector<MeshRange>& meshes,
+                                  const std::vector<bool>& meshNeeded,
                                   std::size_t instanceCapacity);
 
   // Writes the top-level records; the next recordTopLevelBuild() uses them. Records naming a

@@ -67,7 +67,8 @@ std::size_t vulkanPassRays(std::size_t maxPassRays, int shadowSlots, std::size_t
 
 class VulkanTracer final : public Tracer {
  public:
-  static Result<std::unique_ptr<VulkanTracer>> create(const Scene& scene, const TracerOptions& options,
+  static Result<std::unique_ptr<VulkanTracer>> create(const Scene& scene,
+                                                      const TracerOptions& options,
                                                       const VulkanTracerOptions& vulkan);
   ~VulkanTracer() override;
   std::string name() const override;

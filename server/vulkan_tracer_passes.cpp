@@ -228,8 +228,8 @@ void VulkanTracer::Impl::recordWavefront(int n, int rayCount) {
   timer.begin(cmd, "blend");
   const int groupProbes = pcBlendProbes(rayCount);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, blendPipeline.get());
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set,
-                          0, nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1, &set, 0,
+                          nullptr);
   dispatchRows(std::uint64_t((n + groupProbes - 1) / groupProbes));
   timer.end(cmd);
   vk::memoryBarrier(cmd, kComputeStage, kShaderRW, kComputeStage, kShaderRW);

@@ -101,8 +101,9 @@ TEST(ClientStereo, LeftEyeEqualsMonoRenderOfTheSamePose) {
     ASSERT_EQ(mono.display.size(), 1u);
     const double leftVsMono = psnr8(stereo.display[0], mono.display[0]);
     const double rightVsMono = psnr8(stereo.display[1], mono.display[0]);
-    std::printf("%s rasterizer: stereo left vs mono: %.2f dB; right vs mono (must differ): %.2f dB\n",
-                rasterizerName(rasterizer), leftVsMono, rightVsMono);
+    std::printf(
+        "%s rasterizer: stereo left vs mono: %.2f dB; right vs mono (must differ): %.2f dB\n",
+        rasterizerName(rasterizer), leftVsMono, rightVsMono);
     EXPECT_GE(leftVsMono, 50.0);
     EXPECT_LT(rightVsMono, leftVsMono);
   }
@@ -146,20 +147,22 @@ TEST(ClientComputeRaster, MatchesTheHardwareRasterizer) {
   ASSERT_TRUE(camera.ok());
   const Field field = bakeQuickly(scene, 8);
   const Camera left = offsetCamera(*camera, -0.032f), right = offsetCamera(*camera, 0.032f);
-  const ClientFrame hardware =
-      renderClientFrame(*ctx, scene, &field, left, &right, kWidth, kHeight, {}, Rasterizer::FixedFunction);
-  const ClientFrame compute =
-      renderClientFrame(*ctx, scene, &field, left, &right, kWidth, kHeight, {}, Rasterizer::Compute);
-  const ClientFrame computeMono =
-      renderClientFrame(*ctx, scene, &field, left, nullptr, kWidth, kHeight, {}, Rasterizer::Compute);
+  const ClientFrame hardware = renderClientFrame(*ctx, scene, &field, left, &right, kWidth, kHeight,
+                                                 {}, Rasterizer::FixedFunction);
+  const ClientFrame compute = renderClientFrame(*ctx, scene, &field, left, &right, kWidth, kHeight,
+                                                {}, Rasterizer::Compute);
+  const ClientFrame computeMono = renderClientFrame(*ctx, scene, &field, left, nullptr, kWidth,
+                                                    kHeight, {}, Rasterizer::Compute);
   ASSERT_EQ(hardware.display.size(), 2u);
   ASSERT_EQ(compute.display.size(), 2u);
   ASSERT_EQ(computeMono.display.size(), 1u);
   const double leftDb = psnr8(compute.display[0], hardware.display[0]);
   const double rightDb = psnr8(compute.display[1], hardware.display[1]);
   const double monoDb = psnr8(computeMono.display[0], compute.display[0]);
-  std::printf("compute vs fixed-function rasterizer: left %.2f dB, right %.2f dB; compute mono "
-              "vs stereo left %.2f dB\n", leftDb, rightDb, monoDb);
+  std::printf(
+      "compute vs fixed-function rasterizer: left %.2f dB, right %.2f dB; compute mono "
+      "vs stereo left %.2f dB\n",
+      leftDb, rightDb, monoDb);
   EXPECT_GE(leftDb, 40.0);
   EXPECT_GE(rightDb, 40.0);
   EXPECT_GE(monoDb, 50.0);
@@ -181,10 +184,10 @@ TEST(ClientComputeRaster, ClipsTrianglesThatCrossTheNearPlaneLikeTheFixedFunctio
   camera.position = glm::vec3(lo.x + 0.002f * size.x, lo.y + 0.3f * size.y, lo.z + 0.002f * size.z);
   camera.forward = glm::normalize(glm::vec3(0.15f, -0.1f, 1.0f));
   camera.yfov = 1.6f;
-  const ClientFrame fixed =
-      renderClientFrame(*ctx, scene, &field, camera, nullptr, kWidth, kHeight, {}, Rasterizer::FixedFunction);
-  const ClientFrame compute =
-      renderClientFrame(*ctx, scene, &field, camera, nullptr, kWidth, kHeight, {}, Rasterizer::Compute);
+  const ClientFrame fixed = renderClientFrame(*ctx, scene, &field, camera, nullptr, kWidth, kHeight,
+                                              {}, Rasterizer::FixedFunction);
+  const ClientFrame compute = renderClientFrame(*ctx, scene, &field, camera, nullptr, kWidth,
+                                                kHeight, {}, Rasterizer::Compute);
   ASSERT_EQ(fixed.display.size(), 1u);
   ASSERT_EQ(compute.display.size(), 1u);
   const double db = psnr8(compute.display[0], fixed.display[0]);

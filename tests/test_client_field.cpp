@@ -87,9 +87,9 @@ TEST(ClientFieldGpu, TilesAndBordersWrittenOnTheGpuMatchTheCpuField) {
   const Field changed = withChangedBrick(field, brick);
   ASSERT_TRUE(mirror.applyBrick(changed, {0, brick}, field.brickVersions[0][brick] + 1, 1.0));
   FieldUploadStats stats;
-  ASSERT_TRUE(ctx->submitAndWait([&](VkCommandBuffer cmd) {
-                    stats = gpu->recordUploads(cmd, 0, mirror, 1.0);
-                  }).ok());
+  ASSERT_TRUE(ctx->submitAndWait(
+                     [&](VkCommandBuffer cmd) { stats = gpu->recordUploads(cmd, 0, mirror, 1.0); })
+                  .ok());
   EXPECT_EQ(stats.bricks, 1);
   EXPECT_EQ(stats.fading, 0);
   auto after = gpu->download();

@@ -267,8 +267,7 @@ TEST(ClientSession, LayoutOverTheMemoryCapIsRefusedNamingBothSizes) {
     EXPECT_EQ(session->phase(), SessionPhase::Failed);
     EXPECT_EQ(session->receiver(), nullptr);
     EXPECT_EQ(session->stats().sessions, 0u);
-    for (const SessionEvent& e : session->events())
-      EXPECT_NE(e.kind, SessionEvent::Kind::Layout);
+    for (const SessionEvent& e : session->events()) EXPECT_NE(e.kind, SessionEvent::Kind::Layout);
   }
   {
     // One byte under: refused; exactly enough: taken.
@@ -346,10 +345,10 @@ TEST(ClientSession, MalformedAndHostileFramesAreRefusedWithClearErrors) {
   cases.push_back({"pose", encodeMessage(ViewerPoseMsg{}), true, "ViewerPose from the server"});
   cases.push_back({"repair", encodeMessage(RepairRequestMsg{}), true, "RepairRequest from"});
   cases.push_back({"info first", info, false, "SessionInfo before Welcome"});
-  cases.push_back({"scene first", encodeMessage(SceneStateMsg{}), false,
-                   "SceneState before Welcome"});
-  cases.push_back({"two welcomes", encodeMessage(WelcomeMsg{kProtocolVersion, 6}), true,
-                   "a second Welcome"});
+  cases.push_back(
+      {"scene first", encodeMessage(SceneStateMsg{}), false, "SceneState before Welcome"});
+  cases.push_back(
+      {"two welcomes", encodeMessage(WelcomeMsg{kProtocolVersion, 6}), true, "a second Welcome"});
   cases.push_back({"two infos", concat({info, info}), true, "a second SessionInfo"});
   cases.push_back({"future server", encodeMessage(WelcomeMsg{kProtocolVersion + 7, 6}), false,
                    "server speaks protocol version " + std::to_string(kProtocolVersion + 7)});
@@ -548,8 +547,8 @@ TEST(ClientSession, ConvergesOverALossyLink) {
       control.send(std::move(f), t);
     }
     for (Bytes& f : control.receive(t)) ASSERT_TRUE(server.sender->onMessage(f, t).ok());
-    if (t > 3.0 && test::differingBricks(session.receiver()->field(),
-                                         test::quantizedCopy(server.field)) == 0)
+    if (t > 3.0 &&
+        test::differingBricks(session.receiver()->field(), test::quantizedCopy(server.field)) == 0)
       break;
   }
   std::printf("converged at %.2f s: %llu bad datagrams, %llu repair requests\n", t,

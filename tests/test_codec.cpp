@@ -192,8 +192,9 @@ TEST(BrickCodec, DeadZoneHoldsSmallChangesWithinItsTolerance) {
     if (held.codes[i] == exact.codes[i]) continue;
     ASSERT_EQ(held.codes[i], previous.codes[i]) << i;
     if (i < kDepth) {
-      ASSERT_LE(std::abs(dequantizeIrradiance(held.codes[i]) - dequantizeIrradiance(exact.codes[i])),
-                dz.irradiance);
+      ASSERT_LE(
+          std::abs(dequantizeIrradiance(held.codes[i]) - dequantizeIrradiance(exact.codes[i])),
+          dz.irradiance);
     } else if (i < kOcclusion) {
       const std::size_t mean = kDepth + (i - kDepth) % kDepthPlane;
       ASSERT_LE(std::abs(int(held.codes[i]) - int(exact.codes[i])),

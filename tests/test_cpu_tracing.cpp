@@ -1,11 +1,11 @@
 // The Embree scene, direct lighting, the reference path tracer and the probe-lit render on
 // small scenes built in code, checked against analytic values.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
 #include <cmath>
 #include <cstdio>
 #include <numbers>
-
-#include <gtest/gtest.h>
-#include <tbb/global_control.h>
 
 #include "common/field.h"
 #include "common/image.h"
@@ -14,7 +14,6 @@
 #include "cpu/lighting.h"
 #include "cpu/path_tracer.h"
 #include "cpu/probe_lit_render.h"
-
 #include "test_meshes.h"
 
 namespace pc {
@@ -302,12 +301,17 @@ TEST(DirectLight, SpotAndDirectionalLights) {
   spot.outerConeAngle = 0.5f;
   state.lights = {spot};
   // Inside the inner cone: full intensity; outside the outer cone: nothing.
-  EXPECT_NEAR(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng).x,
+  EXPECT_NEAR(directIrradiance(*embree, packLights(state), emissive,
+                               gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng)
+                  .x,
               1.0f, 1e-4f);
-  EXPECT_EQ(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({2, 0, 0}, N), N, rng).x,
+  EXPECT_EQ(directIrradiance(*embree, packLights(state), emissive,
+                             gpu::pcOffsetRayOrigin({2, 0, 0}, N), N, rng)
+                .x,
             0.0f);
-  const float mid =
-      directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({0.8f, 0, 0}, N), N, rng).x;
+  const float mid = directIrradiance(*embree, packLights(state), emissive,
+                                     gpu::pcOffsetRayOrigin({0.8f, 0, 0}, N), N, rng)
+                        .x;
   EXPECT_GT(mid, 0.0f);  // between the cones (atan(0.4) = 0.38 rad): partly lit
   EXPECT_LT(mid, 4.0f * (2.0f / std::sqrt(4.64f)) / 4.64f);
 
@@ -316,7 +320,9 @@ TEST(DirectLight, SpotAndDirectionalLights) {
   sun.direction = glm::normalize(glm::vec3(1, -1, 0));
   sun.intensity = 3.0f;
   state.lights = {sun};
-  EXPECT_NEAR(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng).x,
+  EXPECT_NEAR(directIrradiance(*embree, packLights(state), emissive,
+                               gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng)
+                  .x,
               3.0f * std::sqrt(0.5f), 1e-4f);
 }
 
@@ -372,9 +378,12 @@ TEST(DirectLight, ShadowedPointGetsNothing) {
   const glm::vec3 N(0, 1, 0);
   // The blocker spans x in [0.75, 1.25] at y = 1: it shadows x = 2 (line to the light
   // crosses y = 1 at x = 1), not x = -2.
-  EXPECT_EQ(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({2, 0, 0}, N), N, rng),
+  EXPECT_EQ(directIrradiance(*embree, packLights(state), emissive,
+                             gpu::pcOffsetRayOrigin({2, 0, 0}, N), N, rng),
             glm::vec3(0.0f));
-  EXPECT_GT(directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({-2, 0, 0}, N), N, rng).x,
+  EXPECT_GT(directIrradiance(*embree, packLights(state), emissive,
+                             gpu::pcOffsetRayOrigin({-2, 0, 0}, N), N, rng)
+                .x,
             0.0f);
 }
 
@@ -405,13 +414,14 @@ TEST(DirectLight, EmissiveSquareMatchesFormFactor) {
   options.emissiveSamples = 4096;
   // Below the centre: four corner rectangles of half x half.
   const double centre = 4.0 * Le * cornerRectangleIrradiance(half, half, height);
-  const glm::vec3 E =
-      directIrradiance(*embree, packLights(state), emissive, gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng, options);
+  const glm::vec3 E = directIrradiance(*embree, packLights(state), emissive,
+                                       gpu::pcOffsetRayOrigin({0, 0, 0}, N), N, rng, options);
   EXPECT_NEAR(E.x, centre, 0.02 * centre);
   // Below a corner of the light, off-centre.
   const double corner = Le * cornerRectangleIrradiance(2 * half, 2 * half, height);
-  const glm::vec3 Ec = directIrradiance(*embree, packLights(state), emissive,
-                                        gpu::pcOffsetRayOrigin({half, 0, half}, N), N, rng, options);
+  const glm::vec3 Ec =
+      directIrradiance(*embree, packLights(state), emissive,
+                       gpu::pcOffsetRayOrigin({half, 0, half}, N), N, rng, options);
   EXPECT_NEAR(Ec.x, corner, 0.02 * corner);
   // The emitter's back (its top) lights nothing, even for a receiver facing it.
   const glm::vec3 above =
@@ -504,8 +514,8 @@ TEST(PathTracer, NoiseEstimateMatchesErrorAgainstAConvergedImage) {
   options.seed = 6;
   auto test = renderReference(scene, options);
   ASSERT_TRUE(test.ok()) << test.error().message;
-  const double measured = psnr8(tonemap(test->image, scene.exposure),
-                                tonemap(truth->image, scene.exposure));
+  const double measured =
+      psnr8(tonemap(test->image, scene.exposure), tonemap(truth->image, scene.exposure));
   // Errors add in power: the test's noise plus the truth's.
   const double expected = -10.0 * std::log10(std::pow(10.0, -test->noisePsnr / 10.0) +
                                              std::pow(10.0, -truth->noisePsnr / 10.0));

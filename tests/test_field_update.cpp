@@ -22,10 +22,9 @@
 #include "server/embree_tracer.h"
 #include "server/probe_scheduler.h"
 #include "shaders/interop/probe_math.h"
+#include "test_meshes.h"
 #include "test_timing.h"
 #include "test_tracer_support.h"
-
-#include "test_meshes.h"
 
 namespace pc {
 namespace {

@@ -20,10 +20,10 @@
 // does on the CPU and the shaders do on the GPU); constant ones suffice to compile it here.
 namespace pc::gpu {
 struct NoField {};
-inline vec3 pcFetchIrradiance(const NoField&, int, int, vec3) { return vec3(1.0f); }
-inline vec2 pcFetchDepth(const NoField&, int, int, vec3) { return vec2(1.0f, 1.0f); }
-inline float pcFetchOcclusion(const NoField&, int, int, vec3) { return 1.0f; }
-inline vec4 pcFetchProbe(const NoField&, int, int) { return vec4(0.0f, 0.0f, 0.0f, 1.0f); }
+inline vec3 pcFetchIrradiance(const NoField &, int, int, vec3) { return vec3(1.0f); }
+inline vec2 pcFetchDepth(const NoField &, int, int, vec3) { return vec2(1.0f, 1.0f); }
+inline float pcFetchOcclusion(const NoField &, int, int, vec3) { return 1.0f; }
+inline vec4 pcFetchProbe(const NoField &, int, int) { return vec4(0.0f, 0.0f, 0.0f, 1.0f); }
 }  // namespace pc::gpu
 #define PC_FIELD_PARAM const pc::gpu::NoField &field,
 #define PC_FIELD_ARG field,

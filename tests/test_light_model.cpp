@@ -108,15 +108,16 @@ std::vector<NamedCase> cases() {
   v.push_back({"sun below the horizon", makeCase(sun({0, 1, 0}, 3), origin, up)});
   v.push_back({"area facing the surface", areaCase({0, 2, 0}, {0, -1, 0}, 0.01f, origin, up)});
   v.push_back({"area facing away", areaCase({0, 2, 0}, {0, 1, 0}, 0.01f, origin, up)});
-  v.push_back({"area closer than its own size",
-               areaCase({0, 0.05f, 0}, {0, -1, 0}, 0.04f, origin, up)});
+  v.push_back(
+      {"area closer than its own size", areaCase({0, 0.05f, 0}, {0, -1, 0}, 0.04f, origin, up)});
   v.push_back({"area behind the surface", areaCase({0, -2, 0}, {0, 1, 0}, 0.01f, origin, up)});
   // Far from the world's origin, where the ray offset counts float steps, and near it, where
   // it is an absolute step.
   v.push_back({"point far from the origin",
                makeCase(pointLight({1e4f, 3, -2e4f}, 9), {1e4f, 0, -2e4f}, {0.3f, 1, 0.1f})});
-  v.push_back({"point near the origin, tilted normal",
-               makeCase(pointLight({0.5f, 1, 0.25f}, 2), {0.01f, -0.02f, 0.005f}, {-0.4f, 1, 0.2f})});
+  v.push_back(
+      {"point near the origin, tilted normal",
+       makeCase(pointLight({0.5f, 1, 0.25f}, 2), {0.01f, -0.02f, 0.005f}, {-0.4f, 1, 0.2f})});
   return v;
 }
 
@@ -154,11 +155,11 @@ TEST(LightModel, KnownValues) {
     const float d = glm::length(L);
     EXPECT_NEAR(get("point oblique").r[0].x, 3.0f * (L.y / d) / (d * d), 1e-6f);
   }
-  for (const char* dark : {"point behind the surface", "point in its plane",
-                           "point at the surface point", "point past its range",
-                           "spot outside the outer cone", "spot with a hard edge, outside",
-                           "spot behind the surface", "sun below the horizon", "area facing away",
-                           "area behind the surface"}) {
+  for (const char* dark :
+       {"point behind the surface", "point in its plane", "point at the surface point",
+        "point past its range", "spot outside the outer cone", "spot with a hard edge, outside",
+        "spot behind the surface", "sun below the horizon", "area facing away",
+        "area behind the surface"}) {
     const Evaluated e = get(dark);
     EXPECT_EQ(e.r[0], glm::vec4(0.0f)) << dark;  // no light and no distance
     EXPECT_EQ(glm::vec3(e.r[1]), glm::vec3(0.0f)) << dark;
@@ -239,8 +240,8 @@ TEST_F(LightModelGlsl, AgreesWithTheCppEvaluationToFloatPrecision) {
   }
   auto setLayout = vk::createDescriptorSetLayout(*ctx_, bindings);
   ASSERT_TRUE(setLayout) << setLayout.error().message;
-  auto layout = vk::createPipelineLayout(*ctx_, setLayout->get(), VK_SHADER_STAGE_COMPUTE_BIT,
-                                         sizeof(int));
+  auto layout =
+      vk::createPipelineLayout(*ctx_, setLayout->get(), VK_SHADER_STAGE_COMPUTE_BIT, sizeof(int));
   ASSERT_TRUE(layout) << layout.error().message;
   auto shader = vk::loadShader(*ctx_, "light_model_check.comp.spv");
   ASSERT_TRUE(shader) << shader.error().message;
@@ -271,8 +272,7 @@ TEST_F(LightModelGlsl, AgreesWithTheCppEvaluationToFloatPrecision) {
   ai.pSetLayouts = &setLayoutHandle;
   VkDescriptorSet set = VK_NULL_HANDLE;
   ASSERT_EQ(vkAllocateDescriptorSets(device, &ai, &set), VK_SUCCESS);
-  VkDescriptorBufferInfo infos[2] = {{in->get(), 0, VK_WHOLE_SIZE},
-                                     {out->get(), 0, VK_WHOLE_SIZE}};
+  VkDescriptorBufferInfo infos[2] = {{in->get(), 0, VK_WHOLE_SIZE}, {out->get(), 0, VK_WHOLE_SIZE}};
   VkWriteDescriptorSet writes[2] = {};
   for (std::uint32_t b = 0; b < 2; ++b) {
     writes[b] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};

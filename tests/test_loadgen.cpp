@@ -96,8 +96,8 @@ TEST(Loadgen, HundredClientsForTenSecondsAgainstRealServer) {
   // connect (docs/BENCHMARKS.md, "Many clients": with one version of a brick in flight, an
   // unfinished self-contained brick is no longer restarted with each newer version). The
   // server's tracing threads run at nice 10, so that serving comes first on shared cores.
-  o.serverArgs = {"--rays", "32", "--warmup", "4", "--rate", "10", "--rate-limit", "125000",
-                  "--max-clients", "150", "--stats-interval", "0"};
+  o.serverArgs = {"--rays",       "32",     "--warmup",      "4",   "--rate",           "10",
+                  "--rate-limit", "125000", "--max-clients", "150", "--stats-interval", "0"};
   o.load.clients = 100;
   o.load.rampSeconds = 1.0;
   o.idleSeconds = 1.0;
@@ -105,17 +105,17 @@ TEST(Loadgen, HundredClientsForTenSecondsAgainstRealServer) {
   o.seconds = 10.0;
   o.joinLimit = 30.0;
   o.fieldNice = 10;
-  auto result = load::runServerLoad(o, [](const std::string& line) {
-    std::printf("%s\n", line.c_str());
-  });
+  auto result =
+      load::runServerLoad(o, [](const std::string& line) { std::printf("%s\n", line.c_str()); });
   ASSERT_TRUE(result.ok()) << result.error().message;
   const load::LoadReport& r = result->report;
   std::printf("%s", load::reportTable(r).c_str());
-  std::printf("joined in %.1f s; server CPU %.1f ms/s (idle %.1f), network thread %.1f ms/s = "
-              "%.3f ms per client per s; loadgen %.1f ms/s; server RSS %.1f -> %.1f MB\n",
-              result->joinSeconds, result->serverCpuMsPerS, result->serverIdleCpuMsPerS,
-              result->netCpuMsPerS, result->cpuMsPerClientS, result->loadgenCpuMsPerS,
-              result->rssWarmMb, result->rssEndMb);
+  std::printf(
+      "joined in %.1f s; server CPU %.1f ms/s (idle %.1f), network thread %.1f ms/s = "
+      "%.3f ms per client per s; loadgen %.1f ms/s; server RSS %.1f -> %.1f MB\n",
+      result->joinSeconds, result->serverCpuMsPerS, result->serverIdleCpuMsPerS,
+      result->netCpuMsPerS, result->cpuMsPerClientS, result->loadgenCpuMsPerS, result->rssWarmMb,
+      result->rssEndMb);
 
   EXPECT_TRUE(result->allSynced) << "not every client held every brick within the join limit";
   EXPECT_EQ(r.errors, 0u);

@@ -75,9 +75,10 @@ TEST(LoadgenSoak, ServerFileDescriptorsAndMemoryReturnToBaselineAfterConnectCycl
   sp.logPath = std::string(PC_BUILD_DIR) + "/test_loadgen_soak_server.log";
   // The field freezes after 1 s of animation: no new versions, so the server's shared caches
   // stop growing and what remains is per-session state.
-  sp.args = {"--scene", "builtin", "--bind", "127.0.0.1", "--port", "0", "--token", kToken,
-             "--rays", "16", "--warmup", "2", "--rate", "10", "--freeze-at", "1.0",
-             "--max-clients", "200", "--stats-interval", "0"};
+  sp.args = {"--scene",          "builtin", "--bind",      "127.0.0.1", "--port",        "0",
+             "--token",          kToken,    "--rays",      "16",        "--warmup",      "2",
+             "--rate",           "10",      "--freeze-at", "1.0",       "--max-clients", "200",
+             "--stats-interval", "0"};
   auto server = load::ServerProcess::start(sp);
   ASSERT_TRUE(server.ok()) << server.error().message;
   const pid_t pid = (*server)->pid();
@@ -106,10 +107,10 @@ TEST(LoadgenSoak, ServerFileDescriptorsAndMemoryReturnToBaselineAfterConnectCycl
     if (after->openFds == base->openFds) break;
     sleepSeconds(0.1);
   }
-  std::printf("soak: %.1f s; after: %d fds (baseline %d), %.1f MB resident (baseline %.1f, "
-              "%+.2f MB)\n",
-              took, after->openFds, base->openFds, after->rssMb, base->rssMb,
-              after->rssMb - base->rssMb);
+  std::printf(
+      "soak: %.1f s; after: %d fds (baseline %d), %.1f MB resident (baseline %.1f, "
+      "%+.2f MB)\n",
+      took, after->openFds, base->openFds, after->rssMb, base->rssMb, after->rssMb - base->rssMb);
   EXPECT_EQ(after->openFds, base->openFds);
   EXPECT_LE(after->rssMb - base->rssMb, kRssToleranceMb);
   EXPECT_TRUE((*server)->stop().ok());

@@ -2,9 +2,8 @@
 #pragma once
 
 #include <cstdint>
-#include <initializer_list>
-
 #include <glm/glm.hpp>
+#include <initializer_list>
 
 #include "common/scene.h"
 

@@ -99,11 +99,12 @@ TEST(Net, ConvergesThroughFaultyUdpRelayOnceFaultsStop) {
   calm.delay = 0.005;
   relay.setProfile(calm);
   const LinkStats during = relay.stats();
-  std::printf("relay during faults: %llu datagrams, %llu lost, %llu duplicated, %llu reordered, "
-              "%llu corrupted\n",
-              (unsigned long long)during.sent, (unsigned long long)during.lost,
-              (unsigned long long)during.duplicated, (unsigned long long)during.reordered,
-              (unsigned long long)during.corrupted);
+  std::printf(
+      "relay during faults: %llu datagrams, %llu lost, %llu duplicated, %llu reordered, "
+      "%llu corrupted\n",
+      (unsigned long long)during.sent, (unsigned long long)during.lost,
+      (unsigned long long)during.duplicated, (unsigned long long)during.reordered,
+      (unsigned long long)during.corrupted);
   EXPECT_GT(during.lost, 0u);
   EXPECT_GT(during.corrupted, 0u);
   expectConverges(server, mirror, 15.0, "faulty relay");

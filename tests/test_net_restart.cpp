@@ -129,20 +129,55 @@ TEST(NetRestart, HeadlessClientKeepsRenderingReconnectsAndResyncs) {
   const std::uint16_t port = freePort();
   const std::string portText = std::to_string(port);
   auto serverArgs = [&] {
-    return std::vector<std::string>{kBin + "probecast-server", "--scene", "builtin", "--backend",
-                                     "embree", "--rays", "32", "--warmup", "4", "--rate", "10",
-                                     "--bind", "127.0.0.1", "--port", portText, "--token",
-                                     "restart-token", "--stats-interval", "0"};
+    return std::vector<std::string>{kBin + "probecast-server",
+                                    "--scene",
+                                    "builtin",
+                                    "--backend",
+                                    "embree",
+                                    "--rays",
+                                    "32",
+                                    "--warmup",
+                                    "4",
+                                    "--rate",
+                                    "10",
+                                    "--bind",
+                                    "127.0.0.1",
+                                    "--port",
+                                    portText,
+                                    "--token",
+                                    "restart-token",
+                                    "--stats-interval",
+                                    "0"};
   };
   auto server = std::make_unique<Child>(serverArgs(), dir / "server.log");
   ASSERT_TRUE(server->running());
   ASSERT_TRUE(waitUntil([&] { return canConnect(port); }, 30.0)) << "server never listened";
 
   const fs::path summary = dir / "client.json";
-  Child client({kBin + "probecast-client", "--scene", "builtin", "--connect",
-                "127.0.0.1:" + portText, "--token", "restart-token", "--width", "48", "--height",
-                "32", "--msaa", "2", "--duration", "120", "--save-every", "0", "--no-exr",
-                "--max-fps", "30", "--out", dir.string(), "--summary", summary.string()},
+  Child client({kBin + "probecast-client",
+                "--scene",
+                "builtin",
+                "--connect",
+                "127.0.0.1:" + portText,
+                "--token",
+                "restart-token",
+                "--width",
+                "48",
+                "--height",
+                "32",
+                "--msaa",
+                "2",
+                "--duration",
+                "120",
+                "--save-every",
+                "0",
+                "--no-exr",
+                "--max-fps",
+                "30",
+                "--out",
+                dir.string(),
+                "--summary",
+                summary.string()},
                dir / "client.log");
   ASSERT_TRUE(client.running());
   nlohmann::json s;
@@ -185,11 +220,13 @@ TEST(NetRestart, HeadlessClientKeepsRenderingReconnectsAndResyncs) {
       30.0);
   const double resync = now() - back;
   ASSERT_TRUE(resynced) << "no resync after the restart; see " << (dir / "client.log");
-  std::printf("resynced %.2f s after the restarted server listened (client: %.3f s from connect "
-              "to every brick held; status polled every 0.25 s)\n",
-              resync, field(s, "last_resync_seconds", -1.0));
+  std::printf(
+      "resynced %.2f s after the restarted server listened (client: %.3f s from connect "
+      "to every brick held; status polled every 0.25 s)\n",
+      resync, field(s, "last_resync_seconds", -1.0));
   const int framesAfter = field(s, "frames", 0);
-  ASSERT_TRUE(waitUntil([&] { return field(readSummary(summary), "frames", 0) > framesAfter + 2; }, 20.0));
+  ASSERT_TRUE(
+      waitUntil([&] { return field(readSummary(summary), "frames", 0) > framesAfter + 2; }, 20.0));
   client.kill(SIGTERM);
   server->kill(SIGTERM);
 }

@@ -56,7 +56,8 @@ class TestServer {
     tracer_ = std::move(tracer).value();
     FieldSettings settings;
     settings.raysPerProbe = 32;
-    field_ = Field::create(scene_.volumes.empty() ? defaultVolumes(scene_) : scene_.volumes, settings);
+    field_ =
+        Field::create(scene_.volumes.empty() ? defaultVolumes(scene_) : scene_.volumes, settings);
     field_.sceneHash = scene_.hash;
     BakeOptions bake;
     bake.updates = 4;
@@ -123,7 +124,8 @@ class UdpRelay {
  public:
   explicit UdpRelay(std::uint64_t seed = 7)
       : socket_(io_, boost::asio::ip::udp::endpoint(boost::asio::ip::make_address("127.0.0.1"), 0)),
-        timer_(io_), link_(seed) {
+        timer_(io_),
+        link_(seed) {
     receive();
     tick();
     thread_ = std::thread([this] { io_.run(); });
@@ -153,14 +155,16 @@ class UdpRelay {
 
  private:
   void receive() {
-    socket_.async_receive_from(boost::asio::buffer(buffer_), from_, [this](boost::system::error_code ec, std::size_t n) {
-      if (stopped_) return;
-      if (!ec) {
-        std::lock_guard lock(mutex_);
-        link_.send(std::vector<std::uint8_t>(buffer_.begin(), buffer_.begin() + n), steadySeconds());
-      }
-      receive();
-    });
+    socket_.async_receive_from(
+        boost::asio::buffer(buffer_), from_, [this](boost::system::error_code ec, std::size_t n) {
+          if (stopped_) return;
+          if (!ec) {
+            std::lock_guard lock(mutex_);
+            link_.send(std::vector<std::uint8_t>(buffer_.begin(), buffer_.begin() + n),
+                       steadySeconds());
+          }
+          receive();
+        });
   }
   void tick() {
     timer_.expires_after(std::chrono::milliseconds(1));

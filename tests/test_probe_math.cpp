@@ -88,7 +88,9 @@ TEST(FibonacciDirections, AreUnitAndUniform) {
   float minAngle = 10.0f;
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j)
-      minAngle = std::min(minAngle, std::acos(std::min(1.0f, dot(pcFibonacciDirection(i, n), pcFibonacciDirection(j, n)))));
+      minAngle = std::min(
+          minAngle,
+          std::acos(std::min(1.0f, dot(pcFibonacciDirection(i, n), pcFibonacciDirection(j, n)))));
   float meanSpacing = std::sqrt(4.0f * 3.14159265f / n);
   EXPECT_GT(minAngle, 0.5f * meanSpacing);
 }
@@ -164,11 +166,15 @@ TEST(FieldSampling, UniformFieldSamplesToItsValue) {
   const vec3 E(2.0f, 1.0f, 0.5f);
   vec3 enc = pcEncodeIrradiance(E);
   for (std::size_t i = 0; i < f.irradiance.texels.size(); i += 3)
-    f.irradiance.texels[i] = enc.x, f.irradiance.texels[i + 1] = enc.y, f.irradiance.texels[i + 2] = enc.z;
-  for (std::size_t i = 0; i < f.depth.texels.size(); i += 2) f.depth.texels[i] = 0.5f, f.depth.texels[i + 1] = 0.3f;
+    f.irradiance.texels[i] = enc.x, f.irradiance.texels[i + 1] = enc.y,
+    f.irradiance.texels[i + 2] = enc.z;
+  for (std::size_t i = 0; i < f.depth.texels.size(); i += 2)
+    f.depth.texels[i] = 0.5f, f.depth.texels[i + 1] = 0.3f;
   for (auto& p : f.probes) p.state = PC_PROBE_ACTIVE;
   for (int i = 0; i < 100; ++i) {
-    vec3 P = vec3(0.3f) + 2.4f * vec3(pcHashToFloat(pcHash(3 * i)), pcHashToFloat(pcHash(3 * i + 1)), pcHashToFloat(pcHash(3 * i + 2)));
+    vec3 P =
+        vec3(0.3f) + 2.4f * vec3(pcHashToFloat(pcHash(3 * i)), pcHashToFloat(pcHash(3 * i + 1)),
+                                 pcHashToFloat(pcHash(3 * i + 2)));
     vec3 N = pcFibonacciDirection(i, 100);
     float coverage = 0;
     vec4 s = pc::sampleField(f, P, N, N, PC_SAMPLE_DEFAULT, &coverage);
@@ -203,8 +209,8 @@ TEST(ProbeClassification, InsideHasHysteresis) {
 TEST(ProbeClassification, InsideProbeStepsOutOnlyWithinReach) {
   const float minFront = 0.2f, maxOffset = 0.45f;
   // A backface 0.1 away: the step (0.1 + 0.1) fits, the probe moves through it.
-  vec3 moved = pcRelocate(vec3(0.0f), true, 0.1f, vec3(1, 0, 0), 1e30f, vec3(0.0f), minFront,
-                          maxOffset);
+  vec3 moved =
+      pcRelocate(vec3(0.0f), true, 0.1f, vec3(1, 0, 0), 1e30f, vec3(0.0f), minFront, maxOffset);
   EXPECT_NEAR(moved.x, 0.2f, 1e-6f);
   // From an offset of 0.3 the same step would end at 0.5, past the reach: it stays put rather
   // than being clamped back inside.

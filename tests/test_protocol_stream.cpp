@@ -338,7 +338,6 @@ TEST(ProtocolStream, PublisherKeepsSentVersionsAsResidualBases) {
   EXPECT_EQ(residual->header.baseVersion, sent);
 }
 
-
 // The publisher's memory is bounded by the field, not by how long it runs or what clients do:
 // after many versions, with clients that each hold back their acks by a different number of
 // versions (one never acknowledges past the first), the history and the encode cache stay
@@ -407,11 +406,12 @@ TEST(ProtocolStream, PublisherMemoryStaysWithinTheFieldsBound) {
   // The heap after 100 more versions: flat to within 2 MB (the encode cache alone would grow
   // by about 7 MB per version if it kept what can no longer be sent at that size).
   const double growth = double(mallinfo2().uordblks) - double(heapAfterWarmup);
-  std::printf("publisher memory: history %zu B (bound %zu), encode cache %zu B in %zu entries "
-              "(bound %zu), %llu encodes; heap growth over the last %d versions %.0f B\n",
-              publisher.historyBytes(), publisher.historyBoundBytes(), publisher.cache().bytes(),
-              publisher.cache().entries(), publisher.cacheBoundBytes(),
-              (unsigned long long)publisher.encodes(), rounds - warmup, growth);
+  std::printf(
+      "publisher memory: history %zu B (bound %zu), encode cache %zu B in %zu entries "
+      "(bound %zu), %llu encodes; heap growth over the last %d versions %.0f B\n",
+      publisher.historyBytes(), publisher.historyBoundBytes(), publisher.cache().bytes(),
+      publisher.cache().entries(), publisher.cacheBoundBytes(),
+      (unsigned long long)publisher.encodes(), rounds - warmup, growth);
   EXPECT_LT(growth, 2e6);
 }
 

@@ -26,7 +26,8 @@ std::unique_ptr<Context> makeContext(bool rayTracing) {
 
 TEST(VulkanContext, CreatesDeviceAndRoundTripsABuffer) {
   auto ctx = makeContext(false);
-  if (!ctx) GTEST_SKIP() << "no Vulkan device (install mesa-vulkan-drivers from bookworm-backports)";
+  if (!ctx)
+    GTEST_SKIP() << "no Vulkan device (install mesa-vulkan-drivers from bookworm-backports)";
   EXPECT_FALSE(ctx->deviceName().empty());
   auto src = Buffer::create(*ctx, 1024, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload);
   auto dst = Buffer::create(*ctx, 1024, VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUsage::Readback);

@@ -132,7 +132,8 @@ void expectBordersCopyTheirSources(const Field& f) {
 void expectSameBrickVersions(const Field& gpu, const Field& cpu) {
   EXPECT_EQ(gpu.version, cpu.version);
   ASSERT_EQ(gpu.brickVersions.size(), cpu.brickVersions.size());
-  for (std::size_t k = 0; k < cpu.brickVersions.size(); ++k) EXPECT_EQ(gpu.brickVersions[k], cpu.brickVersions[k]);
+  for (std::size_t k = 0; k < cpu.brickVersions.size(); ++k)
+    EXPECT_EQ(gpu.brickVersions[k], cpu.brickVersions[k]);
 }
 
 // Two GPU fields that two ways of running the same updates must leave bit for bit the same.
@@ -166,9 +167,10 @@ TEST(VulkanTracer, BuiltinSceneMatchesEmbree) {
   EXPECT_NEAR(double(sg.shadowRays), double(sc.shadowRays), 0.01 * double(sc.shadowRays));
 
   FieldDifference d = compareFields(fg, fc);
-  std::printf("builtin (%s): %d active probes, irradiance rel diff %.2e, depth rel diff %.2e, "
-              "state mismatches %d\n",
-              gpu->name().c_str(), d.probes, d.irradiance, d.depth, d.stateMismatches);
+  std::printf(
+      "builtin (%s): %d active probes, irradiance rel diff %.2e, depth rel diff %.2e, "
+      "state mismatches %d\n",
+      gpu->name().c_str(), d.probes, d.irradiance, d.depth, d.stateMismatches);
   EXPECT_GT(d.probes, 100);
   EXPECT_LE(d.irradiance, 0.01);
   EXPECT_LE(d.depth, 0.01);
@@ -190,7 +192,8 @@ TEST(VulkanTracer, BuiltinSceneMatchesEmbree) {
     EXPECT_FALSE(ug.gpuPasses.empty());
   }
   d = compareFields(fg, fc);
-  std::printf("builtin after motion: irradiance rel diff %.2e, depth rel diff %.2e\n", d.irradiance, d.depth);
+  std::printf("builtin after motion: irradiance rel diff %.2e, depth rel diff %.2e\n", d.irradiance,
+              d.depth);
   EXPECT_LE(d.irradiance, 0.01);
   EXPECT_LE(d.depth, 0.01);
   EXPECT_EQ(gpu->validationErrorCount(), 0u);
@@ -269,7 +272,8 @@ TEST(VulkanTracer, ExactShadowLaunchMatchesTheBoundedOne) {
   std::string why;
   auto exact = makeGpu(scene, &why);
   if (!exact) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
-  if (!exact->context().rt().cmdTraceRaysIndirect) GTEST_SKIP() << "the device cannot launch rays from a buffer";
+  if (!exact->context().rt().cmdTraceRaysIndirect)
+    GTEST_SKIP() << "the device cannot launch rays from a buffer";
   auto bounded = makeGpu(scene, &why, true);
   ASSERT_TRUE(bounded) << why;
 
@@ -299,7 +303,8 @@ namespace {
 // of 8x8x8 probes, where streams drawn per probe on the CPU had left 0.66% after a 24-update
 // bake. Tolerance 1e-3: far under the sampling noise two different streams would leave.
 TEST(VulkanTracer, LightSampledEmittersMatchEmbree) {
-  const std::string path = std::string(PC_SCENES_DIR) + "/mcguire-cornellbox/CornellBox-Original.obj";
+  const std::string path =
+      std::string(PC_SCENES_DIR) + "/mcguire-cornellbox/CornellBox-Original.obj";
   auto scene = loadScene(path);
   if (!scene) GTEST_SKIP() << "no shared scenes: " << scene.error().message;
   std::string why;
@@ -318,8 +323,10 @@ TEST(VulkanTracer, LightSampledEmittersMatchEmbree) {
   bakeOrFail(fg, *gpu, bake);
   bakeOrFail(fc, **cpu, bake);
   const FieldDifference d = compareFields(fg, fc);
-  std::printf("cornell box (sampled emitter): %d active probes, irradiance rel diff %.2e, depth rel diff %.2e\n",
-              d.probes, d.irradiance, d.depth);
+  std::printf(
+      "cornell box (sampled emitter): %d active probes, irradiance rel diff %.2e, depth rel diff "
+      "%.2e\n",
+      d.probes, d.irradiance, d.depth);
   EXPECT_GT(d.probes, 32);
   EXPECT_LE(d.irradiance, 1e-3);
   EXPECT_LE(d.depth, 1e-3);
@@ -353,8 +360,10 @@ TEST(VulkanTracer, MirroredAndSharedStaticInstancesMatchEmbree) {
     EXPECT_EQ(ug.bricksChanged, uc.bricksChanged);
   }
   const FieldDifference d = compareFields(fg, fc);
-  std::printf("builtin + mirrored static block: %d active probes, irradiance rel diff %.2e, depth rel diff %.2e\n",
-              d.probes, d.irradiance, d.depth);
+  std::printf(
+      "builtin + mirrored static block: %d active probes, irradiance rel diff %.2e, depth rel diff "
+      "%.2e\n",
+      d.probes, d.irradiance, d.depth);
   EXPECT_GT(d.probes, 100);
   EXPECT_LE(d.irradiance, 0.01);
   EXPECT_LE(d.depth, 0.01);
@@ -438,8 +447,9 @@ TEST(VulkanTracer, ManyLightsSpanTwoMaskWordsAndMatchEmbree) {
     shadowRays += ug.shadowRays;
   }
   const FieldDifference d = compareFields(fg, fc);
-  std::printf("builtin + 40 lights: %llu shadow rays, irradiance rel diff %.2e, depth rel diff %.2e\n",
-              static_cast<unsigned long long>(shadowRays), d.irradiance, d.depth);
+  std::printf(
+      "builtin + 40 lights: %llu shadow rays, irradiance rel diff %.2e, depth rel diff %.2e\n",
+      static_cast<unsigned long long>(shadowRays), d.irradiance, d.depth);
   // Probe rays ask for most of the 40 lights' shadow rays (24 per probe ray on average here).
   EXPECT_GT(shadowRays, 2u * 32u * std::uint64_t(request.probes.size()) * 32u / 2u);
   EXPECT_GT(d.probes, 100);

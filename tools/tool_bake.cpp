@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 
   pc::Result<pc::Scene> scene = scenePath == "builtin" ? pc::Result<pc::Scene>(pc::builtinScene())
-                                                   : pc::loadScene(scenePath, sidecar);
+                                                       : pc::loadScene(scenePath, sidecar);
   if (!scene) {
     pc::logError(scene.error().message);
     return 1;
@@ -76,7 +76,8 @@ int main(int argc, char** argv) {
 
   pc::FieldSettings settings;
   settings.raysPerProbe = rays;
-  std::vector<pc::ProbeVolume> volumes = scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes;
+  std::vector<pc::ProbeVolume> volumes =
+      scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes;
   pc::Field field = pc::Field::create(volumes, settings);
   field.sceneHash = scene->hash;
   pc::VulkanTracerOptions vulkan;
@@ -119,8 +120,9 @@ int main(int argc, char** argv) {
                        {"probe_rays", stats.probeRays},
                        {"shadow_rays", stats.shadowRays},
                        {"mrays_per_s", mrays}};
-    std::printf("baked %d probes in %d cascades: %d updates, %.2f s, %.2f Mrays/s (probe + shadow rays)\n",
-                field.probeCount(), field.cascadeCount(), stats.updates, stats.ms / 1000.0, mrays);
+    std::printf(
+        "baked %d probes in %d cascades: %d updates, %.2f s, %.2f Mrays/s (probe + shadow rays)\n",
+        field.probeCount(), field.cascadeCount(), stats.updates, stats.ms / 1000.0, mrays);
   }
   if (fs::path(out).has_parent_path()) fs::create_directories(fs::path(out).parent_path());
   pc::BakedWriteOptions writeOptions;
@@ -147,7 +149,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   pc::ProbeLitOptions lit;
-  lit.width = width, lit.height = height, lit.primarySamples = aa, lit.explicitCamera = *cam, lit.time = time;
+  lit.width = width, lit.height = height, lit.primarySamples = aa, lit.explicitCamera = *cam,
+  lit.time = time;
   auto t0 = Clock::now();
   pc::Image probeLit;
   {
@@ -172,17 +175,22 @@ int main(int argc, char** argv) {
     }
     reference = std::move(r).value();
   }
-  pc::Image8 a = pc::tonemap(probeLit, scene->exposure), b = pc::tonemap(reference.image, scene->exposure);
-  const double psnr = pc::psnr8(a, b), ssim = pc::ssim8(a, b), psnrLin = pc::psnrLinear(probeLit, reference.image);
+  pc::Image8 a = pc::tonemap(probeLit, scene->exposure),
+             b = pc::tonemap(reference.image, scene->exposure);
+  const double psnr = pc::psnr8(a, b), ssim = pc::ssim8(a, b),
+               psnrLin = pc::psnrLinear(probeLit, reference.image);
   const fs::path dir(renderDir);
-  for (pc::Status s : {pc::writePng(dir / "probe_lit.png", a), pc::writePng(dir / "reference.png", b),
-                       pc::writeExr(dir / "probe_lit.exr", probeLit), pc::writeExr(dir / "reference.exr", reference.image),
-                       pc::writePng(dir / "difference.png", pc::differenceImage(a, b))}) {
+  for (pc::Status s :
+       {pc::writePng(dir / "probe_lit.png", a), pc::writePng(dir / "reference.png", b),
+        pc::writeExr(dir / "probe_lit.exr", probeLit),
+        pc::writeExr(dir / "reference.exr", reference.image),
+        pc::writePng(dir / "difference.png", pc::differenceImage(a, b))}) {
     if (!s) pc::logError(s.error().message);
   }
   summary["render"] = {{"width", width}, {"height", height}, {"camera", cam->name}};
   summary["probe_lit"] = {{"seconds", litSeconds}, {"primary_samples", aa}};
-  summary["reference"] = {{"seconds", reference.seconds}, {"spp", reference.spp},
+  summary["reference"] = {{"seconds", reference.seconds},
+                          {"spp", reference.spp},
                           {"own_noise_psnr_db", reference.noisePsnr}};
   summary["psnr_probe_vs_reference_db"] = psnr;
   summary["ssim_probe_vs_reference"] = ssim;
@@ -196,9 +204,10 @@ int main(int argc, char** argv) {
                 "probe-lit render %dx%d, %.2f s\n"
                 "reference        %d spp, %.2f s, own noise ~%.1f dB PSNR\n"
                 "PSNR             %.2f dB (8-bit sRGB, tone-mapped)   linear %.2f dB   SSIM %.4f\n",
-                scene->name.c_str(), scene->triangleCount(), field.probeCount(), field.cascadeCount(),
-                summary["bake"]["seconds"].get<double>(), width, height, litSeconds, reference.spp,
-                reference.seconds, reference.noisePsnr, psnr, psnrLin, ssim);
+                scene->name.c_str(), scene->triangleCount(), field.probeCount(),
+                field.cascadeCount(), summary["bake"]["seconds"].get<double>(), width, height,
+                litSeconds, reference.spp, reference.seconds, reference.noisePsnr, psnr, psnrLin,
+                ssim);
   txt << text;
   std::printf("%s", text);
   std::printf("images and summary in %s\n", renderDir.c_str());

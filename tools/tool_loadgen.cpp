@@ -38,8 +38,9 @@ int main(int argc, char** argv) {
   app.add_option("--max-sessions", o.maxSessions, "no new session after this many (0: no limit)");
   app.add_option("--starve-seconds", o.starveSeconds, "gap that makes a client starved");
   app.add_option("--pose-interval", o.poseInterval, "s between viewer poses");
-  app.add_flag("--other-host", [&](std::int64_t) { o.sameClock = false; },
-               "server on another host: estimate the clock offset instead of sharing the clock");
+  app.add_flag(
+      "--other-host", [&](std::int64_t) { o.sameClock = false; },
+      "server on another host: estimate the clock offset instead of sharing the clock");
   app.add_flag("--keep-field", o.keepField, "each receiver keeps a decoded field (as a renderer)");
   app.add_flag("--decode-each", decodeEach, "every client decodes every payload itself");
   app.add_option("--warmup", warmup, "s after the ramp before the measured window starts");

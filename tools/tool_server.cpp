@@ -39,7 +39,8 @@ std::string statsLine(const pc::NetServerStats& now, const pc::NetServerStats& b
                 (unsigned long long)now.accepted, (unsigned long long)now.rejected);
   std::string s = line;
   for (const pc::NetClientInfo& c : now.clients) {
-    std::snprintf(line, sizeof line, "\n  session %u %s (%s, %s): %.1f kB sent, %llu datagrams, %zu bricks pending",
+    std::snprintf(line, sizeof line,
+                  "\n  session %u %s (%s, %s): %.1f kB sent, %llu datagrams, %zu bricks pending",
                   c.sessionId, c.name.c_str(), c.peer.c_str(), c.udp ? "udp" : "tcp",
                   double(c.bytesSent) / 1e3, (unsigned long long)c.datagrams, c.pendingBricks);
     s += line;
@@ -131,15 +132,13 @@ void addReportOptions(CLI::App& app, ServerSetup& s) {
   app.add_option("--metrics-bind", s.net.metricsBindAddress,
                  "address the metrics endpoint listens on (default: --bind's)");
   app.add_option("--log-format", s.logFormat, "log lines: text, or json (one object per line)");
-  app.add_option("--log-level", s.logLevel,
-                 "least severe level logged: debug, info, warn, error");
+  app.add_option("--log-level", s.logLevel, "least severe level logged: debug, info, warn, error");
 }
 
 // What clients may do before they are turned away.
 void addLimitOptions(CLI::App& app, ServerSetup& s) {
   pc::NetServerOptions& net = s.net;
-  app.add_option("--max-clients", net.maxClients,
-                 "clients past the handshake; more get a Reject");
+  app.add_option("--max-clients", net.maxClients, "clients past the handshake; more get a Reject");
   app.add_option("--max-pending", net.maxPendingConnections,
                  "connections awaiting their Hello; more are closed when accepted");
   app.add_option("--max-message-bytes", net.maxMessageBytes,
@@ -221,8 +220,7 @@ class Signals {
 
 // The tracer the options ask for; where it runs on a GPU, the loop's fallback (Embree) takes
 // over the updates if the GPU fails (FieldLoopOptions::fallback).
-pc::Result<std::unique_ptr<pc::Tracer>> makeServerTracer(const pc::Scene& scene,
-                                                         ServerSetup& s) {
+pc::Result<std::unique_ptr<pc::Tracer>> makeServerTracer(const pc::Scene& scene, ServerSetup& s) {
   pc::VulkanTracerOptions vulkanOptions;
   vulkanOptions.shadowMemoryBudget = s.gpuShadowMiB << 20;
   vulkanOptions.failSubmission = s.gpuFailSubmission;
@@ -277,8 +275,7 @@ pc::Status warmUp(pc::Field& field, pc::Tracer& tracer, const pc::Scene& scene,
 // starts over on the fallback tracer (then `tracer`) where the first one fails: no client is
 // there yet. The process's exit code where it should stop instead (a signal: 0).
 std::optional<int> startingField(pc::Field& field, std::unique_ptr<pc::Tracer>& tracer,
-                                 const pc::Scene& scene, ServerSetup& s,
-                                 const Signals& signals) {
+                                 const pc::Scene& scene, ServerSetup& s, const Signals& signals) {
   if (!s.probes.empty()) {
     auto baked = pc::readBakedField(s.probes, scene.hash);
     if (!baked) return pc::logError(baked.error().message), 1;
@@ -292,8 +289,7 @@ std::optional<int> startingField(pc::Field& field, std::unique_ptr<pc::Tracer>& 
     if (!s.loop.fallback) return 1;
     auto cpu = s.loop.fallback();
     if (!cpu) return pc::logError("fallback tracer: " + cpu.error().message), 1;
-    pc::logWarn("the warm-up and the field updates go on with the " + (*cpu)->name() +
-                " tracer");
+    pc::logWarn("the warm-up and the field updates go on with the " + (*cpu)->name() + " tracer");
     tracer = std::move(cpu).value();
     s.loop.fallback = nullptr;
     warm = warmUp(field, *tracer, scene, s, signals, interruptedBy);

@@ -25,8 +25,8 @@ Result<Buffer> Buffer::create(const Context& ctx, VkDeviceSize size, VkBufferUsa
       type = ctx.findMemoryType(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
       break;
     case MemoryUsage::Upload:
-      type = ctx.findMemoryType(req.memoryTypeBits,
-                                VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+      type = ctx.findMemoryType(req.memoryTypeBits, VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
+                                                        VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
       break;
     case MemoryUsage::Readback:
       // Cached memory makes host reads fast; coherence is optional (invalidate() handles it).
@@ -35,7 +35,8 @@ Result<Buffer> Buffer::create(const Context& ctx, VkDeviceSize size, VkBufferUsa
       break;
   }
   if (type < 0) return Error{"no memory type for a buffer of " + std::to_string(size) + " bytes"};
-  b.coherent_ = (ctx.memoryProperties().memoryTypes[type].propertyFlags & VK_MEMORY_PROPERTY_HOST_COHERENT_BIT) != 0;
+  b.coherent_ = (ctx.memoryProperties().memoryTypes[type].propertyFlags &
+                 VK_MEMORY_PROPERTY_HOST_COHERENT_BIT) != 0;
 
   VkMemoryAllocateFlagsInfo flags{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
   flags.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
@@ -99,7 +100,8 @@ Result<Buffer> uploadBuffer(const Context& ctx, const void* data, std::size_t by
   auto staging = Buffer::create(ctx, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload);
   if (!staging) return staging.error();
   staging->write(data, bytes);
-  auto buffer = Buffer::create(ctx, bytes, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, MemoryUsage::DeviceLocal);
+  auto buffer = Buffer::create(ctx, bytes, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                               MemoryUsage::DeviceLocal);
   if (!buffer) return buffer.error();
   if (bytes > 0) {
     Status s = ctx.submitAndWait([&](VkCommandBuffer cmd) {

@@ -4,9 +4,9 @@
 // that runs out mid-frame is an error the caller reports (the GPU server falls back to the CPU).
 #pragma once
 
-#include <string>
-
 #include <vulkan/vulkan.h>
+
+#include <string>
 
 namespace pc::vk {
 
@@ -17,9 +17,9 @@ std::string vkErrorMessage(const char* call, VkResult result);
 
 }  // namespace pc::vk
 
-#define PC_VK_TRY(call)                                                      \
-  do {                                                                       \
-    const VkResult pc_vk_result_ = (call);                                   \
-    if (pc_vk_result_ != VK_SUCCESS)                                         \
-      return ::pc::Error{::pc::vk::vkErrorMessage(#call, pc_vk_result_)};    \
+#define PC_VK_TRY(call)                                                   \
+  do {                                                                    \
+    const VkResult pc_vk_result_ = (call);                                \
+    if (pc_vk_result_ != VK_SUCCESS)                                      \
+      return ::pc::Error{::pc::vk::vkErrorMessage(#call, pc_vk_result_)}; \
   } while (0)

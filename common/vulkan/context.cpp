@@ -17,8 +17,9 @@ constexpr const char* kNoDriverHint =
     "your GPU's driver";
 
 bool hasExtension(const std::vector<VkExtensionProperties>& list, const char* name) {
-  return std::any_of(list.begin(), list.end(),
-                     [&](const VkExtensionProperties& e) { return std::strcmp(e.extensionName, name) == 0; });
+  return std::any_of(list.begin(), list.end(), [&](const VkExtensionProperties& e) {
+    return std::strcmp(e.extensionName, name) == 0;
+  });
 }
 
 std::vector<VkExtensionProperties> deviceExtensions(VkPhysicalDevice device) {
@@ -91,8 +92,10 @@ std::string missingSupport(VkPhysicalDevice device, const ContextOptions& o) {
     if (!hasExtension(available, e)) return e;
   FeatureChain f(o.rayTracing);
   vkGetPhysicalDeviceFeatures2(device, &f.base);
-  if (!f.v13.dynamicRendering || !f.v13.synchronization2) return "dynamicRendering/synchronization2";
-  if (!f.v12.timelineSemaphore || !f.v12.bufferDeviceAddress) return "timelineSemaphore/bufferDeviceAddress";
+  if (!f.v13.dynamicRendering || !f.v13.synchronization2)
+    return "dynamicRendering/synchronization2";
+  if (!f.v12.timelineSemaphore || !f.v12.bufferDeviceAddress)
+    return "timelineSemaphore/bufferDeviceAddress";
   if (o.multiview && !f.v11.multiview) return "multiview";
   if (o.rayTracing) {
     if (!f.as.accelerationStructure) return "accelerationStructure";
@@ -192,7 +195,8 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
 
   // ---- instance ----
   std::uint32_t loaderVersion = 0;
-  if (vkEnumerateInstanceVersion(&loaderVersion) != VK_SUCCESS || loaderVersion < VK_API_VERSION_1_3) {
+  if (vkEnumerateInstanceVersion(&loaderVersion) != VK_SUCCESS ||
+      loaderVersion < VK_API_VERSION_1_3) {
     return Error{"the Vulkan loader is older than 1.3; " + std::string(kNoDriverHint)};
   }
   std::vector<const char*> instanceExt;
@@ -204,10 +208,13 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
     vkEnumerateInstanceLayerProperties(&count, nullptr);
     std::vector<VkLayerProperties> available(count);
     vkEnumerateInstanceLayerProperties(&count, available.data());
-    const bool found = std::any_of(available.begin(), available.end(), [](const VkLayerProperties& l) {
-      return std::strcmp(l.layerName, kValidationLayer) == 0;
-    });
-    if (!found) return Error{"validation requested but VK_LAYER_KHRONOS_validation is not installed (vulkan-validationlayers)"};
+    const bool found = std::any_of(
+        available.begin(), available.end(),
+        [](const VkLayerProperties& l) { return std::strcmp(l.layerName, kValidationLayer) == 0; });
+    if (!found)
+      return Error{
+          "validation requested but VK_LAYER_KHRONOS_validation is not installed "
+          "(vulkan-validationlayers)"};
     layers.push_back(kValidationLayer);
     instanceExt.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
     std::uint32_t extCount = 0;
@@ -254,7 +261,8 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
     }
   }
   const VkResult ir = vkCreateInstance(&ici, nullptr, &ctx->instance_);
-  if (ir == VK_ERROR_INCOMPATIBLE_DRIVER) return Error{"no Vulkan driver (ICD) found; " + std::string(kNoDriverHint)};
+  if (ir == VK_ERROR_INCOMPATIBLE_DRIVER)
+    return Error{"no Vulkan driver (ICD) found; " + std::string(kNoDriverHint)};
   PC_VK_TRY(ir);
   if (options.validation) {
     auto createMessenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
@@ -276,7 +284,8 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
     VkPhysicalDeviceProperties props;
     vkGetPhysicalDeviceProperties(d, &props);
     const std::string name = props.deviceName;
-    if (!options.deviceNameFilter.empty() && name.find(options.deviceNameFilter) == std::string::npos) {
+    if (!options.deviceNameFilter.empty() &&
+        name.find(options.deviceNameFilter) == std::string::npos) {
       rejected.push_back(name + " (name does not match '" + options.deviceNameFilter + "')");
       continue;
     }
@@ -295,8 +304,9 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
     if (typeRank(props.deviceType) < bestRank) best = d, bestRank = typeRank(props.deviceType);
   }
   if (best == VK_NULL_HANDLE) {
-    std::string msg = options.rayTracing ? "no Vulkan device with ray tracing (VK_KHR_ray_tracing_pipeline)"
-                                         : "no suitable Vulkan device";
+    std::string msg = options.rayTracing
+                          ? "no Vulkan device with ray tracing (VK_KHR_ray_tracing_pipeline)"
+                          : "no suitable Vulkan device";
     msg += ":";
     for (const std::string& r : rejected) msg += " " + r + ";";
     return Error{msg};
@@ -335,22 +345,27 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   enable.v12.descriptorIndexing = supported.v12.descriptorIndexing;
   enable.v12.runtimeDescriptorArray = supported.v12.runtimeDescriptorArray;
   enable.v12.descriptorBindingPartiallyBound = supported.v12.descriptorBindingPartiallyBound;
-  enable.v12.descriptorBindingVariableDescriptorCount = supported.v12.descriptorBindingVariableDescriptorCount;
-  enable.v12.shaderSampledImageArrayNonUniformIndexing = supported.v12.shaderSampledImageArrayNonUniformIndexing;
-  enable.v12.shaderStorageBufferArrayNonUniformIndexing = supported.v12.shaderStorageBufferArrayNonUniformIndexing;
+  enable.v12.descriptorBindingVariableDescriptorCount =
+      supported.v12.descriptorBindingVariableDescriptorCount;
+  enable.v12.shaderSampledImageArrayNonUniformIndexing =
+      supported.v12.shaderSampledImageArrayNonUniformIndexing;
+  enable.v12.shaderStorageBufferArrayNonUniformIndexing =
+      supported.v12.shaderStorageBufferArrayNonUniformIndexing;
   enable.v13.dynamicRendering = VK_TRUE;
   enable.v13.synchronization2 = VK_TRUE;
   enable.v13.maintenance4 = supported.v13.maintenance4;
   if (options.rayTracing) {
     enable.as.accelerationStructure = VK_TRUE;
     enable.rt.rayTracingPipeline = VK_TRUE;
-    enable.rt.rayTracingPipelineTraceRaysIndirect = supported.rt.rayTracingPipelineTraceRaysIndirect;
+    enable.rt.rayTracingPipelineTraceRaysIndirect =
+        supported.rt.rayTracingPipelineTraceRaysIndirect;
   }
   std::vector<const char*> ext = requiredDeviceExtensions(options);
   VkPhysicalDevicePipelineExecutablePropertiesFeaturesKHR executableInfo{
       VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PIPELINE_EXECUTABLE_PROPERTIES_FEATURES_KHR};
-  const bool statistics = options.pipelineStatistics &&
-                          hasExtension(deviceExtensions(best), VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
+  const bool statistics =
+      options.pipelineStatistics &&
+      hasExtension(deviceExtensions(best), VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
   if (statistics) {
     ext.push_back(VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
     executableInfo.pipelineExecutableInfo = VK_TRUE;
@@ -371,39 +386,44 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   PC_VK_TRY(vkCreateDevice(best, &dci2, nullptr, &ctx->device_));
   vkGetDeviceQueue(ctx->device_, ctx->queueFamily_, 0, &ctx->queue_);
   if (statistics) {
-    ctx->getExecutableProperties_ =
-        load<PFN_vkGetPipelineExecutablePropertiesKHR>(ctx->device_, "vkGetPipelineExecutablePropertiesKHR");
-    ctx->getExecutableStatistics_ =
-        load<PFN_vkGetPipelineExecutableStatisticsKHR>(ctx->device_, "vkGetPipelineExecutableStatisticsKHR");
+    ctx->getExecutableProperties_ = load<PFN_vkGetPipelineExecutablePropertiesKHR>(
+        ctx->device_, "vkGetPipelineExecutablePropertiesKHR");
+    ctx->getExecutableStatistics_ = load<PFN_vkGetPipelineExecutableStatisticsKHR>(
+        ctx->device_, "vkGetPipelineExecutableStatisticsKHR");
     if (!ctx->getExecutableProperties_) ctx->getExecutableStatistics_ = nullptr;
   }
 
   if (options.rayTracing) {
     RayTracingFunctions& f = ctx->rt_;
     VkDevice d = ctx->device_;
-    f.createAccelerationStructure = load<PFN_vkCreateAccelerationStructureKHR>(d, "vkCreateAccelerationStructureKHR");
-    f.destroyAccelerationStructure = load<PFN_vkDestroyAccelerationStructureKHR>(d, "vkDestroyAccelerationStructureKHR");
-    f.getAccelerationStructureBuildSizes =
-        load<PFN_vkGetAccelerationStructureBuildSizesKHR>(d, "vkGetAccelerationStructureBuildSizesKHR");
-    f.getAccelerationStructureDeviceAddress =
-        load<PFN_vkGetAccelerationStructureDeviceAddressKHR>(d, "vkGetAccelerationStructureDeviceAddressKHR");
+    f.createAccelerationStructure =
+        load<PFN_vkCreateAccelerationStructureKHR>(d, "vkCreateAccelerationStructureKHR");
+    f.destroyAccelerationStructure =
+        load<PFN_vkDestroyAccelerationStructureKHR>(d, "vkDestroyAccelerationStructureKHR");
+    f.getAccelerationStructureBuildSizes = load<PFN_vkGetAccelerationStructureBuildSizesKHR>(
+        d, "vkGetAccelerationStructureBuildSizesKHR");
+    f.getAccelerationStructureDeviceAddress = load<PFN_vkGetAccelerationStructureDeviceAddressKHR>(
+        d, "vkGetAccelerationStructureDeviceAddressKHR");
     f.cmdBuildAccelerationStructures =
         load<PFN_vkCmdBuildAccelerationStructuresKHR>(d, "vkCmdBuildAccelerationStructuresKHR");
-    f.createRayTracingPipelines = load<PFN_vkCreateRayTracingPipelinesKHR>(d, "vkCreateRayTracingPipelinesKHR");
+    f.createRayTracingPipelines =
+        load<PFN_vkCreateRayTracingPipelinesKHR>(d, "vkCreateRayTracingPipelinesKHR");
     f.getRayTracingShaderGroupHandles =
         load<PFN_vkGetRayTracingShaderGroupHandlesKHR>(d, "vkGetRayTracingShaderGroupHandlesKHR");
     f.cmdTraceRays = load<PFN_vkCmdTraceRaysKHR>(d, "vkCmdTraceRaysKHR");
     if (enable.rt.rayTracingPipelineTraceRaysIndirect)
       f.cmdTraceRaysIndirect = load<PFN_vkCmdTraceRaysIndirectKHR>(d, "vkCmdTraceRaysIndirectKHR");
-    if (!f.createAccelerationStructure || !f.destroyAccelerationStructure || !f.getAccelerationStructureBuildSizes ||
-        !f.getAccelerationStructureDeviceAddress || !f.cmdBuildAccelerationStructures ||
-        !f.createRayTracingPipelines || !f.getRayTracingShaderGroupHandles || !f.cmdTraceRays) {
+    if (!f.createAccelerationStructure || !f.destroyAccelerationStructure ||
+        !f.getAccelerationStructureBuildSizes || !f.getAccelerationStructureDeviceAddress ||
+        !f.cmdBuildAccelerationStructures || !f.createRayTracingPipelines ||
+        !f.getRayTracingShaderGroupHandles || !f.cmdTraceRays) {
       return Error{"the driver lacks ray-tracing entry points it advertises"};
     }
   }
 
   VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
-  pci.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT | VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  pci.flags =
+      VK_COMMAND_POOL_CREATE_TRANSIENT_BIT | VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
   pci.queueFamilyIndex = ctx->queueFamily_;
   PC_VK_TRY(vkCreateCommandPool(ctx->device_, &pci, nullptr, &ctx->oneShotPool_));
   return ctx;
@@ -416,15 +436,18 @@ std::vector<std::string> Context::pipelineStatistics(VkPipeline pipeline) const 
   info.pipeline = pipeline;
   std::uint32_t count = 0;
   if (getExecutableProperties_(device_, &info, &count, nullptr) != VK_SUCCESS) return lines;
-  std::vector<VkPipelineExecutablePropertiesKHR> executables(count, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_PROPERTIES_KHR});
-  if (getExecutableProperties_(device_, &info, &count, executables.data()) != VK_SUCCESS) return lines;
+  std::vector<VkPipelineExecutablePropertiesKHR> executables(
+      count, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_PROPERTIES_KHR});
+  if (getExecutableProperties_(device_, &info, &count, executables.data()) != VK_SUCCESS)
+    return lines;
   for (std::uint32_t e = 0; e < count; ++e) {
     VkPipelineExecutableInfoKHR ei{VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_INFO_KHR};
     ei.pipeline = pipeline;
     ei.executableIndex = e;
     std::uint32_t n = 0;
     if (getExecutableStatistics_(device_, &ei, &n, nullptr) != VK_SUCCESS) continue;
-    std::vector<VkPipelineExecutableStatisticKHR> stats(n, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_STATISTIC_KHR});
+    std::vector<VkPipelineExecutableStatisticKHR> stats(
+        n, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_STATISTIC_KHR});
     if (getExecutableStatistics_(device_, &ei, &n, stats.data()) != VK_SUCCESS) continue;
     std::string line = std::string(executables[e].name) + " (subgroup " +
                        std::to_string(executables[e].subgroupSize) + "):";
@@ -432,11 +455,20 @@ std::vector<std::string> Context::pipelineStatistics(VkPipeline pipeline) const 
       const VkPipelineExecutableStatisticKHR& st = stats[i];
       std::string value;
       switch (st.format) {
-        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_BOOL32_KHR: value = st.value.b32 ? "yes" : "no"; break;
-        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_INT64_KHR: value = std::to_string(st.value.i64); break;
-        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_UINT64_KHR: value = std::to_string(st.value.u64); break;
-        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_FLOAT64_KHR: value = std::to_string(st.value.f64); break;
-        default: value = "?";
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_BOOL32_KHR:
+          value = st.value.b32 ? "yes" : "no";
+          break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_INT64_KHR:
+          value = std::to_string(st.value.i64);
+          break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_UINT64_KHR:
+          value = std::to_string(st.value.u64);
+          break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_FLOAT64_KHR:
+          value = std::to_string(st.value.f64);
+          break;
+        default:
+          value = "?";
       }
       line += std::string(i ? ", " : " ") + st.name + " " + value;
     }

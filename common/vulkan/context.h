@@ -9,6 +9,8 @@
 // Nothing here aborts: a GPU server falls back to the CPU, a client stops with a message.
 #pragma once
 
+#include <vulkan/vulkan.h>
+
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
@@ -20,8 +22,6 @@
 #include <utility>
 #include <vector>
 
-#include <vulkan/vulkan.h>
-
 #include "../result.h"
 #include "check.h"
 
@@ -32,7 +32,7 @@ struct ContextOptions {
   // Requires VK_KHR_ray_tracing_pipeline, VK_KHR_acceleration_structure,
   // VK_KHR_deferred_host_operations, buffer device address and descriptor indexing.
   bool rayTracing = false;
-  bool presentation = false;  // VK_KHR_swapchain on the device
+  bool presentation = false;                    // VK_KHR_swapchain on the device
   std::vector<std::string> instanceExtensions;  // e.g. glfwGetRequiredInstanceExtensions()
   // CPU implementations (lavapipe) are skipped unless allowed: they are correct but far too
   // slow to be picked by accident. Tests and CPU-only machines set this.
@@ -74,7 +74,9 @@ class Context {
   const VkPhysicalDeviceProperties& properties() const { return properties_; }
   const VkPhysicalDeviceMemoryProperties& memoryProperties() const { return memory_; }
   // Valid when created with rayTracing.
-  const VkPhysicalDeviceRayTracingPipelinePropertiesKHR& rayTracingProperties() const { return rtProperties_; }
+  const VkPhysicalDeviceRayTracingPipelinePropertiesKHR& rayTracingProperties() const {
+    return rtProperties_;
+  }
   const RayTracingFunctions& rt() const { return rt_; }
   std::string deviceName() const { return properties_.deviceName; }
   bool isCpuDevice() const { return properties_.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU; }
@@ -193,9 +195,11 @@ class Buffer {
   VkBuffer get() const { return buffer_; }
   VkDeviceSize size() const { return size_; }
   VkDeviceAddress address() const { return address_; }  // 0 without device-address usage
-  void* mapped() const { return mapped_; }               // null for DeviceLocal
+  void* mapped() const { return mapped_; }              // null for DeviceLocal
   template <typename T>
-  T* as() const { return static_cast<T*>(mapped_); }
+  T* as() const {
+    return static_cast<T*>(mapped_);
+  }
   // Makes GPU writes visible to the host (no-op on coherent memory). Call after the GPU work
   // that wrote the buffer finished. A lost device can fail it: the caller decides what that
   // means (the tracer fails the call with an error, the client renderer stops).
@@ -308,7 +312,8 @@ void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 srcStage, VkAccess
 // `name` is the source file name plus ".spv", e.g. "probe_trace.rgen.spv".
 std::filesystem::path shaderPath(std::string_view name);
 Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name);
-Result<UniqueShaderModule> createShaderModule(const Context& ctx, std::span<const std::uint32_t> spirv);
+Result<UniqueShaderModule> createShaderModule(const Context& ctx,
+                                              std::span<const std::uint32_t> spirv);
 // A descriptor set layout of `bindings`; `flags`, where given, holds one
 // VkDescriptorBindingFlags per binding (VK_EXT_descriptor_indexing's partially bound and
 // variable-count arrays).

@@ -58,8 +58,9 @@ Result<Image> Image::create(const Context& ctx, const ImageDesc& desc) {
 
   VkImageViewCreateInfo vci{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   vci.image = img.image_;
-  vci.viewType = desc.cube ? (desc.layers > 6 ? VK_IMAGE_VIEW_TYPE_CUBE_ARRAY : VK_IMAGE_VIEW_TYPE_CUBE)
-                           : (desc.layers > 1 ? VK_IMAGE_VIEW_TYPE_2D_ARRAY : VK_IMAGE_VIEW_TYPE_2D);
+  vci.viewType = desc.cube
+                     ? (desc.layers > 6 ? VK_IMAGE_VIEW_TYPE_CUBE_ARRAY : VK_IMAGE_VIEW_TYPE_CUBE)
+                     : (desc.layers > 1 ? VK_IMAGE_VIEW_TYPE_2D_ARRAY : VK_IMAGE_VIEW_TYPE_2D);
   vci.format = desc.format;
   vci.subresourceRange = img.range();
   PC_VK_TRY(vkCreateImageView(ctx.device(), &vci, nullptr, &img.view_));
@@ -110,7 +111,8 @@ VkImageSubresourceRange Image::range() const {
 }
 
 void Image::transition(VkCommandBuffer cmd, VkImageLayout newLayout, VkPipelineStageFlags2 srcStage,
-                       VkAccessFlags2 srcAccess, VkPipelineStageFlags2 dstStage, VkAccessFlags2 dstAccess) {
+                       VkAccessFlags2 srcAccess, VkPipelineStageFlags2 dstStage,
+                       VkAccessFlags2 dstAccess) {
   VkImageMemoryBarrier2 b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER_2};
   b.srcStageMask = srcStage;
   b.srcAccessMask = srcAccess;
@@ -147,7 +149,8 @@ Status Image::upload(const void* data, std::size_t bytes) {
   if (bytes != offset)
     return Error{"Image::upload: " + std::to_string(bytes) + " bytes given for an image of " +
                  std::to_string(offset)};
-  auto staging = Buffer::create(*ctx_, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload);
+  auto staging =
+      Buffer::create(*ctx_, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::Upload);
   if (!staging) return staging.error();
   staging->write(data, bytes);
   return ctx_->submitAndWait([&](VkCommandBuffer cmd) {

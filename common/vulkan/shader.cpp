@@ -1,6 +1,6 @@
-#include <fstream>
-
 #include <unistd.h>
+
+#include <fstream>
 
 #include "context.h"
 
@@ -14,7 +14,8 @@ std::filesystem::path shaderPath(std::string_view name) {
   return dir / "shaders" / std::string(name);
 }
 
-Result<UniqueShaderModule> createShaderModule(const Context& ctx, std::span<const std::uint32_t> spirv) {
+Result<UniqueShaderModule> createShaderModule(const Context& ctx,
+                                              std::span<const std::uint32_t> spirv) {
   VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
   ci.codeSize = spirv.size_bytes();
   ci.pCode = spirv.data();
@@ -62,7 +63,8 @@ Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name)
   if (bytes <= 0 || bytes % 4 != 0) return Error{path.string() + ": not a SPIR-V file"};
   std::vector<std::uint32_t> words(std::size_t(bytes) / 4);
   in.seekg(0);
-  if (!in.read(reinterpret_cast<char*>(words.data()), bytes)) return Error{path.string() + ": read failed"};
+  if (!in.read(reinterpret_cast<char*>(words.data()), bytes))
+    return Error{path.string() + ": read failed"};
   if (words[0] != 0x07230203u) return Error{path.string() + ": not a SPIR-V file (bad magic)"};
   return createShaderModule(ctx, words);
 }

@@ -20,27 +20,33 @@ PC_CONST int PC_CLIENT_BIND_PROBES = 5;           // buffer vec4[]: relocation o
 PC_CONST int PC_CLIENT_BIND_IRRADIANCE = 6;       // sampler2D, linear
 PC_CONST int PC_CLIENT_BIND_DEPTH = 7;            // sampler2D, linear
 PC_CONST int PC_CLIENT_BIND_OCCLUSION = 8;        // sampler2D, linear
-PC_CONST int PC_CLIENT_BIND_SHADOW_MAPS = 9;      // sampler2DArrayShadow[3]: large maps, small maps, point-light cube faces
-PC_CONST int PC_CLIENT_BIND_TEXTURES = 10;        // sampler2D[textureCount]
-PC_CONST int PC_CLIENT_BIND_G_VISIBILITY = 11;    // usampler2DMSArray: draw's triangleBase + primitive + 1, 0: sky
-PC_CONST int PC_CLIENT_BIND_VERTICES = 12;        // buffer float[]: the packed Vertex records (8 floats)
-PC_CONST int PC_CLIENT_BIND_INDICES = 13;         // buffer uint[]: the packed index buffer
-PC_CONST int PC_CLIENT_BIND_HDR_IMAGE = 14;       // image2DArray rgba32f: the final linear frame
-PC_CONST int PC_CLIENT_BIND_HDR_TEXTURE = 15;     // sampler2DArray: the same image, read by tone mapping
-PC_CONST int PC_CLIENT_BIND_OVERLAY = 16;         // buffer OverlayText
+PC_CONST int PC_CLIENT_BIND_SHADOW_MAPS =
+    9;  // sampler2DArrayShadow[3]: large maps, small maps, point-light cube faces
+PC_CONST int PC_CLIENT_BIND_TEXTURES = 10;  // sampler2D[textureCount]
+PC_CONST int PC_CLIENT_BIND_G_VISIBILITY =
+    11;  // usampler2DMSArray: draw's triangleBase + primitive + 1, 0: sky
+PC_CONST int PC_CLIENT_BIND_VERTICES = 12;   // buffer float[]: the packed Vertex records (8 floats)
+PC_CONST int PC_CLIENT_BIND_INDICES = 13;    // buffer uint[]: the packed index buffer
+PC_CONST int PC_CLIENT_BIND_HDR_IMAGE = 14;  // image2DArray rgba32f: the final linear frame
+PC_CONST int PC_CLIENT_BIND_HDR_TEXTURE =
+    15;                                    // sampler2DArray: the same image, read by tone mapping
+PC_CONST int PC_CLIENT_BIND_OVERLAY = 16;  // buffer OverlayText
 // The compute rasterizer (RendererOptions::computeRaster; client_raster*.comp):
-PC_CONST int PC_CLIENT_BIND_VIS_SAMPLES = 17;       // buffer uint64 per sample: depth bits << 32 | visibility id
-PC_CONST int PC_CLIENT_BIND_RASTER_TRIANGLES = 18;  // buffer RasterTriangle[]: triangles split into tile jobs
-PC_CONST int PC_CLIENT_BIND_RASTER_JOBS = 19;       // buffer uvec2[]: (RasterTriangle index, tile y << 16 | x)
-PC_CONST int PC_CLIENT_BIND_RASTER_COUNTERS = 20;   // buffer RasterCounters
+PC_CONST int PC_CLIENT_BIND_VIS_SAMPLES =
+    17;  // buffer uint64 per sample: depth bits << 32 | visibility id
+PC_CONST int PC_CLIENT_BIND_RASTER_TRIANGLES =
+    18;  // buffer RasterTriangle[]: triangles split into tile jobs
+PC_CONST int PC_CLIENT_BIND_RASTER_JOBS =
+    19;  // buffer uvec2[]: (RasterTriangle index, tile y << 16 | x)
+PC_CONST int PC_CLIENT_BIND_RASTER_COUNTERS = 20;  // buffer RasterCounters
 PC_CONST int PC_CLIENT_BINDING_COUNT = 21;
 
 PC_CONST int PC_MAX_VIEWS = 2;
 
 struct ClientView {
-  mat4 viewProj;     // world -> clip (Vulkan: y down, reversed depth 1 at near, 0 at infinity)
+  mat4 viewProj;  // world -> clip (Vulkan: y down, reversed depth 1 at near, 0 at infinity)
   mat4 invViewProjFromEye;  // clip -> world offset from `position` (no translation: see camera.h)
-  vec4 position;     // camera position, w unused
+  vec4 position;            // camera position, w unused
 };
 
 struct FrameUniforms {
@@ -95,15 +101,15 @@ struct ShadowPush {
 // The field-write pass (client_field_write.comp, its own descriptor set): writes whole
 // bordered tiles of the listed bricks from their interiors (borders derived on the GPU), each
 // texel moved `weight` of the way from what the atlas holds toward the brick's new value.
-PC_CONST int PC_FW_BIND_FIELD_DESC = 0;        // uniform FieldDesc
-PC_CONST int PC_FW_BIND_WRITES = 1;            // buffer FieldWrite[]
-PC_CONST int PC_FW_BIND_IRRADIANCE_NEW = 2;    // buffer vec4[]: per probe slot n*n interior texels
-PC_CONST int PC_FW_BIND_DEPTH_NEW = 3;         // buffer vec2[]
-PC_CONST int PC_FW_BIND_OCCLUSION_NEW = 4;     // buffer float[]
-PC_CONST int PC_FW_BIND_IRRADIANCE_HELD = 5;   // sampler2D: the atlases as they are
+PC_CONST int PC_FW_BIND_FIELD_DESC = 0;       // uniform FieldDesc
+PC_CONST int PC_FW_BIND_WRITES = 1;           // buffer FieldWrite[]
+PC_CONST int PC_FW_BIND_IRRADIANCE_NEW = 2;   // buffer vec4[]: per probe slot n*n interior texels
+PC_CONST int PC_FW_BIND_DEPTH_NEW = 3;        // buffer vec2[]
+PC_CONST int PC_FW_BIND_OCCLUSION_NEW = 4;    // buffer float[]
+PC_CONST int PC_FW_BIND_IRRADIANCE_HELD = 5;  // sampler2D: the atlases as they are
 PC_CONST int PC_FW_BIND_DEPTH_HELD = 6;
 PC_CONST int PC_FW_BIND_OCCLUSION_HELD = 7;
-PC_CONST int PC_FW_BIND_IRRADIANCE_OUT = 8;    // image2D (written without a format)
+PC_CONST int PC_FW_BIND_IRRADIANCE_OUT = 8;  // image2D (written without a format)
 PC_CONST int PC_FW_BIND_DEPTH_OUT = 9;
 PC_CONST int PC_FW_BIND_OCCLUSION_OUT = 10;
 PC_CONST int PC_FW_BINDING_COUNT = 11;
@@ -126,19 +132,20 @@ PC_CONST int PC_RASTER_SMALL = 64;          // bounding boxes up to this many pi
 PC_CONST int PC_RASTER_GROUP = 64;          // threads per workgroup of the triangle pass
 PC_CONST int PC_RASTER_TILE_GROUP = 256;    // threads per tile job
 PC_CONST int PC_RASTER_MAX_GROUPS = 65535;  // per dispatch dimension (the Vulkan minimum limit)
-PC_CONST float PC_RASTER_GUARD = 8.0;       // guard band, in viewport half-sizes (keeps fixed point in range)
+PC_CONST float PC_RASTER_GUARD =
+    8.0;  // guard band, in viewport half-sizes (keeps fixed point in range)
 
 struct RasterTriangle {
-  ivec4 ab;         // fixed-point screen positions of the corners a, b
-  ivec4 cIdView;    // c, visibility id, view
-  vec4 depth;       // at a, b, c (w unused)
+  ivec4 ab;       // fixed-point screen positions of the corners a, b
+  ivec4 cIdView;  // c, visibility id, view
+  vec4 depth;     // at a, b, c (w unused)
 };
 
 struct RasterCounters {
-  uvec4 dispatch;   // xyz: the tile pass's indirect workgroup counts
-  uint triangles;   // RasterTriangle records appended
-  uint jobs;        // tile jobs appended
-  uint dropped;     // triangles or jobs past a capacity (not drawn)
+  uvec4 dispatch;  // xyz: the tile pass's indirect workgroup counts
+  uint triangles;  // RasterTriangle records appended
+  uint jobs;       // tile jobs appended
+  uint dropped;    // triangles or jobs past a capacity (not drawn)
   uint pad0;
 };
 

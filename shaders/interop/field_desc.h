@@ -13,7 +13,7 @@ PC_BEGIN
 PC_CONST int PC_IRRADIANCE_TEXELS = 8;
 PC_CONST int PC_DEPTH_TEXELS = 16;
 PC_CONST int PC_OCCLUSION_TEXELS = 8;
-PC_CONST int PC_BRICK_SIZE = 4;     // probes per brick side
+PC_CONST int PC_BRICK_SIZE = 4;  // probes per brick side
 PC_CONST int PC_MAX_CASCADES = 4;
 PC_CONST int PC_ATLAS_TILES_PER_ROW = 128;  // tiles per atlas row; cascades stack vertically
 
@@ -32,25 +32,25 @@ PC_CONST float PC_PI = 3.14159265358979f;
 PC_CONST float PC_IRRADIANCE_GAMMA = 5.0f;  // encoding gamma of the irradiance atlas
 
 struct CascadeDesc {
-  vec3 origin;         // world position of logical probe (0,0,0)
-  float spacing;       // distance between neighbouring probes (same on all axes)
+  vec3 origin;    // world position of logical probe (0,0,0)
+  float spacing;  // distance between neighbouring probes (same on all axes)
   // -- 16
-  ivec3 counts;        // probes per axis
-  int firstProbe;      // index of this cascade's first probe in field-wide probe arrays
+  ivec3 counts;    // probes per axis
+  int firstProbe;  // index of this cascade's first probe in field-wide probe arrays
   // -- 32
-  ivec3 scroll;        // toroidal shift, in [0, counts): physical = (logical + scroll) mod counts
-  int atlasTileRow;    // first atlas tile row of this cascade
+  ivec3 scroll;      // toroidal shift, in [0, counts): physical = (logical + scroll) mod counts
+  int atlasTileRow;  // first atlas tile row of this cascade
   // -- 48
-  float normalBias;    // world units, along the surface normal
-  float viewBias;      // world units, towards the viewer
+  float normalBias;      // world units, along the surface normal
+  float viewBias;        // world units, towards the viewer
   float maxRayDistance;  // depth moments are clamped to this
-  float blendMargin;   // world units over which a point fades to the next coarser cascade
+  float blendMargin;     // world units over which a point fades to the next coarser cascade
   // -- 64
 };
 
 struct FieldDesc {
   int cascadeCount;
-  int probeCount;      // all cascades
+  int probeCount;  // all cascades
   float hysteresis;
   float distanceExponent;
   // -- 16

@@ -38,29 +38,31 @@ PC_CONST int PC_BIND_OCCLUSION = 5;   // float[] (r)
 PC_CONST int PC_BIND_PROBES = 6;      // GpuProbeRecord[], field-wide slot index
 PC_CONST int PC_BIND_REQUESTS = 7;    // ivec2[]: (cascade, slot) of each probe to update
 PC_CONST int PC_BIND_RAY_DIRS = 8;    // vec4[]: this update's ray directions (xyz)
-PC_CONST int PC_BIND_RAYS = 9;        // vec4[] per ray, launch order: radiance without direct light, signed distance
-PC_CONST int PC_BIND_VERTICES = 10;   // GpuVertex[]
-PC_CONST int PC_BIND_INDICES = 11;    // uint[], mesh-local
-PC_CONST int PC_BIND_MESHES = 12;     // GpuMesh[]
-PC_CONST int PC_BIND_INSTANCES = 13;  // GpuInstance[]: shading records (custom + geometry index)
-PC_CONST int PC_BIND_MATERIALS = 14;  // GpuMaterial[]
-PC_CONST int PC_BIND_LIGHTS = 15;     // GpuLight[]
-PC_CONST int PC_BIND_EMISSIVE = 16;   // GpuEmissiveTriangle[]
-PC_CONST int PC_BIND_CHANGES = 17;    // float[] per requested probe: largest irradiance change
+PC_CONST int PC_BIND_RAYS =
+    9;  // vec4[] per ray, launch order: radiance without direct light, signed distance
+PC_CONST int PC_BIND_VERTICES = 10;     // GpuVertex[]
+PC_CONST int PC_BIND_INDICES = 11;      // uint[], mesh-local
+PC_CONST int PC_BIND_MESHES = 12;       // GpuMesh[]
+PC_CONST int PC_BIND_INSTANCES = 13;    // GpuInstance[]: shading records (custom + geometry index)
+PC_CONST int PC_BIND_MATERIALS = 14;    // GpuMaterial[]
+PC_CONST int PC_BIND_LIGHTS = 15;       // GpuLight[]
+PC_CONST int PC_BIND_EMISSIVE = 16;     // GpuEmissiveTriangle[]
+PC_CONST int PC_BIND_CHANGES = 17;      // float[] per requested probe: largest irradiance change
 PC_CONST int PC_BIND_BRICK_FLAGS = 18;  // uint[] per field-wide brick: changed this update
 PC_CONST int PC_BIND_BRICK_LIST = 19;   // uint[]: dispatch args (x = count, 1, 1), then bricks
 PC_CONST int PC_BIND_PACKED = 20;       // float[]: changed bricks' tile rows, for the host
 PC_CONST int PC_BIND_COUNTERS = 21;  // uint[PC_COUNTER_WORDS per slot]: its list's length, 1, 1, 0
-PC_CONST int PC_BIND_TAPS = 22;         // uint[]: this update's blend taps (see below)
-PC_CONST int PC_BIND_HITS = 23;         // GpuHit[] per ray, launch order
-PC_CONST int PC_BIND_SHADOW_MASK = 24;  // uint[]: visible shadow slots, [word * (rays of the update) + launch index]
-PC_CONST int PC_BIND_SHADOW_RAYS = 25;  // GpuShadowRay[]: [slot * rays of the update + i], each
-                                        // slot's compacted list of real shadow rays
+PC_CONST int PC_BIND_TAPS = 22;      // uint[]: this update's blend taps (see below)
+PC_CONST int PC_BIND_HITS = 23;      // GpuHit[] per ray, launch order
+PC_CONST int PC_BIND_SHADOW_MASK =
+    24;  // uint[]: visible shadow slots, [word * (rays of the update) + launch index]
+PC_CONST int PC_BIND_SHADOW_RAYS = 25;   // GpuShadowRay[]: [slot * rays of the update + i], each
+                                         // slot's compacted list of real shadow rays
 PC_CONST int PC_BIND_SHADOW_LIGHT = 26;  // GpuShadowLight[]: [slot * rays of the update + launch
                                          // index] (masks, lists and lights: the slot's place in its
                                          // round, pcShadowRounds)
-PC_CONST int PC_BIND_TEXTURES = 27;     // sampler2D[]: base colour and emissive textures; the
-                                        // variable-count binding, so it must stay the last
+PC_CONST int PC_BIND_TEXTURES = 27;      // sampler2D[]: base colour and emissive textures; the
+                                         // variable-count binding, so it must stay the last
 PC_CONST int PC_BINDING_COUNT = 28;
 
 // The counters (PC_BIND_COUNTERS), PC_COUNTER_WORDS per shadow slot: the length of the slot's
@@ -69,9 +71,9 @@ PC_CONST int PC_BINDING_COUNT = 28;
 // buffer. Each slot (light, or emissive sample) has its own list, so the rays of a warp of the
 // shadow launch all head for the same light.
 PC_CONST int PC_COUNTER_WORDS = 4;
-PC_CONST int PC_BRICK_LIST_HEADER = 3;  // uints of dispatch arguments before the brick list
-PC_CONST int PC_DISPATCH_ROWS = 32768;  // workgroups per row of a 2D compute dispatch
-PC_CONST int PC_SHADE_THREADS = 128;    // probe_shade.comp workgroup: one ray each
+PC_CONST int PC_BRICK_LIST_HEADER = 3;      // uints of dispatch arguments before the brick list
+PC_CONST int PC_DISPATCH_ROWS = 32768;      // workgroups per row of a 2D compute dispatch
+PC_CONST int PC_SHADE_THREADS = 128;        // probe_shade.comp workgroup: one ray each
 PC_CONST int PC_MAX_RAYS_PER_PROBE = 1024;  // kMaxRaysPerProbe (common/field.h): blend scratch
 
 // probe_blend.comp: a workgroup blends up to PC_BLEND_MAX_PROBES consecutive requests, as many
@@ -101,7 +103,8 @@ PC_FN int pcBlendScratch(int groupProbes, int rayCount) { return groupProbes * (
 // 4t (a block's unused words are zero). So each thread loads four taps at once, and a warp's
 // loads are contiguous. Every workgroup reads the whole table: at two words a tap, one at a
 // time, those reads were a third of the blend's time on an H200.
-PC_CONST int PC_TAP_TEXELS = PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS + PC_DEPTH_TEXELS * PC_DEPTH_TEXELS;
+PC_CONST int PC_TAP_TEXELS =
+    PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS + PC_DEPTH_TEXELS * PC_DEPTH_TEXELS;
 
 // Probe-ray launches are one-dimensional: a warp's 32 invocations trace the same ray direction
 // from PC_TRACE_TILE_PROBES neighbouring probes (neighbouring slots of a brick), which keeps
@@ -164,12 +167,11 @@ PC_CONST int PC_PACKED_DEPTH = (PC_DEPTH_TEXELS + 2) * (PC_DEPTH_TEXELS + 2) * 2
 PC_CONST int PC_PACKED_OCCLUSION = (PC_OCCLUSION_TEXELS + 2) * (PC_OCCLUSION_TEXELS + 2);
 PC_CONST int PC_PACKED_PROBE_FLOATS = PC_PACKED_IRRADIANCE + PC_PACKED_DEPTH + PC_PACKED_OCCLUSION;
 
-
 struct GpuVertex {
   vec3 position;  // object space
   float u;
   // -- 16
-  vec3 normal;    // object space; zero when the mesh has none
+  vec3 normal;  // object space; zero when the mesh has none
   float v;
   // -- 32
 };
@@ -293,7 +295,7 @@ struct UpdateParams {
   int probeCount;  // requested probes this update
   // -- 32
   vec3 skyGround;
-  int shading;     // ShadingFlags (1: no indirect)
+  int shading;  // ShadingFlags (1: no indirect)
   // -- 48
   int lightCount;
   int emissiveCount;
@@ -302,7 +304,7 @@ struct UpdateParams {
   // -- 64
   float hysteresis;
   float changeThreshold;
-  int brickTotal;  // bricks over all cascades
+  int brickTotal;   // bricks over all cascades
   int shadowSlots;  // pcShadowSlots
   // -- 80
   ivec4 cascadeBrickOffset;  // first field-wide brick of each cascade

@@ -106,7 +106,9 @@ PC_FN mat3 pcRandomRotation(uint seed) {
 
 // ---- probe and brick indexing --------------------------------------------------------------
 
-PC_FN ivec3 pcWrap(ivec3 v, ivec3 n) { return ivec3(((v.x % n.x) + n.x) % n.x, ((v.y % n.y) + n.y) % n.y, ((v.z % n.z) + n.z) % n.z); }
+PC_FN ivec3 pcWrap(ivec3 v, ivec3 n) {
+  return ivec3(((v.x % n.x) + n.x) % n.x, ((v.y % n.y) + n.y) % n.y, ((v.z % n.z) + n.z) % n.z);
+}
 
 // Logical grid coordinate -> physical storage coordinate (toroidal scroll). Both the
 // coordinate and the scroll lie in [0, counts), so one conditional subtraction wraps: this runs
@@ -114,11 +116,13 @@ PC_FN ivec3 pcWrap(ivec3 v, ivec3 n) { return ivec3(((v.x % n.x) + n.x) % n.x, (
 PC_FN int pcWrapOnce(int v, int n) { return v >= n ? v - n : v; }
 PC_FN ivec3 pcPhysicalCoord(PC_IN(CascadeDesc) c, ivec3 logical) {
   ivec3 v = logical + c.scroll;
-  return ivec3(pcWrapOnce(v.x, c.counts.x), pcWrapOnce(v.y, c.counts.y), pcWrapOnce(v.z, c.counts.z));
+  return ivec3(pcWrapOnce(v.x, c.counts.x), pcWrapOnce(v.y, c.counts.y),
+               pcWrapOnce(v.z, c.counts.z));
 }
 PC_FN ivec3 pcLogicalCoord(PC_IN(CascadeDesc) c, ivec3 physical) {
   ivec3 v = physical - c.scroll + c.counts;
-  return ivec3(pcWrapOnce(v.x, c.counts.x), pcWrapOnce(v.y, c.counts.y), pcWrapOnce(v.z, c.counts.z));
+  return ivec3(pcWrapOnce(v.x, c.counts.x), pcWrapOnce(v.y, c.counts.y),
+               pcWrapOnce(v.z, c.counts.z));
 }
 
 // Physical coordinate -> index within the cascade. Probes are stored brick by brick so a

@@ -5,10 +5,10 @@
 // The includer provides the texel fetches (textures on the GPU, arrays on the CPU) before
 // including this file:
 //   PC_FIELD_PARAM / PC_FIELD_ARG  an extra leading parameter/argument (empty in GLSL)
-//   vec3  pcFetchIrradiance(PC_FIELD_PARAM int cascade, int slot, vec3 dir)  gamma-encoded, bilinear
-//   vec2  pcFetchDepth(PC_FIELD_PARAM int cascade, int slot, vec3 dir)       mean, mean square
-//   float pcFetchOcclusion(PC_FIELD_PARAM int cascade, int slot, vec3 dir)
-//   vec4  pcFetchProbe(PC_FIELD_PARAM int cascade, int slot)                 offset xyz, state w
+//   vec3  pcFetchIrradiance(PC_FIELD_PARAM int cascade, int slot, vec3 dir)  gamma-encoded,
+//   bilinear vec2  pcFetchDepth(PC_FIELD_PARAM int cascade, int slot, vec3 dir)       mean, mean
+//   square float pcFetchOcclusion(PC_FIELD_PARAM int cascade, int slot, vec3 dir) vec4
+//   pcFetchProbe(PC_FIELD_PARAM int cascade, int slot)                 offset xyz, state w
 #ifndef PC_PROBE_SAMPLING_H
 #define PC_PROBE_SAMPLING_H
 
@@ -29,8 +29,8 @@ PC_FN float pcChebyshevVisibility(vec2 moments, float dist) {
 
 // Irradiance (rgb, W/m^2) and sky occlusion (a) from one cascade; `weightSum` returns the sum
 // of cage weights (0 when no probe of the cage holds data).
-PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N,
-                           vec3 V, int flags, PC_INOUT(float) weightSum) {
+PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N, vec3 V,
+                           int flags, PC_INOUT(float) weightSum) {
   vec3 biasedP = P + N * c.normalBias + V * c.viewBias;
   vec3 grid = (biasedP - c.origin) / c.spacing;
   ivec3 base = clamp(ivec3(floor(grid)), ivec3(0), max(c.counts - ivec3(2), ivec3(0)));

@@ -9,16 +9,22 @@ PC_BEGIN
 
 // Irradiance texels integrate cos-weighted radiance; depth texels use a sharper lobe so the
 // moments describe the distance close to the texel's direction.
-PC_FN float pcIrradianceWeight(vec3 texelDir, vec3 rayDir) { return max(0.0f, dot(texelDir, rayDir)); }
+PC_FN float pcIrradianceWeight(vec3 texelDir, vec3 rayDir) {
+  return max(0.0f, dot(texelDir, rayDir));
+}
 PC_FN float pcDepthWeight(vec3 texelDir, vec3 rayDir, float exponent) {
   return pow(max(0.0f, dot(texelDir, rayDir)), exponent);
 }
 
 // Hysteresis blend: alpha near 1 changes slowly. A tile without history takes the sample.
-PC_FN float pcBlendFactor(float hysteresis, bool hasHistory) { return hasHistory ? hysteresis : 0.0f; }
+PC_FN float pcBlendFactor(float hysteresis, bool hasHistory) {
+  return hasHistory ? hysteresis : 0.0f;
+}
 
 // Encoding of irradiance in the atlas (see PC_IRRADIANCE_GAMMA).
-PC_FN vec3 pcEncodeIrradiance(vec3 e) { return pow(max(e, vec3(0.0f)), vec3(1.0f / PC_IRRADIANCE_GAMMA)); }
+PC_FN vec3 pcEncodeIrradiance(vec3 e) {
+  return pow(max(e, vec3(0.0f)), vec3(1.0f / PC_IRRADIANCE_GAMMA));
+}
 PC_FN vec3 pcDecodeIrradiance(vec3 g) { return pow(max(g, vec3(0.0f)), vec3(PC_IRRADIANCE_GAMMA)); }
 
 // Backface hits report a shortened distance so the depth moments mark the probe as seeing a
@@ -34,15 +40,16 @@ PC_CONST float PC_INSIDE_BACKFACE_FRACTION = 0.25f;
 PC_CONST float PC_OUTSIDE_BACKFACE_FRACTION = 0.1f;
 
 PC_FN bool pcProbeInside(float backfaceFraction, int oldState) {
-  float limit = oldState == PC_PROBE_INSIDE ? PC_OUTSIDE_BACKFACE_FRACTION : PC_INSIDE_BACKFACE_FRACTION;
+  float limit =
+      oldState == PC_PROBE_INSIDE ? PC_OUTSIDE_BACKFACE_FRACTION : PC_INSIDE_BACKFACE_FRACTION;
   return backfaceFraction > limit;
 }
 
 // Relocation: push the probe out of geometry or away from a too-close wall. Offsets are kept
 // within maxOffset (a fraction of spacing) of the grid point.
-PC_FN vec3 pcRelocate(vec3 offset, bool inside, float closestBackface,
-                      vec3 closestBackfaceDir, float closestFrontface, vec3 closestFrontfaceDir,
-                      float minFrontface, float maxOffset) {
+PC_FN vec3 pcRelocate(vec3 offset, bool inside, float closestBackface, vec3 closestBackfaceDir,
+                      float closestFrontface, vec3 closestFrontfaceDir, float minFrontface,
+                      float maxOffset) {
   vec3 moved = offset;
   if (inside && closestBackface < 1e30f) {
     // Inside: step through the nearest backface, a little past the surface, if that stays

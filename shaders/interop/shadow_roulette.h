@@ -19,11 +19,14 @@
 PC_BEGIN
 
 // The key of the ray `rayIndex` (request x rays per probe + ray) of the update with `seed`.
-PC_FN uint pcShadowRouletteKey(uint seed, uint rayIndex) { return pcHash(seed * 0x85EBCA77u ^ pcHash(rayIndex)); }
+PC_FN uint pcShadowRouletteKey(uint seed, uint rayIndex) {
+  return pcHash(seed * 0x85EBCA77u ^ pcHash(rayIndex));
+}
 
 // The weight of light `light`'s contribution at a hit: 1 for its shadow ray as always, 0 for
 // no shadow ray (the light is left out), 1/p for a weak light that won the draw.
-PC_FN float pcShadowRouletteWeight(float contribution, float total, float share, uint key, int light) {
+PC_FN float pcShadowRouletteWeight(float contribution, float total, float share, uint key,
+                                   int light) {
   if (!(share > 0.0f) || contribution >= share * total) return 1.0f;
   float p = contribution / (share * total);
   float u = pcHashToFloat(pcHash(key + uint(light) * 0x9E3779B9u));

@@ -2,12 +2,11 @@
 // readable table, then one line per figure: `FIGURE <name> <value> <unit>`.
 #pragma once
 
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <functional>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "common/result.h"
 #include "common/scene.h"

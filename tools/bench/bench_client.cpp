@@ -252,7 +252,8 @@ Benchmark addClient(CLI::App& app) {
         std::printf("%-34s %10.3f\n", "  shadow maps", median(shadowMs));
         std::printf("%-34s %10.3f\n", "  main pass (visibility buffer)", median(mainMs));
         std::printf("%-34s %10.3f\n", "  lighting pass (direct + field)", median(probeMs));
-        std::printf("%-34s %10.3f\n", "    without the field (ambient)", median(timedNoField->probeMs));
+        std::printf("%-34s %10.3f\n", "    without the field (ambient)",
+                    median(timedNoField->probeMs));
         std::printf("%-34s %10.3f\n", "    probe sampling (difference)", samplingMs);
         std::printf("%-34s %10.3f\n", "  field uploads", median(uploadMs));
         std::printf("%-34s %10.3f\n", "  tone mapping", median(tonemapMs));

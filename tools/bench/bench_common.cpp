@@ -84,7 +84,8 @@ Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, i
 // (2: secondary rays leave from pcShadowOrigin, the lights evaluated at the hit point).
 constexpr int kReferenceVersion = 2;
 
-Result<Reference> cachedReference(const Scene& scene, const Camera& camera, const RenderSetup& setup) {
+Result<Reference> cachedReference(const Scene& scene, const Camera& camera,
+                                  const RenderSetup& setup) {
   char key[160];
   std::snprintf(key, sizeof key, "%016llx-%08x-%dx%d-%dspp-v%d", (unsigned long long)scene.hash,
                 unsigned(std::hash<std::string>{}(
@@ -112,7 +113,8 @@ Result<Reference> cachedReference(const Scene& scene, const Camera& camera, cons
   options.height = setup.height;
   options.spp = setup.spp;
   options.explicitCamera = camera;
-  Progress progress("reference " + sceneSlug(scene), std::uint64_t(pathTraceTileCount(setup.width, setup.height)));
+  Progress progress("reference " + sceneSlug(scene),
+                    std::uint64_t(pathTraceTileCount(setup.width, setup.height)));
   auto result = renderReference(scene, options, &progress);
   if (!result) return result.error();
   Reference r{std::move(result->image), result->noisePsnr, result->seconds};
@@ -126,7 +128,8 @@ Result<Reference> cachedReference(const Scene& scene, const Camera& camera, cons
   return r;
 }
 
-Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& setup, const std::string& outDir) {
+Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& setup,
+                                        const std::string& outDir) {
   Comparison c;
   auto camera = sceneCamera(scene, setup.camera);
   if (!camera) return camera.error();

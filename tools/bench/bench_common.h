@@ -3,10 +3,9 @@
 // compare.
 #pragma once
 
+#include <CLI/CLI.hpp>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "common/field.h"
 #include "common/image.h"
@@ -17,8 +16,8 @@ namespace pc::bench {
 
 struct RenderSetup {
   int width = 320, height = 240;
-  int spp = 512;             // reference paths per pixel
-  int updates = 64;          // bake updates
+  int spp = 512;     // reference paths per pixel
+  int updates = 64;  // bake updates
   int camera = 0;
   int primarySamples = 4;
   int emissiveSamples = 32;
@@ -49,7 +48,8 @@ struct Reference {
   Image image;
   double noisePsnr = 0, seconds = 0;
 };
-Result<Reference> cachedReference(const Scene& scene, const Camera& camera, const RenderSetup& setup);
+Result<Reference> cachedReference(const Scene& scene, const Camera& camera,
+                                  const RenderSetup& setup);
 
 // Scene files under the shared scenes folder (one per folder; CornellBox-Original for the
 // McGuire set), for --all.

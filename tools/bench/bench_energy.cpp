@@ -50,7 +50,8 @@ EnergyResult measure(float albedo, float emission, int updates) {
       double v = (e.x + e.y + e.z) / 3.0;
       sum += v;
       ++texels;
-      if (texels == 1 || std::abs(v - r.expected) > std::abs(r.worstTexel - r.expected)) r.worstTexel = v;
+      if (texels == 1 || std::abs(v - r.expected) > std::abs(r.worstTexel - r.expected))
+        r.worstTexel = v;
     }
   }
   r.meanTexel = sum / double(std::max(texels, 1L));
@@ -64,7 +65,8 @@ EnergyResult measure(float albedo, float emission, int updates) {
                   : axis.y > axis.z                  ? glm::vec3(0, -glm::sign(n.y), 0)
                                                      : glm::vec3(0, 0, -glm::sign(n.z));
     glm::vec3 center = 0.5f * (scene.boundsMin + scene.boundsMax);
-    glm::vec3 P = center + n * (0.5f * (scene.boundsMax.x - scene.boundsMin.x)) / std::max(axis.x, std::max(axis.y, axis.z));
+    glm::vec3 P = center + n * (0.5f * (scene.boundsMax.x - scene.boundsMin.x)) /
+                               std::max(axis.x, std::max(axis.y, axis.z));
     glm::vec4 s = sampleField(field, P, N, N, gpu::PC_SAMPLE_DEFAULT);
     sampled += (s.x + s.y + s.z) / 3.0;
     ++samples;
@@ -85,10 +87,13 @@ Benchmark addEnergy(CLI::App& app) {
   cmd->add_option("--updates", updates, "field updates to converge");
   cmd->add_option("--emission", emission, "emitted radiance Le of every wall");
   return {cmd, [] {
-            std::printf("energy: closed box, all walls albedo a and emission Le=%.3g, Embree field, %d updates\n",
-                        emission, updates);
-            std::printf("%6s %12s %12s %12s %12s %10s %10s %10s\n", "albedo", "expected", "mean texel",
-                        "worst texel", "sampled", "err mean", "err worst", "err sampl");
+            std::printf(
+                "energy: closed box, all walls albedo a and emission Le=%.3g, Embree field, %d "
+                "updates\n",
+                emission, updates);
+            std::printf("%6s %12s %12s %12s %12s %10s %10s %10s\n", "albedo", "expected",
+                        "mean texel", "worst texel", "sampled", "err mean", "err worst",
+                        "err sampl");
             double errors[2];
             const float albedos[2] = {0.5f, 0.8f};
             for (int i = 0; i < 2; ++i) {

@@ -51,8 +51,9 @@ std::string suffix(int clients) { return ".clients_" + std::to_string(clients); 
 
 Benchmark addLoad(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "load", "many protocol-only clients against a probecast-server process: latency, server "
-              "CPU per client, memory");
+      "load",
+      "many protocol-only clients against a probecast-server process: latency, server "
+      "CPU per client, memory");
   static LoadSetup s;
   cmd->add_option("--clients", s.clients,
                   "clients; several values (10,100,1000) give the fan-out curve, each against a "
@@ -68,7 +69,8 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_option("--rays", s.rays, "server rays per probe per update");
   cmd->add_option("--server-warmup", s.serverWarmup, "server warm-up bake updates");
   cmd->add_option("--starve-seconds", s.starveSeconds, "gap that makes a client starved");
-  cmd->add_option("--session-seconds", s.sessionSeconds, "churn: sessions end after about this long");
+  cmd->add_option("--session-seconds", s.sessionSeconds,
+                  "churn: sessions end after about this long");
   cmd->add_option("--field-nice", s.fieldNice,
                   "nice value for the server's threads but its network thread (field thread, "
                   "tracer workers); 0 leaves them")
@@ -76,112 +78,112 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_option("--server", s.server, "probecast-server executable");
   cmd->add_option("--server-log", s.serverLog, "the server's log");
   cmd->add_option("--json", s.json, "write the last run's loadgen report as JSON here");
-  return {cmd, [] {
-            std::vector<load::ServerLoadResult> runs;
-            for (int n : s.clients) {
-              load::ServerLoadOptions o;
-              o.serverExecutable =
-                  s.server.empty() ? load::siblingExecutable("probecast-server") : s.server;
-              o.serverLog = s.serverLog;
-              o.serverArgs = {"--rate", std::to_string(s.fieldRate),
-                              "--rays", std::to_string(s.rays),
-                              "--warmup", std::to_string(s.serverWarmup),
-                              "--rate-limit", std::to_string(s.rateLimitMbit * 1e6 / 8),
-                              "--max-clients", std::to_string(n + 16),
-                              "--stats-interval", "0"};
-              if (s.tcpOnly) o.serverArgs.push_back("--tcp-only");
-              o.load.clients = n;
-              o.load.threads = s.threads;
-              o.load.tcpOnly = s.tcpOnly;
-              o.load.rampSeconds = s.ramp >= 0 ? s.ramp : std::max(1.0, 0.005 * n);
-              o.load.starveSeconds = s.starveSeconds;
-              o.load.sessionSeconds = s.sessionSeconds;
-              o.warmupSeconds = s.warmup;
-              o.fieldNice = s.fieldNice;
-              o.seconds = s.seconds;
-              std::printf("load: %d clients, %.0f s window\n", n, s.seconds);
-              std::fflush(stdout);
-              auto r = load::runServerLoad(o, [](const std::string& line) {
-                std::printf("  %s\n", line.c_str());
-                std::fflush(stdout);
-              });
-              if (!r) {
-                std::fprintf(stderr, "load: %s\n", r.error().message.c_str());
-                return 1;
-              }
-              std::printf("%s", load::reportTable(r->report).c_str());
-              if (!r->serverExit.empty()) std::printf("server exit: %s\n", r->serverExit.c_str());
-              if (!s.json.empty()) {
-                std::ofstream(s.json) << load::reportJson(r->report);
-              }
-              runs.push_back(std::move(r).value());
-            }
+  return {
+      cmd, [] {
+        std::vector<load::ServerLoadResult> runs;
+        for (int n : s.clients) {
+          load::ServerLoadOptions o;
+          o.serverExecutable =
+              s.server.empty() ? load::siblingExecutable("probecast-server") : s.server;
+          o.serverLog = s.serverLog;
+          o.serverArgs = {"--rate",           std::to_string(s.fieldRate),
+                          "--rays",           std::to_string(s.rays),
+                          "--warmup",         std::to_string(s.serverWarmup),
+                          "--rate-limit",     std::to_string(s.rateLimitMbit * 1e6 / 8),
+                          "--max-clients",    std::to_string(n + 16),
+                          "--stats-interval", "0"};
+          if (s.tcpOnly) o.serverArgs.push_back("--tcp-only");
+          o.load.clients = n;
+          o.load.threads = s.threads;
+          o.load.tcpOnly = s.tcpOnly;
+          o.load.rampSeconds = s.ramp >= 0 ? s.ramp : std::max(1.0, 0.005 * n);
+          o.load.starveSeconds = s.starveSeconds;
+          o.load.sessionSeconds = s.sessionSeconds;
+          o.warmupSeconds = s.warmup;
+          o.fieldNice = s.fieldNice;
+          o.seconds = s.seconds;
+          std::printf("load: %d clients, %.0f s window\n", n, s.seconds);
+          std::fflush(stdout);
+          auto r = load::runServerLoad(o, [](const std::string& line) {
+            std::printf("  %s\n", line.c_str());
+            std::fflush(stdout);
+          });
+          if (!r) {
+            std::fprintf(stderr, "load: %s\n", r.error().message.c_str());
+            return 1;
+          }
+          std::printf("%s", load::reportTable(r->report).c_str());
+          if (!r->serverExit.empty()) std::printf("server exit: %s\n", r->serverExit.c_str());
+          if (!s.json.empty()) {
+            std::ofstream(s.json) << load::reportJson(r->report);
+          }
+          runs.push_back(std::move(r).value());
+        }
 
-            std::printf("\nMachine: %s (server and clients share it)\n", machineDescription().c_str());
-            std::printf("Server: built-in scene, %.0f field updates/s asked, %d rays, %.1f Mbit/s "
-                        "per client, %s, default --stream-threshold; its threads but pc-net at "
-                        "nice %d\n",
-                        s.fieldRate, s.rays, s.rateLimitMbit, s.tcpOnly ? "TCP only" : "UDP",
-                        s.fieldNice);
-            std::printf("%7s %7s %7s %8s %8s %9s %8s %8s %8s %9s %5s %9s %9s %7s %6s %7s %8s\n",
-                        "clients", "synced", "join s", "p50 ms", "p99 ms", "stale p95",
-                        "kbit/cl", "srv ms/s", "net ms/s", "field ms/s", "upd/s", "net/cl/s",
-                        "srv/cl/s", "lg ms/s", "errors", "starved", "RSS grow");
-            for (const load::ServerLoadResult& r : runs) {
-              const load::LoadReport& l = r.report;
-              std::printf("%7d %7s %7.1f %8.1f %8.1f %9.1f %8.1f %8.0f %8.1f %9.0f %5.1f %9.4f %9.3f "
-                          "%7.0f %6llu %7d %8.2f\n",
-                          l.clients, r.allSynced ? "yes" : "NO", r.joinSeconds, l.latencyMs.p50,
-                          l.latencyMs.p99, l.stalenessMs.p95, l.kbitPerClient.mean,
-                          r.serverCpuMsPerS, r.netCpuMsPerS, r.fieldCpuMsPerS, r.fieldUpdatesPerS,
-                          r.cpuMsPerClientS,
-                          r.processCpuMsPerClientS, r.loadgenCpuMsPerS,
-                          (unsigned long long)l.errors, l.starvedClients,
-                          r.rssEndMb - r.rssWarmMb);
-            }
-            std::printf("net = the server's network thread (pc-net, /proc/<pid>/task), idle "
-                        "before any client %.2f ms/s; net/cl/s = cpu_ms_per_client_s = net / "
-                        "clients; srv = the whole server process (idle %.1f ms/s), "
-                        "srv/cl/s = (srv - srv idle) / clients; field = the field thread alone "
-                        "(its tracer's worker threads count in srv only); upd/s = field versions "
-                        "published per second in the window; lg = the load "
-                        "generator's own CPU; RSS grow = server resident memory over the window, MB "
-                        "(after warm-up %.1f MB)\n",
-                        runs.back().netIdleCpuMsPerS, runs.back().serverIdleCpuMsPerS,
-                        runs.back().rssWarmMb);
-            // The server's caches beside its RSS, from its /metrics at the window's end.
-            std::printf("%7s %9s %9s %9s %9s %9s %9s %9s %9s\n", "clients", "RSS warm", "RSS end",
-                        "encode", "(bound)", "history", "(bound)", "current", "compare");
-            for (const load::ServerLoadResult& r : runs) {
-              std::printf("%7d %9.1f %9.1f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f\n",
-                          r.report.clients, r.rssWarmMb, r.rssEndMb, r.encodeCacheMb,
-                          r.encodeCacheBoundMb, r.historyMb, r.historyBoundMb, r.currentBricksMb,
-                          r.changeCacheMb);
-              if (!r.metricsError.empty()) std::printf("  (%s)\n", r.metricsError.c_str());
-            }
-            std::printf("MB; encode = encoded updates (probecast_encode_cache_bytes), history = "
-                        "brick versions kept as residual bases beyond the current ones, current "
-                        "= the current brick versions, compare = the senders' shared perceptual "
-                        "comparisons (estimated); (bound) = what the field allows at most\n");
+        std::printf("\nMachine: %s (server and clients share it)\n", machineDescription().c_str());
+        std::printf(
+            "Server: built-in scene, %.0f field updates/s asked, %d rays, %.1f Mbit/s "
+            "per client, %s, default --stream-threshold; its threads but pc-net at "
+            "nice %d\n",
+            s.fieldRate, s.rays, s.rateLimitMbit, s.tcpOnly ? "TCP only" : "UDP", s.fieldNice);
+        std::printf("%7s %7s %7s %8s %8s %9s %8s %8s %8s %9s %5s %9s %9s %7s %6s %7s %8s\n",
+                    "clients", "synced", "join s", "p50 ms", "p99 ms", "stale p95", "kbit/cl",
+                    "srv ms/s", "net ms/s", "field ms/s", "upd/s", "net/cl/s", "srv/cl/s",
+                    "lg ms/s", "errors", "starved", "RSS grow");
+        for (const load::ServerLoadResult& r : runs) {
+          const load::LoadReport& l = r.report;
+          std::printf(
+              "%7d %7s %7.1f %8.1f %8.1f %9.1f %8.1f %8.0f %8.1f %9.0f %5.1f %9.4f %9.3f "
+              "%7.0f %6llu %7d %8.2f\n",
+              l.clients, r.allSynced ? "yes" : "NO", r.joinSeconds, l.latencyMs.p50,
+              l.latencyMs.p99, l.stalenessMs.p95, l.kbitPerClient.mean, r.serverCpuMsPerS,
+              r.netCpuMsPerS, r.fieldCpuMsPerS, r.fieldUpdatesPerS, r.cpuMsPerClientS,
+              r.processCpuMsPerClientS, r.loadgenCpuMsPerS, (unsigned long long)l.errors,
+              l.starvedClients, r.rssEndMb - r.rssWarmMb);
+        }
+        std::printf(
+            "net = the server's network thread (pc-net, /proc/<pid>/task), idle "
+            "before any client %.2f ms/s; net/cl/s = cpu_ms_per_client_s = net / "
+            "clients; srv = the whole server process (idle %.1f ms/s), "
+            "srv/cl/s = (srv - srv idle) / clients; field = the field thread alone "
+            "(its tracer's worker threads count in srv only); upd/s = field versions "
+            "published per second in the window; lg = the load "
+            "generator's own CPU; RSS grow = server resident memory over the window, MB "
+            "(after warm-up %.1f MB)\n",
+            runs.back().netIdleCpuMsPerS, runs.back().serverIdleCpuMsPerS, runs.back().rssWarmMb);
+        // The server's caches beside its RSS, from its /metrics at the window's end.
+        std::printf("%7s %9s %9s %9s %9s %9s %9s %9s %9s\n", "clients", "RSS warm", "RSS end",
+                    "encode", "(bound)", "history", "(bound)", "current", "compare");
+        for (const load::ServerLoadResult& r : runs) {
+          std::printf("%7d %9.1f %9.1f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f\n", r.report.clients,
+                      r.rssWarmMb, r.rssEndMb, r.encodeCacheMb, r.encodeCacheBoundMb, r.historyMb,
+                      r.historyBoundMb, r.currentBricksMb, r.changeCacheMb);
+          if (!r.metricsError.empty()) std::printf("  (%s)\n", r.metricsError.c_str());
+        }
+        std::printf(
+            "MB; encode = encoded updates (probecast_encode_cache_bytes), history = "
+            "brick versions kept as residual bases beyond the current ones, current "
+            "= the current brick versions, compare = the senders' shared perceptual "
+            "comparisons (estimated); (bound) = what the field allows at most\n");
 
-            auto figures = [](const load::ServerLoadResult& r, const std::string& sfx) {
-              const load::LoadReport& l = r.report;
-              figure("p50_latency_ms" + sfx, l.latencyMs.p50, "ms");
-              figure("p99_latency_ms" + sfx, l.latencyMs.p99, "ms");
-              figure("cpu_ms_per_client_s" + sfx, r.cpuMsPerClientS, "ms");
-              figure("process_cpu_ms_per_client_s" + sfx, r.processCpuMsPerClientS, "ms");
-              figure("errors" + sfx, double(l.errors), "count");
-              figure("starved_clients" + sfx, double(l.starvedClients), "count");
-              figure("rss_growth_mb" + sfx, r.rssEndMb - r.rssWarmMb, "MB");
-              figure("encode_cache_mb" + sfx, r.encodeCacheMb, "MB");
-              figure("brick_history_mb" + sfx, r.historyMb, "MB");
-            };
-            if (runs.size() > 1) {
-              for (const load::ServerLoadResult& r : runs) figures(r, suffix(r.report.clients));
-            }
-            figures(runs.back(), "");
-            return 0;
-          }};
+        auto figures = [](const load::ServerLoadResult& r, const std::string& sfx) {
+          const load::LoadReport& l = r.report;
+          figure("p50_latency_ms" + sfx, l.latencyMs.p50, "ms");
+          figure("p99_latency_ms" + sfx, l.latencyMs.p99, "ms");
+          figure("cpu_ms_per_client_s" + sfx, r.cpuMsPerClientS, "ms");
+          figure("process_cpu_ms_per_client_s" + sfx, r.processCpuMsPerClientS, "ms");
+          figure("errors" + sfx, double(l.errors), "count");
+          figure("starved_clients" + sfx, double(l.starvedClients), "count");
+          figure("rss_growth_mb" + sfx, r.rssEndMb - r.rssWarmMb, "MB");
+          figure("encode_cache_mb" + sfx, r.encodeCacheMb, "MB");
+          figure("brick_history_mb" + sfx, r.historyMb, "MB");
+        };
+        if (runs.size() > 1) {
+          for (const load::ServerLoadResult& r : runs) figures(r, suffix(r.report.clients));
+        }
+        figures(runs.back(), "");
+        return 0;
+      }};
 }
 
 }  // namespace pc::bench

@@ -25,20 +25,22 @@ Benchmark addQuality(CLI::App& app) {
             if (all) {
               scenes = sharedSceneFiles();
               if (scenes.empty()) {
-                std::printf("quality: no shared scenes folder at %s: nothing to measure\n", PC_SCENES_DIR);
+                std::printf("quality: no shared scenes folder at %s: nothing to measure\n",
+                            PC_SCENES_DIR);
                 return 0;
               }
             } else {
               scenes = {scenePath};
             }
             std::printf("machine: %s\n", machineDescription().c_str());
-            std::printf("%-28s %8s %8s %9s %8s %10s %10s %9s\n", "scene", "PSNR dB", "SSIM", "linear dB",
-                        "ref noise", "bake s", "ref s", "probes");
+            std::printf("%-28s %8s %8s %9s %8s %10s %10s %9s\n", "scene", "PSNR dB", "SSIM",
+                        "linear dB", "ref noise", "bake s", "ref s", "probes");
             int failures = 0;
             for (const std::string& path : scenes) {
               auto scene = loadBenchScene(path, all ? std::string() : sidecar);
               if (!scene) {
-                std::printf("%-28s error: %s\n", fs::path(path).filename().c_str(), scene.error().message.c_str());
+                std::printf("%-28s error: %s\n", fs::path(path).filename().c_str(),
+                            scene.error().message.c_str());
                 ++failures;
                 continue;
               }
@@ -47,19 +49,27 @@ Benchmark addQuality(CLI::App& app) {
                 std::printf("%-28s skipped: no lights and a black sky\n", scene->name.c_str());
                 continue;
               }
-              auto r = compareWithReference(*scene, setup, outDir.empty() ? std::string() : (fs::path(outDir) / sceneSlug(*scene)).string());
+              auto r = compareWithReference(
+                  *scene, setup,
+                  outDir.empty() ? std::string() : (fs::path(outDir) / sceneSlug(*scene)).string());
               if (!r) {
                 std::printf("%-28s error: %s\n", scene->name.c_str(), r.error().message.c_str());
                 ++failures;
                 continue;
               }
-              std::printf("%-28s %8.2f %8.4f %9.2f %8.1f %10.1f %10.1f %9d\n", sceneSlug(*scene).c_str(), r->psnr,
-                          r->ssim, r->psnrLinear, r->referenceNoisePsnr, r->bakeSeconds, r->referenceSeconds, r->probes);
-              if (!all) figure("psnr_probe_vs_reference", r->psnr, "dB");
-              else figure("psnr_probe_vs_reference." + sceneSlug(*scene), r->psnr, "dB");
+              std::printf("%-28s %8.2f %8.4f %9.2f %8.1f %10.1f %10.1f %9d\n",
+                          sceneSlug(*scene).c_str(), r->psnr, r->ssim, r->psnrLinear,
+                          r->referenceNoisePsnr, r->bakeSeconds, r->referenceSeconds, r->probes);
+              if (!all)
+                figure("psnr_probe_vs_reference", r->psnr, "dB");
+              else
+                figure("psnr_probe_vs_reference." + sceneSlug(*scene), r->psnr, "dB");
             }
-            std::printf("(ref noise: expected PSNR of the reference against its own noise-free limit, from two\n"
-                        " half-sample renders; it must sit well above the measured PSNR for the figure to hold)\n");
+            std::printf(
+                "(ref noise: expected PSNR of the reference against its own noise-free limit, from "
+                "two\n"
+                " half-sample renders; it must sit well above the measured PSNR for the figure to "
+                "hold)\n");
             return failures ? 1 : 0;
           }};
 }

@@ -47,8 +47,8 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-constexpr double kUdpIpHeaderBytes = 28;  // IPv4 (20) + UDP (8)
-constexpr double kTcpIpHeaderBytes = 40;  // IPv4 (20) + TCP (20), one segment per message
+constexpr double kUdpIpHeaderBytes = 28;    // IPv4 (20) + UDP (8)
+constexpr double kTcpIpHeaderBytes = 40;    // IPv4 (20) + TCP (20), one segment per message
 constexpr double kRawBytesPerProbe = 1288;  // RTXGI's atlas formats, borders included
 
 struct StreamSetup {
@@ -64,7 +64,7 @@ struct StreamSetup {
   float depthTolerance = StreamTuning{}.depthTolerance;
   float occlusionTolerance = StreamTuning{}.occlusionTolerance;
   double loss = 0;
-  double refresh = 2.0;   // s: the sender's refresh interval
+  double refresh = 2.0;  // s: the sender's refresh interval
   double rateLimit = 0;  // Mbit/s of the sender's token bucket; 0: unconstrained
   int width = 320, height = 180;
   int aa = 2;
@@ -109,8 +109,7 @@ void addBreakdown(Client& c, const std::vector<std::uint8_t>& datagram) {
     if (f.index != 0) continue;
     const UpdateHeader& h = f.update;
     auto q = c.publisher->find(h.cascade, int(h.brick), h.version);
-    auto base = h.baseVersion ? c.publisher->find(h.cascade, int(h.brick), h.baseVersion)
-                              : nullptr;
+    auto base = h.baseVersion ? c.publisher->find(h.cascade, int(h.brick), h.baseVersion) : nullptr;
     if (!q || (h.baseVersion && !base)) continue;
     c.payloadBytes += h.totalSize;
     c.sampledUpdates += 1;
@@ -144,8 +143,8 @@ Result<Field> startingField(const Scene& scene, Tracer& tracer, const StreamSetu
   }
   FieldSettings settings;
   settings.raysPerProbe = s.rays;
-  Field field = Field::create(scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes,
-                              settings);
+  Field field =
+      Field::create(scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes, settings);
   field.sceneHash = scene.hash;
   if (Status st = tracer.setState(evaluateScene(scene, 0.0)); !st) return st.error();
   BakeOptions bake;
@@ -183,9 +182,10 @@ Benchmark addStream(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--budget", s.budget, "probes traced per update (0: every probe)");
   cmd->add_option("--bake-updates", s.bakeUpdates, "updates of the starting field's bake");
-  cmd->add_option("--threshold", s.thresholds,
-                  "irradiance thresholds (mean |delta e| over a brick), one client each; the first gives the "
-                  "FIGURE lines");
+  cmd->add_option(
+      "--threshold", s.thresholds,
+      "irradiance thresholds (mean |delta e| over a brick), one client each; the first gives the "
+      "FIGURE lines");
   cmd->add_option("--depth-tolerance", s.depthTolerance,
                   "dead zone of depth, as a fraction of the texel's mean distance");
   cmd->add_option("--occlusion-tolerance", s.occlusionTolerance, "dead zone of occlusion");
@@ -198,254 +198,255 @@ Benchmark addStream(CLI::App& app) {
   cmd->add_option("--height", s.height, "probe-lit image height");
   cmd->add_option("--aa", s.aa, "primary samples per pixel of the probe-lit images");
   cmd->add_flag("--breakdown", s.breakdown,
-               "print what the sent updates cost by section and why they were sent (slower)");
+                "print what the sent updates cost by section and why they were sent (slower)");
   cmd->add_option("--cache", s.cacheDir, "folder for the baked starting field ('' to disable)");
   cmd->add_option("--out", s.outDir, "write the images here");
-  return {cmd, [] {
-            auto scene = loadBenchScene(s.scene, s.sidecar);
-            if (!scene) {
-              std::fprintf(stderr, "stream: %s\n", scene.error().message.c_str());
-              return 1;
-            }
-            TracerOptions options;
-            options.shadowRouletteShare = s.shadowRoulette;
-            auto tracer = makeEmbreeTracer(*scene, options);
-            if (!tracer) {
-              std::fprintf(stderr, "stream: %s\n", tracer.error().message.c_str());
-              return 1;
-            }
-            auto start = startingField(*scene, **tracer, s);
-            if (!start) {
-              std::fprintf(stderr, "stream: %s\n", start.error().message.c_str());
-              return 1;
-            }
-            Field server = std::move(start).value();
-            int bricks = 0;
-            for (int k = 0; k < server.cascadeCount(); ++k)
-              bricks += gpu::pcBrickCount(server.cascade(k));
-            const int probes = server.probeCount();
-            bool animated = false;
-            for (const Light& l : scene->lights) animated |= l.animation >= 0;
+  return {
+      cmd, [] {
+        auto scene = loadBenchScene(s.scene, s.sidecar);
+        if (!scene) {
+          std::fprintf(stderr, "stream: %s\n", scene.error().message.c_str());
+          return 1;
+        }
+        TracerOptions options;
+        options.shadowRouletteShare = s.shadowRoulette;
+        auto tracer = makeEmbreeTracer(*scene, options);
+        if (!tracer) {
+          std::fprintf(stderr, "stream: %s\n", tracer.error().message.c_str());
+          return 1;
+        }
+        auto start = startingField(*scene, **tracer, s);
+        if (!start) {
+          std::fprintf(stderr, "stream: %s\n", start.error().message.c_str());
+          return 1;
+        }
+        Field server = std::move(start).value();
+        int bricks = 0;
+        for (int k = 0; k < server.cascadeCount(); ++k)
+          bricks += gpu::pcBrickCount(server.cascade(k));
+        const int probes = server.probeCount();
+        bool animated = false;
+        for (const Light& l : scene->lights) animated |= l.animation >= 0;
 
-            std::vector<Client> clients(s.thresholds.size());
-            for (std::size_t i = 0; i < clients.size(); ++i) {
-              Client& c = clients[i];
-              c.threshold = s.thresholds[i];
-              PublisherOptions po;
-              SenderOptions so;
-              StreamTuning tuning;
-              tuning.threshold = float(c.threshold);
-              tuning.depthTolerance = s.depthTolerance;
-              tuning.occlusionTolerance = s.occlusionTolerance;
-              applyStreamTuning(tuning, po, so);
-              c.publisher = std::make_unique<FieldPublisher>(server, po);
-              (void)c.publisher->publish(server, 0.0);
-              so.refreshInterval = s.refresh;
-              so.bytesPerSecond = s.rateLimit > 0 ? s.rateLimit * 1e6 / 8.0 : 1e12;
-              so.burstBytes = s.rateLimit > 0 ? so.burstBytes : 1e12;
-              const std::uint32_t session = 0x57e4'0000u + std::uint32_t(i);
-              c.sender = std::make_unique<StreamSender>(*c.publisher, session, so);
-              auto info = decodeMessage(encodeMessage(c.publisher->sessionInfo()));
-              auto r = StreamReceiver::create(std::get<SessionInfoMsg>(info.value()), session);
-              if (!r) {
-                std::fprintf(stderr, "stream: %s\n", r.error().message.c_str());
-                return 1;
-              }
-              c.receiver = std::make_unique<StreamReceiver>(std::move(r.value()));
-              c.link = std::make_unique<FaultLink>(1000 + i);
-              FaultProfile profile;
-              profile.delay = 0.01;
-              profile.loss = s.loss;
-              c.link->setProfile(profile);
-              c.control.setDelay(0.01);
-              if (!scene->cameras.empty()) {
-                ViewerPoseMsg pose;
-                pose.position = scene->cameras[0].position;
-                c.control.send(encodeMessage(pose), 0.0);
-              }
-            }
+        std::vector<Client> clients(s.thresholds.size());
+        for (std::size_t i = 0; i < clients.size(); ++i) {
+          Client& c = clients[i];
+          c.threshold = s.thresholds[i];
+          PublisherOptions po;
+          SenderOptions so;
+          StreamTuning tuning;
+          tuning.threshold = float(c.threshold);
+          tuning.depthTolerance = s.depthTolerance;
+          tuning.occlusionTolerance = s.occlusionTolerance;
+          applyStreamTuning(tuning, po, so);
+          c.publisher = std::make_unique<FieldPublisher>(server, po);
+          (void)c.publisher->publish(server, 0.0);
+          so.refreshInterval = s.refresh;
+          so.bytesPerSecond = s.rateLimit > 0 ? s.rateLimit * 1e6 / 8.0 : 1e12;
+          so.burstBytes = s.rateLimit > 0 ? so.burstBytes : 1e12;
+          const std::uint32_t session = 0x57e4'0000u + std::uint32_t(i);
+          c.sender = std::make_unique<StreamSender>(*c.publisher, session, so);
+          auto info = decodeMessage(encodeMessage(c.publisher->sessionInfo()));
+          auto r = StreamReceiver::create(std::get<SessionInfoMsg>(info.value()), session);
+          if (!r) {
+            std::fprintf(stderr, "stream: %s\n", r.error().message.c_str());
+            return 1;
+          }
+          c.receiver = std::make_unique<StreamReceiver>(std::move(r.value()));
+          c.link = std::make_unique<FaultLink>(1000 + i);
+          FaultProfile profile;
+          profile.delay = 0.01;
+          profile.loss = s.loss;
+          c.link->setProfile(profile);
+          c.control.setDelay(0.01);
+          if (!scene->cameras.empty()) {
+            ViewerPoseMsg pose;
+            pose.position = scene->cameras[0].position;
+            c.control.send(encodeMessage(pose), 0.0);
+          }
+        }
 
-            // Simulated time: network events every 5 ms, field updates at the rate.
-            const double step = 0.005, tick = 1.0 / s.rate;
-            ProbeScheduler scheduler(SchedulerOptions{8, 16, s.budget});
-            std::vector<glm::vec3> viewers;
-            if (!scene->cameras.empty()) viewers.push_back(scene->cameras[0].position);
-            double nextTick = 0.0, traceSeconds = 0.0, measureStart = -1, end = -1;
-            std::uint64_t ticks = 0, probeUpdates = 0, brickChanges = 0;
-            std::uint32_t rotation = 9000;
-            std::printf("stream: %s, %d probes in %d bricks, %d rays, %.0f updates/s, %s\n",
-                        sceneSlug(*scene).c_str(), probes, bricks, s.rays, s.rate,
-                        s.budget > 0 ? (std::to_string(s.budget) + " probes per update").c_str()
-                                     : "every probe every update");
-            std::fflush(stdout);
-            for (long i = 0;; ++i) {
-              const double t = double(i) * step;
-              if (end >= 0 && t > end) break;
-              if (t >= nextTick) {
-                nextTick += tick;
-                const auto t0 = Clock::now();
-                if (Status st = (*tracer)->setState(evaluateScene(*scene, t)); !st) {
-                  std::fprintf(stderr, "stream: %s\n", st.error().message.c_str());
-                  return 1;
-                }
-                UpdateRequest req;
-                req.rotationSeed = rotation++;
-                req.probes = scheduler.plan(server, ticks + 1, viewers);
-                auto updated = (*tracer)->update(server, req);
-                if (!updated) {
-                  std::fprintf(stderr, "stream: %s\n", updated.error().message.c_str());
-                  return 1;
-                }
-                const UpdateStats& us = *updated;
-                traceSeconds += std::chrono::duration<double>(Clock::now() - t0).count();
-                probeUpdates += std::uint64_t(us.probesUpdated);
-                brickChanges += std::uint64_t(us.bricksChanged);
-                ++ticks;
-                for (Client& c : clients) (void)c.publisher->publish(server, t);
-              }
-              bool allJoined = true;
-              for (Client& c : clients) {
-                for (auto& d : c.sender->poll(t)) {
-                  const double bytes = double(d.size()) + kUdpIpHeaderBytes;
-                  c.downBytes += bytes;
-                  c.datagrams += 1;
-                  if (measureStart >= 0) c.measuredDown += bytes;
-                  if (measureStart >= 0 && s.breakdown) addBreakdown(c, d);
-                  c.link->send(std::move(d), t);
-                }
-                for (auto& d : c.link->receive(t)) (void)c.receiver->onDatagram(d, t);
-                for (auto& m : c.receiver->poll(t)) {
-                  const double bytes = double(m.size()) + kTcpIpHeaderBytes;
-                  c.upBytes += bytes;
-                  c.messages += 1;
-                  if (measureStart >= 0) c.measuredUp += bytes;
-                  c.control.send(std::move(m), t);
-                }
-                for (auto& m : c.control.receive(t)) (void)c.sender->onMessage(m, t);
-                if (c.joinedAt < 0 && holdsEveryBrick(server, *c.receiver)) c.joinedAt = t;
-                allJoined &= c.joinedAt >= 0;
-              }
-              // Measure once every client holds the whole field (or the join limit passed).
-              if (measureStart < 0 && (allJoined || t >= s.joinLimit)) {
-                measureStart = t;
-                end = t + s.seconds;
-                for (Client& c : clients) c.senderAtStart = c.sender->stats();
-              }
-            }
-            const double measured = end - measureStart;
-
-            // Images: the same camera, animation time and samples; only the field differs.
-            auto camera = sceneCamera(*scene, 0);
-            if (!camera) {
-              std::fprintf(stderr, "stream: %s\n", camera.error().message.c_str());
+        // Simulated time: network events every 5 ms, field updates at the rate.
+        const double step = 0.005, tick = 1.0 / s.rate;
+        ProbeScheduler scheduler(SchedulerOptions{8, 16, s.budget});
+        std::vector<glm::vec3> viewers;
+        if (!scene->cameras.empty()) viewers.push_back(scene->cameras[0].position);
+        double nextTick = 0.0, traceSeconds = 0.0, measureStart = -1, end = -1;
+        std::uint64_t ticks = 0, probeUpdates = 0, brickChanges = 0;
+        std::uint32_t rotation = 9000;
+        std::printf("stream: %s, %d probes in %d bricks, %d rays, %.0f updates/s, %s\n",
+                    sceneSlug(*scene).c_str(), probes, bricks, s.rays, s.rate,
+                    s.budget > 0 ? (std::to_string(s.budget) + " probes per update").c_str()
+                                 : "every probe every update");
+        std::fflush(stdout);
+        for (long i = 0;; ++i) {
+          const double t = double(i) * step;
+          if (end >= 0 && t > end) break;
+          if (t >= nextTick) {
+            nextTick += tick;
+            const auto t0 = Clock::now();
+            if (Status st = (*tracer)->setState(evaluateScene(*scene, t)); !st) {
+              std::fprintf(stderr, "stream: %s\n", st.error().message.c_str());
               return 1;
             }
-            ProbeLitOptions lit;
-            lit.width = s.width;
-            lit.height = s.height;
-            lit.primarySamples = s.aa;
-            lit.explicitCamera = *camera;
-            lit.time = end;
-            auto exact = renderProbeLit(*scene, server, lit);
-            if (!exact) {
-              std::fprintf(stderr, "stream: %s\n", exact.error().message.c_str());
+            UpdateRequest req;
+            req.rotationSeed = rotation++;
+            req.probes = scheduler.plan(server, ticks + 1, viewers);
+            auto updated = (*tracer)->update(server, req);
+            if (!updated) {
+              std::fprintf(stderr, "stream: %s\n", updated.error().message.c_str());
               return 1;
             }
-            const Image8 exact8 = tonemap(*exact, scene->exposure);
-            if (!s.outDir.empty()) {
-              fs::create_directories(s.outDir);
-              writePng(fs::path(s.outDir) / "server_field.png", exact8);
+            const UpdateStats& us = *updated;
+            traceSeconds += std::chrono::duration<double>(Clock::now() - t0).count();
+            probeUpdates += std::uint64_t(us.probesUpdated);
+            brickChanges += std::uint64_t(us.bricksChanged);
+            ++ticks;
+            for (Client& c : clients) (void)c.publisher->publish(server, t);
+          }
+          bool allJoined = true;
+          for (Client& c : clients) {
+            for (auto& d : c.sender->poll(t)) {
+              const double bytes = double(d.size()) + kUdpIpHeaderBytes;
+              c.downBytes += bytes;
+              c.datagrams += 1;
+              if (measureStart >= 0) c.measuredDown += bytes;
+              if (measureStart >= 0 && s.breakdown) addBreakdown(c, d);
+              c.link->send(std::move(d), t);
             }
+            for (auto& d : c.link->receive(t)) (void)c.receiver->onDatagram(d, t);
+            for (auto& m : c.receiver->poll(t)) {
+              const double bytes = double(m.size()) + kTcpIpHeaderBytes;
+              c.upBytes += bytes;
+              c.messages += 1;
+              if (measureStart >= 0) c.measuredUp += bytes;
+              c.control.send(std::move(m), t);
+            }
+            for (auto& m : c.control.receive(t)) (void)c.sender->onMessage(m, t);
+            if (c.joinedAt < 0 && holdsEveryBrick(server, *c.receiver)) c.joinedAt = t;
+            allJoined &= c.joinedAt >= 0;
+          }
+          // Measure once every client holds the whole field (or the join limit passed).
+          if (measureStart < 0 && (allJoined || t >= s.joinLimit)) {
+            measureStart = t;
+            end = t + s.seconds;
+            for (Client& c : clients) c.senderAtStart = c.sender->stats();
+          }
+        }
+        const double measured = end - measureStart;
 
-            const double raw = kRawBytesPerProbe * double(probes) * s.rate * 8.0 / 1e6;
-            std::printf("machine: %s\n", machineDescription().c_str());
-            std::printf(
-                "simulated: %.2f s in all (%llu field updates, %.1f s of tracing), join then "
-                "%.2f s measured; light animation: %s; link loss %.0f%%; rate limit %s\n",
-                end, (unsigned long long)ticks, traceSeconds, measured,
-                animated ? "yes" : "none (static lights)", s.loss * 100,
-                s.rateLimit > 0 ? (std::to_string(s.rateLimit) + " Mbit/s").c_str() : "none");
-            std::printf(
-                "probe updates per second %.0f (%.1f per probe), brick versions per update "
-                "%.1f of %d\n",
-                double(probeUpdates) / end, double(probeUpdates) / end / probes,
-                double(brickChanges) / double(std::max<std::uint64_t>(ticks, 1)), bricks);
-            std::printf("raw baseline: %d probes x 1288 B x %.0f/s = %.1f Mbit/s\n\n", probes,
-                        s.rate, raw);
-            std::printf("%9s %8s %9s %10s %9s %8s %8s %9s %9s %8s %9s\n", "threshold", "join_s",
-                        "join_MB", "Mbit/s", "down", "up", "ratio", "updates/s", "residual",
-                        "held%", "PSNR_dB");
-            double figMbit = 0, figRatio = 0, figPsnr = 0;
-            for (std::size_t i = 0; i < clients.size(); ++i) {
-              Client& c = clients[i];
-              auto image = renderProbeLit(*scene, c.receiver->field(), lit);
-              if (!image) {
-                std::fprintf(stderr, "stream: %s\n", image.error().message.c_str());
-                return 1;
-              }
-              const Image8 client8 = tonemap(*image, scene->exposure);
-              const double psnr = psnr8(client8, exact8);
-              if (!s.outDir.empty()) {
-                char name[64];
-                std::snprintf(name, sizeof name, "client_t%.4f.png", c.threshold);
-                writePng(fs::path(s.outDir) / name, client8);
-              }
-              const double down = c.measuredDown * 8.0 / measured / 1e6;
-              const double up = c.measuredUp * 8.0 / measured / 1e6;
-              const double mbit = down + up;
-              const SenderStats& st = c.sender->stats();
-              const double updates = double(st.updates - c.senderAtStart.updates);
-              const double residual =
-                  double(st.residualUpdates - c.senderAtStart.residualUpdates);
-              const double held = 100.0 * double(c.publisher->heldCodes()) /
-                                  double(std::max<std::uint64_t>(c.publisher->quantizedCodes(), 1));
-              const double joinMb = (c.downBytes + c.upBytes - c.measuredDown - c.measuredUp) / 1e6;
-              std::printf("%9.4f %8.2f %9.2f %10.3f %9.3f %8.3f %8.0f %9.1f %8.0f%% %7.1f%% %9.2f%s\n",
-                          c.threshold, c.joinedAt, joinMb, mbit, down, up, raw / mbit,
-                          updates / measured, updates > 0 ? 100.0 * residual / updates : 0.0,
-                          held, psnr, c.joinedAt < 0 ? "  (did not join)" : "");
-              if (i == 0) {
-                figMbit = mbit;
-                figRatio = raw / mbit;
-                figPsnr = psnr;
-              }
-            }
-            if (s.breakdown) {
-              std::printf("\nwhy updates were sent (measured window, per second):\n");
-              std::printf("%9s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s\n", "threshold", "first",
-                          "irr_max", "irr_mean", "depth", "occl", "offset", "state", "settled",
-                          "refresh", "repair", "timeout");
-              for (const Client& c : clients) {
-                const auto& a = c.sender->stats().reasons;
-                const auto& b = c.senderAtStart.reasons;
-                auto rate = [&](std::uint64_t x, std::uint64_t y) { return double(x - y) / measured; };
-                std::printf("%9.4f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f\n",
-                            c.threshold, rate(a.first, b.first), rate(a.irradiance, b.irradiance),
-                            rate(a.irradianceMean, b.irradianceMean), rate(a.depth, b.depth),
-                            rate(a.occlusion, b.occlusion), rate(a.offset, b.offset),
-                            rate(a.state, b.state),
-                            rate(a.settled, b.settled), rate(a.refresh, b.refresh),
-                            rate(a.repair, b.repair), rate(a.timeout, b.timeout));
-              }
-              std::printf("\nbytes per update by section (each coded alone) and codes changed "
-                          "against the base:\n");
-              for (const Client& c : clients) {
-                const double n = std::max(c.sampledUpdates, 1.0);
-                std::printf("%9.4f payload %.0f B:", c.threshold, c.payloadBytes / n);
-                for (std::size_t k = 0; k < 4; ++k)
-                  std::printf("  %s %.0f B (%.0f changed)", kSectionNames[k],
-                              c.sectionBytes[k] / n, c.sectionChanged[k] / n);
-                std::printf("\n");
-              }
-            }
-            std::printf(
-                "\nMbit/s: measured window, datagrams + acks with IP/UDP/TCP headers; down/up "
-                "split; ratio: raw baseline / Mbit/s; held%%: codes the dead zone kept\n");
-            figure("mbit_per_client", figMbit, "Mbit/s");
-            figure("raw_ratio", figRatio, "x");
-            figure("psnr_client_vs_server_field", figPsnr, "dB");
-            return 0;
-          }};
+        // Images: the same camera, animation time and samples; only the field differs.
+        auto camera = sceneCamera(*scene, 0);
+        if (!camera) {
+          std::fprintf(stderr, "stream: %s\n", camera.error().message.c_str());
+          return 1;
+        }
+        ProbeLitOptions lit;
+        lit.width = s.width;
+        lit.height = s.height;
+        lit.primarySamples = s.aa;
+        lit.explicitCamera = *camera;
+        lit.time = end;
+        auto exact = renderProbeLit(*scene, server, lit);
+        if (!exact) {
+          std::fprintf(stderr, "stream: %s\n", exact.error().message.c_str());
+          return 1;
+        }
+        const Image8 exact8 = tonemap(*exact, scene->exposure);
+        if (!s.outDir.empty()) {
+          fs::create_directories(s.outDir);
+          writePng(fs::path(s.outDir) / "server_field.png", exact8);
+        }
+
+        const double raw = kRawBytesPerProbe * double(probes) * s.rate * 8.0 / 1e6;
+        std::printf("machine: %s\n", machineDescription().c_str());
+        std::printf(
+            "simulated: %.2f s in all (%llu field updates, %.1f s of tracing), join then "
+            "%.2f s measured; light animation: %s; link loss %.0f%%; rate limit %s\n",
+            end, (unsigned long long)ticks, traceSeconds, measured,
+            animated ? "yes" : "none (static lights)", s.loss * 100,
+            s.rateLimit > 0 ? (std::to_string(s.rateLimit) + " Mbit/s").c_str() : "none");
+        std::printf(
+            "probe updates per second %.0f (%.1f per probe), brick versions per update "
+            "%.1f of %d\n",
+            double(probeUpdates) / end, double(probeUpdates) / end / probes,
+            double(brickChanges) / double(std::max<std::uint64_t>(ticks, 1)), bricks);
+        std::printf("raw baseline: %d probes x 1288 B x %.0f/s = %.1f Mbit/s\n\n", probes, s.rate,
+                    raw);
+        std::printf("%9s %8s %9s %10s %9s %8s %8s %9s %9s %8s %9s\n", "threshold", "join_s",
+                    "join_MB", "Mbit/s", "down", "up", "ratio", "updates/s", "residual", "held%",
+                    "PSNR_dB");
+        double figMbit = 0, figRatio = 0, figPsnr = 0;
+        for (std::size_t i = 0; i < clients.size(); ++i) {
+          Client& c = clients[i];
+          auto image = renderProbeLit(*scene, c.receiver->field(), lit);
+          if (!image) {
+            std::fprintf(stderr, "stream: %s\n", image.error().message.c_str());
+            return 1;
+          }
+          const Image8 client8 = tonemap(*image, scene->exposure);
+          const double psnr = psnr8(client8, exact8);
+          if (!s.outDir.empty()) {
+            char name[64];
+            std::snprintf(name, sizeof name, "client_t%.4f.png", c.threshold);
+            writePng(fs::path(s.outDir) / name, client8);
+          }
+          const double down = c.measuredDown * 8.0 / measured / 1e6;
+          const double up = c.measuredUp * 8.0 / measured / 1e6;
+          const double mbit = down + up;
+          const SenderStats& st = c.sender->stats();
+          const double updates = double(st.updates - c.senderAtStart.updates);
+          const double residual = double(st.residualUpdates - c.senderAtStart.residualUpdates);
+          const double held = 100.0 * double(c.publisher->heldCodes()) /
+                              double(std::max<std::uint64_t>(c.publisher->quantizedCodes(), 1));
+          const double joinMb = (c.downBytes + c.upBytes - c.measuredDown - c.measuredUp) / 1e6;
+          std::printf("%9.4f %8.2f %9.2f %10.3f %9.3f %8.3f %8.0f %9.1f %8.0f%% %7.1f%% %9.2f%s\n",
+                      c.threshold, c.joinedAt, joinMb, mbit, down, up, raw / mbit,
+                      updates / measured, updates > 0 ? 100.0 * residual / updates : 0.0, held,
+                      psnr, c.joinedAt < 0 ? "  (did not join)" : "");
+          if (i == 0) {
+            figMbit = mbit;
+            figRatio = raw / mbit;
+            figPsnr = psnr;
+          }
+        }
+        if (s.breakdown) {
+          std::printf("\nwhy updates were sent (measured window, per second):\n");
+          std::printf("%9s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s\n", "threshold", "first",
+                      "irr_max", "irr_mean", "depth", "occl", "offset", "state", "settled",
+                      "refresh", "repair", "timeout");
+          for (const Client& c : clients) {
+            const auto& a = c.sender->stats().reasons;
+            const auto& b = c.senderAtStart.reasons;
+            auto rate = [&](std::uint64_t x, std::uint64_t y) { return double(x - y) / measured; };
+            std::printf("%9.4f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f\n",
+                        c.threshold, rate(a.first, b.first), rate(a.irradiance, b.irradiance),
+                        rate(a.irradianceMean, b.irradianceMean), rate(a.depth, b.depth),
+                        rate(a.occlusion, b.occlusion), rate(a.offset, b.offset),
+                        rate(a.state, b.state), rate(a.settled, b.settled),
+                        rate(a.refresh, b.refresh), rate(a.repair, b.repair),
+                        rate(a.timeout, b.timeout));
+          }
+          std::printf(
+              "\nbytes per update by section (each coded alone) and codes changed "
+              "against the base:\n");
+          for (const Client& c : clients) {
+            const double n = std::max(c.sampledUpdates, 1.0);
+            std::printf("%9.4f payload %.0f B:", c.threshold, c.payloadBytes / n);
+            for (std::size_t k = 0; k < 4; ++k)
+              std::printf("  %s %.0f B (%.0f changed)", kSectionNames[k], c.sectionBytes[k] / n,
+                          c.sectionChanged[k] / n);
+            std::printf("\n");
+          }
+        }
+        std::printf(
+            "\nMbit/s: measured window, datagrams + acks with IP/UDP/TCP headers; down/up "
+            "split; ratio: raw baseline / Mbit/s; held%%: codes the dead zone kept\n");
+        figure("mbit_per_client", figMbit, "Mbit/s");
+        figure("raw_ratio", figRatio, "x");
+        figure("psnr_client_vs_server_field", figPsnr, "dB");
+        return 0;
+      }};
 }
 
 }  // namespace pc::bench

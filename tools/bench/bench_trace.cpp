@@ -25,19 +25,22 @@ Benchmark addTrace(CLI::App& app) {
   cmd->add_option("--updates", updates, "measured updates");
   cmd->add_option("--warmup", warmup, "updates before measuring (states, indirect light)");
   cmd->add_option("--rays", rays, "rays per probe");
-  cmd->add_option("--counts", counts, "probes per axis of a single cascade over the scene (x y z)")->expected(3);
+  cmd->add_option("--counts", counts, "probes per axis of a single cascade over the scene (x y z)")
+      ->expected(3);
   return {cmd, [] {
             auto scene = loadBenchScene(scenePath, sidecar);
             if (!scene) {
               std::fprintf(stderr, "trace: %s\n", scene.error().message.c_str());
               return 1;
             }
-            std::vector<ProbeVolume> volumes = scene->volumes.empty() ? defaultVolumes(*scene) : scene->volumes;
+            std::vector<ProbeVolume> volumes =
+                scene->volumes.empty() ? defaultVolumes(*scene) : scene->volumes;
             if (counts.size() == 3) {
               glm::vec3 extent = scene->boundsMax - scene->boundsMin;
               glm::ivec3 n(counts[0], counts[1], counts[2]);
               float spacing = std::max(extent.x / n.x, std::max(extent.y / n.y, extent.z / n.z));
-              glm::vec3 origin = 0.5f * (scene->boundsMin + scene->boundsMax) - 0.5f * spacing * glm::vec3(n - 1);
+              glm::vec3 origin =
+                  0.5f * (scene->boundsMin + scene->boundsMax) - 0.5f * spacing * glm::vec3(n - 1);
               volumes = {ProbeVolume{origin, spacing, n}};
             }
             FieldSettings settings;
@@ -82,19 +85,22 @@ Benchmark addTrace(CLI::App& app) {
             const double full = double(probeRays + shadowRays) / (fullMs * 1e3);
             const double fullProbe = double(probeRays) / (fullMs * 1e3);
             std::printf("trace: %s (%zu triangles), %d probes x %d rays, %d measured updates\n",
-                        scene->name.c_str(), scene->triangleCount(), int(request.probes.size()), rays, updates);
+                        scene->name.c_str(), scene->triangleCount(), int(request.probes.size()),
+                        rays, updates);
             std::printf("machine: %s; Embree 3 on TBB\n", machineDescription().c_str());
             std::printf("%-34s %12s %12s %12s\n", "pass", "ms/update", "rays/update", "Mrays/s");
-            std::printf("%-34s %12.2f %12llu %12.2f\n", "raw closest hit (probe rays)", rawMs / updates,
-                        (unsigned long long)(probeRays / updates), raw);
-            std::printf("%-34s %12.2f %12llu %12.2f\n", "full update (probe + shadow rays)", fullMs / updates,
-                        (unsigned long long)((probeRays + shadowRays) / updates), full);
+            std::printf("%-34s %12.2f %12llu %12.2f\n", "raw closest hit (probe rays)",
+                        rawMs / updates, (unsigned long long)(probeRays / updates), raw);
+            std::printf("%-34s %12.2f %12llu %12.2f\n", "full update (probe + shadow rays)",
+                        fullMs / updates, (unsigned long long)((probeRays + shadowRays) / updates),
+                        full);
             std::printf("%-34s %12s %12llu %12.2f\n", "full update (probe rays only)", "",
                         (unsigned long long)(probeRays / updates), fullProbe);
-            std::printf("  of which trace + shade %.2f ms, blend + borders + classify %.2f ms per update\n",
-                        shadeMs / updates, blendMs / updates);
-            std::printf("hit fraction %.3f, shadow rays per probe ray %.2f\n", double(hits) / probeRays,
-                        double(shadowRays) / probeRays);
+            std::printf(
+                "  of which trace + shade %.2f ms, blend + borders + classify %.2f ms per update\n",
+                shadeMs / updates, blendMs / updates);
+            std::printf("hit fraction %.3f, shadow rays per probe ray %.2f\n",
+                        double(hits) / probeRays, double(shadowRays) / probeRays);
             figure("raw_mrays", raw, "Mrays/s");
             figure("update_mrays", full, "Mrays/s");
             figure("update_probe_mrays", fullProbe, "Mrays/s");
