@@ -34,13 +34,22 @@ std::string siblingExecutable(const std::string& name) {
 }
 
 Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerProcessOptions& options) {
+  // The log is opened here, not by the spawn: a spawn that fails to open it reports the error
+  // as its own, which read as though the server's executable were missing.
+  const int logFd = open(options.logPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (logFd < 0) {
+    return Error{"cannot open the server's log " + options.logPath + ": " + std::strerror(errno)};
+  }
   int pipeFds[2];
-  if (pipe2(pipeFds, O_CLOEXEC) != 0) return Error{std::string("pipe: ") + std::strerror(errno)};
+  if (pipe2(pipeFds, O_CLOEXEC) != 0) {
+    const int err = errno;
+    close(logFd);
+    return Error{std::string("pipe: ") + std::strerror(err)};
+  }
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_adddup2(&actions, pipeFds[1], STDOUT_FILENO);
-  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, options.logPath.c_str(),
-                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, logFd, STDERR_FILENO);
   std::vector<std::string> argv = {options.executable};
   argv.insert(argv.end(), options.args.begin(), options.args.end());
   std::vector<char*> cargv;
@@ -51,6 +60,7 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerProcessO
       posix_spawn(&pid, options.executable.c_str(), &actions, nullptr, cargv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   close(pipeFds[1]);
+  close(logFd);
   if (rc != 0) {
     close(pipeFds[0]);
     return Error{"cannot start " + options.executable + ": " + std::strerror(rc)};

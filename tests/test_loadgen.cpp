@@ -12,6 +12,7 @@
 
 #include "loadgen/proc_stats.h"
 #include "loadgen/server_load.h"
+#include "loadgen/server_process.h"
 #include "protocol/session_messages.h"
 #include "protocol/stream_sender.h"
 #include "test_protocol_support.h"
@@ -84,6 +85,21 @@ TEST(LoadgenFanOut, ThreadCpuIsReadByName) {
   for (const auto& [name, seconds] : s->threadCpuSeconds) sum += seconds;
   EXPECT_LE(sum, s->cpuSeconds + 0.05);
   EXPECT_EQ(s->threadCpu("no-such-thread"), 0.0);
+}
+
+// A log that cannot be opened is named as such: the spawn reported it as its own error, which
+// read as though the server's executable were missing.
+TEST(LoadgenServerProcess, AnUnwritableLogIsNamedNotTheExecutable) {
+  load::ServerProcessOptions sp;
+  sp.executable = std::string(PC_BUILD_DIR) + "/bin/probecast-server";
+  sp.logPath = std::string(PC_BUILD_DIR) + "/no-such-folder/server.log";
+  auto server = load::ServerProcess::start(sp);
+  ASSERT_FALSE(server.ok());
+  EXPECT_NE(server.error().message.find("cannot open the server's log " + sp.logPath),
+            std::string::npos)
+      << server.error().message;
+  EXPECT_EQ(server.error().message.find("cannot start"), std::string::npos)
+      << server.error().message;
 }
 
 TEST(Loadgen, HundredClientsForTenSecondsAgainstRealServer) {
