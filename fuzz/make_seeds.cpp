@@ -1,7 +1,8 @@
 // Writes the seed corpus of the generated targets: small valid inputs made with the encoders,
 // so the seeds follow the wire formats as they change. Usage: make_seeds <dir>; writes
-// <dir>/<target>/<name> for the messages, datagram, brick and baked targets (the sidecar
-// seeds are checked-in JSON files).
+// <dir>/<target>/<name> for the messages, datagram, brick, baked and session targets (the
+// sidecar seeds are checked-in JSON files).
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -11,6 +12,7 @@
 #include "common/scene.h"
 #include "fuzz_support.h"
 #include "protocol/baked_file.h"
+#include "protocol/brick_codec.h"
 #include "protocol/datagram.h"
 #include "protocol/session_messages.h"
 
@@ -152,6 +154,60 @@ void baked() {
                {}));
 }
 
+// Session seeds: records of fuzz_session.cpp (op, 16-bit length, bytes) that a server would
+// send: the handshake, a scene state and a brick update in datagrams, time passing.
+void sessions() {
+  auto record = [](std::uint8_t op, const std::vector<std::uint8_t>& bytes) {
+    std::vector<std::uint8_t> r = {op, std::uint8_t(bytes.size()), std::uint8_t(bytes.size() >> 8)};
+    r.insert(r.end(), bytes.begin(), bytes.end());
+    return r;
+  };
+  auto join = [](std::initializer_list<std::vector<std::uint8_t>> parts) {
+    std::vector<std::uint8_t> out;
+    for (const auto& p : parts) out.insert(out.end(), p.begin(), p.end());
+    return out;
+  };
+  const Field field = fuzz::smallField(3);
+  const std::vector<std::uint8_t> welcome = encodeMessage(WelcomeMsg{kProtocolVersion, 17});
+  const std::vector<std::uint8_t> info = encodeMessage(sessionInfoFor(field));
+  const Scene scene = builtinScene();
+  const std::vector<std::uint8_t> state =
+      encodeMessage(sceneStateMessage(evaluateScene(scene, 0.5)));
+  // Brick 0 of cascade 0, self-contained, one fragment per datagram (CRC left for the target).
+  const std::vector<std::uint8_t> payload = encodeBrick(quantizeBrick(field, 0, 0), nullptr);
+  const UpdateHeader header{.updateId = 1,
+                            .cascade = 0,
+                            .brick = 0,
+                            .version = field.brickVersions[0][0],
+                            .baseVersion = 0,
+                            .codec = kCodecQuantZstd,
+                            .totalSize = std::uint32_t(payload.size())};
+  std::vector<std::uint8_t> datagrams;
+  const std::uint16_t count = fragmentCount(header.totalSize);
+  for (std::uint16_t i = 0; i < count; ++i) {
+    const std::size_t from = std::size_t(i) * kFragmentBytes;
+    const std::size_t n = std::min(kFragmentBytes, payload.size() - from);
+    const FragmentRef f[] = {{header, i, std::span<const std::uint8_t>(payload).subspan(from, n)}};
+    std::vector<std::uint8_t> d = encodeDatagram(17, 1 + i, field.version, f);
+    d.resize(d.size() - 4);
+    const std::vector<std::uint8_t> r = record(1 | 4, d);
+    datagrams.insert(datagrams.end(), r.begin(), r.end());
+  }
+  const std::vector<std::uint8_t> tick = record(2, {16});
+  write("session", "handshake", join({record(0, welcome), record(0, info), tick}));
+  write("session", "stream",
+        join({record(0, welcome), record(0, info), record(0, state), datagrams, tick, tick}));
+  write("session", "split-frames",
+        join({record(0, std::vector<std::uint8_t>(welcome.begin(), welcome.begin() + 3)),
+              record(0, std::vector<std::uint8_t>(welcome.begin() + 3, welcome.end())),
+              record(0, info), tick}));
+  write("session", "reject",
+        record(0, encodeMessage(RejectMsg{kProtocolVersion, "authentication failed"})));
+  write("session", "silence",
+        join({record(0, welcome), record(0, info), record(2, {255}), record(2, {255}),
+              record(3 | 4, {}), record(0, welcome)}));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -164,6 +220,7 @@ int main(int argc, char** argv) {
   datagrams();
   bricks();
   baked();
+  sessions();
   std::printf("make_seeds: %d seeds under %s\n", written, outDir.c_str());
   return 0;
 }

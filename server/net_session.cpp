@@ -31,13 +31,6 @@ bool misbehaviour(DisconnectCause c) {
   }
 }
 
-const char* messageName(const SessionMessage& m) {
-  constexpr const char* kNames[] = {"Hello",      "Welcome",    "Reject", "SessionInfo",
-                                    "SceneState", "ViewerPose", "Ack",    "RepairRequest"};
-  static_assert(std::size(kNames) == std::variant_size_v<SessionMessage>);
-  return kNames[m.index()];
-}
-
 }  // namespace
 
 Session::Session(NetServer::Impl& server, tcp::socket socket, std::uint32_t id)
@@ -224,8 +217,8 @@ bool Session::handle(const SessionMessage& message) {
   if (!sender_) {
     const HelloMsg* hello = std::get_if<HelloMsg>(&message);
     if (!hello) {
-      refuse(DisconnectCause::Protocol,
-             std::string("expected Hello as the first message, got ") + messageName(message));
+      refuse(DisconnectCause::Protocol, std::string("expected Hello as the first message, got ") +
+                                            sessionMessageName(message));
       return false;
     }
     return onHello(*hello);
@@ -238,7 +231,7 @@ bool Session::handle(const SessionMessage& message) {
       std::holds_alternative<SessionInfoMsg>(message) ||
       std::holds_alternative<SceneStateMsg>(message)) {
     refuse(DisconnectCause::WrongDirection,
-           std::string(messageName(message)) + " from a client: only the server sends it");
+           std::string(sessionMessageName(message)) + " from a client: only the server sends it");
     return false;
   }
   if (auto invalid = checkSize(message)) {
