@@ -3,16 +3,30 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <filesystem>
 #include <optional>
 #include <string>
 
+#include "protocol/stream_limits.h"
+
 namespace pc {
 
-// Parses the command line. --help prints the options and the tool exits 0; any other problem
-// (an unknown option, a bad value, an option given twice) prints CLI11's message and the tool
-// exits 1, its code for bad input, whatever CLI11's own code for that kind of error.
+// What --version prints: the tool, the release, and the protocol versions it speaks, so that
+// a report names what ran ("probecast-server 0.1.0 (protocol 2, accepts 2 and later)").
+inline std::string versionText(const char* argv0) {
+  const std::string tool = std::filesystem::path(argv0 ? argv0 : "probecast").filename().string();
+  return tool + " " + PC_VERSION + " (protocol " + std::to_string(kProtocolVersion) + ", accepts " +
+         std::to_string(kMinProtocolVersion) + " and later)";
+}
+
+// Parses the command line. --help prints the options and --version the tool's version, and
+// the tool exits 0; any other problem (an unknown option, a bad value, an option given twice)
+// prints CLI11's message and the tool exits 1, its code for bad input, whatever CLI11's own
+// code for that kind of error.
 // Use: if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 inline std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv) {
+  app.set_version_flag("--version", versionText(argc > 0 ? argv[0] : nullptr),
+                       "print the tool's version and protocol version, and exit");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -11,6 +11,7 @@
 
 #include "common/image.h"
 #include "common/log.h"
+#include "common/output_path.h"
 #include "cpu/path_tracer.h"
 #include "cpu/probe_lit_render.h"
 #include "protocol/baked_file.h"
@@ -66,8 +67,16 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (const std::string& w : scene->warnings) pc::logWarn(w);
-  // The render's camera is checked before the bake, not after it.
+  // The outputs and the render's camera are checked before the bake, not after it.
+  if (pc::Status s = pc::prepareOutputFile(out); !s) {
+    pc::logError(s.error().message + "; nothing baked");
+    return 1;
+  }
   if (!renderDir.empty()) {
+    if (pc::Status s = pc::prepareOutputDir(renderDir); !s) {
+      pc::logError(s.error().message + "; nothing baked");
+      return 1;
+    }
     if (auto cam = pc::sceneCamera(*scene, camera); !cam) {
       pc::logError(cam.error().message);
       return 1;
@@ -124,7 +133,6 @@ int main(int argc, char** argv) {
         "baked %d probes in %d cascades: %d updates, %.2f s, %.2f Mrays/s (probe + shadow rays)\n",
         field.probeCount(), field.cascadeCount(), stats.updates, stats.ms / 1000.0, mrays);
   }
-  if (fs::path(out).has_parent_path()) fs::create_directories(fs::path(out).parent_path());
   pc::BakedWriteOptions writeOptions;
   writeOptions.halfPrecision = half;
   if (pc::Status s = pc::writeBakedField(out, field, writeOptions); !s) {
@@ -136,7 +144,6 @@ int main(int argc, char** argv) {
   if (renderDir.empty()) return 0;
 
   // ---- check: probe-lit render vs path-traced reference ----
-  fs::create_directories(renderDir);
   auto cam = pc::sceneCamera(*scene, camera);
   if (!cam) {
     pc::logError(cam.error().message);
