@@ -225,6 +225,13 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
     logError("validation errors: " + std::to_string((*ctx)->validationErrorCount()));
     return 3;
   }
+  // Rendered, but never let in: a wrong token or a full server is the user's to fix, and a
+  // script must not read the run as a success.
+  if (s.sessions == 0 && s.rejects > 0) {
+    logError("the server rejected all " + std::to_string(s.rejects) +
+             " connection attempts: " + s.lastError);
+    return 4;
+  }
   return 0;
 }
 

@@ -120,6 +120,50 @@ bool waitUntil(F&& done, double limit) {
   return true;
 }
 
+// A headless client whose token the server refuses renders its frames, then exits with 4 and
+// an error naming the reject, not 0.
+TEST(NetRestart, HeadlessClientThatIsAlwaysRejectedExitsWithFour) {
+  if (!fs::exists(kBin + "probecast-server") || !fs::exists(kBin + "probecast-client"))
+    GTEST_SKIP() << "probecast-server and probecast-client are not built";
+  const fs::path dir = fs::path(PC_BUILD_DIR) / "test-net-rejected";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::uint16_t port = freePort();
+  const std::string portText = std::to_string(port);
+  Child server({kBin + "probecast-server", "--scene", "builtin", "--backend", "embree", "--rays",
+                "16", "--warmup", "1", "--bind", "127.0.0.1", "--port", portText, "--token",
+                "the-right-token", "--stats-interval", "0"},
+               dir / "server.log");
+  ASSERT_TRUE(server.running());
+  ASSERT_TRUE(waitUntil([&] { return canConnect(port); }, 30.0)) << "server never listened";
+  Child client({kBin + "probecast-client",
+                "--scene",
+                "builtin",
+                "--connect",
+                "127.0.0.1:" + portText,
+                "--token",
+                "a-wrong-token",
+                "--width",
+                "32",
+                "--height",
+                "24",
+                "--msaa",
+                "2",
+                "--duration",
+                "2",
+                "--save-every",
+                "0",
+                "--no-exr",
+                "--out",
+                dir.string()},
+               dir / "client.log");
+  ASSERT_TRUE(client.running());
+  ASSERT_TRUE(waitUntil([&] { return client.exited(); }, 60.0)) << "the client did not end";
+  EXPECT_EQ(client.exitCode(), 4) << readText(dir / "client.log");
+  EXPECT_NE(readText(dir / "client.log").find("the server rejected all"), std::string::npos)
+      << readText(dir / "client.log");
+}
+
 TEST(NetRestart, HeadlessClientKeepsRenderingReconnectsAndResyncs) {
   if (!fs::exists(kBin + "probecast-server") || !fs::exists(kBin + "probecast-client"))
     GTEST_SKIP() << "probecast-server and probecast-client are not built";
