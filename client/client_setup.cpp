@@ -15,7 +15,9 @@ double secondsNow() {
 
 Result<Scene> loadClientScene(const ClientConfig& config) {
   if (config.scene.empty() || config.scene == "builtin") return builtinScene();
-  return loadScene(config.scene, config.sidecar);
+  Result<Scene> scene = loadScene(config.scene, config.sidecar);
+  if (scene) logInfo(sidecarReport(*scene));
+  return scene;
 }
 
 Result<Camera> clientCamera(const Scene& scene, const ClientConfig& config) {

@@ -155,8 +155,10 @@ struct Scene {
 };
 
 // Loads .gltf/.glb/.obj; `sidecar` (scene.json format, see docs/SCENES.md) may be empty, in
-// which case <scene dir>/scene.json, data/sidecars/<scene file stem>.json and
-// data/sidecars/<scene dir name>.json are tried in that order. Errors name the file and the
+// which case <scene dir>/scene.json, then <scene file stem>.json and <scene dir name>.json in
+// the sidecar folders (beside the executable in sidecars/, the install's
+// share/probecast/sidecars, the source tree's data/sidecars) are tried in that order;
+// Scene::sidecar names the one applied. Errors name the file and the
 // problem: "<file>: <problem>", and for a sidecar "<file>: at <JSON pointer>: <problem>".
 Result<Scene> loadScene(const std::filesystem::path& path,
                         const std::filesystem::path& sidecar = {});
@@ -179,5 +181,10 @@ SceneState evaluateScene(const Scene& scene, double time);
 // The camera `index` of the scene, or one looking at the scene's bounds when it has none
 // (index 0 only); an error naming the index and the scene's camera count otherwise.
 Result<Camera> sceneCamera(const Scene& scene, int index);
+
+// One line for the log saying where a loaded scene's sidecar came from, or where none was
+// found: a run from a copy of the tools that misses its sidecar loses the scene's lights and
+// volumes, and must say so at once.
+std::string sidecarReport(const Scene& scene);
 
 }  // namespace pc

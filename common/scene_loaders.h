@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "common/scene.h"
 
@@ -18,7 +19,13 @@ Result<Scene> loadObj(const std::filesystem::path& path);
 // Decodes an image file (PNG, JPEG, ...) to 8-bit RGBA.
 Status loadImageFile(const std::filesystem::path& path, Texture& out);
 
-// The sidecar that applies to `scene` (explicit one first), or empty when there is none.
+// Folders of the sidecars written for known scenes, in the order they are searched: beside
+// the running executable (sidecars/, as scripts/bundle lays them out), the install's
+// share/probecast/sidecars, then the source tree's data/sidecars.
+std::vector<std::filesystem::path> sidecarFolders();
+// The sidecar that applies to `scene`: the explicit one, else <scene dir>/scene.json, else
+// <scene stem>.json or <scene dir name>.json in the first of sidecarFolders() holding one;
+// empty when there is none.
 Result<std::filesystem::path> findSidecar(const std::filesystem::path& scene,
                                           const std::filesystem::path& explicitSidecar);
 // Reads the sidecar and applies it: unit scale and up axis to what the file gave, then the

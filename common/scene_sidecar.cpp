@@ -6,6 +6,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <vector>
 
 #include "common/scene_loaders.h"
 #include "shaders/interop/field_desc.h"
@@ -15,6 +16,18 @@ namespace pc::scene_detail {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
+std::vector<fs::path> sidecarFolders() {
+  std::vector<fs::path> folders;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    folders.push_back(exe.parent_path() / "sidecars");                                // a bundle
+    folders.push_back(exe.parent_path().parent_path() / "share/probecast/sidecars");  // installed
+  }
+  folders.push_back(fs::path(PC_SOURCE_DIR) / "data" / "sidecars");  // the build tree's source
+  return folders;
+}
+
 Result<fs::path> findSidecar(const fs::path& scene, const fs::path& explicitSidecar) {
   std::error_code ec;
   if (!explicitSidecar.empty()) {
@@ -23,15 +36,13 @@ Result<fs::path> findSidecar(const fs::path& scene, const fs::path& explicitSide
     return explicitSidecar;
   }
   const fs::path dir = scene.parent_path();
-  const fs::path sidecars = fs::path(PC_SOURCE_DIR) / "data" / "sidecars";
+  if (fs::is_regular_file(dir / "scene.json", ec)) return dir / "scene.json";
   // The file's stem first: one folder may hold several scenes (CornellBox-Original.obj, ...).
-  const fs::path candidates[] = {
-      dir / "scene.json",
-      sidecars / (scene.stem().string() + ".json"),
-      sidecars / (fs::absolute(dir, ec).filename().string() + ".json"),
-  };
-  for (const fs::path& c : candidates)
-    if (fs::is_regular_file(c, ec)) return c;
+  const std::string names[] = {scene.stem().string() + ".json",
+                               fs::absolute(dir, ec).filename().string() + ".json"};
+  for (const fs::path& folder : sidecarFolders())
+    for (const std::string& name : names)
+      if (fs::is_regular_file(folder / name, ec)) return folder / name;
   return fs::path();
 }
 
@@ -441,3 +452,15 @@ Status applySidecar(Scene& scene, const fs::path& sidecar) {
 }
 
 }  // namespace pc::scene_detail
+
+namespace pc {
+
+std::string sidecarReport(const Scene& scene) {
+  if (!scene.sidecar.empty()) return "scene " + scene.name + ": sidecar " + scene.sidecar.string();
+  if (scene.source.empty()) return "scene " + scene.name + ": built in, no sidecar";
+  std::string where = (scene.source.parent_path() / "scene.json").string();
+  for (const std::filesystem::path& f : scene_detail::sidecarFolders()) where += ", " + f.string();
+  return "scene " + scene.name + ": no sidecar (looked for " + where + ")";
+}
+
+}  // namespace pc

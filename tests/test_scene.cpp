@@ -2,6 +2,7 @@
 // files), sidecars, animation, and the shared scenes where ../shared/scenes is present.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -938,6 +939,33 @@ TEST(BadFiles, SidecarVolumesBeyondWhatAFieldHolds) {
 
 // ---------------------------------------------------------------------------------------------
 // Sidecar features
+
+// A copy of the tools finds the sidecars beside itself (sidecars/, as scripts/bundle lays them
+// out) before the source tree's, and the report says which one a scene took, or where none
+// was found.
+TEST(Sidecar, FoundBesideTheExecutableAndReported) {
+  TempDir dir;
+  const std::string stem = "pc_beside_the_executable_" + std::to_string(::getpid());
+  writeFile(dir / (stem + ".obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  auto bare = pc::loadScene(dir / (stem + ".obj"));
+  ASSERT_TRUE(bare.ok()) << bare.error().message;
+  EXPECT_TRUE(bare->sidecar.empty());
+  EXPECT_NE(pc::sidecarReport(*bare).find("no sidecar (looked for"), std::string::npos)
+      << pc::sidecarReport(*bare);
+
+  const fs::path folder = fs::read_symlink("/proc/self/exe").parent_path() / "sidecars";
+  const bool made = fs::create_directories(folder);
+  const fs::path sidecar = folder / (stem + ".json");
+  writeFile(sidecar, R"({"lights": [{"name": "lamp", "type": "point", "position": [0, 1, 1]}]})");
+  auto withSidecar = pc::loadScene(dir / (stem + ".obj"));
+  fs::remove(sidecar);
+  if (made) fs::remove(folder);
+  ASSERT_TRUE(withSidecar.ok()) << withSidecar.error().message;
+  EXPECT_EQ(withSidecar->sidecar, sidecar);
+  ASSERT_EQ(withSidecar->lights.size(), 1u);
+  EXPECT_EQ(withSidecar->lights[0].name, "lamp");
+  EXPECT_NE(pc::sidecarReport(*withSidecar).find("sidecar " + sidecar.string()), std::string::npos);
+}
 
 TEST(Sidecar, UnitScaleUpAxisCamerasVolumesAnimations) {
   TempDir dir;

@@ -66,6 +66,7 @@ int main(int argc, char** argv) {
     pc::logError(scene.error().message);
     return 1;
   }
+  pc::logInfo(pc::sidecarReport(*scene));
   for (const std::string& w : scene->warnings) pc::logWarn(w);
   // The outputs and the render's camera are checked before the bake, not after it.
   if (pc::Status s = pc::prepareOutputFile(out); !s) {

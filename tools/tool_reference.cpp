@@ -52,6 +52,7 @@ int main(int argc, char** argv) {
     if (!loaded) return fail(loaded.error().message);
     scene = std::move(loaded.value());
   }
+  pc::logInfo(pc::sidecarReport(scene));
   for (const std::string& warning : scene.warnings) pc::logWarn(warning);
 
   std::error_code ec;

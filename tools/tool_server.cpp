@@ -381,6 +381,7 @@ int main(int argc, char** argv) {
                                     ? pc::Result<pc::Scene>(pc::builtinScene())
                                     : pc::loadScene(setup.scenePath, setup.sidecar);
   if (!scene) return pc::logError(scene.error().message), 1;
+  pc::logInfo(pc::sidecarReport(*scene));
   for (const std::string& w : scene->warnings) pc::logWarn(w);
 
   auto tracer = makeServerTracer(*scene, setup);
