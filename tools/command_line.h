@@ -19,12 +19,22 @@ inline std::string versionText(const char* argv0) {
          std::to_string(kMinProtocolVersion) + " and later)";
 }
 
-// Parses the command line. --help prints the options and --version the tool's version, and
-// the tool exits 0; any other problem (an unknown option, a bad value, an option given twice)
-// prints CLI11's message and the tool exits 1, its code for bad input, whatever CLI11's own
-// code for that kind of error.
+// Records every option's value as it stands (the tool's default) for --help to show, in this
+// app and its subcommands.
+inline void captureDefaults(CLI::App& app) {
+  for (CLI::Option* option : app.get_options([](CLI::Option*) { return true; })) {
+    if (option->get_default_str().empty()) option->capture_default_str();
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) captureDefaults(*sub);
+}
+
+// Parses the command line. --help prints the options with their defaults and --version the
+// tool's version, and the tool exits 0; any other problem (an unknown option, a bad value, an
+// option given twice) prints CLI11's message and the tool exits 1, its code for bad input,
+// whatever CLI11's own code for that kind of error.
 // Use: if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 inline std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv) {
+  captureDefaults(app);
   app.set_version_flag("--version", versionText(argc > 0 ? argv[0] : nullptr),
                        "print the tool's version and protocol version, and exit");
   try {
