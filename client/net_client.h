@@ -16,6 +16,7 @@
 #include <string>
 
 #include "field_mirror.h"
+#include "protocol/client_session.h"
 #include "protocol/stream_receiver.h"
 
 namespace pc::client {
@@ -24,21 +25,21 @@ struct NetClientOptions {
   std::string host = "127.0.0.1";
   std::uint16_t port = 7450;
   std::string token;
-  std::string name = "probecast-client";
+  std::string name = ClientSessionOptions{}.name;
   bool tcpOnly = false;                // ask for datagrams over TCP
   std::uint16_t udpAdvertisePort = 0;  // port the server should send datagrams to (a relay in
                                        // front of this client); 0: this client's own port
   double backoffInitial = 0.05;        // s before the first reconnect attempt
   double backoffMax = 0.4;             // s: the cap keeps a returning server found within it
-  // The session's (ClientSessionOptions):
-  double connectTimeout = 2.0;  // s for resolve and TCP connect plus the handshake
-  double silenceTimeout = 2.0;  // s without any bytes from the server: it is gone
-  double pollInterval = 0.005;  // s between session polls
-  double poseInterval = 0.1;    // s between viewer poses
+  // The session's (ClientSessionOptions), with its defaults:
+  double connectTimeout = ClientSessionOptions{}.connectTimeout;  // s: resolve, connect, handshake
+  double silenceTimeout = ClientSessionOptions{}.silenceTimeout;  // s without bytes: server gone
+  double pollInterval = 0.005;                                    // s between session polls
+  double poseInterval = ClientSessionOptions{}.poseInterval;      // s between viewer poses
   // The most memory a server's field layout (SessionInfo) may make this client allocate for
   // its copies of the field (mirrorMemoryBytes, protocol/client_session.h); a larger layout
   // ends the session with an error naming both sizes. The shared scenes need under 200 MiB.
-  std::uint64_t maxMirrorBytes = std::uint64_t(1) << 30;
+  std::uint64_t maxMirrorBytes = ClientSessionOptions{}.maxMirrorBytes;
   ReceiverOptions receiver;
 };
 

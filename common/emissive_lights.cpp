@@ -8,10 +8,6 @@
 namespace pc {
 namespace {
 
-constexpr float kPi = 3.14159265358979f;
-
-float luminance(glm::vec3 c) { return gpu::pcLuminance(c); }
-
 glm::mat4 instanceTransform(const Scene& scene, const SceneState& state, std::size_t i) {
   return i < state.instanceTransforms.size() ? state.instanceTransforms[i]
                                              : scene.instances[i].transform;
@@ -85,7 +81,7 @@ EmissiveSurfaces::EmissiveSurfaces(const Scene& scene) {
       if (!glows) continue;
       emissiveArea_ += area;
       const glm::vec3 radiance = triangleRadiance(scene, mesh, *mat, i0, i1, i2);
-      if (luminance(radiance) <= 0.0f) continue;
+      if (gpu::pcLuminance(radiance) <= 0.0f) continue;
       sources_.push_back({i, i0, i1, i2, radiance});
     }
   }
@@ -129,7 +125,7 @@ EmissiveLights EmissiveLights::build(const Scene& scene, const SceneState& state
   double sum = 0.0;
   lights.cdf_.reserve(lights.triangles_.size());
   for (const Triangle& tri : lights.triangles_) {
-    sum += double(luminance(tri.radiance)) * tri.area * kPi;
+    sum += double(gpu::pcLuminance(tri.radiance)) * tri.area * gpu::PC_PI;
     lights.cdf_.push_back(static_cast<float>(sum));
   }
   for (float& c : lights.cdf_) c = static_cast<float>(c / sum);

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "common/result.h"
+#include "protocol/client_session.h"
 
 namespace pc::load {
 
@@ -40,10 +41,10 @@ struct LoadOptions {
   double connectTimeout = 5.0;    // s from connect to SessionInfo
   double silenceTimeout = 3.0;    // s without bytes from the server ends a session as an error
   double pollInterval = 0.01;     // s between each thread's pass over its clients
-  double poseInterval = 0.1;      // s between viewer poses
+  double poseInterval = ClientSessionOptions{}.poseInterval;  // s between viewer poses
   // The most a SessionInfo may make a client allocate (ClientSessionOptions::maxMirrorBytes):
   // a larger layout ends the session with an error naming both sizes.
-  std::uint64_t maxMirrorBytes = std::uint64_t(1) << 30;
+  std::uint64_t maxMirrorBytes = ClientSessionOptions{}.maxMirrorBytes;
   double posePeriod = 10.0;  // s per loop of the simulated viewer path
   // A client starves when, in the measured window, it received no datagram for longer than
   // this, or stayed behind the newest announced field version for longer than this, or a
