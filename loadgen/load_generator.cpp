@@ -144,10 +144,27 @@ class Client {
         nextConnectAt_(firstConnectAt) {
     std::uniform_real_distribution<double> phase(0.0, 6.283185307179586);
     posePhase_ = phase(rng_);
+    // Classes in index order by their shares: client i is at (i + 0.5) / N of the population.
+    const auto& links = gen.options.links;
+    double total = 0;
+    for (const LinkClass& l : links) total += l.share;
+    if (total > 0) {
+      const double at = (double(index) + 0.5) / double(std::max(1, gen.options.clients)) * total;
+      double upTo = 0;
+      for (std::size_t i = 0; i < links.size(); ++i) {
+        upTo += links[i].share;
+        if (at < upTo || i + 1 == links.size()) {
+          linkClass_ = int(i);
+          linkRate_ = links[i].mbit * 1e6 / 8.0;
+          break;
+        }
+      }
+    }
   }
 
   void tick(double now);
   void shutdown();
+  int linkClass() const { return linkClass_; }
   void beginWindow(double now);
   ClientReport report(double now, std::vector<float>& latency, std::vector<float>& staleness,
                       std::uint64_t& unmatched);
@@ -162,6 +179,10 @@ class Client {
                   gapReports = 0, stale = 0, errors = 0, unmatched = 0;
     double sessionSeconds = 0, maxGap = 0, maxStaleness = 0;
     std::vector<float> latencyMs, stalenessMs;
+    // The server's stream reports: squared errors (from the PSNR), oldest change ages, rates.
+    std::vector<float> oldestChange;
+    double heldSquares = 0, rateSum = 0, levelSum = 0;
+    std::uint64_t reports = 0, linkDrops = 0, linkDatagrams = 0;
     std::string lastError;
   };
 
@@ -173,6 +194,11 @@ class Client {
   void onLayout(double now);
   void onSceneState(const SceneStateMsg& state, double now);
   void onDatagram(const Status& status, double now);
+  void onReport(double now);
+  // The emulated link: a datagram that reached this client's socket at `now` enters the
+  // link's queue (or is dropped at its tail); deliverLink hands on those whose time came.
+  void enterLink(std::span<const std::uint8_t> bytes, double now);
+  void deliverLink(double now);
   void send(Bytes frame);
   void writeNext();
   void simulateViewer(double now);
@@ -213,6 +239,10 @@ class Client {
   bool writing_ = false;
 
   Window window_;
+  int linkClass_ = -1;
+  double linkRate_ = 0;                             // bytes/s; 0: no emulated link
+  double linkFree_ = 0;                             // when the link finishes sending what it holds
+  std::deque<std::pair<double, Bytes>> linkQueue_;  // (delivery time, datagram)
 };
 
 void Client::tick(double now) {
@@ -226,6 +256,7 @@ void Client::tick(double now) {
     case State::Session:
       break;
   }
+  deliverLink(now);
   if (session_.poseDue(now)) simulateViewer(now);
   auto frames = session_.poll(now);  // the connect and silence timeouts too
   if (!frames) return endSession(now, frames.error().message);
@@ -298,6 +329,8 @@ void Client::endSession(double now, const std::string& error) {
   queuedBytes_ = 0;
   writing_ = false;
   pending_.clear();
+  linkQueue_.clear();
+  linkFree_ = 0;
   if (!error.empty()) {
     ++window_.errors;
     window_.lastError = error;
@@ -341,9 +374,14 @@ void Client::receiveUdp() {
                        // keep going.
                        if (!ec && n <= kMaxDatagramBytes) {
                          const double now = nowSeconds();
-                         window_.bytesDown += n;
-                         (void)session_.onDatagram(std::span(udpBuffer_.data(), n), now);
-                         afterInput(now);
+                         if (linkRate_ > 0) {
+                           enterLink(std::span(udpBuffer_.data(), n), now);
+                           deliverLink(now);
+                         } else {
+                           window_.bytesDown += n;
+                           (void)session_.onDatagram(std::span(udpBuffer_.data(), n), now);
+                           afterInput(now);
+                         }
                        }
                        if (id == connection_) receiveUdp();
                      });
@@ -363,8 +401,46 @@ void Client::afterInput(double now) {
       case SessionEvent::Kind::Datagram:
         onDatagram(e.status, now);
         break;
+      case SessionEvent::Kind::StreamReport:
+        onReport(now);
+        break;
     }
   }
+}
+
+void Client::enterLink(std::span<const std::uint8_t> bytes, double now) {
+  if (inWindow(now)) ++window_.linkDatagrams;
+  // Drop-tail: the queue holds linkQueueSeconds of sending at the link's rate.
+  const double start = std::max(linkFree_, now);
+  if (start - now > o_.linkQueueSeconds) {
+    if (inWindow(now)) ++window_.linkDrops;
+    return;
+  }
+  linkFree_ = start + double(bytes.size()) / linkRate_;
+  linkQueue_.emplace_back(linkFree_, Bytes(bytes.begin(), bytes.end()));
+}
+
+void Client::deliverLink(double now) {
+  // Each datagram is handled at the time it left the link: its arrival time in the acks is
+  // what a receiver behind that link would have seen.
+  while (!linkQueue_.empty() && linkQueue_.front().first <= now) {
+    auto [at, bytes] = std::move(linkQueue_.front());
+    linkQueue_.pop_front();
+    if (state_ != State::Connecting && state_ != State::Session) continue;
+    window_.bytesDown += bytes.size();
+    (void)session_.onDatagram(bytes, at);
+    afterInput(at);
+  }
+}
+
+void Client::onReport(double now) {
+  const auto& r = session_.report();
+  if (!r || !inWindow(now) || !synced_) return;
+  ++window_.reports;
+  window_.heldSquares += std::pow(10.0, -double(r->heldPsnrDb) / 10.0);
+  window_.oldestChange.push_back(r->oldestChangeSeconds);
+  window_.rateSum += r->rate;
+  window_.levelSum += r->qualityLevel;
 }
 
 void Client::onLayout(double now) {
@@ -550,6 +626,18 @@ ClientReport Client::report(double now, std::vector<float>& latency, std::vector
   r.maxStaleness = window_.maxStaleness;
   r.syncSeconds = syncSeconds_;
   r.lastError = window_.lastError;
+  r.linkClass = linkClass_;
+  r.linkMbit = linkRate_ * 8.0 / 1e6;
+  r.linkDrops = window_.linkDrops;
+  r.reports = window_.reports;
+  if (window_.reports > 0) {
+    const double mse = window_.heldSquares / double(window_.reports);
+    r.heldPsnrDb = mse > 0 ? -10.0 * std::log10(mse) : 99.0;
+    std::vector<float> ages = window_.oldestChange;
+    r.oldestChangeP95 = percentiles(ages).p95;
+    r.rateMbit = window_.rateSum / double(window_.reports) * 8.0 / 1e6;
+    r.qualityLevel = window_.levelSum / double(window_.reports);
+  }
   if (gap > o_.starveSeconds) {
     r.starved = true;
     r.starvedWhy = "no datagram for " + std::to_string(gap) + " s";
@@ -557,6 +645,12 @@ ClientReport Client::report(double now, std::vector<float>& latency, std::vector
     r.starved = true;
     r.starvedWhy =
         "behind the newest field version for " + std::to_string(window_.maxStaleness) + " s";
+  } else if (r.reports > 0 && r.heldPsnrDb < o_.minHeldPsnr) {
+    r.starved = true;
+    r.starvedWhy = "held field at " + std::to_string(r.heldPsnrDb) + " dB against the current one";
+  } else if (r.reports > 0 && r.oldestChangeP95 > o_.maxChangeAge) {
+    r.starved = true;
+    r.starvedWhy = "changes " + std::to_string(r.oldestChangeP95) + " s old not held (p95)";
   } else if (state_ == State::Session && !synced_ &&
              now - sessionStartedAt_ > o_.starveSeconds + o_.syncLimit) {
     r.starved = true;
@@ -687,14 +781,24 @@ LoadReport LoadGenerator::report() {
   r.seconds = now - g.windowStart;
   r.clients = g.options.clients;
   std::vector<float> latency, staleness;
+  // Latencies per link class (index + 1; 0: no emulated link).
+  std::vector<std::vector<float>> classLatency(g.options.links.size() + 1);
   std::uint64_t unmatched = 0;
   std::mutex merge;
   g.onEveryWorker([&](Worker& w) {
     std::vector<float> lat, stale;
     std::vector<ClientReport> reports;
+    std::vector<std::pair<int, std::vector<float>>> own;
     std::uint64_t um = 0;
-    for (auto& c : w.clients) reports.push_back(c->report(now, lat, stale, um));
+    for (auto& c : w.clients) {
+      std::vector<float> mine;
+      reports.push_back(c->report(now, mine, stale, um));
+      lat.insert(lat.end(), mine.begin(), mine.end());
+      own.emplace_back(c->linkClass() + 1, std::move(mine));
+    }
     std::lock_guard lock(merge);
+    for (auto& [k, v] : own)
+      classLatency[std::size_t(k)].insert(classLatency[std::size_t(k)].end(), v.begin(), v.end());
     latency.insert(latency.end(), lat.begin(), lat.end());
     staleness.insert(staleness.end(), stale.begin(), stale.end());
     unmatched += um;
@@ -717,6 +821,44 @@ LoadReport LoadGenerator::report() {
     r.starvedClients += c.starved;
   }
   r.kbitPerClient = percentiles(kbit);
+  // Per class, and for all clients together.
+  const auto summarize = [&](int linkClass, std::vector<float> lat) {
+    ClassReport c;
+    std::vector<float> kb, psnr, ages;
+    std::uint64_t drops = 0, reached = 0;
+    double rate = 0;
+    for (const ClientReport& p : r.perClient) {
+      if (linkClass >= -1 && p.linkClass != linkClass) continue;
+      ++c.clients;
+      c.starved += p.starved;
+      kb.push_back(float(p.kbitDown));
+      if (p.reports > 0) {
+        psnr.push_back(float(p.heldPsnrDb));
+        ages.push_back(float(p.oldestChangeP95));
+      }
+      drops += p.linkDrops;
+      rate += p.rateMbit;
+      c.linkMbit = p.linkMbit;
+    }
+    reached = drops;
+    for (const ClientReport& p : r.perClient)
+      if (linkClass < -1 || p.linkClass == linkClass) reached += p.datagrams;
+    c.latencyMs = percentiles(lat);
+    c.kbitPerClient = percentiles(kb);
+    // p5 over clients: the worst twentieth's held field.
+    if (!psnr.empty()) {
+      std::sort(psnr.begin(), psnr.end());
+      c.heldPsnrP5 = psnr[std::size_t(0.05 * double(psnr.size() - 1))];
+    }
+    c.oldestChangeP95 = percentiles(ages).p95;
+    c.linkDropShare = reached > 0 ? double(drops) / double(reached) : 0.0;
+    c.rateMbitMean = c.clients > 0 ? rate / c.clients : 0.0;
+    return c;
+  };
+  r.all = summarize(-2, latency);
+  r.all.linkMbit = 0;
+  for (std::size_t i = 0; i < g.options.links.size(); ++i)
+    r.classes.push_back(summarize(int(i), classLatency[i + 1]));
   r.sessionsEnded = g.sessionsEnded.load();
   if (g.decoder) {
     const SharedBrickDecoder::Stats d = g.decoder->stats();

@@ -24,6 +24,12 @@
 
 namespace pc::load {
 
+// A class of emulated links: `mbit` Mbit/s for `share` of the clients.
+struct LinkClass {
+  double mbit = 0;
+  double share = 0;
+};
+
 struct LoadOptions {
   std::string host = "127.0.0.1";  // an IPv4/IPv6 address or a host name (resolved once)
   std::uint16_t port = 7450;
@@ -51,6 +57,17 @@ struct LoadOptions {
   // session of it older than this plus the sync limit never held every brick.
   double starveSeconds = 2.0;
   double syncLimit = 10.0;
+  // It also starves when the server's reports on its stream (protocol version 3) say its held
+  // field is worse than minHeldPsnr (the mean error of the window's reports, in dB) or older
+  // than maxChangeAge (95% of the reports: the oldest change it does not hold).
+  double minHeldPsnr = 40.0;
+  double maxChangeAge = 1.0;
+  // Emulated bottleneck links (UDP only): each client's datagrams pass a link of its class's
+  // rate with a drop-tail queue of linkQueueSeconds at that rate, as a router before a slow
+  // link would, before the client reads them. Empty: no link (loopback). Shares are
+  // normalised; clients are assigned to classes in index order.
+  std::vector<LinkClass> links;
+  double linkQueueSeconds = 0.1;
   bool sameClock = true;
   // Receivers keep only the codes of each brick (no decoded field) and share decoded codes
   // between clients (same payload on the same base, same codes); false decodes per client.
@@ -89,8 +106,27 @@ struct ClientReport {
   double maxStaleness = 0;    // s
   double syncSeconds = -1;    // connect -> every brick held, latest session
   Percentiles latencyMs;
+  // From the server's stream reports in the window: the held field's PSNR (mean squared error
+  // of the reports, in dB; 0 without reports), the oldest change's age (95th percentile of the
+  // reports), the send rate (mean), the quality level (mean).
+  std::uint64_t reports = 0;
+  double heldPsnrDb = 0, oldestChangeP95 = 0, rateMbit = 0, qualityLevel = 0;
+  int linkClass = -1;  // index into LoadOptions::links; -1 without
+  double linkMbit = 0;
+  std::uint64_t linkDrops = 0;  // datagrams the emulated link's queue dropped
   bool starved = false;
   std::string starvedWhy, lastError;
+};
+
+// Figures of one link class (or of all clients).
+struct ClassReport {
+  double linkMbit = 0;  // 0: no emulated link
+  int clients = 0, starved = 0;
+  Percentiles latencyMs, kbitPerClient;
+  double heldPsnrP5 = 0;       // over the class's clients
+  double oldestChangeP95 = 0;  // over the class's clients, of each client's p95
+  double linkDropShare = 0;    // of the datagrams that reached the emulated links
+  double rateMbitMean = 0;
 };
 
 struct LoadReport {
@@ -110,6 +146,8 @@ struct LoadReport {
   double decodedFieldMb = 0;  // one decoded field of the server's layout (keepField's cost)
   double brickCodesMb = 0;    // one client's brick codes if not shared
   std::vector<std::string> errorSamples;  // a few distinct error messages
+  ClassReport all;                        // every client
+  std::vector<ClassReport> classes;       // per LoadOptions::links entry
   std::vector<ClientReport> perClient;
 };
 

@@ -13,6 +13,18 @@ nlohmann::json toJson(const Percentiles& p) {
           {"p99", p.p99},     {"max", p.max}, {"mean", p.mean}};
 }
 
+nlohmann::json toJson(const ClassReport& c) {
+  return {{"link_mbit", c.linkMbit},
+          {"clients", c.clients},
+          {"starved", c.starved},
+          {"latency_ms", toJson(c.latencyMs)},
+          {"kbit_per_client", toJson(c.kbitPerClient)},
+          {"held_psnr_db_p5", c.heldPsnrP5},
+          {"oldest_change_s_p95", c.oldestChangeP95},
+          {"link_drop_share", c.linkDropShare},
+          {"rate_mbit_mean", c.rateMbitMean}};
+}
+
 std::string format(const char* fmt, auto... args) {
   char line[512];
   std::snprintf(line, sizeof line, fmt, args...);
@@ -35,7 +47,13 @@ std::string reportJson(const LoadReport& r) {
                   {"starve_s", o.starveSeconds},
                   {"same_clock", o.sameClock},
                   {"keep_field", o.keepField},
-                  {"share_decoding", o.shareDecoding}};
+                  {"share_decoding", o.shareDecoding},
+                  {"min_held_psnr_db", o.minHeldPsnr},
+                  {"max_change_age_s", o.maxChangeAge},
+                  {"link_queue_s", o.linkQueueSeconds}};
+  nlohmann::json links = nlohmann::json::array();
+  for (const LinkClass& l : o.links) links.push_back({{"mbit", l.mbit}, {"share", l.share}});
+  j["options"]["links"] = std::move(links);
   j["window_s"] = r.seconds;
   j["sessions_started"] = r.sessionsStarted;
   j["latency_ms"] = toJson(r.latencyMs);
@@ -49,6 +67,10 @@ std::string reportJson(const LoadReport& r) {
   j["errors"] = r.errors;
   j["error_samples"] = r.errorSamples;
   j["starved_clients"] = r.starvedClients;
+  j["all"] = toJson(r.all);
+  nlohmann::json classes = nlohmann::json::array();
+  for (const ClassReport& c : r.classes) classes.push_back(toJson(c));
+  j["classes"] = std::move(classes);
   j["decoding"] = {{"decoded", r.decodedPayloads},
                    {"shared", r.sharedDecodes},
                    {"content_mismatches", r.contentMismatches}};
@@ -75,6 +97,14 @@ std::string reportJson(const LoadReport& r) {
                        {"max_staleness_s", c.maxStaleness},
                        {"sync_s", c.syncSeconds},
                        {"latency_ms", toJson(c.latencyMs)},
+                       {"reports", c.reports},
+                       {"held_psnr_db", c.heldPsnrDb},
+                       {"oldest_change_s_p95", c.oldestChangeP95},
+                       {"rate_mbit", c.rateMbit},
+                       {"quality_level", c.qualityLevel},
+                       {"link_class", c.linkClass},
+                       {"link_mbit", c.linkMbit},
+                       {"link_drops", c.linkDrops},
                        {"starved", c.starved},
                        {"starved_why", c.starvedWhy}});
   }
@@ -102,6 +132,15 @@ std::string reportTable(const LoadReport& r) {
       (unsigned long long)r.gapReports, (unsigned long long)r.datagrams,
       (unsigned long long)r.unmatchedUpdates);
   s += format("errors %llu, starved clients %d\n", (unsigned long long)r.errors, r.starvedClients);
+  s += format("%-10s %7s %7s %9s %9s %9s %11s %9s %9s\n", "link", "clients", "starved", "p99 ms",
+              "kbit p50", "rate Mb/s", "held p5 dB", "age p95 s", "drops %");
+  auto classRow = [&](const char* name, const ClassReport& c) {
+    s += format("%-10s %7d %7d %9.1f %9.1f %9.3f %11.2f %9.3f %9.2f\n", name, c.clients, c.starved,
+                c.latencyMs.p99, c.kbitPerClient.p50, c.rateMbitMean, c.heldPsnrP5,
+                c.oldestChangeP95, 100.0 * c.linkDropShare);
+  };
+  classRow("all", r.all);
+  for (const ClassReport& c : r.classes) classRow(format("%g Mbit/s", c.linkMbit).c_str(), c);
   for (const std::string& e : r.errorSamples) s += "  error: " + e + "\n";
   int shown = 0;
   for (const ClientReport& c : r.perClient) {

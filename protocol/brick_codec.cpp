@@ -237,15 +237,17 @@ void applyBrick(Field& field, int cascade, int brick, const QuantizedBrick& q) {
 
 BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b) {
   BrickChange ch;
-  double sum = 0;
+  double sum = 0, squares = 0;
   for (std::size_t i = kIrradiance; i < kDepth; ++i) {
     if (a.codes[i] != b.codes[i]) {
       const float d = std::abs(dequantizeIrradiance(a.codes[i]) - dequantizeIrradiance(b.codes[i]));
       ch.irradiance = std::max(ch.irradiance, d);
       sum += d;
+      squares += double(d) * d;
     }
   }
   ch.irradianceMean = float(sum / double(kDepth - kIrradiance));
+  ch.irradianceMeanSquare = squares / double(kDepth - kIrradiance);
   int depthMax = 0;
   for (std::size_t i = kDepth; i < kDepth + std::size_t(kSlots) * kDepthTexels; ++i) {
     depthMax = std::max(depthMax, std::abs(int(a.codes[i]) - int(b.codes[i])));

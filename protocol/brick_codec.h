@@ -73,6 +73,8 @@ struct BrickChange {
   // Mean |delta e| over all the brick's irradiance codes, unchanged ones included: ray noise
   // moves a few texels a lot, a moving light moves many texels together.
   float irradianceMean = 0;
+  // Mean of (delta e)^2 over the same codes: the held field's error (StreamSender's report).
+  double irradianceMeanSquare = 0;
   float depth = 0;      // max |delta mean| / maxRayDistance
   float occlusion = 0;  // max |delta|
   float offset = 0;     // max |delta| of a relocation offset component / spacing

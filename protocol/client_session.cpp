@@ -83,6 +83,7 @@ void ClientSession::close() {
   lastApplied_ = 0;
   bricksHeld_ = bricksTotal_ = 0;
   synced_ = false;
+  report_.reset();
 }
 
 Error ClientSession::fail(std::string why, SessionPhase phase) {
@@ -159,6 +160,14 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
   // The rest belongs to a session: the Welcome comes first.
   if (phase_ == SessionPhase::AwaitingWelcome) return fail(name + " before Welcome");
   if (const auto* info = std::get_if<SessionInfoMsg>(&message)) return onSessionInfo(*info, now);
+  if (const auto* report = std::get_if<StreamReportMsg>(&message)) {
+    if (phase_ != SessionPhase::Streaming) return fail("StreamReport before SessionInfo");
+    report_ = *report;
+    reportAt_ = now;
+    ++stats_.streamReports;
+    events_.push_back(SessionEvent{SessionEvent::Kind::StreamReport, {}, {}});
+    return Status::success();
+  }
   auto& state = std::get<SceneStateMsg>(message);
   clock_.update(state.animationTime, now);
   events_.push_back(SessionEvent{SessionEvent::Kind::SceneState, std::move(state), {}});

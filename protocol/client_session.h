@@ -74,10 +74,11 @@ enum class SessionPhase {
 
 struct SessionEvent {
   enum class Kind {
-    Welcomed,    // the server took the Hello (sessionId())
-    Layout,      // SessionInfo taken: receiver() holds the new session's empty field
-    SceneState,  // a scene state arrived (scene); clock() has taken it
-    Datagram,    // a datagram was handled (either transport); status says whether it was refused
+    Welcomed,      // the server took the Hello (sessionId())
+    Layout,        // SessionInfo taken: receiver() holds the new session's empty field
+    SceneState,    // a scene state arrived (scene); clock() has taken it
+    Datagram,      // a datagram was handled (either transport); status says whether it was refused
+    StreamReport,  // the server's report on this client's stream (report())
   };
   Kind kind;
   SceneStateMsg scene;  // Kind::SceneState
@@ -92,6 +93,7 @@ struct ClientSessionStats {
   std::uint64_t udpDatagrams = 0, tcpDatagrams = 0;
   std::uint64_t badDatagrams = 0;           // refused by the receiver (or a fragment of them)
   std::uint64_t droppedEarlyDatagrams = 0;  // past kMaxEarlyDatagrams before SessionInfo
+  std::uint64_t streamReports = 0;
 };
 
 // The server's animation clock as a client sees it: the latest scene state's time, run on at
@@ -156,6 +158,10 @@ class ClientSession {
   bool synced() const { return synced_; }
   double syncSeconds() const { return syncSeconds_; }
   const AnimationClock& clock() const { return clock_; }
+  // The server's latest report on this session's stream (protocol version 3 servers send one
+  // about twice a second: send rate, quality level, the held field's error and age).
+  const std::optional<StreamReportMsg>& report() const { return report_; }
+  double reportAt() const { return reportAt_; }
   const ClientSessionStats& stats() const { return stats_; }
   const ClientSessionOptions& options() const { return options_; }
 
@@ -188,6 +194,8 @@ class ClientSession {
   double syncSeconds_ = -1;
   std::optional<ViewerPoseMsg> viewer_;
   AnimationClock clock_;
+  std::optional<StreamReportMsg> report_;
+  double reportAt_ = 0;
   ClientSessionStats stats_;
 };
 

@@ -44,7 +44,18 @@ void FaultLink::send(std::vector<std::uint8_t> bytes, double now) {
       }
     }
   }
-  double at = now + profile_.delay + profile_.jitter * uniform();
+  double sent = now;
+  if (profile_.rate > 0) {
+    // Drop-tail: what waits before this datagram, in bytes at the link's rate.
+    const double start = std::max(linkFree_, now);
+    if ((start - now) * profile_.rate + double(bytes.size()) > double(profile_.queueBytes)) {
+      ++stats_.overflow;
+      return;
+    }
+    linkFree_ = start + double(bytes.size()) / profile_.rate;
+    sent = linkFree_;
+  }
+  double at = sent + profile_.delay + profile_.jitter * uniform();
   if (uniform() < profile_.reorder) {
     at += profile_.reorderDelay * uniform();
     ++stats_.reordered;

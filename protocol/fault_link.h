@@ -23,6 +23,10 @@ struct FaultProfile {
   double delay = 0.01;            // s, one way
   double jitter = 0;              // s, uniform extra delay
   std::size_t queueLimit = 4096;  // datagrams in flight; more are dropped (a full router queue)
+  // A bottleneck: > 0 sends datagrams one after another at this many bytes per second through
+  // a drop-tail queue of queueBytes (a router before a slow link, as tbf models it).
+  double rate = 0;
+  std::size_t queueBytes = 64 * 1024;
 };
 
 struct LinkStats {
@@ -56,6 +60,7 @@ class FaultLink {
   std::vector<InFlight> queue_;
   std::uint64_t order_ = 0;
   int burstLeft_ = 0;
+  double linkFree_ = 0;  // when the bottleneck has sent what it holds
   LinkStats stats_;
 };
 

@@ -38,9 +38,11 @@ FieldPublisher::FieldPublisher(const Field& layout, PublisherOptions options)
       totalBricks_(totalBrickCount(layout)),
       cache_(cacheBound(options_, totalBricks_)) {
   bricks_.resize(layout.cascadeCount());
+  published_.resize(layout.cascadeCount());
   for (int k = 0; k < layout.cascadeCount(); ++k) {
     bricks_[k].resize(gpu::pcBrickCount(layout.cascade(k)));
     for (auto& h : bricks_[k]) h.push_back(BrickVersion{});
+    published_[k].resize(bricks_[k].size());
   }
 }
 
@@ -101,6 +103,17 @@ Status FieldPublisher::publish(const Field& field, double now) {
   return Status::success();
 }
 
+std::optional<double> FieldPublisher::changedAfter(int cascade, int brick,
+                                                   std::uint64_t version) const {
+  const auto& times = published_[cascade][brick];
+  if (times.empty() || times.back().first <= version) return std::nullopt;
+  // The oldest version newer than `version`; past the kept times, the oldest kept (a change at
+  // least that old).
+  for (const auto& [v, at] : times)
+    if (v > version) return at;
+  return times.front().second;
+}
+
 void FieldPublisher::commit(PreparedBricks prepared, double now) {
   info_.fieldVersion = prepared.fieldVersion;
   fieldVersion_ = prepared.fieldVersion;
@@ -116,6 +129,9 @@ void FieldPublisher::commit(PreparedBricks prepared, double now) {
     }
     h.push_back(BrickVersion{item.version, now, std::move(item.content), false});
     trim(h);
+    auto& times = published_[item.cascade][item.brick];
+    times.emplace_back(item.version, now);
+    if (times.size() > kPublishTimesKept) times.pop_front();
     // Senders only ever send a brick's current version (a lagging client gets the newest,
     // never a backlog), so the updates encoded for its older versions can no longer be sent.
     cache_.eraseBrickIf(item.cascade, std::uint32_t(item.brick),

@@ -10,6 +10,8 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "common/field.h"
@@ -83,6 +85,11 @@ class FieldPublisher {
   const BrickVersion& current(int cascade, int brick) const {
     return bricks_[cascade][brick].back();
   }
+  // When the brick first changed after `version`: the publish time of its oldest version newer
+  // than that (of the last kPublishTimesKept versions: past them, the oldest kept, which makes
+  // the change at least that old); nullopt when `version` is current or newer.
+  std::optional<double> changedAfter(int cascade, int brick, std::uint64_t version) const;
+  static constexpr std::size_t kPublishTimesKept = 64;
   // Content of an older (or the current) version, while it is in the history; else null.
   std::shared_ptr<const QuantizedBrick> find(int cascade, int brick, std::uint64_t version) const;
   // Encoded update for `version` on top of `base` (0: self-contained), from the cache or
@@ -121,6 +128,9 @@ class FieldPublisher {
   std::uint64_t fieldVersion_ = 0;
   // [cascade][brick]: oldest first; back() is the current version (a zero entry at start).
   std::vector<std::vector<std::deque<BrickVersion>>> bricks_;
+  // [cascade][brick]: (version, publish time) of the latest versions, oldest first. Without
+  // content, so kept far longer than the history: the age of what a client lacks needs them.
+  std::vector<std::vector<std::deque<std::pair<std::uint64_t, double>>>> published_;
   std::size_t totalBricks_ = 0;
   std::size_t historyBytes_ = 0, currentBytes_ = 0;
   EncodeCache cache_;

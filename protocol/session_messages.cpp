@@ -4,6 +4,7 @@
 
 #include <flatbuffers/flatbuffers.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <iterator>
@@ -113,7 +114,21 @@ struct Encoder {
       }
       gapsOff = fbb.CreateVector(gaps);
     }
-    return net::CreateAck(fbb, m.full, m.fieldVersion, rangesOff, gapsOff).Union();
+    fb::Offset<fb::Vector<const net::DatagramArrival*>> arrivalsOff;
+    if (!m.arrivals.empty()) {
+      std::vector<net::DatagramArrival> arrivals;
+      arrivals.reserve(m.arrivals.size());
+      for (const DatagramArrivalMsg& a : m.arrivals)
+        arrivals.emplace_back(a.sequence, a.arrivalMicros);
+      arrivalsOff = fbb.CreateVectorOfStructs(arrivals);
+    }
+    return net::CreateAck(fbb, m.full, m.fieldVersion, rangesOff, gapsOff, arrivalsOff).Union();
+  }
+  fb::Offset<void> operator()(const StreamReportMsg& m) {
+    return net::CreateStreamReport(fbb, m.rate, m.delivered, m.queueDelayMs, m.loss,
+                                   std::uint8_t(std::clamp(m.qualityLevel, 0, 255)), m.heldPsnrDb,
+                                   m.oldestChangeSeconds, m.pendingBricks, m.fieldVersion)
+        .Union();
   }
   fb::Offset<void> operator()(const RepairRequestMsg& m) {
     std::vector<net::BrickRef> refs;
@@ -183,8 +198,9 @@ std::vector<std::uint8_t> encodeMessage(const SessionMessage& message) {
 }
 
 const char* sessionMessageName(const SessionMessage& message) {
-  constexpr const char* kNames[] = {"Hello",      "Welcome",    "Reject", "SessionInfo",
-                                    "SceneState", "ViewerPose", "Ack",    "RepairRequest"};
+  constexpr const char* kNames[] = {"Hello",       "Welcome",       "Reject",
+                                    "SessionInfo", "SceneState",    "ViewerPose",
+                                    "Ack",         "RepairRequest", "StreamReport"};
   static_assert(std::size(kNames) == std::variant_size_v<SessionMessage>);
   return kNames[message.index()];
 }
@@ -338,6 +354,15 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
           m.gaps.push_back(std::move(gap));
         }
       }
+      if (w->arrivals()) {
+        if (w->arrivals()->size() > kMaxAckArrivals) {
+          return fail("ack: " + std::to_string(w->arrivals()->size()) +
+                      " datagram arrivals (at most " + std::to_string(kMaxAckArrivals) + ")");
+        }
+        m.arrivals.reserve(w->arrivals()->size());
+        for (const net::DatagramArrival* a : *w->arrivals())
+          m.arrivals.push_back(DatagramArrivalMsg{a->sequence(), a->arrival_us()});
+      }
       return SessionMessage(std::move(m));
     }
     case net::Body::RepairRequest: {
@@ -353,6 +378,24 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
         }
       }
       return SessionMessage(std::move(m));
+    }
+    case net::Body::StreamReport: {
+      const auto* w = root->body_as_StreamReport();
+      StreamReportMsg m;
+      m.rate = w->rate();
+      m.delivered = w->delivered();
+      m.queueDelayMs = w->queue_delay_ms();
+      m.loss = w->loss();
+      m.qualityLevel = w->quality_level();
+      m.heldPsnrDb = w->held_psnr_db();
+      m.oldestChangeSeconds = w->oldest_change_s();
+      m.pendingBricks = w->pending_bricks();
+      m.fieldVersion = w->field_version();
+      if (!std::isfinite(m.rate) || !std::isfinite(m.delivered) || !std::isfinite(m.queueDelayMs) ||
+          !std::isfinite(m.loss) || !std::isfinite(m.heldPsnrDb) ||
+          !std::isfinite(m.oldestChangeSeconds))
+        return fail("stream report: values not finite");
+      return SessionMessage(m);
     }
     case net::Body::NONE:
       break;

@@ -100,11 +100,23 @@ struct FragmentGapMsg {
 // updates than this.
 inline constexpr std::size_t kMaxFragmentGaps = 128;
 
+// A datagram's arrival: its sequence number and the receiver's clock then, in microseconds
+// (wrapping).
+struct DatagramArrivalMsg {
+  std::uint32_t sequence = 0;
+  std::uint32_t arrivalMicros = 0;
+};
+
+// Arrivals one Ack may carry (more is refused). A receiver acknowledges every ack interval
+// (20 ms), in which 1,024 datagrams of 1,200 bytes are 490 Mbit/s.
+inline constexpr std::size_t kMaxAckArrivals = 1024;
+
 struct AckMsg {
   bool full = false;  // every held brick is listed; unlisted bricks hold nothing
   std::uint64_t fieldVersion = 0;
   std::vector<AckRange> ranges;
   std::vector<FragmentGapMsg> gaps;
+  std::vector<DatagramArrivalMsg> arrivals;  // since the previous Ack, in order of arrival
 };
 
 struct BrickRefMsg {
@@ -117,8 +129,19 @@ struct RepairRequestMsg {
   std::vector<BrickRefMsg> bricks;
 };
 
+// What the server's sender sees of one client (session.fbs StreamReport).
+struct StreamReportMsg {
+  double rate = 0, delivered = 0;  // bytes/s
+  float queueDelayMs = 0, loss = 0;
+  int qualityLevel = 0;
+  float heldPsnrDb = 0;  // kHeldPsnrCap where the held field equals the current one
+  float oldestChangeSeconds = 0;
+  std::uint32_t pendingBricks = 0;
+  std::uint64_t fieldVersion = 0;
+};
+
 using SessionMessage = std::variant<HelloMsg, WelcomeMsg, RejectMsg, SessionInfoMsg, SceneStateMsg,
-                                    ViewerPoseMsg, AckMsg, RepairRequestMsg>;
+                                    ViewerPoseMsg, AckMsg, RepairRequestMsg, StreamReportMsg>;
 
 // The message's name as the schema spells it ("Hello", "SessionInfo", ...), for errors.
 const char* sessionMessageName(const SessionMessage& message);

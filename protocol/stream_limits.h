@@ -11,8 +11,12 @@ namespace pc {
 // the rules in PROTOCOL.md ("Versioning of the streaming protocol").
 // Version 2: brick codec format 2 (7 irradiance mantissa bits instead of 9); version 1 peers
 // would misread its payloads, so they are not served.
-inline constexpr std::uint32_t kProtocolVersion = 2;
+// Version 3: acks report datagram arrivals (congestion control) and the server sends
+// StreamReport; a version 2 client gets neither, at the server's fixed rate.
+inline constexpr std::uint32_t kProtocolVersion = 3;
 inline constexpr std::uint32_t kMinProtocolVersion = 2;
+// The first version whose clients report arrivals and take StreamReport.
+inline constexpr std::uint32_t kCongestionControlVersion = 3;
 
 // UDP datagrams never exceed this (fits the IPv6 minimum MTU of 1280 with headers).
 inline constexpr std::size_t kMaxDatagramBytes = 1200;

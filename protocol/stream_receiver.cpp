@@ -1,6 +1,7 @@
 #include "stream_receiver.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 namespace pc {
@@ -61,6 +62,13 @@ Status StreamReceiver::onDatagram(std::span<const std::uint8_t> bytes, double no
     return Error{stats_.lastError};
   }
   ++stats_.datagrams;
+  if (options_.reportArrivals) {
+    // The newest arrivals matter most to the sender (its recent rate and delay); past the cap
+    // the oldest are dropped, which the sender takes as lost only if nothing later arrived.
+    if (arrivals_.size() >= kMaxAckArrivals) arrivals_.erase(arrivals_.begin());
+    arrivals_.push_back(DatagramArrivalMsg{
+        d->sequence, std::uint32_t(std::int64_t(std::llround(now * 1e6)) & 0xffffffffll)});
+  }
   serverVersion_ = std::max(serverVersion_, d->fieldVersion);
   if (stats_.datagrams == 1 || std::int32_t(d->sequence - newestSequence_) > 0)
     newestSequence_ = d->sequence;
@@ -145,9 +153,11 @@ std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
   // send again (selective repair), in an ack of their own timing.
   std::vector<FragmentGap> gaps;
   if (options_.reportGaps) gaps = reassembler_.takeGaps(now, newestSequence_, kMaxFragmentGaps);
-  if (full || !gaps.empty() || (dirty && now - lastAckAt_ >= options_.ackInterval)) {
+  if (full || !gaps.empty() ||
+      ((dirty || !arrivals_.empty()) && now - lastAckAt_ >= options_.ackInterval)) {
     AckMsg ack;
     ack.full = full;
+    ack.arrivals.swap(arrivals_);
     ack.fieldVersion = serverVersion_;
     for (FragmentGap& g : gaps) {
       const UpdateHeader& u = g.update;

@@ -43,6 +43,10 @@ struct ReceiverOptions {
   // Acks name the fragments that partial updates lack (ReassemblyOptions: gapReorder, gapRepeat),
   // and the sender sends those again. False only to measure what that brings.
   bool reportGaps = true;
+  // Acks list every datagram's arrival (sequence, time) for the sender's congestion control;
+  // an ack goes out every ack interval while datagrams arrive. False for a version 2 server's
+  // acks (it ignores them) only to save their bytes.
+  bool reportArrivals = true;
   ReassemblyOptions reassembly;
   // False: only each brick's codes (the residual bases) are kept, not the decoded field: the
   // atlases are released and field() holds the layout, probe records and brick versions only.
@@ -114,7 +118,8 @@ class StreamReceiver {
   ReceiverOptions options_;
   std::vector<std::vector<BrickState>> bricks_;
   Reassembler reassembler_;
-  std::uint32_t newestSequence_ = 0;  // of the datagrams received (wrapping)
+  std::uint32_t newestSequence_ = 0;          // of the datagrams received (wrapping)
+  std::vector<DatagramArrivalMsg> arrivals_;  // since the last ack, kMaxAckArrivals at most
   std::uint64_t serverVersion_ = 0;
   double lastAckAt_ = -1e30, lastFullAckAt_ = -1e30;
   ReceiverStats stats_;

@@ -77,7 +77,15 @@ std::optional<BrickChange> BrickChangeCache::get(const FieldPublisher& publisher
 
 StreamSender::StreamSender(FieldPublisher& publisher, std::uint32_t sessionId,
                            SenderOptions options, BrickChangeCache* changes)
-    : publisher_(publisher), sessionId_(sessionId), options_(options), changes_(changes) {
+    : publisher_(publisher),
+      sessionId_(sessionId),
+      options_(options),
+      changes_(changes),
+      rate_([&] {
+        RateControlOptions o = options.rateControl;
+        o.maxRate = options.bytesPerSecond;
+        return o;
+      }()) {
   tracks_.resize(publisher.cascadeCount());
   for (int k = 0; k < publisher.cascadeCount(); ++k) tracks_[k].resize(publisher.brickCount(k));
   stats_.srtt = options_.initialRtt;
@@ -90,6 +98,80 @@ double StreamSender::resendTimeout() const {
   // arrived.
   return std::max(
       {options_.minResendTimeout, 2.0 * stats_.srtt, stats_.srtt + 4.0 * stats_.rttvar});
+}
+
+double StreamSender::sendRate() const {
+  return options_.congestionControl ? std::min(rate_.rate(), options_.bytesPerSecond)
+                                    : options_.bytesPerSecond;
+}
+
+double StreamSender::changeAge(Track& t, int k, int b, double now) {
+  if (t.acked == 0) return t.pendingSince >= 0 ? now - t.pendingSince : 0.0;
+  if (t.changedFor != t.acked || t.changedAt < 0) {
+    const std::optional<double> at = publisher_.changedAfter(k, b, t.acked);
+    t.changedFor = t.acked;
+    t.changedAt = at ? *at : -1.0;
+  }
+  return t.changedAt >= 0 ? std::max(0.0, now - t.changedAt) : 0.0;
+}
+
+HeldFieldReport StreamSender::heldField(double now) {
+  HeldFieldReport r;
+  double squares = 0;
+  std::size_t measured = 0;
+  for (int k = 0; k < int(tracks_.size()); ++k) {
+    for (int b = 0; b < int(tracks_[k].size()); ++b) {
+      const BrickVersion& cur = publisher_.current(k, b);
+      if (cur.version == 0) continue;
+      ++r.currentBricks;
+      Track& t = tracks_[k][b];
+      if (t.acked != cur.version) {
+        ++r.pendingBricks;
+        r.oldestChangeSeconds = std::max(r.oldestChangeSeconds, changeAge(t, k, b, now));
+      }
+      if (t.acked == 0) continue;
+      ++r.heldBricks;
+      if (t.acked == cur.version) {
+        ++measured;
+        continue;
+      }
+      std::optional<BrickChange> change;
+      if (changes_) {
+        change = changes_->get(publisher_, k, b, cur.version, t.acked);
+      } else {
+        auto a = publisher_.find(k, b, cur.version);
+        auto h = publisher_.find(k, b, t.acked);
+        if (a && h) change = brickChange(*a, *h);
+      }
+      if (!change) {
+        ++r.unknownBricks;
+        continue;
+      }
+      squares += change->irradianceMeanSquare;
+      ++measured;
+    }
+  }
+  const double mse = measured > 0 ? squares / double(measured) : 0.0;
+  r.psnrDb = measured == 0 ? 0.0
+             : mse <= 0    ? kHeldPsnrCap
+                           : std::min(kHeldPsnrCap, 10.0 * std::log10(1.0 / mse));
+  return r;
+}
+
+StreamReportMsg StreamSender::report(double now) {
+  const HeldFieldReport held = heldField(now);
+  const RateEstimate& e = rate_.estimate();
+  StreamReportMsg m;
+  m.rate = sendRate();
+  m.delivered = e.delivered;
+  m.queueDelayMs = float(e.queueDelay * 1e3);
+  m.loss = float(e.loss);
+  m.qualityLevel = level_;
+  m.heldPsnrDb = float(held.psnrDb);
+  m.oldestChangeSeconds = float(held.oldestChangeSeconds);
+  m.pendingBricks = std::uint32_t(held.pendingBricks);
+  m.fieldVersion = publisher_.fieldVersion();
+  return m;
 }
 
 std::size_t StreamSender::pendingBricks() const {
@@ -174,6 +256,15 @@ Status StreamSender::onAck(const AckMsg& ack, double now) {
     }
   }
   for (const FragmentGapMsg& g : ack.gaps) queueRepair(g);
+  if (options_.congestionControl && !ack.arrivals.empty()) {
+    std::vector<RateController::Arrival> arrivals;
+    arrivals.reserve(ack.arrivals.size());
+    for (const DatagramArrivalMsg& a : ack.arrivals)
+      arrivals.push_back(RateController::Arrival{a.sequence, a.arrivalMicros});
+    rate_.setAppLimited(reportPolls_ > 0 && appLimitedPolls_ * 2 > reportPolls_);
+    rate_.onArrivals(arrivals, now);
+    appLimitedPolls_ = reportPolls_ = 0;
+  }
   return Status::success();
 }
 
@@ -214,7 +305,7 @@ Status StreamSender::onRepair(const RepairRequestMsg& repair) {
 
 bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version,
                                    std::uint64_t ref) {
-  if (t.skipVersion == version && t.skipRef == ref) return t.skipBelow;
+  if (t.skipVersion == version && t.skipRef == ref && t.skipLevel == level_) return t.skipBelow;
   std::optional<BrickChange> change;
   if (changes_) {
     change = changes_->get(publisher_, k, b, version, ref);
@@ -225,18 +316,22 @@ bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version
   }
   bool below = false;
   Reason reason = Reason::First;  // a version no longer in the history: as if new
+  // Each quality level doubles every threshold.
+  const float scale = float(1 << level_);
+  t.skipChange = 1.0f;  // unknown: as valuable as a brick can be
   if (change) {
     const BrickChange& c = *change;
-    if (c.irradiance >= options_.irradianceThreshold)
+    t.skipChange = c.irradianceMean;
+    if (c.irradiance >= scale * options_.irradianceThreshold)
       reason = Reason::Irradiance;
     else if (options_.irradianceMeanThreshold > 0 &&
-             c.irradianceMean >= options_.irradianceMeanThreshold)
+             c.irradianceMean >= scale * options_.irradianceMeanThreshold)
       reason = Reason::IrradianceMean;
-    else if (c.depth >= options_.depthThreshold)
+    else if (c.depth >= scale * options_.depthThreshold)
       reason = Reason::Depth;
-    else if (c.occlusion >= options_.occlusionThreshold)
+    else if (c.occlusion >= scale * options_.occlusionThreshold)
       reason = Reason::Occlusion;
-    else if (c.offset >= options_.offsetThreshold)
+    else if (c.offset >= scale * options_.offsetThreshold)
       reason = Reason::Offset;
     else if (c.states)
       reason = Reason::State;
@@ -247,6 +342,7 @@ bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version
   t.skipRef = ref;
   t.skipBelow = below;
   t.skipReason = reason;
+  t.skipLevel = level_;
   return below;
 }
 
@@ -286,6 +382,9 @@ void StreamSender::count(Reason reason) {
     case Reason::Timeout:
       ++r.timeout;
       break;
+    case Reason::Aged:
+      ++stats_.aged;
+      break;
   }
 }
 
@@ -300,14 +399,45 @@ double StreamSender::distanceInBricks(int k, int b) const {
   return std::max(0.0, double(glm::length(*viewer_ - centre) / brickSize) - 0.9);
 }
 
+void StreamSender::adjustQuality(double now) {
+  if (now - levelAt_ < options_.qualityInterval) return;
+  // Short of rate: bricks waited for tokens in most polls of the interval.
+  const bool shortOfRate = shortPolls_ * 2 > levelPolls_;
+  if (shortOfRate && oldestPending_ > 0.5 * options_.ageBound &&
+      level_ < options_.maxQualityLevel) {
+    ++level_;
+    roomySince_ = -1;
+  } else if (shortOfRate) {
+    roomySince_ = -1;
+  } else {
+    // A level comes down after a second with room: the thresholds it lowers make more
+    // versions worth sending, which the next interval shows.
+    if (roomySince_ < 0) roomySince_ = now;
+    if (level_ > 0 && now - roomySince_ >= 1.0 && oldestPending_ < 0.5 * options_.ageBound) {
+      --level_;
+      roomySince_ = now;
+    }
+  }
+  levelAt_ = now;
+  shortPolls_ = levelPolls_ = 0;
+  oldestPending_ = 0;
+}
+
 std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   std::vector<std::vector<std::uint8_t>> out;
+  const double rate = sendRate();
+  // With congestion control the bucket is a pacer: it holds a few milliseconds at the rate.
+  const double burst =
+      options_.congestionControl
+          ? std::clamp(rate * options_.pacingBurstSeconds, 3.0 * double(kMaxDatagramBytes),
+                       std::max(options_.burstBytes, 3.0 * double(kMaxDatagramBytes)))
+          : options_.burstBytes;
   if (lastPoll_ < 0)
-    tokens_ = options_.burstBytes;
+    tokens_ = burst;
   else
-    tokens_ = std::min(options_.burstBytes,
-                       tokens_ + options_.bytesPerSecond * std::max(0.0, now - lastPoll_));
+    tokens_ = std::min(burst, tokens_ + rate * std::max(0.0, now - lastPoll_));
   lastPoll_ = now;
+  const std::uint32_t firstSequence = sequence_;
 
   // Fragments the client reported missing go first: each completes an update the client holds
   // in part, at the cost of the fragments alone.
@@ -337,6 +467,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   // Which bricks want sending, most urgent first.
   std::vector<Candidate> candidates;
   const double timeout = resendTimeout();
+  const double agedAfter = std::max(0.0, options_.ageBound - options_.ageLead);
   // Lost updates of several fragments, which the receiver may hold in part.
   std::size_t lostUpdates = 0, lostBytes = 0;
   for (int k = 0; k < int(tracks_.size()); ++k) {
@@ -349,6 +480,8 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
         continue;
       }
       if (t.pendingSince < 0) t.pendingSince = now;
+      const double age = changeAge(t, k, b, now);
+      if (t.acked != 0) oldestPending_ = std::max(oldestPending_, age);
       const bool unacked = t.sent != 0 && t.sent != t.acked;
       // A brick the client holds nothing of, whose update of several fragments was not
       // acknowledged (yet), goes again as it was while the publisher holds that version: the
@@ -371,49 +504,67 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       // Waiting counts from when the brick became pending or was last sent, whichever is
       // later: a brick that keeps changing is pending for good, and counted from the first
       // it would keep the priority of a brick that was never sent.
-      const double key = distanceInBricks(k, b) -
-                         options_.agingBricksPerSecond * (now - std::max(t.pendingSince, t.sentAt));
+      const double waited = now - std::max(t.pendingSince, t.sentAt);
+      const double distance = distanceInBricks(k, b);
       const bool missing = t.acked == 0;
+      const bool aged = !missing && age >= agedAfter;
+      // Bricks the client lacks: nearest first, waiting moves a brick nearer. Bricks it holds:
+      // by perceptual value per byte, the change against what the client holds (mean
+      // |delta e|) weighted by nearness to the viewer and raised by waiting, over the bytes
+      // the brick's last update took.
+      const auto valueKey = [&] {
+        const double weight = 1.0 / (1.0 + distance);
+        const double value =
+            (double(t.skipChange) + 1e-4) * weight * (1.0 + 4.0 * waited / options_.ageBound);
+        return -value / double(t.sentBytes > 0 ? t.sentBytes : 8192);
+      };
+      const double key = missing ? distance - options_.agingBricksPerSecond * waited : 0.0;
       if (resendable) {  // lost: the resend timeout passed
-        candidates.push_back(Candidate{k, b, key, Reason::Timeout, true, missing});
+        candidates.push_back(Candidate{k, b, key, Reason::Timeout, true, missing, false});
         continue;
       }
       Reason reason = Reason::Timeout;
       if (t.repair) {
         reason = Reason::Repair;
       } else if (t.sent != cur.version) {
-        // A new version: hold it back while the change is small, still moving, and the client
-        // heard from this brick recently.
+        // A new version: hold it back while the change is small, still moving, the client
+        // heard from this brick recently and its oldest change is young.
         const std::uint64_t ref = std::max(t.acked, t.sent);
         if (ref == 0) {
           reason = Reason::First;
+        } else if (!belowThresholds(t, k, b, cur.version, ref)) {
+          reason = t.skipReason;
         } else if (now - cur.publishedAt >= options_.settleTime) {
           reason = Reason::Settled;
+        } else if (aged) {
+          reason = Reason::Aged;
         } else if (now - t.sentAt >= options_.refreshInterval) {
           reason = Reason::Refresh;
-        } else if (belowThresholds(t, k, b, cur.version, ref)) {
+        } else {
           ++stats_.skipped;
           continue;
-        } else {
-          reason = t.skipReason;
         }
       }
-      candidates.push_back(Candidate{k, b, key, reason, false, missing});
+      candidates.push_back(
+          Candidate{k, b, missing ? key : valueKey(), reason, false, missing, aged});
     }
   }
   // Lost updates first (finishing them frees the receiver's reassembly), then bricks the client
-  // lacks (a brick it holds only gets fresher), then by key.
+  // lacks (a brick it holds only gets fresher), then changes near the age bound, then by key.
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
     if (a.again != b.again) return a.again;
     if (a.missing != b.missing) return a.missing;
+    if (a.aged != b.aged) return a.aged;
     return a.key < b.key || (a.key == b.key && (a.cascade < b.cascade ||
                                                 (a.cascade == b.cascade && a.brick < b.brick)));
   });
 
   // Encoded updates stay alive (shared_ptr) until their fragments are packed.
   std::vector<std::shared_ptr<const EncodedUpdate>> chosen;
+  std::size_t considered = 0;
   for (const Candidate& c : candidates) {
     if (tokens_ <= 0) break;
+    ++considered;
     Track& t = tracks_[c.cascade][c.brick];
     std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
     std::uint64_t base = 0;
@@ -453,6 +604,8 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     chosen.push_back(std::move(update));
     if (chosen.size() * 2 >= options_.maxDatagramsPerPoll) break;
   }
+  // Bricks waited for tokens: the rate, not the field, limits what this client holds.
+  const bool waited = considered < candidates.size();
 
   for (const auto& u : chosen) {
     const std::uint16_t n = fragmentCount(u->header.totalSize);
@@ -468,7 +621,16 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   }
   if (!out.empty()) lastDatagramAt_ = now;
   stats_.datagrams += out.size();
-  for (const auto& d : out) stats_.bytes += d.size();
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    stats_.bytes += out[i].size();
+    if (options_.congestionControl)
+      rate_.onSent(firstSequence + std::uint32_t(i), out[i].size(), now);
+  }
+  ++reportPolls_;
+  appLimitedPolls_ += !waited;
+  ++levelPolls_;
+  shortPolls_ += waited;
+  adjustQuality(now);
   return out;
 }
 

@@ -42,13 +42,34 @@
 
 #include "common/result.h"
 #include "protocol/field_publisher.h"
+#include "protocol/rate_controller.h"
 #include "protocol/session_messages.h"
 
 namespace pc {
 
 struct SenderOptions {
-  double bytesPerSecond = 4e6;     // rate limit (token bucket), datagram bytes
-  double burstBytes = 256 * 1024;  // bucket size
+  // The most this client is sent, datagram bytes per second (the server's --rate-limit). With
+  // congestion control the sender sends at the controller's rate below it; without, at it.
+  double bytesPerSecond = 4e6;
+  double burstBytes = 256 * 1024;  // bucket size without congestion control
+  // Congestion control (RateController) from the client's arrival reports. Off for clients
+  // that do not report arrivals (protocol version 2).
+  bool congestionControl = true;
+  RateControlOptions rateControl;
+  // With congestion control the bucket holds this much sending time at the rate (at least
+  // three datagrams): pacing, so that a poll never puts a burst into a router's queue.
+  double pacingBurstSeconds = 0.01;
+  // Every brick the client holds is brought up to date within this long of its first change
+  // it does not hold, at whatever quality the rate allows (the thresholds do not hold it back
+  // past then). The sender aims to send it ageLead before the bound.
+  double ageBound = 1.0;
+  double ageLead = 0.25;
+  // The quality ladder: while the client's rate is short of what the field's changes need
+  // (bricks waited with tokens spent) and changes get old, each level up doubles the
+  // perceptual thresholds, so the client holds a coarser but current field rather than an
+  // exact but old one; levels come down again when the rate has room. 0 keeps full quality.
+  int maxQualityLevel = 4;
+  double qualityInterval = 0.25;   // s between ladder decisions
   double minResendTimeout = 0.05;  // s; the timeout is max(this, 2 x smoothed round trip)
   double initialRtt = 0.1;         // s, until acks give samples
   double settleTime = 0.2;         // s: a version this old is sent even below the thresholds
@@ -97,8 +118,20 @@ struct SenderStats {
                   offset = 0, state = 0, settled = 0, refresh = 0, repair = 0, timeout = 0;
   } reasons;
   std::uint64_t badMessages = 0;
+  std::uint64_t aged = 0;       // updates sent because a change reached the age bound's lead
   double srtt = 0, rttvar = 0;  // smoothed round trip and its mean deviation, s
 };
+
+// What the client holds, as the sender knows it from acks, against the current field.
+struct HeldFieldReport {
+  // PSNR of the irradiance (gamma-encoded e, peak 1) of every brick the client holds against
+  // the brick's current version, over all their codes; kHeldPsnrCap when they are equal.
+  double psnrDb = 0;
+  double oldestChangeSeconds = 0;  // age of the oldest change it does not hold
+  std::size_t heldBricks = 0, currentBricks = 0, pendingBricks = 0;
+  std::size_t unknownBricks = 0;  // held versions no longer in the history (not in the PSNR)
+};
+inline constexpr double kHeldPsnrCap = 99.0;
 
 // How two versions of a brick differ (brickChange), shared by the senders of one publisher.
 // A brick version's content never changes, so the comparison of (version, reference) is the
@@ -166,6 +199,14 @@ class StreamSender {
   // Bricks whose current version the client has not acknowledged.
   std::size_t pendingBricks() const;
   double resendTimeout() const;
+  // The held field's error and age, computed now (one pass over the bricks).
+  HeldFieldReport heldField(double now);
+  // The report the server sends the client (StreamReport), from heldField and the controller.
+  StreamReportMsg report(double now);
+  // The rate the sender sends at now, bytes/s (the controller's, within the ceiling).
+  double sendRate() const;
+  const RateEstimate& rateEstimate() const { return rate_.estimate(); }
+  int qualityLevel() const { return level_; }
 
  private:
   enum class Reason : std::uint8_t {
@@ -179,7 +220,8 @@ class StreamSender {
     Settled,
     Refresh,
     Repair,
-    Timeout
+    Timeout,
+    Aged
   };
   struct Track {
     std::uint64_t acked = 0;      // what the client holds, from acks and repair requests
@@ -189,11 +231,17 @@ class StreamSender {
     bool resent = false;  // sent more than once: no round-trip sample (Karn)
     double selfContainedAt = -1e30;
     double pendingSince = -1;
+    // When the oldest change the client lacks was published (changedAfter(acked)), for
+    // `changedFor` = the acked version it was looked up for; < 0: not known yet.
+    double changedAt = -1;
+    std::uint64_t changedFor = ~std::uint64_t(0);
     bool repair = false;  // the client asked: bypass the thresholds
     // Cached perceptual decision for (current version, reference version).
     std::uint64_t skipVersion = 0, skipRef = 0;
     bool skipBelow = false;
     Reason skipReason = Reason::First;  // which threshold the change passed, when not below
+    int skipLevel = 0;                  // the quality level the decision was taken at
+    float skipChange = 0;               // the change's mean |delta e|, its perceptual value
   };
   struct Candidate {
     int cascade;
@@ -202,6 +250,7 @@ class StreamSender {
     Reason reason;
     bool again;    // the lost update, resent as it was
     bool missing;  // the client holds no version of the brick
+    bool aged;     // its oldest change nears the age bound
   };
   // Fragments a client asked for again (an Ack's gaps), sent first at the next poll. At most
   // one per brick: a newer report replaces the older one.
@@ -219,6 +268,10 @@ class StreamSender {
   bool belowThresholds(Track& t, int k, int b, std::uint64_t version, std::uint64_t ref);
   void count(Reason reason);
   double distanceInBricks(int k, int b) const;
+  void adjustQuality(double now);
+  // Age of the oldest change of the brick the client does not hold (0 when it holds the
+  // current version); for a brick it holds nothing of, since the sender first saw it pending.
+  double changeAge(Track& t, int k, int b, double now);
 
   FieldPublisher& publisher_;
   std::uint32_t sessionId_;
@@ -229,6 +282,16 @@ class StreamSender {
   double tokens_ = 0, lastPoll_ = -1, lastDatagramAt_ = -1e30;
   std::uint32_t sequence_ = 0;
   std::vector<Repair> repairs_;
+  RateController rate_;
+  // Polls since the last arrival report whose bucket had more than it could spend (the sender
+  // had less to send than the rate allowed), of all polls then.
+  std::uint32_t appLimitedPolls_ = 0, reportPolls_ = 0;
+  // The quality ladder: the level, and over the current interval the polls that left bricks
+  // waiting for tokens and the oldest change seen.
+  int level_ = 0;
+  double levelAt_ = 0, roomySince_ = -1;
+  std::uint32_t shortPolls_ = 0, levelPolls_ = 0;
+  double oldestPending_ = 0;
   SenderStats stats_;
 };
 

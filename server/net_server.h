@@ -101,6 +101,9 @@ struct NetClientInfo {
   // Loss recovery by the sender: whole updates sent again, and fragments sent again on the
   // client's report of what a partial update lacks (PROTOCOL.md, "Fragment gaps").
   std::uint64_t resends = 0, repairedFragments = 0;
+  // The latest StreamReport (send rate, quality level, held field); zeros for clients of
+  // protocol version 2 and before the first one.
+  StreamReportMsg report;
 };
 
 struct NetServerStats {

@@ -87,6 +87,14 @@ void Session::pollLocked(double now, std::uint64_t sceneSerial, const SharedByte
     return;
   }
   datagrams = sender_->poll(now);
+  if (reports_ && now - lastReportAt_ >= kStreamReportInterval) {
+    // What the sender sees of this client, for the client's own figures; computed here, where
+    // the publisher may be read, and written by send().
+    lastReportAt_ = now;
+    const StreamReportMsg r = sender_->report(now);
+    report_ = encodeMessage(r);
+    lastReport_ = r;
+  }
   pendingBricks_ = sender_->pendingBricks();
   resends_ = sender_->stats().resends;
   repairedFragments_ = sender_->stats().repairedFragments;
@@ -95,6 +103,8 @@ void Session::pollLocked(double now, std::uint64_t sceneSerial, const SharedByte
 void Session::send(double now, std::vector<Bytes> datagrams, const SharedBytes& scene) {
   if (closed_) return;
   if (scene) enqueue(scene);
+  if (!report_.empty()) enqueue(share(std::move(report_)));
+  report_.clear();
   for (Bytes& d : datagrams) {
     if (closed_) return;
     if (udpTarget_) {
@@ -146,6 +156,7 @@ NetClientInfo Session::info(double now) const {
   c.pendingBricks = pendingBricks_;
   c.resends = resends_;
   c.repairedFragments = repairedFragments_;
+  c.report = lastReport_;
   return c;
 }
 
@@ -229,7 +240,8 @@ bool Session::handle(const SessionMessage& message) {
   }
   if (std::holds_alternative<WelcomeMsg>(message) || std::holds_alternative<RejectMsg>(message) ||
       std::holds_alternative<SessionInfoMsg>(message) ||
-      std::holds_alternative<SceneStateMsg>(message)) {
+      std::holds_alternative<SceneStateMsg>(message) ||
+      std::holds_alternative<StreamReportMsg>(message)) {
     refuse(DisconnectCause::WrongDirection,
            std::string(sessionMessageName(message)) + " from a client: only the server sends it");
     return false;
@@ -314,7 +326,11 @@ bool Session::onHello(const HelloMsg& hello) {
   {
     auto lock = server_.hub.lock();
     info = server_.hub.publisher().sessionInfo();
-    sender_ = std::make_unique<StreamSender>(server_.hub.publisher(), id_, server_.options.sender,
+    // Congestion control needs the client's arrival reports, which version 3 sends.
+    SenderOptions senderOptions = server_.options.sender;
+    reports_ = hello.protocolVersion >= kCongestionControlVersion;
+    senderOptions.congestionControl &= reports_;
+    sender_ = std::make_unique<StreamSender>(server_.hub.publisher(), id_, senderOptions,
                                              &server_.changeCache);
     scene = server_.hub.sceneFrame();
     sceneSerialSent_ = server_.hub.sceneSerial();

@@ -13,6 +13,8 @@
 
 namespace pc {
 
+inline constexpr double kStreamReportInterval = 0.5;  // s
+
 // A token bucket: `rate` per second, holding at most `burst`.
 struct Bucket {
   double tokens = 0, rate = 0, burst = 0, at = 0;
@@ -96,6 +98,11 @@ class Session : public std::enable_shared_from_this<Session> {
   double writeStartedAt_ = 0, acceptedAt_ = 0, lastHeard_ = 0;
   std::optional<udp::endpoint> udpTarget_;
   std::unique_ptr<StreamSender> sender_;  // created and used with the hub locked
+  // StreamReport for clients of protocol version 3 and later, every kStreamReportInterval.
+  bool reports_ = false;
+  double lastReportAt_ = -1e30;
+  Bytes report_;  // encoded by pollLocked, written by send()
+  StreamReportMsg lastReport_;
   std::uint64_t sceneSerialSent_ = 0;
   std::uint64_t bytesSent_ = 0, bytesReceived_ = 0, datagrams_ = 0, udpDropped_ = 0;
   std::uint64_t messagesReceived_ = 0, tcpQueueFullPolls_ = 0;
