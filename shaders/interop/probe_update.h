@@ -31,6 +31,13 @@ PC_FN vec3 pcDecodeIrradiance(vec3 g) { return pow(max(g, vec3(0.0f)), vec3(PC_I
 // wall close by; the sign carries the backface flag through the ray buffer.
 PC_CONST float PC_BACKFACE_DEPTH_SCALE = 0.2f;
 
+// Cut-outs (foliage cards, grilles, fences: materials with an alpha cutoff) are thin sheets
+// seen from both sides: a probe ray that meets a card's back meets a lit surface, not the
+// inside of a solid. Both tracers shade such a hit as a front face (normal toward the ray, no
+// emission) with a positive distance, so a probe among one-sided cards is neither classed
+// inside geometry nor fed black rays; only backfaces of other geometry count below.
+PC_FN bool pcBackfaceIsSurface(float alphaCutoff) { return alphaCutoff > 0.0f; }
+
 // Share of backface hits above which a probe counts as inside geometry, and below which a
 // probe inside counts as outside again. The gap is hysteresis: a probe whose share hovers
 // near one threshold (a probe in a corner that relocation cannot free) would otherwise flip
