@@ -76,6 +76,10 @@ class Field {
 // shaders/interop/probe_sampling.h. `coverage` < 1 where no cascade holds data.
 glm::vec4 sampleField(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
                       float* coverage = nullptr);
+// sampleField with a renderer's last fallback: `ambient` stands in where no probe near P holds
+// data (pcSampleFieldOrAmbient), as in the client's lighting pass.
+glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
+                               glm::vec3 ambient);
 
 // Bilinear fetches used by sampleField, exposed for tests and the bake checks.
 glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir);  // decoded
