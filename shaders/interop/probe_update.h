@@ -52,6 +52,14 @@ PC_FN bool pcProbeInside(float backfaceFraction, int oldState) {
   return backfaceFraction > limit;
 }
 
+// Relocation distances, fractions of the cascade's spacing: a probe nearer a front face than
+// PC_RELOCATE_MIN_FRONTFACE backs away from it, and no probe moves farther than
+// PC_RELOCATE_MAX_OFFSET from its grid point. 0.35 instead of 0.2 kept more probes off thin
+// walls (+0.3 dB on the tunnel) but cost sauer-pandora 1 dB (docs/BENCHMARKS.md, "Never black,
+// cut-outs, view bias"), so 0.2 stays.
+PC_CONST float PC_RELOCATE_MIN_FRONTFACE = 0.2f;
+PC_CONST float PC_RELOCATE_MAX_OFFSET = 0.45f;
+
 // Relocation: push the probe out of geometry or away from a too-close wall. Offsets are kept
 // within maxOffset (a fraction of spacing) of the grid point.
 PC_FN vec3 pcRelocate(vec3 offset, bool inside, float closestBackface, vec3 closestBackfaceDir,
