@@ -218,11 +218,7 @@ void Renderer::chooseViewDefaults() {
   if (options_.ambient) {
     ambient_ = *options_.ambient;
   } else {
-    // A plain ambient term: the irradiance an open sky would give (pi x its mean radiance),
-    // or a dim grey in closed, sky-less scenes so their shapes stay visible.
-    const Sky& sky = scene.sky;
-    const glm::vec3 mean = 0.5f * sky.horizon + 0.25f * (sky.zenith + sky.ground);
-    ambient_ = sky.isBlack() ? glm::vec3(0.1f) : 3.14159265f * mean;
+    ambient_ = scene.sky.ambientIrradiance();
   }
 }
 

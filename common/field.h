@@ -21,8 +21,12 @@ struct FieldSettings {
   int raysPerProbe = 256;  // kMinRaysPerProbe..kMaxRaysPerProbe (Field::create clamps)
   float hysteresis = 0.97f;
   float distanceExponent = 50.0f;
-  float normalBias = 0.1f;         // fraction of spacing
-  float viewBias = 0.3f;           // fraction of spacing
+  float normalBias = 0.1f;  // fraction of spacing
+  // Fraction of spacing. 0.1, not 0.3: a long view bias moves the point whose visibility is
+  // tested far off the surface, toward probes that see more light than the surface does (in
+  // corners, under overhangs). It gains 0.16-0.9 dB on five shared scenes and loses 0.43 on
+  // two-rooms (docs/BENCHMARKS.md, "Never black, cut-outs, view bias").
+  float viewBias = 0.1f;
   float maxRayDistance = 0.0f;     // world units; 0: 1.5 x the cage diagonal (see create)
   float occlusionDistance = 1.0f;  // d_max, fraction of the finest spacing
   float blendMargin = 1.0f;        // fraction of a cascade's spacing
@@ -76,6 +80,10 @@ class Field {
 // shaders/interop/probe_sampling.h. `coverage` < 1 where no cascade holds data.
 glm::vec4 sampleField(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
                       float* coverage = nullptr);
+// sampleField with a renderer's last fallback: `ambient` stands in where no probe near P holds
+// data (pcSampleFieldOrAmbient), as in the client's lighting pass.
+glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
+                               glm::vec3 ambient);
 
 // Bilinear fetches used by sampleField, exposed for tests and the bake checks.
 glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir);  // decoded

@@ -95,6 +95,10 @@ struct Sky {
   glm::vec3 zenith{0.0f}, horizon{0.0f}, ground{0.0f};
   glm::vec3 radiance(glm::vec3 dir) const;
   bool isBlack() const;
+  // The renderers' last fallback for indirect light where no probe holds data: the irradiance
+  // an open sky gives (pi x its mean radiance), or a dim grey under a black sky so that shapes
+  // stay visible. The client and the CPU probe-lit render use the same term.
+  glm::vec3 ambientIrradiance() const;
 };
 
 // One cascade of probes. Cascades are ordered finest first.

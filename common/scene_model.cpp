@@ -110,6 +110,11 @@ bool Sky::isBlack() const {
   return black(zenith) && black(horizon) && black(ground);
 }
 
+glm::vec3 Sky::ambientIrradiance() const {
+  if (isBlack()) return glm::vec3(0.1f);
+  return 3.14159265f * (0.5f * horizon + 0.25f * (zenith + ground));
+}
+
 std::size_t Scene::triangleCount() const {
   std::size_t n = 0;
   for (const Instance& inst : instances)

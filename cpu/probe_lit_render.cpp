@@ -29,6 +29,7 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
   const std::vector<gpu::GpuLight> lights = packLights(state);
   const PinholeCamera pinhole(camera, width, height);
   const Sky& sky = scene.scene().sky;
+  const glm::vec3 ambient = sky.ambientIrradiance();
   Image image(width, height);
 
   tbb::parallel_for(tbb::blocked_range<int>(0, height, 1), [&](const tbb::blocked_range<int>& r) {
@@ -51,9 +52,10 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
           const glm::vec3 E =
               directIrradiance(scene, lights, emissive, sp.position, P, sp.normal, rng, direct);
           // The field's sampler applies its own normal and view biases, so it gets the
-          // surface point itself; V points from the surface back toward the camera.
-          const glm::vec4 indirect =
-              sampleField(field, sp.position, sp.normal, -dir, options.sampleFlags);
+          // surface point itself; V points from the surface back toward the camera. Where no
+          // probe near the point holds data, the ambient term stands in, as in the client.
+          const glm::vec4 indirect = sampleFieldOrAmbient(field, sp.position, sp.normal, -dir,
+                                                          options.sampleFlags, ambient);
           const glm::vec3 L = sp.emission + sp.albedo * kInvPi *
                                                 (E + glm::vec3(indirect.x, indirect.y, indirect.z));
           if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) sum += L;

@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "../shaders/interop/probe_math.h"
+#include "../shaders/interop/probe_update.h"
 #include "../shaders/interop/shadow_roulette.h"
 #include "probe_blend.h"
 
@@ -115,6 +116,10 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
   // Phase 1: trace, shade with direct light and emission. Hits that need indirect light from
   // the field are deferred: evaluated in phase 1b in spatial order.
   const bool indirect = !(request.shading & kShadeNoIndirect);
+  const auto backfaceIsSurface = [&](int material) {
+    return material >= 0 && std::size_t(material) < scene_.materials.size() &&
+           gpu::pcBackfaceIsSurface(scene_.materials[std::size_t(material)].alphaCutoff);
+  };
   std::vector<DeferredHit> deferred(indirect ? probeCount * rayCount : 0);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probeCount, 4), [&](const auto& range) {
     std::uint64_t& shadows = shadowRays.local();
@@ -135,7 +140,9 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
           continue;
         }
         SurfacePoint sp = embree_->surface(hit, origin, dirs[i]);
-        if (sp.backface) {
+        // surface() already turns a backface's normals toward the ray and drops its emission,
+        // which is how a cut-out's back is shaded (pcBackfaceIsSurface).
+        if (sp.backface && !backfaceIsSurface(sp.material)) {
           out[i] = {glm::vec3(0.0f), -hit.t};
           continue;
         }

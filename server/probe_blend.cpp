@@ -106,8 +106,9 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
   const int oldState = record.state;
   const glm::vec3 oldOffset = record.offset;
   const bool inside = pcProbeInside(backfaceFraction, oldState);
-  record.offset = pcRelocate(record.offset, inside, closestBack, closestBackDir, closestFront,
-                             closestFrontDir, 0.2f * c.spacing, 0.45f * c.spacing);
+  record.offset =
+      pcRelocate(record.offset, inside, closestBack, closestBackDir, closestFront, closestFrontDir,
+                 PC_RELOCATE_MIN_FRONTFACE * c.spacing, PC_RELOCATE_MAX_OFFSET * c.spacing);
   const bool moved = glm::length(record.offset - oldOffset) > 0.01f * c.spacing;
 
   if (inside) {

@@ -193,7 +193,7 @@ void classifyProbe(Group g, int k, int tid) {
   vec3 oldOffset = r.offset;
   bool inside = pcProbeInside(backfaceFraction, oldState);
   r.offset = pcRelocate(r.offset, inside, sBackDist[tid], backDir, sFrontDist[tid], frontDir,
-                        0.2f * c.spacing, 0.45f * c.spacing);
+                        PC_RELOCATE_MIN_FRONTFACE * c.spacing, PC_RELOCATE_MAX_OFFSET * c.spacing);
   bool moved = length(r.offset - oldOffset) > 0.01f * c.spacing;
   sInside[k] = inside;
   if (inside) {

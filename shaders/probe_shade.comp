@@ -8,11 +8,13 @@
 // fixed place, and appends the ray to its slot's compacted shadow list, a subgroup at a time
 // (interop/gpu_trace.h); probe_shadow.rgen traces the list and sets the visible slots' bits
 // in the ray's mask, cleared here, and the blend adds them. Backface hits report a negative
-// distance and no light. One invocation per ray, in launch order.
+// distance and no light, but a cut-out's back, which is shaded as a front face
+// (pcBackfaceIsSurface). One invocation per ray, in launch order.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_nonuniform_qualifier : require
 #extension GL_KHR_shader_subgroup_ballot : require
 #include "field_sampling.glsl"
+#include "interop/probe_update.h"
 #include "interop/shadow_roulette.h"
 
 layout(local_size_x = PC_SHADE_THREADS) in;
@@ -211,9 +213,15 @@ void shadeHit(GpuHit hit, vec3 dir) {
   vec3 ng = inst.side * cross(p1 - p0, p2 - p0);
   float ngLength = length(ng);
   ng = ngLength > 0.0f ? ng / ngLength : -dir;
-  if (dot(dir, ng) > 0.0f) {  // backface: no light
-    finish(vec3(0.0f), -hit.t);
-    return;
+  bool backface = dot(dir, ng) > 0.0f;
+  if (backface) {
+    // A cut-out's back is a surface, shaded with its normals toward the ray and no emission
+    // (pcBackfaceIsSurface, cpu/embree_scene.cpp surface()); any other backface: no light.
+    if (mesh.material < 0 || !pcBackfaceIsSurface(materials[mesh.material].alphaCutoff)) {
+      finish(vec3(0.0f), -hit.t);
+      return;
+    }
+    ng = -ng;
   }
 
   mat3 normalMatrix = mat3(inst.normalToWorld);
@@ -232,7 +240,7 @@ void shadeHit(GpuHit hit, vec3 dir) {
   if (mesh.material >= 0) {
     GpuMaterial m = materials[mesh.material];
     albedo = m.baseColor * textureRgb(m.baseColorTexture, uv);
-    if (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f)
+    if (!backface && (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f))
       emission = m.emissive * textureRgb(m.emissiveTexture, uv);
     sampled = m.sampled != 0;
   }

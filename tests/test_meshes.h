@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <initializer_list>
+#include <vector>
 
 #include "common/scene.h"
 
@@ -86,6 +87,53 @@ inline Scene grilleRoom(bool cutOut, TextureWrap wrapU = TextureWrap::Repeat,
   }
   scene.meshes.push_back(quad);
   scene.instances.push_back({.name = "grille", .mesh = int(scene.meshes.size()) - 1});
+  return scene;
+}
+
+// cardRoom's cards: how many, and the plane of card i. Off the probe planes (z = -0.875 +
+// 0.25 k, -0.75 + 0.5 k) by 0.025 at least, so that no probe sits on a card's plane.
+constexpr int cardRoomCards = 9;
+inline float cardRoomCardZ(int i) { return -0.69f + 0.13f * float(i); }
+
+// The built-in room, its blocks taken out, with a thicket of one-sided cards standing in it, like a
+// bush of leaf cards: 9 vertical quads at z = -0.69 .. 0.35 (0.13 apart, closer than the fine
+// cascade's 0.25 spacing, so the probes among them stand between two cards), each facing +z (the
+// camera) only. `cutOut`: the cards are leaf-like cut-outs (a checker of 1-texel cells, about half
+// open); else opaque. A probe between opaque one-sided cards sees their backs along +z and is
+// classed inside geometry; between cut-out cards it must not be (pcBackfaceIsSurface).
+inline Scene cardRoom(bool cutOut) {
+  Scene scene = builtinScene();
+  Texture checker;
+  checker.name = "leaf";
+  checker.width = checker.height = 8;
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x)
+      checker.rgba.insert(checker.rgba.end(), {90, 160, 70, std::uint8_t((x + y) % 2 ? 255 : 0)});
+  scene.textures.push_back(checker);
+  Material leaf{.name = "leaf", .baseColor = glm::vec3(0.5f, 0.7f, 0.4f)};
+  if (cutOut) {
+    leaf.alphaCutoff = 0.4f;  // not 0.5: see grilleRoom
+    leaf.alphaTexture = int(scene.textures.size()) - 1;
+  }
+  scene.materials.push_back(leaf);
+  Mesh cards{.name = "cards", .material = int(scene.materials.size()) - 1};
+  for (int i = 0; i < cardRoomCards; ++i) {
+    const float z = cardRoomCardZ(i);
+    const auto base = std::uint32_t(cards.positions.size());
+    // Counter-clockwise seen from +z: the front faces +z.
+    const glm::vec3 corners[4] = {
+        {-0.7f, 0.1f, z}, {0.7f, 0.1f, z}, {0.7f, 1.5f, z}, {-0.7f, 1.5f, z}};
+    for (glm::vec3 c : corners) {
+      cards.positions.push_back(c);
+      cards.normals.push_back({0, 0, 1});
+      cards.uvs.push_back(glm::vec2(c.x + 0.7f, c.y - 0.1f) * (3.0f / 1.4f));
+    }
+    cards.indices.insert(cards.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  }
+  scene.meshes.push_back(cards);
+  scene.instances.push_back({.name = "cards", .mesh = int(scene.meshes.size()) - 1});
+  // The blocks go: they would stand among the cards (the short one turning through them).
+  std::erase_if(scene.instances, [](const Instance& i) { return i.name.ends_with("-block"); });
   return scene;
 }
 

@@ -612,6 +612,43 @@ TEST(VulkanTracer, CutOutGrilleMatchesEmbree) {
   }
 }
 
+// Probes among one-sided cut-out cards (testmesh::cardRoom): a card's back is shaded as a
+// surface on both backends (pcBackfaceIsSurface), so the fields and the probe states agree,
+// and no probe among the cards is classed inside. The same cards opaque mark probes inside on
+// both, which the cut-outs' figure must stay clear of.
+TEST(VulkanTracer, ProbesAmongCutOutCardsMatchEmbree) {
+  const Scene scene = testmesh::cardRoom(true);
+  std::string why;
+  Backends b = makeBackends(scene, 64, &why);
+  if (!b.gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
+  updateBoth(b, 3, 2100u);
+  const FieldDifference d = compareFields(b.fg, b.fc);
+  auto inside = [](const Field& f) {
+    int n = 0;
+    for (const ProbeRecord& r : f.probes) n += r.state == gpu::PC_PROBE_INSIDE ? 1 : 0;
+    return n;
+  };
+  const Scene opaque = testmesh::cardRoom(false);
+  auto solid = makeEmbreeTracer(opaque);
+  ASSERT_TRUE(solid) << solid.error().message;
+  Field fo = Field::create(opaque.volumes, b.fc.settings);
+  for (int i = 0; i < 3; ++i) {
+    b.request.rotationSeed = 2100u + std::uint32_t(i);
+    updateOrFail(**solid, fo, b.request);
+  }
+  std::printf(
+      "cut-out cards: GPU vs Embree irradiance rel diff %.2e, depth %.2e, state mismatches %d; "
+      "probes inside: GPU %d, Embree %d, opaque cards %d\n",
+      d.irradiance, d.depth, d.stateMismatches, inside(b.fg), inside(b.fc), inside(fo));
+  EXPECT_GT(d.probes, 100);
+  EXPECT_LE(d.irradiance, 0.01);
+  EXPECT_LE(d.depth, 0.01);
+  EXPECT_LE(d.stateMismatches, 2);
+  EXPECT_LE(inside(b.fg), inside(b.fc) + 2);
+  EXPECT_GT(inside(fo), inside(b.fc) + 20);
+  EXPECT_EQ(b.gpu->validationErrorCount(), 0u);
+}
+
 // The wavefront's passes find a ray's records by launch index (gpu_trace.h): the blend maps
 // (request, ray) back to it, so the two mappings must be inverses over whole and partial tiles.
 TEST(VulkanTracer, LaunchOrderMapsBothWays) {

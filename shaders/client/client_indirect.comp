@@ -60,10 +60,8 @@ vec3 skyRadiance(vec3 dir) {
 
 vec3 fieldIrradiance(vec3 P, vec3 N, vec3 V) {
   if (frame.fieldPresent == 0) return frame.ambient.rgb;
-  float coverage = 0.0;
-  vec4 s = pcSampleField(field, P, N, V, frame.sampleFlags, coverage);
-  // Where no cascade holds data yet, the plain ambient term stands in.
-  return mix(frame.ambient.rgb, s.rgb, coverage);
+  // Where no probe near P holds data, the plain ambient term stands in (the shared rule).
+  return pcSampleFieldOrAmbient(field, P, N, V, frame.sampleFlags, frame.ambient.rgb).rgb;
 }
 
 void main() {

@@ -27,6 +27,8 @@ PC_CONST int PC_PROBE_UNINITIALIZED = 3;  // no data yet: never sampled
 PC_CONST int PC_SAMPLE_DEFAULT = 0;
 PC_CONST int PC_SAMPLE_NO_VISIBILITY = 1;  // trilinear only: the naive baseline that leaks
 PC_CONST int PC_SAMPLE_NO_OCCLUSION = 2;   // skip the occlusion tile (probe-ray hit shading)
+// No wider search when a point's cages hold no probe with data (tests: what the fallback saves).
+PC_CONST int PC_SAMPLE_NO_FALLBACK = 4;
 
 PC_CONST float PC_PI = 3.14159265358979f;
 PC_CONST float PC_IRRADIANCE_GAMMA = 5.0f;  // encoding gamma of the irradiance atlas

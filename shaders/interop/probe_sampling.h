@@ -1,6 +1,9 @@
 // Shading from a probe field: the 8-probe cage of each cascade, weighted by trilinear
 // position, wrap-shaded backface term and Chebyshev visibility on the depth moments, with
 // normal and view bias, blended from the finest cascade to coarser ones near cascade edges.
+// A point whose cages hold no probe with data falls back, in this order, to a coarser cascade,
+// to the nearest probes with data that see it, then to the renderer's ambient term: the rule
+// every renderer follows, so no surface goes black for want of probes.
 //
 // The includer provides the texel fetches (textures on the GPU, arrays on the CPU) before
 // including this file:
@@ -27,6 +30,58 @@ PC_FN float pcChebyshevVisibility(vec2 moments, float dist) {
   return max(p * p * p, 0.0f);  // cubed: sharpens the soft bound toward the real occluder
 }
 
+// Whether a point may sample a probe in this state: probes inside geometry describe the inside
+// of a wall, and untraced ones hold nothing.
+PC_FN bool pcProbeHasData(int state) {
+  return state != PC_PROBE_INSIDE && state != PC_PROBE_UNINITIALIZED;
+}
+
+// How much a probe at probeP may light surface point P (biasedP: P moved by the normal and view
+// biases), before its position weight: a smooth backface term (probes behind the surface count
+// less, never zero, so a point with every probe behind it still gets light) times Chebyshev
+// visibility on its depth moments, with tiny weights crushed: they come from occluded probes
+// whose light would leak.
+PC_FN float pcProbeVisibilityWeight(PC_FIELD_PARAM int cascade, int slot, vec3 probeP, vec3 P,
+                                    vec3 biasedP, vec3 N) {
+  vec3 toProbe = normalize(probeP - P);
+  float wrap = (dot(toProbe, N) + 1.0f) * 0.5f;
+  float weight = wrap * wrap + 0.2f;
+
+  vec3 probeToPoint = biasedP - probeP;
+  float dist = length(probeToPoint);
+  vec3 dir = dist > 0.0f ? probeToPoint / dist : N;
+  vec2 moments = pcFetchDepth(PC_FIELD_ARG cascade, slot, dir);
+  weight *= max(0.05f, pcChebyshevVisibility(moments, dist));
+  weight = max(0.000001f, weight);
+  const float crush = 0.2f;
+  if (weight < crush) weight *= weight * weight / (crush * crush);
+  return weight;
+}
+
+// Adds one probe's gamma-encoded irradiance `encoded` (and its occlusion toward N) with
+// `weight`. Interpolation happens in a perceptual space (square root of irradiance) like RTXGI:
+// the atlas holds irradiance^(1/gamma), so raise to gamma/2 here; pcResolveProbeSum squares the
+// weighted mean. e^(gamma/2) with gamma = 5 as two multiplies and a square root (pow is slow on
+// CPUs).
+PC_FN void pcAccumulateProbe(PC_FIELD_PARAM int cascade, int slot, vec3 encoded, vec3 N,
+                             float weight, int flags, PC_INOUT(vec4) sum,
+                             PC_INOUT(float) weightSum) {
+  vec3 e = max(encoded, vec3(0.0f));
+  vec3 perceptual = e * e * sqrt(e);
+  float occlusion = 0.0f;
+  if ((flags & PC_SAMPLE_NO_OCCLUSION) == 0) {
+    occlusion = pcFetchOcclusion(PC_FIELD_ARG cascade, slot, N);
+  }
+  sum += weight * vec4(perceptual.x, perceptual.y, perceptual.z, occlusion);
+  weightSum += weight;
+}
+
+PC_FN vec4 pcResolveProbeSum(vec4 sum, float weightSum) {
+  if (weightSum <= 0.0f) return vec4(0.0f);
+  vec4 m = sum / weightSum;  // rgb squared: back from the sqrt-irradiance space
+  return vec4(m.x * m.x, m.y * m.y, m.z * m.z, m.w);
+}
+
 // Irradiance (rgb, W/m^2) and sky occlusion (a) from one cascade; `weightSum` returns the sum
 // of cage weights (0 when no probe of the cage holds data).
 PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N, vec3 V,
@@ -36,8 +91,7 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
   ivec3 base = clamp(ivec3(floor(grid)), ivec3(0), max(c.counts - ivec3(2), ivec3(0)));
   vec3 alpha = clamp(grid - vec3(base), vec3(0.0f), vec3(1.0f));
 
-  vec3 irradiance = vec3(0.0f);
-  float occlusion = 0.0f;
+  vec4 sum = vec4(0.0f);
   weightSum = 0.0f;
   for (int i = 0; i < 8; ++i) {
     ivec3 offset = ivec3(i & 1, (i >> 1) & 1, (i >> 2) & 1);
@@ -47,45 +101,50 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
     // Fetched before the probe's state is known: it depends on the slot alone, so on a GPU its
     // loads go out with the probe record's instead of a round trip after it.
     vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, N);
-    int state = int(probe.w);
-    if (state == PC_PROBE_INSIDE || state == PC_PROBE_UNINITIALIZED) continue;
+    if (!pcProbeHasData(int(probe.w))) continue;
     vec3 probeP = pcProbeGridPosition(c, logical) + vec3(probe.x, probe.y, probe.z);
 
     vec3 tri = mix(vec3(1.0f) - alpha, alpha, vec3(offset));
-    float trilinear = max(0.001f, tri.x * tri.y * tri.z);
-    float weight = 1.0f;
+    float weight = max(0.001f, tri.x * tri.y * tri.z);
     if ((flags & PC_SAMPLE_NO_VISIBILITY) == 0) {
-      // Smooth backface term: probes behind the surface count less, never zero, so a point
-      // with every probe behind it still gets light.
-      vec3 toProbe = normalize(probeP - P);
-      float wrap = (dot(toProbe, N) + 1.0f) * 0.5f;
-      weight *= wrap * wrap + 0.2f;
-
-      vec3 probeToPoint = biasedP - probeP;
-      float dist = length(probeToPoint);
-      vec3 dir = dist > 0.0f ? probeToPoint / dist : N;
-      vec2 moments = pcFetchDepth(PC_FIELD_ARG cascade, slot, dir);
-      weight *= max(0.05f, pcChebyshevVisibility(moments, dist));
-      weight = max(0.000001f, weight);
-      // Crush tiny weights: they come from occluded probes whose light would leak.
-      const float crush = 0.2f;
-      if (weight < crush) weight *= weight * weight / (crush * crush);
+      weight *= pcProbeVisibilityWeight(PC_FIELD_ARG cascade, slot, probeP, P, biasedP, N);
     }
-    weight *= trilinear;
-
-    // Interpolate in a perceptual space (square root of irradiance) like RTXGI: the atlas
-    // holds irradiance^(1/gamma), so raise to gamma/2 here and square the weighted mean.
-    // e^(gamma/2) with gamma = 5 as two multiplies and a square root (pow is slow on CPUs).
-    vec3 e = max(encoded, vec3(0.0f));
-    irradiance += weight * (e * e * sqrt(e));
-    if ((flags & PC_SAMPLE_NO_OCCLUSION) == 0) {
-      occlusion += weight * pcFetchOcclusion(PC_FIELD_ARG cascade, slot, N);
-    }
-    weightSum += weight;
+    pcAccumulateProbe(PC_FIELD_ARG cascade, slot, encoded, N, weight, flags, sum, weightSum);
   }
-  if (weightSum <= 0.0f) return vec4(0.0f);
-  vec3 m = irradiance / weightSum;  // squared below: back from the sqrt-irradiance space
-  return vec4(m * m, occlusion / weightSum);
+  return pcResolveProbeSum(sum, weightSum);
+}
+
+// The fallback of a point whose cage holds no probe with data (all eight inside geometry or
+// untraced, as among one-sided walls or in a crevice): the probes with data in the 4x4x4 block
+// around the cage, each weighted by a tent two cells wide around the biased point and by the
+// same visibility as the cage's, so that the nearest probes that see the point light it.
+PC_FN vec4 pcSampleCascadeWide(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N,
+                               vec3 V, int flags, PC_INOUT(float) weightSum) {
+  vec3 biasedP = P + N * c.normalBias + V * c.viewBias;
+  vec3 grid = (biasedP - c.origin) / c.spacing;
+  ivec3 base = clamp(ivec3(floor(grid)), ivec3(0), max(c.counts - ivec3(2), ivec3(0)));
+
+  vec4 sum = vec4(0.0f);
+  weightSum = 0.0f;
+  for (int i = 0; i < 64; ++i) {
+    ivec3 logical = base + ivec3(i & 3, (i >> 2) & 3, (i >> 4) & 3) - ivec3(1);
+    if (logical.x < 0 || logical.y < 0 || logical.z < 0 || logical.x >= c.counts.x ||
+        logical.y >= c.counts.y || logical.z >= c.counts.z)
+      continue;
+    int slot = pcProbeSlot(c, pcPhysicalCoord(c, logical));
+    vec4 probe = pcFetchProbe(PC_FIELD_ARG cascade, slot);
+    if (!pcProbeHasData(int(probe.w))) continue;
+    vec3 probeP = pcProbeGridPosition(c, logical) + vec3(probe.x, probe.y, probe.z);
+
+    vec3 tent = max(vec3(0.0f), vec3(1.0f) - abs(grid - vec3(logical)) * 0.5f);
+    float weight = max(0.001f, tent.x * tent.y * tent.z);
+    if ((flags & PC_SAMPLE_NO_VISIBILITY) == 0) {
+      weight *= pcProbeVisibilityWeight(PC_FIELD_ARG cascade, slot, probeP, P, biasedP, N);
+    }
+    vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, N);
+    pcAccumulateProbe(PC_FIELD_ARG cascade, slot, encoded, N, weight, flags, sum, weightSum);
+  }
+  return pcResolveProbeSum(sum, weightSum);
 }
 
 // How much cascade `c` owns point P: 1 inside the box its probes span, fading to 0 over
@@ -101,8 +160,10 @@ PC_FN float pcCascadeCoverage(PC_IN(CascadeDesc) c, vec3 P) {
 }
 
 // Irradiance and occlusion at a surface point from all cascades (finest first). The coarsest
-// cascade takes whatever the finer ones leave, even outside its extent (clamped cage).
-// `coverage` returns how much of the result came from probes that hold data (0..1).
+// cascade takes whatever the finer ones leave, even outside its extent (clamped cage). Where no
+// cage holds data, the wider block of the finest cascade that has any (pcSampleCascadeWide)
+// fills the rest, unless PC_SAMPLE_NO_FALLBACK. `coverage` returns how much of the result came
+// from probes that hold data (0..1).
 PC_FN vec4 pcSampleField(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 V, int flags,
                          PC_INOUT(float) coverage) {
   vec4 result = vec4(0.0f);
@@ -117,8 +178,32 @@ PC_FN vec4 pcSampleField(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3
     remaining *= 1.0f - w;
     if (remaining <= 0.0f) break;
   }
+  if (remaining > 0.0f && (flags & PC_SAMPLE_NO_FALLBACK) == 0) {
+    for (int k = 0; k < f.cascadeCount; ++k) {
+      if (k < f.cascadeCount - 1 && pcCascadeCoverage(f.cascades[k], P) <= 0.0f) continue;
+      float weightSum = 0.0f;
+      vec4 s = pcSampleCascadeWide(PC_FIELD_ARG f.cascades[k], k, P, N, V, flags, weightSum);
+      if (weightSum <= 0.0f) continue;
+      result += remaining * s;
+      remaining = 0.0f;
+      break;
+    }
+  }
   coverage = 1.0f - remaining;
   return coverage > 0.0f ? result / coverage : vec4(0.0f);
+}
+
+// What a renderer shades with: the field, and where no probe near P holds data (an empty or
+// partial field, a point walled in by probes inside geometry), the renderer's ambient term for
+// the rest (occlusion 1), so that no surface goes without indirect light. PC_SAMPLE_NO_FALLBACK
+// leaves the rest black.
+PC_FN vec4 pcSampleFieldOrAmbient(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 V,
+                                  int flags, vec3 ambient) {
+  float coverage = 0.0f;
+  vec4 s = pcSampleField(PC_FIELD_ARG f, P, N, V, flags, coverage);
+  if ((flags & PC_SAMPLE_NO_FALLBACK) != 0) return s;
+  vec3 irradiance = mix(ambient, vec3(s.x, s.y, s.z), coverage);
+  return vec4(irradiance.x, irradiance.y, irradiance.z, mix(1.0f, s.w, coverage));
 }
 
 PC_END

@@ -31,6 +31,13 @@ PC_FN vec3 pcDecodeIrradiance(vec3 g) { return pow(max(g, vec3(0.0f)), vec3(PC_I
 // wall close by; the sign carries the backface flag through the ray buffer.
 PC_CONST float PC_BACKFACE_DEPTH_SCALE = 0.2f;
 
+// Cut-outs (foliage cards, grilles, fences: materials with an alpha cutoff) are thin sheets
+// seen from both sides: a probe ray that meets a card's back meets a lit surface, not the
+// inside of a solid. Both tracers shade such a hit as a front face (normal toward the ray, no
+// emission) with a positive distance, so a probe among one-sided cards is neither classed
+// inside geometry nor fed black rays; only backfaces of other geometry count below.
+PC_FN bool pcBackfaceIsSurface(float alphaCutoff) { return alphaCutoff > 0.0f; }
+
 // Share of backface hits above which a probe counts as inside geometry, and below which a
 // probe inside counts as outside again. The gap is hysteresis: a probe whose share hovers
 // near one threshold (a probe in a corner that relocation cannot free) would otherwise flip
@@ -44,6 +51,14 @@ PC_FN bool pcProbeInside(float backfaceFraction, int oldState) {
       oldState == PC_PROBE_INSIDE ? PC_OUTSIDE_BACKFACE_FRACTION : PC_INSIDE_BACKFACE_FRACTION;
   return backfaceFraction > limit;
 }
+
+// Relocation distances, fractions of the cascade's spacing: a probe nearer a front face than
+// PC_RELOCATE_MIN_FRONTFACE backs away from it, and no probe moves farther than
+// PC_RELOCATE_MAX_OFFSET from its grid point. 0.35 instead of 0.2 kept more probes off thin
+// walls (+0.3 dB on the tunnel) but cost sauer-pandora 1 dB (docs/BENCHMARKS.md, "Never black,
+// cut-outs, view bias"), so 0.2 stays.
+PC_CONST float PC_RELOCATE_MIN_FRONTFACE = 0.2f;
+PC_CONST float PC_RELOCATE_MAX_OFFSET = 0.45f;
 
 // Relocation: push the probe out of geometry or away from a too-close wall. Offsets are kept
 // within maxOffset (a fraction of spacing) of the grid point.
