@@ -77,5 +77,25 @@ TEST(ClientAo, AgreesWithTheCpuRenderAndDarkensTheContactAlike) {
   EXPECT_NEAR(clientDrop, cpuDrop, cpuDrop / 3.0);
 }
 
+// The surface pass reads sample 0 of either visibility buffer: the fixed-function one (an
+// image) and the compute rasterizer's (a buffer) give the same occlusion.
+TEST(ClientAo, BothRasterizersGiveTheSameOcclusion) {
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  const Scene scene = contactScene();
+  const Field field = bakeQuickly(scene, 8);
+  const Camera camera = scene.cameras[0];
+  ClientFrame frames[2];
+  int i = 0;
+  for (Rasterizer r : {Rasterizer::FixedFunction, Rasterizer::Compute}) {
+    frames[i] = renderClientFrame(*ctx, scene, &field, camera, nullptr, kWidth, kHeight, {}, r);
+    ASSERT_FALSE(frames[i].display.empty());
+    ++i;
+  }
+  const double db = psnr8(frames[0].display[0], frames[1].display[0]);
+  std::printf("fixed-function vs compute rasterizer, occlusion on: %.2f dB\n", db);
+  EXPECT_GT(db, 40.0);
+}
+
 }  // namespace
 }  // namespace pc::client::test
