@@ -1,7 +1,8 @@
 // The client's frame: field uploads, shadow maps, the main pass (a multisampled visibility
 // buffer: which triangle covers each sample), the lighting pass (rebuilds each distinct surface
 // of a pixel; emission, direct light with shadow maps and indirect light from the field's
-// cascades, in compute) and tone mapping with the overlay, in one command
+// cascades, in compute, the field's light darkened at contacts by screen-space occlusion over
+// the surfaces a pass before it writes) and tone mapping with the overlay, in one command
 // buffer per frame. Frames rotate through kFrameSlots slots, each with its own command
 // buffer, uniforms and staging, so the CPU prepares frame N+1 while the GPU draws frame N.
 // Stereo renders both eyes in every pass with VK_KHR_multiview (2-layer targets).
