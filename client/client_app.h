@@ -35,6 +35,7 @@ struct ClientConfig {
   bool textureMipmaps = true;                // RendererOptions::textureMipmaps
   ShadowSettings shadows;
   int sampleFlags = 0;
+  float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;  // RendererOptions::aoRadius
   std::string readyFile;  // windowed: written after half the frames (tests take a screenshot)
   std::optional<glm::ivec2> testResize;  // windowed: resize the window to this after 2 frames
   bool writeExr = true;

@@ -40,6 +40,7 @@ int runHeadless(const ClientConfig& config) {
   ro.textureMipmaps = config.textureMipmaps;
   ro.shadows = config.shadows;
   ro.sampleFlags = config.sampleFlags;
+  ro.aoRadius = config.aoRadius;
   auto renderer = Renderer::create(**ctx, *scene, mirror, ro);
   if (!renderer) {
     logError("renderer: " + renderer.error().message);

@@ -45,6 +45,7 @@ Result<std::unique_ptr<Renderer>> makeRenderer(const vk::Context& ctx, const Sce
   ro.textureMipmaps = config.textureMipmaps;
   ro.shadows = config.shadows;
   ro.sampleFlags = config.sampleFlags;
+  ro.aoRadius = config.aoRadius;
   return Renderer::create(ctx, scene, mirror, ro);
 }
 

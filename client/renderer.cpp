@@ -155,6 +155,7 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   f.triangleCount = std::uint32_t(gpuScene_->packed().triangleIds);
   f.rasterTriangleCapacity = rasterTriangleCapacity_;
   f.rasterJobCapacity = rasterJobCapacity_;
+  f.aoRadius = options_.aoRadius;
   slot.frame.write(&f, sizeof f);
   if (!input.overlay.empty()) {
     const gpu::OverlayText text = makeOverlayText(input.overlay);
@@ -365,8 +366,19 @@ void Renderer::recordLighting(VkCommandBuffer cmd, const Slot& slot) {
   // Bound here: the field's write pass binds its own compute set during the uploads.
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout_.get(), 0, 1,
                           &slot.set, 0, nullptr);
+  const std::uint32_t gx = (w + 7) / 8, gy = (h + 7) / 8, views = std::uint32_t(options_.views);
+  if (options_.aoRadius > 0.0f) {
+    // The surfaces under the pixel centres, which the occlusion of every pixel reads around
+    // it: written once the previous frame's lighting pass is done reading them.
+    const VkPipelineStageFlags2 compute = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+    vk::memoryBarrier(cmd, compute, VK_ACCESS_2_NONE, compute, VK_ACCESS_2_NONE);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, aoSurfacesPipeline_.get());
+    vkCmdDispatch(cmd, gx, gy, views);
+    vk::memoryBarrier(cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, compute,
+                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+  }
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, indirectPipeline_.get());
-  vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, std::uint32_t(options_.views));
+  vkCmdDispatch(cmd, gx, gy, views);
 }
 
 // Tone mapping and the overlay into `target`, left in its final layout.

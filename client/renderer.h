@@ -1,7 +1,8 @@
 // The client's frame: field uploads, shadow maps, the main pass (a multisampled visibility
 // buffer: which triangle covers each sample), the lighting pass (rebuilds each distinct surface
 // of a pixel; emission, direct light with shadow maps and indirect light from the field's
-// cascades, in compute) and tone mapping with the overlay, in one command
+// cascades, in compute, the field's light darkened at contacts by screen-space occlusion over
+// the surfaces a pass before it writes) and tone mapping with the overlay, in one command
 // buffer per frame. Frames rotate through kFrameSlots slots, each with its own command
 // buffer, uniforms and staging, so the CPU prepares frame N+1 while the GPU draws frame N.
 // Stereo renders both eyes in every pass with VK_KHR_multiview (2-layer targets).
@@ -28,6 +29,7 @@
 #include "gpu_scene.h"
 #include "light_pack.h"
 #include "renderer_shadow_cache.h"
+#include "shaders/interop/screen_ao.h"
 
 namespace pc::client {
 
@@ -70,6 +72,10 @@ struct RendererOptions {
   // anisotropic where the device has it). false: one bilinear tap of level 0 per sample, as
   // the CPU renders take per ray (minified textures alias).
   bool textureMipmaps = true;
+  // Screen-space ambient occlusion (GTAO, shaders/interop/screen_ao.h) of the field's indirect
+  // light, radius in probe spacings: contacts the probes are too coarse to see. 0: off (the
+  // surface pass before lighting is skipped too).
+  float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;
 };
 
 struct FrameInput {
@@ -220,10 +226,13 @@ class Renderer {
   vk::UniquePipelineLayout pipelineLayout_;
   vk::UniqueDescriptorPool descriptorPool_;
   vk::UniquePipeline scenePipeline_, prepassPipeline_, largeShadowPipeline_, smallShadowPipeline_,
-      indirectPipeline_, rasterPipeline_, rasterArgsPipeline_, rasterTilesPipeline_;
+      indirectPipeline_, aoSurfacesPipeline_, rasterPipeline_, rasterArgsPipeline_,
+      rasterTilesPipeline_;
   // Compute rasterizer: per-sample depth and id, its work lists and counters (minimal buffers
   // when it is off, so that every descriptor stays valid).
   vk::Buffer visSamples_, rasterTriangles_, rasterJobs_, rasterCounters_;
+  // The surfaces under the pixel centres, for the ambient occlusion (PC_CLIENT_BIND_AO_SURFACES).
+  vk::Buffer aoSurfaces_;
   std::uint32_t rasterTriangleCapacity_ = 0, rasterJobCapacity_ = 0;
   bool rasterDropWarned_ = false;
   void recordComputeRaster(VkCommandBuffer cmd, Slot& slot);

@@ -392,7 +392,7 @@ Status Renderer::createDescriptorSets() {
   const std::uint32_t textures = std::uint32_t(gpuScene_->textureCount());
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2 * kFrameSlots},
-      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 11 * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 12 * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, (8 + textures) * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1 * kFrameSlots}};
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
@@ -461,6 +461,12 @@ Status Renderer::createTargets() {
       vk::MemoryUsage::DeviceLocal);
   if (!vis) return vis.error();
   visSamples_ = std::move(vis).value();
+  // Two vec4s per pixel and view; a placeholder when the occlusion is off.
+  const std::size_t aoBytes = options_.aoRadius > 0.0f ? std::size_t(w) * h * layers * 32 : 32;
+  auto ao = vk::Buffer::create(*ctx_, aoBytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                               vk::MemoryUsage::DeviceLocal);
+  if (!ao) return ao.error();
+  aoSurfaces_ = std::move(ao).value();
   auto rb = vk::Buffer::create(*ctx_, std::size_t(w) * h * layers * (16 + 4),
                                VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::Readback);
   if (!rb) return rb.error();
@@ -495,6 +501,7 @@ Status Renderer::createPipelines() {
       {gpu::PC_CLIENT_BIND_RASTER_TRIANGLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
       {gpu::PC_CLIENT_BIND_RASTER_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
       {gpu::PC_CLIENT_BIND_RASTER_COUNTERS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_AO_SURFACES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
       {gpu::PC_CLIENT_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
       {gpu::PC_CLIENT_BIND_HDR_TEXTURE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
       {gpu::PC_CLIENT_BIND_OVERLAY, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
@@ -529,6 +536,8 @@ Status Renderer::createPipelines() {
   if (!shadowFrag) return shadowFrag.error();
   auto indirect = load("client_indirect.comp.spv");
   if (!indirect) return indirect.error();
+  auto aoSurfaces = load("client_ao_surfaces.comp.spv");
+  if (!aoSurfaces) return aoSurfaces.error();
 
   // Some drawn material is a cut-out (Material::isCutOut): the rasterizers and shadow maps
   // test coverage (client_surface.glsl), and the fixed-function path drops its pre-pass.
@@ -602,6 +611,8 @@ Status Renderer::createPipelines() {
   };
   Status s = computePipeline(indirect->get(), &spec, indirectPipeline_);
   if (!s) return s;
+  s = computePipeline(aoSurfaces->get(), &spec, aoSurfacesPipeline_);
+  if (!s) return s;
   if (computeRaster()) {
     auto raster = load("client_raster.comp.spv");
     if (!raster) return raster.error();
@@ -662,6 +673,7 @@ Status Renderer::writeDescriptors() {
   const VkDescriptorBufferInfo vertices{gpuScene_->vertices(), 0, VK_WHOLE_SIZE};
   const VkDescriptorBufferInfo indices{gpuScene_->indices(), 0, VK_WHOLE_SIZE};
   const VkDescriptorBufferInfo visSamples = visSamples_.descriptor();
+  const VkDescriptorBufferInfo aoSurfacesInfo = aoSurfaces_.descriptor();
   const VkDescriptorBufferInfo rasterTriangles = rasterTriangles_.descriptor();
   const VkDescriptorBufferInfo rasterJobs = rasterJobs_.descriptor();
   const VkDescriptorBufferInfo rasterCounters = rasterCounters_.descriptor();
@@ -712,6 +724,7 @@ Status Renderer::writeDescriptors() {
     buffer(gpu::PC_CLIENT_BIND_RASTER_TRIANGLES, ssbo, &rasterTriangles);
     buffer(gpu::PC_CLIENT_BIND_RASTER_JOBS, ssbo, &rasterJobs);
     buffer(gpu::PC_CLIENT_BIND_RASTER_COUNTERS, ssbo, &rasterCounters);
+    buffer(gpu::PC_CLIENT_BIND_AO_SURFACES, ssbo, &aoSurfacesInfo);
     image(gpu::PC_CLIENT_BIND_IRRADIANCE, cis, &irradiance, 1);
     image(gpu::PC_CLIENT_BIND_DEPTH, cis, &depth, 1);
     image(gpu::PC_CLIENT_BIND_OCCLUSION, cis, &occlusion, 1);

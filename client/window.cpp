@@ -128,6 +128,7 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
     ro.textureMipmaps = config.textureMipmaps;
     ro.shadows = config.shadows;
     ro.sampleFlags = config.sampleFlags;
+    ro.aoRadius = config.aoRadius;
     ro.fieldFadeSeconds = kFieldFadeSeconds;
     auto renderer = Renderer::create(**ctx, *scene, mirror, ro);
     if (!renderer) {

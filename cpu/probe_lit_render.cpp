@@ -9,6 +9,7 @@
 #include "camera.h"
 #include "path_tracer.h"
 #include "render_setup.h"
+#include "screen_ao.h"
 
 namespace pc {
 namespace {
@@ -31,6 +32,12 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
   const Sky& sky = scene.scene().sky;
   const glm::vec3 ambient = sky.ambientIrradiance();
   Image image(width, height);
+  // One occlusion value per pixel, from the surfaces under the pixel centres (what a client's
+  // visibility buffer holds), applied to every primary sample of the pixel as the client does.
+  std::vector<float> ao;
+  if (options.aoRadius > 0.0f && field.desc.cascadeCount > 0)
+    ao = screenAmbientOcclusion(traceViewSurfaces(scene, pinhole, width, height), pinhole, field,
+                                options.aoRadius);
 
   tbb::parallel_for(tbb::blocked_range<int>(0, height, 1), [&](const tbb::blocked_range<int>& r) {
     for (int y = r.begin(); y != r.end(); ++y) {
@@ -54,10 +61,12 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
           // The field's sampler applies its own normal and view biases, so it gets the
           // surface point itself; V points from the surface back toward the camera. Where no
           // probe near the point holds data, the ambient term stands in, as in the client.
-          const glm::vec4 indirect = sampleFieldOrAmbient(field, sp.position, sp.normal, -dir,
-                                                          options.sampleFlags, ambient);
-          const glm::vec3 L = sp.emission + sp.albedo * kInvPi *
-                                                (E + glm::vec3(indirect.x, indirect.y, indirect.z));
+          const glm::vec4 sampled = sampleFieldOrAmbient(field, sp.position, sp.normal, -dir,
+                                                         options.sampleFlags, ambient);
+          glm::vec3 indirect(sampled.x, sampled.y, sampled.z);
+          const float visibility = ao.empty() ? 1.0f : ao[std::size_t(y) * width + x];
+          if (visibility < 1.0f) indirect *= gpu::pcAoMultiBounce(visibility, sp.albedo);
+          const glm::vec3 L = sp.emission + sp.albedo * kInvPi * (E + indirect);
           if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) sum += L;
         }
         image.at(x, y) = sum / float(primary);

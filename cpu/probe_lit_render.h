@@ -1,7 +1,9 @@
 // A camera view lit by a probe field, rendered on the CPU: the image a client would show,
 // computed with the reference's ray tracer instead of a rasterizer, so it isolates the
 // field's own error. Per pixel: jittered primary rays; at the hit, emission + albedo / pi x
-// (direct light with shadow rays + the field's irradiance); escaped rays see the sky.
+// (direct light with shadow rays + the field's irradiance, darkened by screen-space ambient
+// occlusion where the probes are too coarse to see a contact: cpu/screen_ao.h); escaped rays
+// see the sky.
 #pragma once
 
 #include <cstdint>
@@ -12,6 +14,7 @@
 #include "../common/log.h"
 #include "../common/result.h"
 #include "../common/scene.h"
+#include "../shaders/interop/screen_ao.h"
 #include "embree_scene.h"
 #include "lighting.h"
 
@@ -25,6 +28,9 @@ struct ProbeLitOptions {
   std::optional<Camera> explicitCamera;  // used instead of `camera` when set
   double time = 0.0;                     // animation time of the frame
   int sampleFlags = 0;  // passed to sampleField (PC_SAMPLE_NO_VISIBILITY: the naive baseline)
+  // Radius of the ambient occlusion of the indirect light, as a fraction of the probe spacing
+  // (shaders/interop/screen_ao.h); 0: none.
+  float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;
   std::uint64_t seed = 1;
 };
 

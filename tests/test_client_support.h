@@ -68,7 +68,8 @@ inline ClientFrame renderClientFrame(vk::Context& ctx, const Scene& scene, const
                                      const Camera& left, const Camera* right, int width, int height,
                                      ShadowSettings shadows = {},
                                      Rasterizer rasterizer = Rasterizer::Auto,
-                                     bool textureMipmaps = true) {
+                                     bool textureMipmaps = true,
+                                     float aoRadius = gpu::PC_AO_DEFAULT_RADIUS) {
   FieldMirror mirror;
   if (field) mirror.reset(*field, 0.0);
   RendererOptions ro;
@@ -78,6 +79,7 @@ inline ClientFrame renderClientFrame(vk::Context& ctx, const Scene& scene, const
   ro.shadows = shadows;
   ro.rasterizer = rasterizer;
   ro.textureMipmaps = textureMipmaps;
+  ro.aoRadius = aoRadius;
   auto renderer = Renderer::create(ctx, scene, mirror, ro);
   EXPECT_TRUE(renderer.ok()) << (renderer ? "" : renderer.error().message);
   if (!renderer) return {};

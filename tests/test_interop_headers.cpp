@@ -13,6 +13,7 @@
 #include "shaders/interop/pc_interop.h"
 #include "shaders/interop/probe_math.h"
 #include "shaders/interop/probe_update.h"
+#include "shaders/interop/screen_ao.h"
 #include "shaders/interop/shadow_roulette.h"
 #include "shaders/interop/tonemap.h"
 
@@ -28,6 +29,20 @@ inline vec4 pcFetchProbe(const NoField &, int, int) { return vec4(0.0f, 0.0f, 0.
 #define PC_FIELD_PARAM const pc::gpu::NoField &field,
 #define PC_FIELD_ARG field,
 #include "shaders/interop/probe_sampling.h"
+
+// screen_ao_horizons.h reads a surface buffer through hooks as well: an empty buffer (no
+// occluder anywhere) and straight-ahead rays compile it.
+namespace pc::gpu {
+struct NoSurfaces {};
+inline vec4 pcAoSurface(const NoSurfaces &, ivec2) { return vec4(0.0f); }
+inline vec3 pcAoNormal(const NoSurfaces &, ivec2) { return vec3(0.0f, 0.0f, 1.0f); }
+inline vec3 pcAoRay(const NoSurfaces &, vec2 p) {
+  return normalize(vec3(p.x * 0.01f, p.y * 0.01f, -1.0f));
+}
+}  // namespace pc::gpu
+#define PC_AO_PARAM const pc::gpu::NoSurfaces &in,
+#define PC_AO_ARG in,
+#include "shaders/interop/screen_ao_horizons.h"
 
 namespace {
 
@@ -72,6 +87,16 @@ TEST(InteropHeaders, SamplingCompilesAgainstAnyFetch) {
   // No cascade holds data: nothing sampled, and the coverage says so.
   EXPECT_EQ(coverage, 0.0f);
   EXPECT_EQ(s, vec4(0.0f));
+}
+
+// With nothing in the buffer around it a surface is open: visibility 1, whatever its normal.
+TEST(InteropHeaders, OcclusionOfAnEmptyBufferIsNone) {
+  const NoSurfaces none;
+  EXPECT_FLOAT_EQ(
+      pcScreenAo(none, ivec2(10, 10), vec3(0.0f, 0.0f, -2.0f), vec3(0.0f, 0.0f, 1.0f), 0.5f), 1.0f);
+  EXPECT_FLOAT_EQ(pcScreenAo(none, ivec2(10, 10), vec3(0.0f, 0.0f, -2.0f),
+                             normalize(vec3(0.0f, 1.0f, 0.3f)), 0.5f),
+                  1.0f);
 }
 
 }  // namespace

@@ -58,6 +58,11 @@ int main(int argc, char** argv) {
   app.add_option("--camera", camera, "camera index (--render)")->check(CLI::NonNegativeNumber);
   app.add_option("--aa", aa, "primary samples per pixel of the probe-lit render (--render)")
       ->check(CLI::Range(1, 4096));
+  float aoRadius = pc::gpu::PC_AO_DEFAULT_RADIUS;
+  app.add_option("--ao-radius", aoRadius,
+                 "ambient occlusion of the probe-lit render's indirect light (GTAO): radius in "
+                 "probe spacings, 0 off (--render)")
+      ->check(pc::kFinite & CLI::NonNegativeNumber);
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 
   pc::Result<pc::Scene> scene = scenePath == "builtin" ? pc::Result<pc::Scene>(pc::builtinScene())
@@ -158,7 +163,7 @@ int main(int argc, char** argv) {
   }
   pc::ProbeLitOptions lit;
   lit.width = width, lit.height = height, lit.primarySamples = aa, lit.explicitCamera = *cam,
-  lit.time = time;
+  lit.time = time, lit.aoRadius = aoRadius;
   auto t0 = Clock::now();
   pc::Image probeLit;
   {

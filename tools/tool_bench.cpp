@@ -37,7 +37,8 @@ int main(int argc, char** argv) {
   std::vector<pc::bench::Benchmark> benches = {
       pc::bench::addEnergy(app), pc::bench::addTrace(app),  pc::bench::addQuality(app),
       pc::bench::addLeak(app),   pc::bench::addClient(app), pc::bench::addGpuTrace(app),
-      pc::bench::addFaults(app), pc::bench::addStream(app), pc::bench::addLoad(app)};
+      pc::bench::addFaults(app), pc::bench::addStream(app), pc::bench::addLoad(app),
+      pc::bench::addContact(app)};
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   for (auto& b : benches) {
     if (b.command->parsed()) return b.run();

@@ -65,6 +65,9 @@ int main(int argc, char** argv) {
   app.add_option("--area-shadow-size", c.shadows.smallSize, "emitter light shadow maps, texels");
   app.add_option("--area-lights", c.shadows.areaLights, "virtual point lights for emitters");
   app.add_option("--sample-flags", c.sampleFlags, "field sampling flags (1: no visibility)");
+  app.add_option("--ao-radius", c.aoRadius,
+                 "ambient occlusion of the indirect light (GTAO): radius in probe spacings, 0 off")
+      ->check(pc::kFinite & CLI::NonNegativeNumber);
   app.add_option("--ready-file", c.readyFile, "windowed: written after half the frames");
   app.add_option("--test-resize", resize, "windowed: resize the window to WxH after 2 frames");
   // Network mode: the field comes from a server (the baked file stays the fallback).

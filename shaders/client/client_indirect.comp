@@ -4,11 +4,14 @@
 // from the field's cascades. Shading is per sample of the multisampled visibility buffer, but
 // samples covered by the same triangle share the pixel-centre surface point, so each pixel is
 // lit once per distinct triangle it covers (once inside triangles, a few times on edges): the
-// result equals shading every sample, at per-pixel cost.
+// result equals shading every sample, at per-pixel cost. The indirect light is darkened by
+// screen-space ambient occlusion (GTAO, shaders/interop/screen_ao.h) where the probes are too
+// coarse to see a contact: once per pixel, from the surfaces client_ao_surfaces.comp wrote.
 #extension GL_GOOGLE_include_directive : require
 #include "client_common.glsl"
 #include "../interop/probe_math.h"
 #include "client_direct.glsl"
+#include "client_ao_buffer.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(constant_id = 0) const int SAMPLES = 4;
@@ -52,6 +55,29 @@ vec4 pcFetchProbe(int cascade, int slot) {
 }
 #include "../interop/probe_sampling.h"
 
+// Hooks of shaders/interop/screen_ao_horizons.h: the surface buffer and the view's rays.
+#define PC_AO_PARAM int view,
+#define PC_AO_ARG view,
+vec4 pcAoSurface(int view, ivec2 p) {
+  ivec2 size = ivec2(frame.viewport);
+  if (p.x < 0 || p.y < 0 || p.x >= size.x || p.y >= size.y) return vec4(0.0);
+  return aoSurfaces[2u * aoPixelIndex(view, p)];
+}
+vec3 pcAoNormal(int view, ivec2 p) { return aoSurfaces[2u * aoPixelIndex(view, p) + 1u].xyz; }
+vec3 pcAoRay(int view, vec2 pixel) { return normalize(rayUnderPixel(view, pixel)); }
+#include "../interop/screen_ao_horizons.h"
+
+// The pixel's occlusion of the indirect light (1: none), from the surface under its centre.
+float pixelOcclusion(int view, ivec2 p) {
+  if (frame.aoRadius <= 0.0 || frame.fieldPresent == 0) return 1.0;
+  uint i = aoPixelIndex(view, p);
+  vec4 surface = aoSurfaces[2u * i];
+  if (surface.w <= 0.0) return 1.0;
+  vec3 P = surface.xyz;
+  float radius = pcAoRadius(field, frame.views[view].position.xyz + P, frame.aoRadius);
+  return pcScreenAo(view, p, P, aoSurfaces[2u * i + 1u].xyz, radius);
+}
+
 vec3 skyRadiance(vec3 dir) {
   float y = clamp(dir.y, -1.0, 1.0);
   if (y >= 0.0) return mix(frame.skyHorizon.rgb, frame.skyZenith.rgb, y);
@@ -78,6 +104,7 @@ void main() {
   vec3 rayDx = rayUnderPixel(id.z, centre + vec2(1.0, 0.0));
   vec3 rayDy = rayUnderPixel(id.z, centre + vec2(0.0, 1.0));
 
+  float occlusion = pixelOcclusion(id.z, id.xy);
   uint ids[SAMPLES];
   vec3 shaded[SAMPLES];
   vec3 sum = vec3(0.0);
@@ -104,9 +131,10 @@ void main() {
     } else {
       Surface f = surfaceOf(visibility, eye, ray, rayDx, rayDy);
       vec3 V = -ray;
+      vec3 indirect = fieldIrradiance(f.position, f.normal, V);
+      if (occlusion < 1.0) indirect *= pcAoMultiBounce(occlusion, f.albedo);
       shaded[s] = f.emission + f.albedo * (1.0 / PC_PI) *
-                                   (directIrradiance(f.position, f.normal) +
-                                    fieldIrradiance(f.position, f.normal, V));
+                                   (directIrradiance(f.position, f.normal) + indirect);
     }
     sum += shaded[s];
   }

@@ -39,7 +39,10 @@ PC_CONST int PC_CLIENT_BIND_RASTER_TRIANGLES =
 PC_CONST int PC_CLIENT_BIND_RASTER_JOBS =
     19;  // buffer uvec2[]: (RasterTriangle index, tile y << 16 | x)
 PC_CONST int PC_CLIENT_BIND_RASTER_COUNTERS = 20;  // buffer RasterCounters
-PC_CONST int PC_CLIENT_BINDING_COUNT = 21;
+// Ambient occlusion of the indirect light (screen_ao.h), written by client_ao_surfaces.comp:
+PC_CONST int PC_CLIENT_BIND_AO_SURFACES =
+    21;  // buffer vec4[2] per pixel and view: (position - eye, 1 or 0: sky), (normal, 0)
+PC_CONST int PC_CLIENT_BINDING_COUNT = 22;
 
 PC_CONST int PC_MAX_VIEWS = 2;
 
@@ -71,6 +74,11 @@ struct FrameUniforms {
   uint rasterTriangleCapacity;  // RasterTriangle records the compute rasterizer may append
   uint rasterJobCapacity;       // tile jobs it may append
   // -- 400
+  float aoRadius;  // ambient occlusion radius of the indirect light, in probe spacings; 0: off
+  int pad0;
+  int pad1;
+  int pad2;
+  // -- 416
 };
 
 // One draw: an instance of a mesh with its material. Indexed by gl_InstanceIndex (each draw
@@ -167,7 +175,7 @@ PC_END
 
 #ifdef __cplusplus
 static_assert(sizeof(pc::gpu::ClientView) == 144);
-static_assert(sizeof(pc::gpu::FrameUniforms) == 400);
+static_assert(sizeof(pc::gpu::FrameUniforms) == 416);
 static_assert(sizeof(pc::gpu::DrawData) == 192);
 static_assert(sizeof(pc::gpu::FieldWrite) == 16);
 static_assert(sizeof(pc::gpu::RasterTriangle) == 48);

@@ -19,6 +19,12 @@ vec4 pcFetchProbe(int cascade, int slot) { return vec4(0.0f); }
 #include "../../shaders/interop/probe_sampling.h"
 #include "../../shaders/interop/probe_update.h"
 #include "../../shaders/interop/tonemap.h"
+#define PC_AO_PARAM
+#define PC_AO_ARG
+vec4 pcAoSurface(ivec2 p) { return textureLod(depthAtlas, vec2(p) * 0.01f, 0.0f); }
+vec3 pcAoNormal(ivec2 p) { return vec3(0.0f, 0.0f, 1.0f); }
+vec3 pcAoRay(vec2 p) { return normalize(vec3(p * 0.01f, -1.0f)); }
+#include "../../shaders/interop/screen_ao_horizons.h"
 
 void main() {
   uint i = gl_GlobalInvocationID.x;
@@ -28,5 +34,7 @@ void main() {
   float coverage = 0.0f;
   vec4 s = pcSampleField(field, vec3(1.0f), pcOctDecode(uv), vec3(0.0f, 1.0f, 0.0f), PC_SAMPLE_DEFAULT, coverage);
   ivec2 b = pcBorderSource(0, 3, 8);
-  result[i] = vec4(pcTonemap(vec3(s), 1.0f), coverage + float(b.x) + pcIrradianceWeight(d, d));
+  float ao = pcScreenAo(ivec2(i, 0), d, d, pcAoRadius(field, d, PC_AO_DEFAULT_RADIUS));
+  result[i] = vec4(pcTonemap(vec3(s), 1.0f) * pcAoMultiBounce(ao, d),
+                   coverage + float(b.x) + pcIrradianceWeight(d, d));
 }

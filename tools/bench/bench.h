@@ -33,5 +33,6 @@ Benchmark addGpuTrace(CLI::App& app);
 Benchmark addFaults(CLI::App& app);
 Benchmark addStream(CLI::App& app);
 Benchmark addLoad(CLI::App& app);
+Benchmark addContact(CLI::App& app);
 
 }  // namespace pc::bench

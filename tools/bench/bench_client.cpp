@@ -89,6 +89,7 @@ Benchmark addClient(CLI::App& app) {
         client::RendererOptions ro;
         ro.shadows.areaLights = areaLights;
         ro.msaa = msaa;
+        ro.aoRadius = setup.aoRadius;
         ro.depthPrepass = !noPrepass;
         if (auto r = client::parseRasterizer(raster)) {
           ro.rasterizer = *r;
@@ -135,6 +136,7 @@ Benchmark addClient(CLI::App& app) {
           lit.primarySamples = std::max(setup.primarySamples, 8);
           lit.emissiveSamples = setup.emissiveSamples;
           lit.explicitCamera = *camera;
+          lit.aoRadius = setup.aoRadius;
           auto cpu = renderProbeLit(*scene, *field, lit);
           auto reference = cachedReference(*scene, *camera, setup);
           if (!cpu || !reference) {

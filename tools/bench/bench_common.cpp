@@ -21,6 +21,9 @@ void addRenderOptions(CLI::App& cmd, RenderSetup& s) {
   cmd.add_option("--updates", s.updates, "field updates for the bake");
   cmd.add_option("--camera", s.camera, "camera index");
   cmd.add_option("--aa", s.primarySamples, "primary samples per pixel of the probe-lit render");
+  cmd.add_option("--ao-radius", s.aoRadius,
+                 "ambient occlusion radius of the indirect light, in probe spacings (0: off)")
+      ->capture_default_str();
   cmd.add_option("--cache", s.cacheDir, "folder for cached reference renders ('' to disable)");
 }
 
@@ -143,6 +146,7 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
   lit.primarySamples = setup.primarySamples;
   lit.emissiveSamples = setup.emissiveSamples;
   lit.explicitCamera = *camera;
+  lit.aoRadius = setup.aoRadius;
   auto probeLit = renderProbeLit(scene, *field, lit);
   if (!probeLit) return probeLit.error();
   c.probeLit = std::move(probeLit).value();

@@ -11,6 +11,7 @@
 #include "common/image.h"
 #include "common/result.h"
 #include "common/scene.h"
+#include "shaders/interop/screen_ao.h"
 
 namespace pc::bench {
 
@@ -21,6 +22,9 @@ struct RenderSetup {
   int camera = 0;
   int primarySamples = 4;
   int emissiveSamples = 32;
+  // Ambient occlusion radius of the probe-lit render's indirect light, in probe spacings
+  // (ProbeLitOptions::aoRadius); 0: none.
+  float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;
   std::string cacheDir = "build/reference-cache";
 };
 void addRenderOptions(CLI::App& cmd, RenderSetup& setup);
