@@ -30,6 +30,9 @@ struct LinkClass {
   double share = 0;
 };
 
+// "0.5:0.25,1:0.5,10:0.25" (Mbit/s : share of clients), or an Error naming what is wrong.
+Result<std::vector<LinkClass>> parseRateMix(const std::string& text);
+
 struct LoadOptions {
   std::string host = "127.0.0.1";  // an IPv4/IPv6 address or a host name (resolved once)
   std::uint16_t port = 7450;

@@ -1,5 +1,7 @@
 // The load report as JSON and as a table.
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 
 #include "load_generator.h"
@@ -32,6 +34,32 @@ std::string format(const char* fmt, auto... args) {
 }
 
 }  // namespace
+
+Result<std::vector<LinkClass>> parseRateMix(const std::string& text) {
+  std::vector<LinkClass> out;
+  std::size_t at = 0;
+  while (at <= text.size()) {
+    const std::size_t comma = std::min(text.find(',', at), text.size());
+    const std::string item = text.substr(at, comma - at);
+    const std::size_t colon = item.find(':');
+    LinkClass c;
+    char* end = nullptr;
+    const std::string rate = item.substr(0, colon);
+    c.mbit = std::strtod(rate.c_str(), &end);
+    bool ok = colon != std::string::npos && end && *end == 0 && !rate.empty();
+    if (ok) {
+      const std::string share = item.substr(colon + 1);
+      c.share = std::strtod(share.c_str(), &end);
+      ok = end && *end == 0 && !share.empty();
+    }
+    if (!ok || !(c.mbit > 0) || !(c.share > 0) || !std::isfinite(c.mbit) || !std::isfinite(c.share))
+      return Error{"rate mix: '" + item + "' is not MBIT:SHARE with both above 0 (e.g. 1:0.5)"};
+    out.push_back(c);
+    at = comma + 1;
+  }
+  if (out.empty()) return Error{"rate mix: empty"};
+  return out;
+}
 
 std::string reportJson(const LoadReport& r) {
   const LoadOptions& o = r.options;

@@ -13,7 +13,6 @@ constexpr double kSentRecordSeconds = 3.0;
 // Loss is judged over at least this many datagrams: at 0.5 Mbit/s the window holds a dozen,
 // and one loss among them is not 8% loss.
 constexpr std::size_t kMinLossSamples = 20;
-constexpr double kHeavyLoss = 0.4;
 }  // namespace
 
 RateController::RateController(RateControlOptions options) : options_(options) {
@@ -148,11 +147,10 @@ void RateController::decide(double now) {
   const double loss = enoughForLoss ? estimate_.loss : 0.0;
   double& rate = estimate_.rate;
   const double congestive = loss;
-  // Loss with a queue is congestion; so is very heavy loss without one (a router whose queue
-  // is too short to show).
+  // Loss with a queue is congestion. Loss without one is taken as the path's own (radio): a
+  // router whose queue is shorter than lossQueueDelay would go unseen, which is the price.
   const bool congestionLoss =
-      congestive > options_.lossOveruse &&
-      (estimate_.queueDelay > options_.lossQueueDelay || congestive > kHeavyLoss);
+      congestive > options_.lossOveruse && estimate_.queueDelay > options_.lossQueueDelay;
   if (estimate_.queueDelay > options_.queueDelayTarget || congestionLoss) {
     if (now >= holdUntil_) {
       const double arrived = estimate_.delivered > 0 ? estimate_.delivered : rate;

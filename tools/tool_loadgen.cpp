@@ -47,7 +47,21 @@ int main(int argc, char** argv) {
   app.add_option("--seconds", seconds, "measured window, s");
   app.add_option("--json", jsonPath, "write the report as JSON here");
   app.add_option("--seed", o.seed, "random seed (pose phases, session jitter)");
+  std::string rateMix;
+  app.add_option("--rate-mix", rateMix,
+                 "emulated links, MBIT:SHARE,... (e.g. 0.5:0.25,1:0.5,10:0.25; none: loopback)");
+  app.add_option("--link-queue", o.linkQueueSeconds, "emulated links' queue, s at their rate");
+  app.add_option("--min-held-psnr", o.minHeldPsnr, "held field worse than this starves, dB");
+  app.add_option("--max-change-age", o.maxChangeAge, "changes older than this not held starve, s");
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
+  if (!rateMix.empty()) {
+    auto links = pc::load::parseRateMix(rateMix);
+    if (!links) {
+      std::fprintf(stderr, "probecast-loadgen: %s\n", links.error().message.c_str());
+      return 2;
+    }
+    o.links = *links;
+  }
   o.shareDecoding = !decodeEach;
   if (o.token.empty()) {
     if (const char* env = std::getenv("PROBECAST_TOKEN")) o.token = env;

@@ -14,6 +14,7 @@
 // and the clients share this machine's cores; --field-nice lowers the priority of the server's
 // tracing threads (everything but pc-net) so that serving comes first.
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -38,8 +39,9 @@ struct LoadSetup {
   int rays = 64;
   int serverWarmup = 8;
   double starveSeconds = 2.0;
-  std::string server;  // default: probecast-server beside this executable
-  std::string serverLog = "build/load-server.log";
+  std::string server;     // default: probecast-server beside this executable
+  std::string serverLog;  // default: load-server.log in the build folder of the server
+  std::string rateMix;
   std::string json;
   double sessionSeconds = 0;  // churn
   int fieldNice = 10;
@@ -78,6 +80,8 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_option("--server", s.server, "probecast-server executable");
   cmd->add_option("--server-log", s.serverLog, "the server's log");
   cmd->add_option("--json", s.json, "write the last run's loadgen report as JSON here");
+  cmd->add_option("--rate-mix", s.rateMix,
+                  "emulated client links, MBIT:SHARE,... (e.g. 0.5:0.25,1:0.5,10:0.25)");
   return {
       cmd, [] {
         std::vector<load::ServerLoadResult> runs;
@@ -85,7 +89,21 @@ Benchmark addLoad(CLI::App& app) {
           load::ServerLoadOptions o;
           o.serverExecutable =
               s.server.empty() ? load::siblingExecutable("probecast-server") : s.server;
-          o.serverLog = s.serverLog;
+          // Beside the build's bin/ folder by default, wherever the benchmark runs from.
+          o.serverLog =
+              !s.serverLog.empty()
+                  ? s.serverLog
+                  : (std::filesystem::path(o.serverExecutable).parent_path().parent_path() /
+                     "load-server.log")
+                        .string();
+          if (!s.rateMix.empty()) {
+            auto links = load::parseRateMix(s.rateMix);
+            if (!links) {
+              std::fprintf(stderr, "load: %s\n", links.error().message.c_str());
+              return 2;
+            }
+            o.load.links = *links;
+          }
           o.serverArgs = {"--rate",           std::to_string(s.fieldRate),
                           "--rays",           std::to_string(s.rays),
                           "--warmup",         std::to_string(s.serverWarmup),
@@ -174,6 +192,17 @@ Benchmark addLoad(CLI::App& app) {
           figure("process_cpu_ms_per_client_s" + sfx, r.processCpuMsPerClientS, "ms");
           figure("errors" + sfx, double(l.errors), "count");
           figure("starved_clients" + sfx, double(l.starvedClients), "count");
+          figure("held_psnr_db_p5" + sfx, l.all.heldPsnrP5, "dB");
+          figure("oldest_change_s_p95" + sfx, l.all.oldestChangeP95, "s");
+          for (const load::ClassReport& c : l.classes) {
+            char cls[48];
+            std::snprintf(cls, sizeof cls, ".link_%gmbit", c.linkMbit);
+            figure(std::string("starved_clients") + cls + sfx, double(c.starved), "count");
+            figure(std::string("p99_latency_ms") + cls + sfx, c.latencyMs.p99, "ms");
+            figure(std::string("held_psnr_db_p5") + cls + sfx, c.heldPsnrP5, "dB");
+            figure(std::string("oldest_change_s_p95") + cls + sfx, c.oldestChangeP95, "s");
+            figure(std::string("link_drop_share") + cls + sfx, c.linkDropShare, "share");
+          }
           figure("rss_growth_mb" + sfx, r.rssEndMb - r.rssWarmMb, "MB");
           figure("encode_cache_mb" + sfx, r.encodeCacheMb, "MB");
           figure("brick_history_mb" + sfx, r.historyMb, "MB");
