@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/volume_placement.h"
 #include "cpu/path_tracer.h"
 #include "cpu/probe_lit_render.h"
 #include "server/bake.h"
@@ -55,8 +56,9 @@ std::vector<std::string> sharedSceneFiles() {
   return files;
 }
 
-Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, int cascades) {
-  std::vector<ProbeVolume> volumes = scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes;
+Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, int cascades,
+                             bool autoVolumes) {
+  std::vector<ProbeVolume> volumes = sceneVolumes(scene, autoVolumes);
   if (cascades > 1) {
     const ProbeVolume base = volumes.front();
     const glm::vec3 centre = base.origin + 0.5f * base.spacing * glm::vec3(base.counts - 1);
@@ -133,7 +135,7 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
   Comparison c;
   auto camera = sceneCamera(scene, setup.camera);
   if (!camera) return camera.error();
-  auto field = bakeSceneField(scene, setup.updates, &c.bakeSeconds);
+  auto field = bakeSceneField(scene, setup.updates, &c.bakeSeconds, 0, setup.autoVolumes);
   if (!field) return field.error();
   c.probes = field->probeCount();
 

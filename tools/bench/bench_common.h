@@ -22,6 +22,7 @@ struct RenderSetup {
   int primarySamples = 4;
   int emissiveSamples = 32;
   std::string cacheDir = "build/reference-cache";
+  bool autoVolumes = false;  // place cascades from the geometry, ignoring the sidecar's
 };
 void addRenderOptions(CLI::App& cmd, RenderSetup& setup);
 
@@ -40,8 +41,10 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
 // cascades > 1: the first volume plus coarser ones around the same centre, each with twice
 // the spacing of the one before and the same counts (nested cascades, as a camera-centred
 // field would hold).
+// autoVolumes: the cascades placed from the geometry (sceneVolumes) even where the scene has
+// its own.
 Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds = nullptr,
-                             int cascades = 0);
+                             int cascades = 0, bool autoVolumes = false);
 
 // Path-traced reference, from the cache when an identical render is there.
 struct Reference {
