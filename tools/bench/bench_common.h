@@ -32,6 +32,7 @@ struct Comparison {
   double bakeSeconds = 0, referenceSeconds = 0;
   int probes = 0;
   Image probeLit, reference;
+  Field field;  // the baked field the probe-lit image was rendered from
 };
 
 // Bakes the scene's field, renders camera `setup.camera` probe-lit and path traced, compares.
@@ -57,6 +58,9 @@ Result<Reference> cachedReference(const Scene& scene, const Camera& camera,
 // Scene files under the shared scenes folder (one per folder; CornellBox-Original for the
 // McGuire set), for --all.
 std::vector<std::string> sharedSceneFiles();
+// Every .gltf, .glb and .obj file under `dir` (its subfolders too, to a depth of 3, as sample
+// collections nest them), sorted; an error when `dir` is not a readable folder.
+Result<std::vector<std::string>> sceneFilesIn(const std::string& dir);
 std::string sceneSlug(const Scene& scene);
 
 }  // namespace pc::bench
