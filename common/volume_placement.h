@@ -44,7 +44,9 @@ struct VolumePlan {
   int probes = 0;
 };
 // Cascades from the geometry: the finest over the enclosed free space at the suggested
-// spacing (widened until it holds at most `probeBudget` probes), and where the scene reaches
+// spacing (widened until it holds at most `probeBudget` probes; then, at that spacing, over
+// the whole bounds or past the level by up to half its extent, as far as the budget holds),
+// and where the scene reaches
 // past that box, a coarser one at twice the spacing (or more, within a quarter of the budget)
 // over the whole bounds.
 VolumePlan autoVolumes(const Scene& scene, int probeBudget = 16384);
