@@ -12,6 +12,7 @@
 #include "common/image.h"
 #include "common/log.h"
 #include "common/output_path.h"
+#include "common/volume_placement.h"
 #include "cpu/path_tracer.h"
 #include "cpu/probe_lit_render.h"
 #include "protocol/baked_file.h"
@@ -32,7 +33,7 @@ int main(int argc, char** argv) {
   std::string scenePath = "builtin", sidecar, out = "field.probes", renderDir, backend = "embree";
   int updates = 96, rays = 256, width = 480, height = 360, spp = 512, camera = 0, aa = 4;
   double time = 0.0;
-  bool half = false;
+  bool half = false, autoVolumes = false;
   app.add_option("--scene", scenePath, "glTF/OBJ scene, or 'builtin' (a Cornell-style room)");
   app.add_option("--sidecar", sidecar, "scene.json sidecar (lights, cameras, volumes)");
   app.add_option("--backend", backend,
@@ -50,6 +51,8 @@ int main(int argc, char** argv) {
   app.add_option("--time", time, "animation time of the baked state (seconds)")->check(pc::kFinite);
   app.add_option("-o,--out", out, "output .probes file");
   app.add_flag("--half", half, "store irradiance and occlusion as float16");
+  app.add_flag("--auto-volumes", autoVolumes,
+               "place the cascades from the geometry even where the sidecar names volumes");
   app.add_option("--render", renderDir, "also render probe-lit and path-traced images here");
   app.add_option("--width", width, "image width (--render)")->check(CLI::Range(1, 16384));
   app.add_option("--height", height, "image height (--render)")->check(CLI::Range(1, 16384));
@@ -91,8 +94,8 @@ int main(int argc, char** argv) {
 
   pc::FieldSettings settings;
   settings.raysPerProbe = rays;
-  std::vector<pc::ProbeVolume> volumes =
-      scene->volumes.empty() ? pc::defaultVolumes(*scene) : scene->volumes;
+  // Volumes from the sidecar (checked against the geometry), else placed from the geometry.
+  std::vector<pc::ProbeVolume> volumes = pc::sceneVolumes(*scene, autoVolumes);
   pc::Field field = pc::Field::create(volumes, settings);
   field.sceneHash = scene->hash;
   pc::VulkanTracerOptions vulkan;

@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "common/log.h"
+#include "common/volume_placement.h"
 #include "protocol/baked_file.h"
 #include "protocol/stream_tuning.h"
 #include "server/bake.h"
@@ -243,8 +244,7 @@ pc::Status warmUp(pc::Field& field, pc::Tracer& tracer, const pc::Scene& scene,
                   const ServerSetup& s, const Signals& signals, int& interruptedBy) {
   pc::FieldSettings settings;
   settings.raysPerProbe = s.rays;
-  field = pc::Field::create(scene.volumes.empty() ? pc::defaultVolumes(scene) : scene.volumes,
-                            settings);
+  field = pc::Field::create(pc::sceneVolumes(scene), settings);
   field.sceneHash = scene.hash;
   pc::BakeOptions bake;
   bake.updates = s.warmup;

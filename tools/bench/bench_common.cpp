@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/volume_placement.h"
 #include "cpu/path_tracer.h"
 #include "cpu/probe_lit_render.h"
 #include "server/bake.h"
@@ -58,8 +59,27 @@ std::vector<std::string> sharedSceneFiles() {
   return files;
 }
 
-Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, int cascades) {
-  std::vector<ProbeVolume> volumes = scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes;
+Result<std::vector<std::string>> sceneFilesIn(const std::string& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return Error{dir + ": not a folder"};
+  std::vector<std::string> files;
+  fs::recursive_directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec);
+  if (ec) return Error{dir + ": cannot read: " + ec.message()};
+  for (; it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (ec) return Error{dir + ": cannot read: " + ec.message()};
+    if (it.depth() >= 3) it.disable_recursion_pending();
+    std::string ext = it->path().extension().string();
+    for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+    if ((ext == ".glb" || ext == ".gltf" || ext == ".obj") && it->is_regular_file(ec))
+      files.push_back(it->path().string());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, int cascades,
+                             bool autoVolumes) {
+  std::vector<ProbeVolume> volumes = sceneVolumes(scene, autoVolumes);
   if (cascades > 1) {
     const ProbeVolume base = volumes.front();
     const glm::vec3 centre = base.origin + 0.5f * base.spacing * glm::vec3(base.counts - 1);
@@ -136,9 +156,10 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
   Comparison c;
   auto camera = sceneCamera(scene, setup.camera);
   if (!camera) return camera.error();
-  auto field = bakeSceneField(scene, setup.updates, &c.bakeSeconds);
+  auto field = bakeSceneField(scene, setup.updates, &c.bakeSeconds, 0, setup.autoVolumes);
   if (!field) return field.error();
   c.probes = field->probeCount();
+  c.field = std::move(field).value();
 
   ProbeLitOptions lit;
   lit.width = setup.width;
@@ -147,7 +168,7 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
   lit.emissiveSamples = setup.emissiveSamples;
   lit.explicitCamera = *camera;
   lit.aoRadius = setup.aoRadius;
-  auto probeLit = renderProbeLit(scene, *field, lit);
+  auto probeLit = renderProbeLit(scene, c.field, lit);
   if (!probeLit) return probeLit.error();
   c.probeLit = std::move(probeLit).value();
 

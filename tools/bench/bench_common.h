@@ -26,6 +26,7 @@ struct RenderSetup {
   // (ProbeLitOptions::aoRadius); 0: none.
   float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;
   std::string cacheDir = "build/reference-cache";
+  bool autoVolumes = false;  // place cascades from the geometry, ignoring the sidecar's
 };
 void addRenderOptions(CLI::App& cmd, RenderSetup& setup);
 
@@ -35,6 +36,7 @@ struct Comparison {
   double bakeSeconds = 0, referenceSeconds = 0;
   int probes = 0;
   Image probeLit, reference;
+  Field field;  // the baked field the probe-lit image was rendered from
 };
 
 // Bakes the scene's field, renders camera `setup.camera` probe-lit and path traced, compares.
@@ -44,8 +46,10 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
 // cascades > 1: the first volume plus coarser ones around the same centre, each with twice
 // the spacing of the one before and the same counts (nested cascades, as a camera-centred
 // field would hold).
+// autoVolumes: the cascades placed from the geometry (sceneVolumes) even where the scene has
+// its own.
 Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds = nullptr,
-                             int cascades = 0);
+                             int cascades = 0, bool autoVolumes = false);
 
 // Path-traced reference, from the cache when an identical render is there.
 struct Reference {
@@ -58,6 +62,9 @@ Result<Reference> cachedReference(const Scene& scene, const Camera& camera,
 // Scene files under the shared scenes folder (one per folder; CornellBox-Original for the
 // McGuire set), for --all.
 std::vector<std::string> sharedSceneFiles();
+// Every .gltf, .glb and .obj file under `dir` (its subfolders too, to a depth of 3, as sample
+// collections nest them), sorted; an error when `dir` is not a readable folder.
+Result<std::vector<std::string>> sceneFilesIn(const std::string& dir);
 std::string sceneSlug(const Scene& scene);
 
 }  // namespace pc::bench

@@ -13,6 +13,7 @@
 #include "bench.h"
 #include "bench_common.h"
 #include "common/field.h"
+#include "common/volume_placement.h"
 #include "cpu/path_tracer.h"
 #include "cpu/probe_lit_render.h"
 #include "server/bake.h"
@@ -26,7 +27,7 @@ namespace {
 
 // One cascade of n probes per axis spread over the scene's bounds (as bench trace does).
 std::vector<ProbeVolume> volumesFor(const Scene& scene, const std::vector<int>& counts) {
-  if (counts.size() != 3) return scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes;
+  if (counts.size() != 3) return sceneVolumes(scene);
   const glm::vec3 extent = scene.boundsMax - scene.boundsMin;
   const glm::ivec3 n(counts[0], counts[1], counts[2]);
   const float spacing = std::max(extent.x / n.x, std::max(extent.y / n.y, extent.z / n.z));

@@ -5,6 +5,7 @@
 
 #include "bench.h"
 #include "common/field.h"
+#include "common/volume_placement.h"
 #include "server/bake.h"
 #include "server/embree_tracer.h"
 
@@ -33,8 +34,7 @@ Benchmark addTrace(CLI::App& app) {
               std::fprintf(stderr, "trace: %s\n", scene.error().message.c_str());
               return 1;
             }
-            std::vector<ProbeVolume> volumes =
-                scene->volumes.empty() ? defaultVolumes(*scene) : scene->volumes;
+            std::vector<ProbeVolume> volumes = sceneVolumes(*scene);
             if (counts.size() == 3) {
               glm::vec3 extent = scene->boundsMax - scene->boundsMin;
               glm::ivec3 n(counts[0], counts[1], counts[2]);
