@@ -5,7 +5,8 @@
 # then three clients sharing one 2 Mbit/s link. Checks what each client received against its
 # link, that no slow client slows the others, and that the links dropped few datagrams
 # (congestion control: without it a link of 0.5 Mbit/s dropped most of what the server sent).
-# Exits 77 (skipped) where namespaces cannot be made (not root, no ip or tc). Not yet a CTest:
+# Needs root and the iproute2 and jq packages; exits 77 (skipped) where they or namespaces are
+# missing. Not yet a CTest:
 # on real tbf links it still fails its drop and fairness checks (docs/BENCHMARKS.md).
 # Usage: links.sh BUILD_DIR
 set -u
