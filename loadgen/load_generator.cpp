@@ -837,12 +837,10 @@ LoadReport LoadGenerator::report() {
         ages.push_back(float(p.oldestChangeP95));
       }
       drops += p.linkDrops;
+      reached += p.linkDrops + p.datagrams;
       rate += p.rateMbit;
       c.linkMbit = p.linkMbit;
     }
-    reached = drops;
-    for (const ClientReport& p : r.perClient)
-      if (linkClass < -1 || p.linkClass == linkClass) reached += p.datagrams;
     c.latencyMs = percentiles(lat);
     c.kbitPerClient = percentiles(kb);
     // p5 over clients: the worst twentieth's held field.

@@ -92,12 +92,11 @@ void RateController::onArrivals(std::span<const Arrival> arrivals, double now) {
     for (const auto& d : recentDelays_) floor = std::min(floor, d.second);
     estimate_.queueDelay = std::max(0.0, floor - base);
   }
-  settle(now);
+  settle();
   decide(now);
 }
 
-void RateController::settle(double now) {
-  (void)now;
+void RateController::settle() {
   if (!haveNewest_) return;
   // Datagrams sent before the newest one that arrived, by more than the reordering tolerance,
   // and not reported: lost.

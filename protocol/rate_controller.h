@@ -107,7 +107,7 @@ class RateController {
     bool lost;
   };
   double unwrap(std::uint32_t micros);
-  void settle(double now);
+  void settle();
   void decide(double now);
 
   RateControlOptions options_;

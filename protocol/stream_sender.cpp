@@ -105,6 +105,15 @@ double StreamSender::sendRate() const {
                                     : options_.bytesPerSecond;
 }
 
+std::optional<BrickChange> StreamSender::changeOf(int k, int b, std::uint64_t version,
+                                                  std::uint64_t ref) {
+  if (changes_) return changes_->get(publisher_, k, b, version, ref);
+  auto cur = publisher_.find(k, b, version);
+  auto old = publisher_.find(k, b, ref);
+  if (!cur || !old) return std::nullopt;
+  return brickChange(*cur, *old);
+}
+
 double StreamSender::changeAge(Track& t, int k, int b, double now) {
   if (t.acked == 0) return t.pendingSince >= 0 ? now - t.pendingSince : 0.0;
   if (t.changedFor != t.acked || t.changedAt < 0) {
@@ -135,14 +144,7 @@ HeldFieldReport StreamSender::heldField(double now) {
         ++measured;
         continue;
       }
-      std::optional<BrickChange> change;
-      if (changes_) {
-        change = changes_->get(publisher_, k, b, cur.version, t.acked);
-      } else {
-        auto a = publisher_.find(k, b, cur.version);
-        auto h = publisher_.find(k, b, t.acked);
-        if (a && h) change = brickChange(*a, *h);
-      }
+      const std::optional<BrickChange> change = changeOf(k, b, cur.version, t.acked);
       if (!change) {
         ++r.unknownBricks;
         continue;
@@ -306,14 +308,7 @@ Status StreamSender::onRepair(const RepairRequestMsg& repair) {
 bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version,
                                    std::uint64_t ref) {
   if (t.skipVersion == version && t.skipRef == ref && t.skipLevel == level_) return t.skipBelow;
-  std::optional<BrickChange> change;
-  if (changes_) {
-    change = changes_->get(publisher_, k, b, version, ref);
-  } else {
-    auto cur = publisher_.find(k, b, version);
-    auto old = publisher_.find(k, b, ref);
-    if (cur && old) change = brickChange(*cur, *old);
-  }
+  const std::optional<BrickChange> change = changeOf(k, b, version, ref);
   bool below = false;
   Reason reason = Reason::First;  // a version no longer in the history: as if new
   // Each quality level doubles every threshold.

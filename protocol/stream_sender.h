@@ -266,6 +266,9 @@ class StreamSender {
   // Whether the change from `ref` to `version` is below every threshold; if not, t.skipReason
   // names the first threshold it passed.
   bool belowThresholds(Track& t, int k, int b, std::uint64_t version, std::uint64_t ref);
+  // The change from `ref` to `version` (from the shared cache when there is one); nullopt when
+  // either version left the history.
+  std::optional<BrickChange> changeOf(int k, int b, std::uint64_t version, std::uint64_t ref);
   void count(Reason reason);
   double distanceInBricks(int k, int b) const;
   void adjustQuality(double now);

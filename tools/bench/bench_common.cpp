@@ -151,6 +151,17 @@ Result<Reference> cachedReference(const Scene& scene, const Camera& camera,
   return r;
 }
 
+ProbeLitOptions probeLitOptions(const RenderSetup& setup, const Camera& camera) {
+  ProbeLitOptions lit;
+  lit.width = setup.width;
+  lit.height = setup.height;
+  lit.primarySamples = setup.primarySamples;
+  lit.emissiveSamples = setup.emissiveSamples;
+  lit.explicitCamera = camera;
+  lit.aoRadius = setup.aoRadius;
+  return lit;
+}
+
 Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& setup,
                                         const std::string& outDir) {
   Comparison c;
@@ -161,13 +172,7 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
   c.probes = field->probeCount();
   c.field = std::move(field).value();
 
-  ProbeLitOptions lit;
-  lit.width = setup.width;
-  lit.height = setup.height;
-  lit.primarySamples = setup.primarySamples;
-  lit.emissiveSamples = setup.emissiveSamples;
-  lit.explicitCamera = *camera;
-  lit.aoRadius = setup.aoRadius;
+  const ProbeLitOptions lit = probeLitOptions(setup, *camera);
   auto probeLit = renderProbeLit(scene, c.field, lit);
   if (!probeLit) return probeLit.error();
   c.probeLit = std::move(probeLit).value();

@@ -11,6 +11,7 @@
 #include "common/image.h"
 #include "common/result.h"
 #include "common/scene.h"
+#include "cpu/probe_lit_render.h"
 #include "shaders/interop/screen_ao.h"
 
 namespace pc::bench {
@@ -41,6 +42,9 @@ struct Comparison {
 
 // Bakes the scene's field, renders camera `setup.camera` probe-lit and path traced, compares.
 // Writes probe_lit.png/.exr, reference.png/.exr and diff.png into `outDir` when not empty.
+// The probe-lit render's options for `setup` and `camera`: size, samples, contact occlusion.
+ProbeLitOptions probeLitOptions(const RenderSetup& setup, const Camera& camera);
+
 Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& setup,
                                         const std::string& outDir);
 // cascades > 1: the first volume plus coarser ones around the same centre, each with twice

@@ -51,12 +51,7 @@ Benchmark addContact(CLI::App& app) {
             std::printf("%-10s %10s %12s %8s %8s\n", "ao radius", "band |err|", "band signed",
                         "pixels", "PSNR dB");
             for (float radius : {0.0f, setup.aoRadius}) {
-              ProbeLitOptions lit;
-              lit.width = setup.width;
-              lit.height = setup.height;
-              lit.primarySamples = setup.primarySamples;
-              lit.emissiveSamples = setup.emissiveSamples;
-              lit.explicitCamera = *camera;
+              ProbeLitOptions lit = probeLitOptions(setup, *camera);
               lit.aoRadius = radius;
               auto image =
                   renderProbeLit(*cpu->embree, cpu->state, cpu->emissive, *field, *camera, lit);
