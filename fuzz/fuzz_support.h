@@ -3,6 +3,7 @@
 // checks meant for transmission errors (length prefixes, checksums) to the parsing behind them.
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -10,6 +11,8 @@
 
 #include "common/field.h"
 #include "protocol/brick_codec.h"
+#include "protocol/connect_token.h"
+#include "protocol/datagram_seal.h"
 
 namespace pc::fuzz {
 
@@ -67,5 +70,23 @@ inline std::vector<std::uint8_t> withFittedPrefix(const std::uint8_t* data, std:
   }
   return out;
 }
+
+// The token target's verify key and clock, and the sealed datagram target's key and session:
+// fixed, so that the seeds made with them verify and open in every run.
+inline const KeyPair& tokenKeys() {
+  static const KeyPair keys = [] {
+    std::array<std::uint8_t, 32> seed;
+    seed.fill(0x5e);
+    return keyPairFromSeed(seed);
+  }();
+  return keys;
+}
+inline constexpr std::int64_t kTokenNow = 1'800'000'000;
+inline DatagramKey sealKey() {
+  DatagramKey key;
+  for (std::size_t i = 0; i < key.size(); ++i) key[i] = std::uint8_t(0xc0 + i);
+  return key;
+}
+inline constexpr std::uint32_t kSealSession = 17;
 
 }  // namespace pc::fuzz

@@ -1,7 +1,7 @@
 // Writes the seed corpus of the generated targets: small valid inputs made with the encoders,
 // so the seeds follow the wire formats as they change. Usage: make_seeds <dir>; writes
-// <dir>/<target>/<name> for the messages, datagram, brick, baked and session targets (the
-// sidecar seeds are checked-in JSON files).
+// <dir>/<target>/<name> for the messages, datagram, brick, baked, session, token and
+// sealed_datagram targets (the sidecar seeds are checked-in JSON files).
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -13,7 +13,10 @@
 #include "fuzz_support.h"
 #include "protocol/baked_file.h"
 #include "protocol/brick_codec.h"
+#include "protocol/connect_token.h"
 #include "protocol/datagram.h"
+#include "protocol/datagram_seal.h"
+#include "protocol/secure_io.h"
 #include "protocol/session_messages.h"
 
 namespace {
@@ -208,6 +211,82 @@ void sessions() {
               record(3 | 4, {}), record(0, welcome)}));
 }
 
+// Token seeds: a mode byte (see fuzz_token.cpp; 128 = the text as given, scene "sponza", the
+// clock at kTokenNow; 129 = the same with binary claims the target signs), then the token.
+void tokens() {
+  auto issue = [](TokenClaims claims) {
+    Result<std::string> token = issueToken(fuzz::tokenKeys().signing, claims);
+    if (!token) {
+      std::fprintf(stderr, "make_seeds: %s\n", token.error().message.c_str());
+      std::exit(1);
+    }
+    return token.value();
+  };
+  auto asText = [](const std::string& token) {
+    std::vector<std::uint8_t> out{128};
+    out.insert(out.end(), token.begin(), token.end());
+    return out;
+  };
+  // The binary claims of a token: its middle part decoded.
+  auto asClaims = [](const std::string& token) {
+    const std::size_t from = kTokenPrefix.size(), to = token.rfind('.');
+    auto claims = base64UrlDecode(std::string_view(token).substr(from, to - from), 1024);
+    std::vector<std::uint8_t> out{129};
+    out.insert(out.end(), claims->begin(), claims->end());
+    return out;
+  };
+  const std::int64_t now = fuzz::kTokenNow;
+  const std::string any = issue(newTokenClaims("alice", "*", TokenRole::Viewer, 1, now - 10, 3600));
+  const std::string sponza =
+      issue(newTokenClaims("render farm 7", "sponza", TokenRole::Editor, 16, now, 86400));
+  const std::string expired =
+      issue(newTokenClaims("bob", "*", TokenRole::Viewer, 2, now - 7200, 3600));
+  TokenClaims revoked = newTokenClaims("carol", "cornell", TokenRole::Viewer, 1, now, 60);
+  revoked.id.fill(0x0f);
+  const std::string revokedToken = issue(revoked);
+  write("token", "any-scene", asText(any));
+  write("token", "sponza-editor", asText(sponza));
+  write("token", "expired", asText(expired));
+  write("token", "revoked", asText(revokedToken));
+  write("token", "claims-any-scene", asClaims(any));
+  write("token", "claims-sponza-editor", asClaims(sponza));
+  write("token", "claims-revoked", asClaims(revokedToken));
+}
+
+// Sealed datagram seeds: records of fuzz_sealed_datagram.cpp (op, 16-bit length, bytes).
+void sealedDatagrams() {
+  auto record = [](std::uint8_t op, const std::vector<std::uint8_t>& bytes) {
+    std::vector<std::uint8_t> r = {op, std::uint8_t(bytes.size()), std::uint8_t(bytes.size() >> 8)};
+    r.insert(r.end(), bytes.begin(), bytes.end());
+    return r;
+  };
+  // Op 1: the target seals a counter and a plain datagram.
+  auto sealHere = [&](std::uint8_t op, std::uint64_t counter, std::size_t plainBytes) {
+    std::vector<std::uint8_t> bytes;
+    for (int i = 0; i < 8; ++i) bytes.push_back(std::uint8_t(counter >> (8 * i)));
+    for (std::size_t i = 0; i < plainBytes; ++i) bytes.push_back(std::uint8_t(i * 7 + counter));
+    return record(op, bytes);
+  };
+  auto join = [](std::initializer_list<std::vector<std::uint8_t>> parts) {
+    std::vector<std::uint8_t> out;
+    for (const auto& p : parts) out.insert(out.end(), p.begin(), p.end());
+    return out;
+  };
+  write("sealed_datagram", "in-order",
+        join({sealHere(1, 1, 20), sealHere(1, 2, 0), sealHere(1, 3, 200)}));
+  write("sealed_datagram", "reordered-replayed-old",
+        join({sealHere(1, 5, 8), sealHere(1, 3, 8), sealHere(9, 4, 8), sealHere(1, 5, 8),
+              sealHere(1, 3000, 8), sealHere(1, 1977, 8), sealHere(1, 1976, 8)}));
+  write("sealed_datagram", "forged-and-other-session",
+        join({sealHere(1, 1, 16), sealHere(5, 2, 16), sealHere(3, 2, 16), sealHere(1, 2, 16)}));
+  // Op 0: datagrams sealed by a DatagramSealer, opened as they are (the second twice).
+  DatagramSealer sealer(fuzz::sealKey(), fuzz::kSealSession);
+  std::vector<std::uint8_t> a, b;
+  const std::vector<std::uint8_t> plain(100, 0x42);
+  if (!sealer.seal(plain, a) || !sealer.seal(std::span(plain).first(10), b)) std::exit(1);
+  write("sealed_datagram", "as-received", join({record(0, a), record(0, b), record(8, b)}));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -221,6 +300,8 @@ int main(int argc, char** argv) {
   bricks();
   baked();
   sessions();
+  tokens();
+  sealedDatagrams();
   std::printf("make_seeds: %d seeds under %s\n", written, outDir.c_str());
   return 0;
 }
