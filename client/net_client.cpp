@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "common/log.h"
+#include "net/session_stream.h"
 #include "protocol/client_session.h"
 
 namespace pc::client {
@@ -69,7 +70,6 @@ struct NetClient::Impl {
       : mirror(m),
         options(std::move(o)),
         session(sessionOptions(options)),
-        tcpSocket(io),
         udpSocket(io),
         pollTimer(io),
         retryTimer(io),
@@ -77,6 +77,8 @@ struct NetClient::Impl {
 
   // Network thread only.
   void connect();
+  void onConnected(std::uint64_t id);
+  void onHandshake(std::uint64_t id);
   void fail(const std::string& why);
   void readStream();
   void receiveUdp();
@@ -91,7 +93,10 @@ struct NetClient::Impl {
   NetClientOptions options;
   ClientSession session;
   asio::io_context io;
-  tcp::socket tcpSocket;
+  // One stream per connection; every operation on it holds it, so a closed stream outlives
+  // the handlers still to run.
+  std::shared_ptr<net::SessionStream> stream;
+  std::shared_ptr<net::TlsClient> tls;  // TLS settings, parsed once (start())
   udp::socket udpSocket;
   asio::steady_timer pollTimer, retryTimer;
   tcp::resolver resolver;
@@ -127,25 +132,50 @@ void NetClient::Impl::connect() {
     std::lock_guard lock(mutex);
     stats.connectAttempts = session.stats().connectAttempts;
   }
+  if (options.tls && !tls) return fail("TLS is not set up");
+  stream = tls ? std::make_shared<net::SessionStream>(tcp::socket(io), tls->context())
+               : std::make_shared<net::SessionStream>(tcp::socket(io));
+  if (tls) {
+    if (Status s = tls->prepare(*stream->tlsStream(), options.host); !s)
+      return fail(s.error().message);
+  }
   resolver.async_resolve(
       options.host, std::to_string(options.port),
-      [this, id](boost::system::error_code ec, tcp::resolver::results_type results) {
+      [this, id, st = stream](boost::system::error_code ec, tcp::resolver::results_type results) {
         if (id != connection || stopping) return;
         if (ec) return fail("resolve " + options.host + ": " + ec.message());
-        asio::async_connect(
-            tcpSocket, results, [this, id](boost::system::error_code ec2, const tcp::endpoint&) {
-              if (id != connection || stopping) return;
-              if (ec2) return fail("connect: " + ec2.message());
-              tcpOpen = true;
-              boost::system::error_code ignored;
-              tcpSocket.set_option(tcp::no_delay(true), ignored);
-              const std::uint16_t udpPort = options.tcpOnly            ? 0
-                                            : options.udpAdvertisePort ? options.udpAdvertisePort
-                                                                       : udpPortNumber;
-              send(session.connected(netClockSeconds(), udpPort));
-              readStream();
-            });
+        asio::async_connect(st->socket(), results,
+                            [this, id, st](boost::system::error_code ec2, const tcp::endpoint&) {
+                              if (id != connection || stopping) return;
+                              if (ec2) return fail("connect: " + ec2.message());
+                              onConnected(id);
+                            });
       });
+}
+
+void NetClient::Impl::onConnected(std::uint64_t id) {
+  boost::system::error_code ignored;
+  stream->socket().set_option(tcp::no_delay(true), ignored);
+  stream->asyncHandshake(net::ssl::stream_base::client,
+                         [this, id, st = stream](boost::system::error_code ec) {
+                           if (id != connection || stopping) return;
+                           if (ec) return fail("TLS handshake: " + ec.message());
+                           onHandshake(id);
+                         });
+}
+
+void NetClient::Impl::onHandshake(std::uint64_t) {
+  if (stream->tls()) {
+    auto secret = stream->datagramSecret();
+    if (!secret) return fail(secret.error().message);
+    session.setDatagramKey(deriveDatagramKeys(*secret).serverToClient);
+  }
+  tcpOpen = true;
+  const std::uint16_t udpPort = options.tcpOnly            ? 0
+                                : options.udpAdvertisePort ? options.udpAdvertisePort
+                                                           : udpPortNumber;
+  send(session.connected(netClockSeconds(), udpPort));
+  readStream();
 }
 
 // Ends the connection (if any) and tries again after the backoff. The mirror keeps what it
@@ -155,9 +185,7 @@ void NetClient::Impl::fail(const std::string& why) {
   const bool wasConnected = session.receiver() != nullptr;
   // A rejected client keeps trying at the slowest pace: the token may be fixed server-side.
   const bool rejected = session.phase() == SessionPhase::Rejected;
-  boost::system::error_code ec;
-  tcpSocket.shutdown(tcp::socket::shutdown_both, ec);
-  tcpSocket.close(ec);
+  if (stream) stream->close();
   tcpOpen = false;
   session.close();
   writes.clear();
@@ -184,10 +212,15 @@ void NetClient::Impl::fail(const std::string& why) {
 
 void NetClient::Impl::readStream() {
   const std::uint64_t id = connection;
-  tcpSocket.async_read_some(
-      asio::buffer(readBuffer), [this, id](boost::system::error_code ec, std::size_t n) {
+  stream->async_read_some(
+      asio::buffer(readBuffer),
+      [this, id, st = stream](boost::system::error_code ec, std::size_t n) {
         if (id != connection || stopping) return;
-        if (ec) return fail(ec == asio::error::eof ? "connection closed" : "read: " + ec.message());
+        // A server that closes without TLS's close_notify ends the stream "truncated".
+        if (ec) {
+          const bool closed = ec == asio::error::eof || ec == net::ssl::error::stream_truncated;
+          return fail(closed ? "connection closed" : "read: " + ec.message());
+        }
         const double now = netClockSeconds();
         Status status = session.onStreamBytes(std::span(readBuffer.data(), n), now);
         afterInput(now);
@@ -201,7 +234,7 @@ void NetClient::Impl::receiveUdp() {
     if (stopping) return;
     // Errors on a UDP socket (an ICMP unreachable from an earlier send, a truncated read) are
     // per datagram: keep receiving.
-    if (!ec && n <= kMaxDatagramBytes) {
+    if (!ec && n <= kMaxDatagramBytes + kSealOverheadBytes) {
       const double now = netClockSeconds();
       (void)session.onDatagram(std::span(udpBuffer.data(), n), now);
       afterInput(now);
@@ -229,6 +262,7 @@ void NetClient::Impl::afterInput(double now) {
   stats.udpDatagrams = s.udpDatagrams;
   stats.tcpDatagrams = s.tcpDatagrams;
   stats.badDatagrams = s.badDatagrams;
+  stats.unsealedRefused = s.unsealedRefused;
 }
 
 void NetClient::Impl::onLayout(double now) {
@@ -308,7 +342,7 @@ void NetClient::Impl::send(Bytes f) {
 void NetClient::Impl::writeNext() {
   writing = true;
   const std::uint64_t id = connection;
-  auto onWritten = [this, id](boost::system::error_code ec, std::size_t) {
+  auto onWritten = [this, id, st = stream](boost::system::error_code ec, std::size_t) {
     if (id != connection || stopping) return;
     if (ec) return fail("write: " + ec.message());
     queuedBytes -= writes.front().size();
@@ -319,7 +353,7 @@ void NetClient::Impl::writeNext() {
       writeNext();
     }
   };
-  asio::async_write(tcpSocket, asio::buffer(writes.front()), onWritten);
+  asio::async_write(*stream, asio::buffer(writes.front()), onWritten);
 }
 
 NetClient::NetClient(FieldMirror& mirror, NetClientOptions options)
@@ -342,6 +376,18 @@ void NetClient::start() {
     s.udpPortNumber = s.udpSocket.local_endpoint(ec).port();
     s.receiveUdp();
   }
+  if (s.options.tls) {
+    net::TlsClientSettings settings;
+    settings.pinnedFingerprint = s.options.serverFingerprint;
+    settings.caFile = s.options.caFile;
+    auto tls = net::TlsClient::create(settings);
+    if (tls) {
+      s.tls = *tls;
+    } else {
+      // connect() fails with the reason, and the stats say it, until the client stops.
+      logError("TLS: " + tls.error().message);
+    }
+  }
   s.backoff = s.options.backoffInitial;
   s.connect();
   s.schedulePoll();
@@ -356,7 +402,7 @@ void NetClient::stop() {
     boost::system::error_code ec;
     ++s.connection;
     s.resolver.cancel();
-    s.tcpSocket.close(ec);
+    if (s.stream) s.stream->close();
     s.udpSocket.close(ec);
     s.pollTimer.cancel();
     s.retryTimer.cancel();

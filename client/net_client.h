@@ -26,6 +26,12 @@ struct NetClientOptions {
   std::uint16_t port = 7450;
   std::string token;
   std::string name = ClientSessionOptions{}.name;
+  // TLS 1.3 to the server, verified by a pinned certificate fingerprint ("sha256:<hex>") or
+  // else by caFile (or the system's trust store) and the host name. Off only against a
+  // server that runs without TLS too (its datagrams then travel unsealed).
+  bool tls = true;
+  std::string serverFingerprint;
+  std::string caFile;
   bool tcpOnly = false;                // ask for datagrams over TCP
   std::uint16_t udpAdvertisePort = 0;  // port the server should send datagrams to (a relay in
                                        // front of this client); 0: this client's own port
@@ -49,8 +55,9 @@ struct NetClientStats {
   std::uint64_t connectAttempts = 0, sessions = 0, rejects = 0;
   std::uint64_t tcpBytes = 0, udpBytes = 0;  // received
   std::uint64_t udpDatagrams = 0, tcpDatagrams = 0, badDatagrams = 0;
-  std::uint64_t bricksApplied = 0;  // handed to the mirror
-  std::uint64_t layoutResets = 0;   // mirror reset to the server's layout
+  std::uint64_t unsealedRefused = 0;  // UDP datagrams that did not open with the session's key
+  std::uint64_t bricksApplied = 0;    // handed to the mirror
+  std::uint64_t layoutResets = 0;     // mirror reset to the server's layout
   std::uint64_t serverFieldVersion = 0;
   int bricksHeld = 0, bricksTotal = 0;  // this session
   double lastResyncSeconds = -1;        // connect -> every brick held, for the latest session

@@ -32,7 +32,8 @@ std::int64_t slotCount(const SessionInfoMsg& info) {
 
 void useMessage(const SessionMessage& m) {
   if (const auto* hello = std::get_if<HelloMsg>(&m)) {
-    (void)checkHello(*hello, "fuzz-token");
+    static const TokenVerifier verifier({keyPairFromSeed({9}).verify});
+    (void)checkHello(*hello, verifier, "fuzz-scene", 1000);
   } else if (const auto* welcome = std::get_if<WelcomeMsg>(&m)) {
     (void)checkServerVersion(welcome->protocolVersion);
   } else if (const auto* info = std::get_if<SessionInfoMsg>(&m)) {

@@ -15,6 +15,7 @@
 #include <random>
 #include <thread>
 
+#include "net/session_stream.h"
 #include "protocol/client_session.h"
 #include "shared_decoder.h"
 
@@ -79,6 +80,7 @@ struct LoadGenerator::Impl {
 
   LoadOptions options;
   tcp::endpoint endpoint;
+  std::shared_ptr<net::TlsClient> tls;  // shared by every client's connections
   std::unique_ptr<SharedBrickDecoder> decoder;
   std::vector<std::unique_ptr<Worker>> workers;
   bool running = false;
@@ -113,7 +115,8 @@ namespace {
 ClientSessionOptions sessionOptions(const LoadGenerator::Impl& gen, int index) {
   const LoadOptions& o = gen.options;
   ClientSessionOptions s;
-  s.token = o.token;
+  s.token =
+      o.clientTokens.empty() ? o.token : o.clientTokens[std::size_t(index) % o.clientTokens.size()];
   s.name = "loadgen-" + std::to_string(index);
   s.connectTimeout = o.connectTimeout;
   s.silenceTimeout = o.silenceTimeout;
@@ -138,7 +141,6 @@ class Client {
         worker_(worker),
         index_(index),
         session_(sessionOptions(gen, index)),
-        tcp_(worker.io),
         udp_(worker.io),
         rng_(gen.options.seed * 7919 + std::uint64_t(index)),
         nextConnectAt_(firstConnectAt) {
@@ -214,7 +216,8 @@ class Client {
   Worker& worker_;
   int index_;
   ClientSession session_;
-  tcp::socket tcp_;
+  // One stream per session; handlers hold it, so a closed stream outlives them.
+  std::shared_ptr<net::SessionStream> stream_;
   udp::socket udp_;
   std::mt19937_64 rng_;
   double posePhase_ = 0;
@@ -299,23 +302,40 @@ void Client::connect(double now) {
     if (ec) return endSession(now, "UDP socket: " + ec.message());
     receiveUdp();
   }
-  tcp_.async_connect(gen_.endpoint, [this, id, udpPort](boost::system::error_code ec) {
+  stream_ = gen_.tls
+                ? std::make_shared<net::SessionStream>(tcp::socket(worker_.io), gen_.tls->context())
+                : std::make_shared<net::SessionStream>(tcp::socket(worker_.io));
+  if (gen_.tls) {
+    if (Status s = gen_.tls->prepare(*stream_->tlsStream(), o_.host); !s)
+      return endSession(now, s.error().message);
+  }
+  auto onHandshake = [this, id, udpPort, st = stream_](boost::system::error_code ec) {
     if (id != connection_ || worker_.stopping) return;
     const double t = nowSeconds();
-    if (ec) return endSession(t, "connect: " + ec.message());
-    boost::system::error_code ignored;
-    tcp_.set_option(tcp::no_delay(true), ignored);
+    if (ec) return endSession(t, "TLS handshake: " + ec.message());
+    if (st->tls()) {
+      auto secret = st->datagramSecret();
+      if (!secret) return endSession(t, secret.error().message);
+      session_.setDatagramKey(deriveDatagramKeys(*secret).serverToClient);
+    }
     send(session_.connected(t, udpPort));
     readStream();
-  });
+  };
+  stream_->socket().async_connect(
+      gen_.endpoint, [this, id, st = stream_, onHandshake](boost::system::error_code ec) {
+        if (id != connection_ || worker_.stopping) return;
+        if (ec) return endSession(nowSeconds(), "connect: " + ec.message());
+        boost::system::error_code ignored;
+        st->socket().set_option(tcp::no_delay(true), ignored);
+        st->asyncHandshake(net::ssl::stream_base::client, onHandshake);
+      });
 }
 
 // Ends the current session: voluntarily (churn, shutdown) with an empty `error`.
 void Client::endSession(double now, const std::string& error) {
   ++connection_;
   boost::system::error_code ec;
-  tcp_.shutdown(tcp::socket::shutdown_both, ec);
-  tcp_.close(ec);
+  if (stream_) stream_->close();
   udp_.close(ec);
   if (state_ == State::Session) {
     --gen_.inSession;
@@ -349,20 +369,21 @@ void Client::shutdown() {
 
 void Client::readStream() {
   const std::uint64_t id = connection_;
-  tcp_.async_read_some(
-      asio::buffer(readBuffer_), [this, id](boost::system::error_code ec, std::size_t n) {
-        if (id != connection_ || worker_.stopping) return;
-        const double now = nowSeconds();
-        if (ec) {
-          return endSession(now, ec == asio::error::eof ? "connection closed by the server"
-                                                        : "read: " + ec.message());
-        }
-        window_.bytesDown += n;
-        Status status = session_.onStreamBytes(std::span(readBuffer_.data(), n), now);
-        afterInput(now);
-        if (!status) return endSession(now, status.error().message);
-        readStream();
-      });
+  stream_->async_read_some(asio::buffer(readBuffer_), [this, id, st = stream_](
+                                                          boost::system::error_code ec,
+                                                          std::size_t n) {
+    if (id != connection_ || worker_.stopping) return;
+    const double now = nowSeconds();
+    if (ec) {
+      const bool closed = ec == asio::error::eof || ec == net::ssl::error::stream_truncated;
+      return endSession(now, closed ? "connection closed by the server" : "read: " + ec.message());
+    }
+    window_.bytesDown += n;
+    Status status = session_.onStreamBytes(std::span(readBuffer_.data(), n), now);
+    afterInput(now);
+    if (!status) return endSession(now, status.error().message);
+    readStream();
+  });
 }
 
 void Client::receiveUdp() {
@@ -372,7 +393,7 @@ void Client::receiveUdp() {
                        if (id != connection_ || worker_.stopping) return;
                        // Errors on a UDP socket are per datagram (an ICMP error, a truncated read):
                        // keep going.
-                       if (!ec && n <= kMaxDatagramBytes) {
+                       if (!ec && n <= kMaxDatagramBytes + kSealOverheadBytes) {
                          const double now = nowSeconds();
                          if (linkRate_ > 0) {
                            enterLink(std::span(udpBuffer_.data(), n), now);
@@ -581,8 +602,8 @@ void Client::send(Bytes f) {
 void Client::writeNext() {
   writing_ = true;
   const std::uint64_t id = connection_;
-  asio::async_write(tcp_, asio::buffer(writes_.front()),
-                    [this, id](boost::system::error_code ec, std::size_t) {
+  asio::async_write(*stream_, asio::buffer(writes_.front()),
+                    [this, id, st = stream_](boost::system::error_code ec, std::size_t) {
                       if (id != connection_ || worker_.stopping) return;
                       if (ec) return endSession(nowSeconds(), "write: " + ec.message());
                       queuedBytes_ -= writes_.front().size();
@@ -727,6 +748,14 @@ Result<std::unique_ptr<LoadGenerator>> LoadGenerator::create(LoadOptions options
   auto results = resolver.resolve(g.options.host, std::to_string(g.options.port), ec);
   if (ec || results.empty()) return Error{"resolve " + g.options.host + ": " + ec.message()};
   g.endpoint = *results.begin();
+  if (g.options.tls) {
+    net::TlsClientSettings settings;
+    settings.pinnedFingerprint = g.options.serverFingerprint;
+    settings.caFile = g.options.caFile;
+    auto tls = net::TlsClient::create(settings);
+    if (!tls) return Error{"TLS: " + tls.error().message};
+    g.tls = *tls;
+  }
   if (g.options.shareDecoding) g.decoder = std::make_unique<SharedBrickDecoder>();
   for (int t = 0; t < g.options.threads; ++t) g.workers.push_back(std::make_unique<Worker>());
   return std::unique_ptr<LoadGenerator>(new LoadGenerator(std::move(impl)));

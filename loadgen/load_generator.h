@@ -37,6 +37,14 @@ struct LoadOptions {
   std::string host = "127.0.0.1";  // an IPv4/IPv6 address or a host name (resolved once)
   std::uint16_t port = 7450;
   std::string token;
+  // One token per client instead (client i presents clientTokens[i % size]), as real
+  // viewers each hold their own.
+  std::vector<std::string> clientTokens;
+  // TLS as probecast-client does it (NetClientOptions): a pinned fingerprint, or a CA file
+  // (or the system's trust store) and the host name; false only against a server without TLS.
+  bool tls = true;
+  std::string serverFingerprint;
+  std::string caFile;
   int clients = 10;
   int threads = 1;  // network threads shared by all clients
   bool tcpOnly = false;

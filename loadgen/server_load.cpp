@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "proc_stats.h"
+#include "protocol/connect_token.h"
 #include "server_process.h"
 
 namespace pc::load {
@@ -111,11 +112,27 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   ServerProcessOptions sp;
   sp.executable = options.serverExecutable;
   sp.logPath = options.serverLog;
-  const std::string token = options.load.token.empty() ? "loadgen" : options.load.token;
+  // A token issuer of this run: its verify key for the server, one token per client.
+  const KeyPair keys = generateKeyPair();
+  const std::string keyFile = options.serverLog + ".verify-key";
+  if (Status s = writeKeyFile(keyFile, keys.verify); !s) return s.error();
+  std::vector<std::string> tokens;
+  const std::int64_t nowUnix = std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count();
+  for (int i = 0; i < options.load.clients; ++i) {
+    auto token = issueToken(keys.signing, newTokenClaims("loadgen-" + std::to_string(i), "*",
+                                                         TokenRole::Viewer, 1, nowUnix, 86400));
+    if (!token) return token.error();
+    tokens.push_back(*token);
+  }
   auto metricsPort = freeLocalPort();
   if (!metricsPort) return metricsPort.error();
-  sp.args = {"--scene", "builtin", "--bind", "127.0.0.1",      "--port",
-             "0",       "--token", token,    "--metrics-port", std::to_string(*metricsPort)};
+  sp.args = {"--scene", "builtin",     "--bind", "127.0.0.1",      "--port",
+             "0",       "--token-key", keyFile,  "--metrics-port", std::to_string(*metricsPort)};
+  // TLS with a certificate the server makes at start, pinned by the load generator; or
+  // neither (--no-tls) when the load says so, to measure what TLS costs.
+  sp.args.push_back(options.load.tls ? "--dev-self-signed" : "--no-tls");
   sp.args.insert(sp.args.end(), options.serverArgs.begin(), options.serverArgs.end());
   auto server = ServerProcess::start(sp);
   if (!server) return server.error();
@@ -146,7 +163,8 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   LoadOptions lo = options.load;
   lo.host = "127.0.0.1";
   lo.port = (*server)->port();
-  lo.token = token;
+  lo.clientTokens = std::move(tokens);
+  lo.serverFingerprint = (*server)->tlsFingerprint();
   auto generator = LoadGenerator::create(lo);
   if (!generator) return generator.error();
   LoadGenerator& gen = **generator;

@@ -14,9 +14,9 @@ namespace pc::load {
 
 struct ServerLoadOptions {
   std::string serverExecutable;         // probecast-server
-  std::vector<std::string> serverArgs;  // besides --scene builtin, --bind, --port, --token
+  std::vector<std::string> serverArgs;  // besides --scene builtin, --bind, --port, --token-key
   std::string serverLog = "/dev/null";
-  LoadOptions load;            // host, port and token are filled in
+  LoadOptions load;            // host, port, tokens and fingerprint are filled in
   double idleSeconds = 2.0;    // server CPU without clients, measured before they join
   double joinLimit = 60.0;     // s after the ramp for every client to hold every brick
   double warmupSeconds = 2.0;  // after every client is synced

@@ -75,6 +75,11 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerProcessO
     const std::size_t end = at == std::string::npos ? at : out.find('\n', at);
     if (end != std::string::npos) {
       server->port_ = std::uint16_t(std::stoul(out.substr(at + 11, end - at - 11)));
+      // The certificate to pin, printed before the ready line (none without TLS).
+      const std::size_t tls = out.find("tls-fingerprint ");
+      const std::size_t tlsEnd = tls == std::string::npos ? tls : out.find('\n', tls);
+      if (tlsEnd != std::string::npos && tlsEnd < at)
+        server->fingerprint_ = out.substr(tls + 16, tlsEnd - tls - 16);
       return server;
     }
     const double left = deadline - nowSeconds();

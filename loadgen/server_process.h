@@ -17,7 +17,7 @@ namespace pc::load {
 
 struct ServerProcessOptions {
   std::string executable;         // path of probecast-server
-  std::vector<std::string> args;  // should include --port 0 and --token
+  std::vector<std::string> args;  // should include --port 0 and --token-key
   std::string logPath = "/dev/null";
   double readyTimeout = 120.0;  // s for the warm-up bake and the listener
 };
@@ -31,6 +31,8 @@ class ServerProcess {
 
   pid_t pid() const { return pid_; }
   std::uint16_t port() const { return port_; }
+  // The server's TLS certificate fingerprint ("sha256:<hex>"); empty when it runs without TLS.
+  const std::string& tlsFingerprint() const { return fingerprint_; }
   // SIGTERM, then SIGKILL after `timeout` s. The exit status (or an Error naming the signal
   // or a non-zero code). Idempotent.
   Status stop(double timeout = 10.0);
@@ -40,6 +42,7 @@ class ServerProcess {
   pid_t pid_ = -1;
   int stdout_ = -1;
   std::uint16_t port_ = 0;
+  std::string fingerprint_;
   Status exit_;
 };
 

@@ -76,6 +76,9 @@ void ClientSession::close() {
   frame_ = {};  // released: a server may have sent one frame of megabytes
   frameBytes_ = 0;
   early_.clear();
+  earlySealed_.clear();
+  datagramKey_.reset();
+  opener_.reset();
   events_.clear();
   held_.clear();
   changed_.clear();
@@ -155,6 +158,12 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
     sessionId_ = welcome->sessionId;
     phase_ = SessionPhase::AwaitingLayout;
     events_.push_back(SessionEvent{SessionEvent::Kind::Welcomed, {}, {}});
+    if (datagramKey_) {
+      opener_.emplace(*datagramKey_, sessionId_);
+      std::deque<std::vector<std::uint8_t>> early = std::move(earlySealed_);
+      earlySealed_.clear();
+      for (const auto& d : early) (void)openDatagram(d, now);
+    }
     return Status::success();
   }
   // The rest belongs to a session: the Welcome comes first.
@@ -218,8 +227,33 @@ Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now
   ++stats_.udpDatagrams;
   stats_.udpBytes += bytes.size();
   if (!connectedPhase()) return Status::success();  // from no session of this client
+  if (datagramKey_) {
+    if (!opener_) {
+      // Before the Welcome names the session: kept sealed until it does.
+      if (earlySealed_.size() < kMaxEarlyDatagrams) {
+        earlySealed_.emplace_back(bytes.begin(), bytes.end());
+      } else {
+        ++stats_.droppedEarlyDatagrams;
+      }
+      return Status::success();
+    }
+    return openDatagram(bytes, now);
+  }
   lastHeard_ = now;
   return handleDatagram(bytes, now);
+}
+
+Status ClientSession::openDatagram(std::span<const std::uint8_t> sealed, double now) {
+  auto plain = opener_->open(sealed);
+  if (!plain) {
+    ++stats_.unsealedRefused;
+    Status refused = Error{"sealed datagram refused: " + plain.error().message};
+    events_.push_back(SessionEvent{SessionEvent::Kind::Datagram, {}, refused});
+    return refused;
+  }
+  // Only an authentic datagram of this session shows that the server is alive.
+  lastHeard_ = now;
+  return handleDatagram(*plain, now);
 }
 
 Status ClientSession::handleDatagram(std::span<const std::uint8_t> bytes, double now) {

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "common/result.h"
+#include "protocol/datagram_seal.h"
 #include "protocol/session_messages.h"
 #include "protocol/stream_receiver.h"
 
@@ -94,6 +95,9 @@ struct ClientSessionStats {
   std::uint64_t badDatagrams = 0;           // refused by the receiver (or a fragment of them)
   std::uint64_t droppedEarlyDatagrams = 0;  // past kMaxEarlyDatagrams before SessionInfo
   std::uint64_t streamReports = 0;
+  // UDP datagrams that failed to open with the session's key (forged, corrupted, replayed,
+  // or for another session): dropped, and never taken as a sign of the server's life.
+  std::uint64_t unsealedRefused = 0;
 };
 
 // The server's animation clock as a client sees it: the latest scene state's time, run on at
@@ -116,6 +120,10 @@ class ClientSession {
   // The caller starts opening a connection; the connect timeout runs from here. Ends whatever
   // session there was.
   void connecting(double now);
+  // The key that opens this connection's UDP datagrams (from its TLS session,
+  // deriveDatagramKeys), set after connecting() and before connected(). Without one (a
+  // connection without TLS) datagrams are taken unsealed.
+  void setDatagramKey(const DatagramKey& key) { datagramKey_ = key; }
   // The connection is open: the Hello frame, to send before anything else. udpPort 0 asks for
   // datagrams over the TCP stream.
   std::vector<std::uint8_t> connected(double now, std::uint16_t udpPort);
@@ -171,6 +179,7 @@ class ClientSession {
   Status onMessage(SessionMessage& message, double now);
   Status onSessionInfo(const SessionInfoMsg& info, double now);
   Status handleDatagram(std::span<const std::uint8_t> bytes, double now);
+  Status openDatagram(std::span<const std::uint8_t> sealed, double now);
   void collectChanges(double now);
   bool connectedPhase() const;
 
@@ -184,6 +193,11 @@ class ClientSession {
   std::vector<std::uint8_t> frame_;  // the TCP frame being read, prefix first
   std::size_t frameBytes_ = 0;       // its whole size, once the prefix is in
   std::deque<std::vector<std::uint8_t>> early_;
+  // Sealed datagrams: the key of this connection, its opener once the Welcome names the
+  // session, and sealed datagrams that came before the Welcome.
+  std::optional<DatagramKey> datagramKey_;
+  std::optional<DatagramOpener> opener_;
+  std::deque<std::vector<std::uint8_t>> earlySealed_;
   std::vector<SessionEvent> events_;
   // Per brick: held at any version this session; changed since takeChangedBricks.
   std::vector<std::vector<bool>> held_, changed_;

@@ -403,24 +403,31 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
   return fail("unknown message type " + std::to_string(int(root->body_type())));
 }
 
-std::optional<RejectMsg> checkHello(const HelloMsg& hello, std::string_view expectedToken) {
+HelloVerdict checkHello(const HelloMsg& hello, const TokenVerifier& verifier,
+                        std::string_view scene, std::int64_t nowUnix) {
+  HelloVerdict verdict;
   if (hello.protocolVersion < kMinProtocolVersion || hello.protocolVersion > kProtocolVersion) {
-    return RejectMsg{kProtocolVersion, "protocol version " + std::to_string(hello.protocolVersion) +
-                                           " is not supported (this server speaks " +
-                                           std::to_string(kMinProtocolVersion) + ".." +
-                                           std::to_string(kProtocolVersion) + ")"};
+    verdict.versionMismatch = true;
+    verdict.reject =
+        RejectMsg{kProtocolVersion, "protocol version " + std::to_string(hello.protocolVersion) +
+                                        " is not supported (this server speaks " +
+                                        std::to_string(kMinProtocolVersion) + ".." +
+                                        std::to_string(kProtocolVersion) + ")"};
+    return verdict;
   }
-  // Constant time over the longer of the two, so timing does not reveal a matching prefix.
-  const std::string& got = hello.authToken;
-  const std::size_t n = std::max(got.size(), expectedToken.size());
-  unsigned diff = got.size() == expectedToken.size() ? 0u : 1u;
-  for (std::size_t i = 0; i < n; ++i) {
-    const unsigned a = i < got.size() ? static_cast<unsigned char>(got[i]) : 0u;
-    const unsigned b = i < expectedToken.size() ? static_cast<unsigned char>(expectedToken[i]) : 0u;
-    diff |= a ^ b;
+  // A signature check, not a comparison with a secret: nothing to learn from its timing. The
+  // client learns the cause (an expired token is worth renewing, a forged one is not), never
+  // more than the cause's name.
+  TokenError cause{};
+  auto claims = verifier.verify(hello.authToken, scene, nowUnix, &cause);
+  if (!claims) {
+    verdict.tokenError = cause;
+    verdict.reject =
+        RejectMsg{kProtocolVersion, "authentication failed: " + std::string(tokenErrorName(cause))};
+    return verdict;
   }
-  if (diff != 0) return RejectMsg{kProtocolVersion, "authentication failed"};
-  return std::nullopt;
+  verdict.claims = std::move(claims).value();
+  return verdict;
 }
 
 Status checkServerVersion(std::uint32_t serverVersion) {

@@ -17,6 +17,7 @@
 #include "common/field.h"
 #include "common/result.h"
 #include "common/scene.h"
+#include "protocol/connect_token.h"
 #include "protocol/stream_limits.h"
 
 namespace pc {
@@ -154,9 +155,17 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame);
 // when it announces more than kMaxSessionMessageBytes.
 Result<std::size_t> messageFrameSize(std::span<const std::uint8_t> prefix);
 
-// Server side of the handshake: a Reject with a reason, or nothing when the Hello may proceed.
-// The token comparison takes the same time wherever the tokens differ.
-std::optional<RejectMsg> checkHello(const HelloMsg& hello, std::string_view expectedToken);
+// Server side of the handshake: the client's protocol version, then its connect token
+// (connect_token.h), verified for `scene` at `nowUnix`. Nothing in `reject` admits the client
+// with the token's claims.
+struct HelloVerdict {
+  std::optional<RejectMsg> reject;
+  bool versionMismatch = false;          // rejected for its protocol version
+  std::optional<TokenError> tokenError;  // rejected for its token, and why
+  TokenClaims claims;                    // the admitted client's
+};
+HelloVerdict checkHello(const HelloMsg& hello, const TokenVerifier& verifier,
+                        std::string_view scene, std::int64_t nowUnix);
 // Client side: an Error when the server's protocol version is one this client cannot speak.
 Status checkServerVersion(std::uint32_t serverVersion);
 

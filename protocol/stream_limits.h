@@ -13,8 +13,11 @@ namespace pc {
 // would misread its payloads, so they are not served.
 // Version 3: acks report datagram arrivals (congestion control) and the server sends
 // StreamReport; a version 2 client gets neither, at the server's fixed rate.
-inline constexpr std::uint32_t kProtocolVersion = 3;
-inline constexpr std::uint32_t kMinProtocolVersion = 2;
+// Version 4: the session runs over TLS 1.3, UDP datagrams are sealed with keys exported from
+// it (datagram_seal.h), and the Hello carries a signed connect token (connect_token.h).
+// Older clients speak none of it, so they are not served.
+inline constexpr std::uint32_t kProtocolVersion = 4;
+inline constexpr std::uint32_t kMinProtocolVersion = 4;
 // The first version whose clients report arrivals and take StreamReport.
 inline constexpr std::uint32_t kCongestionControlVersion = 3;
 

@@ -42,6 +42,8 @@ const char* causeName(DisconnectCause cause) {
       return "invalid";
     case DisconnectCause::Flood:
       return "flood";
+    case DisconnectCause::TlsHandshake:
+      return "tls_handshake";
     case DisconnectCause::Rejected:
       return "rejected";
     case DisconnectCause::TooManyPending:
@@ -113,7 +115,10 @@ void NetServer::Impl::onAccepted(tcp::socket socket) {
     return;
   }
   const std::uint32_t id = nextSessionId++;
-  auto session = std::make_shared<Session>(*this, std::move(socket), id);
+  auto session = std::make_shared<Session>(
+      *this,
+      tls ? net::SessionStream(std::move(socket), *tls) : net::SessionStream(std::move(socket)),
+      id);
   sessions[id] = session;
   ++totals.accepted;
   session->start();
@@ -129,6 +134,19 @@ void NetServer::Impl::schedulePoll() {
   });
 }
 
+// An operator revokes a token by editing the list: read again within a second of a change.
+void NetServer::Impl::reloadRevocations(double now) {
+  if (options.revocationFile.empty() || now - revocationsCheckedAt < 1.0) return;
+  revocationsCheckedAt = now;
+  auto changed = verifier.reloadRevocations();
+  if (!changed) {
+    logWarn("revocation list: " + changed.error().message + " (the ids read before stay revoked)");
+  } else if (*changed) {
+    logInfo("revocation list " + options.revocationFile +
+            " read again: " + std::to_string(verifier.revokedCount()) + " tokens revoked");
+  }
+}
+
 void NetServer::Impl::poll() {
   // The datagrams of one slice of the sessions are built under the hub lock, then sent, before
   // the next slice is polled: what a poll holds at once stays near kPollSliceBytes (plus one
@@ -138,6 +156,7 @@ void NetServer::Impl::poll() {
   // the heap kept that high-water mark, and the server's RSS stepped up every 30 s.
   constexpr std::size_t kPollSliceBytes = 2u << 20;
   const double now = steadySeconds();
+  reloadRevocations(now);
   // Copies: a session may close (and leave the map) while sending.
   std::vector<std::shared_ptr<Session>> list;
   for (auto& [id, s] : sessions) list.push_back(s);
@@ -285,6 +304,11 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
     m.counter("probecast_sessions_rejected_total", "Hellos answered with a Reject, by cause.",
               double(s.rejects[c]), {{"cause", causeName(RejectCause(c))}});
   }
+  for (std::size_t c = 0; c < kTokenErrorCount; ++c) {
+    m.counter("probecast_token_rejections_total",
+              "Hellos rejected for their connect token, by cause.", double(s.tokenRejects[c]),
+              {{"cause", std::string(tokenErrorName(TokenError(c)))}});
+  }
   for (std::size_t c = 0; c < kDisconnectCauses; ++c) {
     m.counter("probecast_disconnects_total", "Connections ended, by cause.",
               double(s.disconnects[c]), {{"cause", causeName(DisconnectCause(c))}});
@@ -399,6 +423,26 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
                  std::to_string(s.maxMessageBytes) + " bytes) per second"};
   }
 
+  if (s.options.tokenKeys.empty())
+    return Error{"no token verify key: clients could not authenticate (see probecast-token)"};
+  for (const VerifyKey& key : s.options.tokenKeys) s.verifier.addKey(key);
+  if (!s.options.revocationFile.empty()) {
+    if (Status st = s.verifier.loadRevocations(s.options.revocationFile); !st)
+      return Error{"revocation list: " + st.error().message};
+  }
+
+  if (s.options.tls.enabled) {
+    net::TlsServerSettings settings;
+    settings.certificateFile = s.options.tls.certificateFile;
+    settings.keyFile = s.options.tls.keyFile;
+    settings.devSelfSigned = s.options.tls.devSelfSigned;
+    settings.devCertificateOut = s.options.tls.devCertificateOut;
+    auto tls = net::makeTlsServer(settings);
+    if (!tls) return Error{"TLS: " + tls.error().message};
+    s.tls = std::move(tls->context);
+    s.tlsFingerprint = tls->fingerprint;
+  }
+
   if (s.options.metricsPort) {
     MetricsHttpOptions mo;
     mo.bindAddress =
@@ -443,6 +487,8 @@ void NetServer::stop() {
 }
 
 std::uint16_t NetServer::port() const { return impl_->tcpPort; }
+const std::string& NetServer::tlsFingerprint() const { return impl_->tlsFingerprint; }
+
 std::uint16_t NetServer::udpPort() const { return impl_->udpPortNumber; }
 
 std::uint16_t NetServer::metricsPort() const { return impl_->metrics ? impl_->metrics->port() : 0; }

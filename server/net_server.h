@@ -39,6 +39,7 @@ enum class DisconnectCause {
   Invalid,         // decodes, but names bricks outside the field or more bricks than it holds
   Flood,           // more messages or bytes per second than the caps allow
   Rejected,        // the handshake was refused (see RejectCause); the Reject was written
+  TlsHandshake,    // the TLS handshake failed (not TLS, no common cipher, a bad certificate)
   TooManyPending,  // accepted over maxPendingConnections: closed at once
   Shutdown,        // the server stopped
 };
@@ -50,11 +51,27 @@ enum class RejectCause { Auth, Version, ServerFull };
 inline constexpr std::size_t kRejectCauses = std::size_t(RejectCause::ServerFull) + 1;
 const char* causeName(RejectCause cause);
 
+// TLS 1.3 on every session stream (net/tls_context.h); the datagram keys come from it. Off
+// only where both ends are told so (benchmarks of its cost, a trusted loopback): then
+// datagrams travel unsealed too.
+struct ServerTlsOptions {
+  bool enabled = true;
+  std::string certificateFile, keyFile;  // PEM
+  bool devSelfSigned = false;            // a certificate made at start (tests, development)
+  std::string devCertificateOut;         // where to write it as PEM, for clients' --ca-file
+};
+
 struct NetServerOptions {
   std::string bindAddress = "0.0.0.0";
   std::uint16_t port = 7450;  // TCP; 0 picks a free one (see NetServer::port)
-  std::string token;          // shared secret every Hello must carry
-  bool tcpOnly = false;       // datagrams framed over TCP for every client
+  // Connect tokens (protocol/connect_token.h): a Hello must carry a token signed by one of
+  // these verify keys, not expired, not on the revocation list (re-read while serving when
+  // the file changes), naming sceneName or any scene.
+  std::vector<VerifyKey> tokenKeys;
+  std::string revocationFile;
+  std::string sceneName = "builtin";
+  ServerTlsOptions tls;
+  bool tcpOnly = false;  // datagrams framed over TCP for every client
   // Per-client send rate: sender.bytesPerSecond (token bucket, datagram bytes).
   SenderOptions sender;
   // Sessions past the handshake; a Hello beyond this gets a Reject ("server full").
@@ -112,6 +129,8 @@ struct NetServerStats {
   std::uint64_t rejected = 0;      // Hellos answered with a Reject (sum of rejects)
   std::uint64_t disconnected = 0;  // connections ended (sum of disconnects)
   std::array<std::uint64_t, kRejectCauses> rejects{};
+  // Hellos rejected for their connect token, by TokenError (in rejects as Auth too).
+  std::array<std::uint64_t, kTokenErrorCount> tokenRejects{};
   std::array<std::uint64_t, kDisconnectCauses> disconnects{};
   // Messages refused (each ends its session), by the cause it was disconnected with.
   std::array<std::uint64_t, kDisconnectCauses> rejectedMessages{};
@@ -156,6 +175,8 @@ class NetServer {
   void stop();
   std::uint16_t port() const;
   std::uint16_t udpPort() const;
+  // "sha256:<hex>" of the server's TLS certificate, for clients to pin; empty without TLS.
+  const std::string& tlsFingerprint() const;
   // The metrics endpoint's port; 0 without one.
   std::uint16_t metricsPort() const;
   NetServerStats stats() const;

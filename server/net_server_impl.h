@@ -12,6 +12,7 @@
 #include <thread>
 #include <vector>
 
+#include "net/tls_context.h"
 #include "net_server.h"
 
 namespace pc {
@@ -46,6 +47,12 @@ struct NetServer::Impl {
   tcp::acceptor acceptor;
   udp::socket udpSocket;
   asio::steady_timer pollTimer;
+  // TLS for every session stream, unless options.tls.enabled is false.
+  std::unique_ptr<net::ssl::context> tls;
+  std::string tlsFingerprint;
+  TokenVerifier verifier;
+  double revocationsCheckedAt = 0;
+  void reloadRevocations(double now);
   std::thread thread;
   bool stopped = false;
   // Perceptual comparisons shared by every session's sender (used under the hub lock).

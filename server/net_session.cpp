@@ -1,5 +1,6 @@
 #include "net_session.h"
 
+#include <chrono>
 #include <variant>
 
 #include "common/log.h"
@@ -19,6 +20,14 @@ std::uint32_t readLittleEndian32(const std::array<std::uint8_t, kFramePrefixByte
          std::uint32_t(b[3]) << 24;
 }
 
+// A client that closes its TCP connection without TLS's close_notify ends the stream
+// "truncated": for a session (whose messages are framed) that is an ordinary close.
+std::string readFailure(boost::system::error_code ec) {
+  if (ec == asio::error::eof || ec == net::ssl::error::stream_truncated)
+    return "connection closed by the client";
+  return "read failed: " + ec.message();
+}
+
 // Causes that a client brings on itself: logged as warnings.
 bool misbehaviour(DisconnectCause c) {
   switch (c) {
@@ -33,14 +42,14 @@ bool misbehaviour(DisconnectCause c) {
 
 }  // namespace
 
-Session::Session(NetServer::Impl& server, tcp::socket socket, std::uint32_t id)
-    : server_(server), socket_(std::move(socket)), id_(id) {
+Session::Session(NetServer::Impl& server, net::SessionStream stream, std::uint32_t id)
+    : server_(server), stream_(std::move(stream)), id_(id) {
   boost::system::error_code ec;
-  auto remote = socket_.remote_endpoint(ec);
+  auto remote = stream_.socket().remote_endpoint(ec);
   peer_ =
       ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
   acceptedAt_ = lastHeard_ = steadySeconds();
-  socket_.set_option(tcp::no_delay(true), ec);
+  stream_.socket().set_option(tcp::no_delay(true), ec);
   // Flood limits; before the Hello the prefix check allows one small frame anyway.
   messageBucket_.init(server_.options.maxMessagesPerSecond, server_.options.maxMessagesPerSecond,
                       acceptedAt_);
@@ -57,9 +66,7 @@ void Session::close(DisconnectCause cause, const std::string& detail) {
             {"cause", causeName(cause)},
             {"detail", detail},
             {"seconds", steadySeconds() - acceptedAt_}});
-  boost::system::error_code ec;
-  socket_.shutdown(tcp::socket::shutdown_both, ec);
-  socket_.close(ec);
+  stream_.close();
   server_.hub.removeViewer(id_);
   server_.remove(id_, cause);
   // After remove(): it counts this session as established while sender_ is set.
@@ -108,7 +115,15 @@ void Session::send(double now, std::vector<Bytes> datagrams, const SharedBytes& 
   for (Bytes& d : datagrams) {
     if (closed_) return;
     if (udpTarget_) {
-      // Sent with every other session's datagrams of this poll (Impl::flushUdp).
+      // Sent with every other session's datagrams of this poll (Impl::flushUdp), sealed with
+      // this session's key: nobody else can read them, nor write into this session.
+      if (sealer_) {
+        Bytes sealed;
+        sealed.reserve(d.size() + kSealOverheadBytes);
+        if (Status s = sealer_->seal(d, sealed); !s)
+          return close(DisconnectCause::Shutdown, "datagram keys used up: " + s.error().message);
+        d = std::move(sealed);
+      }
       server_.udpBatch.push_back({this, *udpTarget_, std::move(d)});
       continue;
     }
@@ -160,19 +175,35 @@ NetClientInfo Session::info(double now) const {
   return c;
 }
 
+void Session::start() {
+  auto self = shared_from_this();
+  stream_.asyncHandshake(net::ssl::stream_base::server,
+                         [self](boost::system::error_code ec) { self->onHandshake(ec); });
+}
+
+void Session::onHandshake(boost::system::error_code ec) {
+  if (closed_) return;
+  if (ec) {
+    ++server_.totals.rejectedMessages[std::size_t(DisconnectCause::TlsHandshake)];
+    return close(DisconnectCause::TlsHandshake, ec.message());
+  }
+  if (stream_.tls()) {
+    auto secret = stream_.datagramSecret();
+    if (!secret) return close(DisconnectCause::TlsHandshake, secret.error().message);
+    sealer_.emplace(deriveDatagramKeys(*secret).serverToClient, id_);
+  }
+  readPrefix();
+}
+
 void Session::readPrefix() {
   auto self = shared_from_this();
-  asio::async_read(socket_, asio::buffer(prefix_),
+  asio::async_read(stream_, asio::buffer(prefix_),
                    [self](boost::system::error_code ec, std::size_t) { self->onPrefix(ec); });
 }
 
 void Session::onPrefix(boost::system::error_code ec) {
   if (closed_) return;
-  if (ec) {
-    return close(DisconnectCause::ClientClosed, ec == asio::error::eof
-                                                    ? "connection closed by the client"
-                                                    : "read failed: " + ec.message());
-  }
+  if (ec) return close(DisconnectCause::ClientClosed, readFailure(ec));
   // Every check on the prefix alone, before the frame's buffer is allocated.
   const std::size_t limit = sender_ ? server_.maxMessageBytes : kMaxHelloFrameBytes;
   const std::size_t announced = readLittleEndian32(prefix_) + kFramePrefixBytes;
@@ -197,14 +228,14 @@ void Session::onPrefix(boost::system::error_code ec) {
   frame_.assign(prefix_.begin(), prefix_.end());
   frame_.resize(*size);
   auto self = shared_from_this();
-  asio::async_read(socket_,
+  asio::async_read(stream_,
                    asio::buffer(frame_.data() + kFramePrefixBytes, *size - kFramePrefixBytes),
                    [self](boost::system::error_code ec2, std::size_t) { self->onFrame(ec2); });
 }
 
 void Session::onFrame(boost::system::error_code ec) {
   if (closed_) return;
-  if (ec) return close(DisconnectCause::ClientClosed, "read failed: " + ec.message());
+  if (ec) return close(DisconnectCause::ClientClosed, readFailure(ec));
   bytesReceived_ += frame_.size();
   ++messagesReceived_;
   lastHeard_ = steadySeconds();
@@ -284,13 +315,13 @@ std::optional<std::string> Session::checkSize(const SessionMessage& message) con
 
 bool Session::onHello(const HelloMsg& hello) {
   name_ = hello.clientName.substr(0, 64);
-  std::optional<RejectMsg> reject = checkHello(hello, server_.options.token);
-  RejectCause cause = RejectCause::Auth;
-  if (reject) {
-    const bool versionOk =
-        hello.protocolVersion >= kMinProtocolVersion && hello.protocolVersion <= kProtocolVersion;
-    cause = versionOk ? RejectCause::Auth : RejectCause::Version;
-  } else if (server_.established >= server_.options.maxClients) {
+  const std::int64_t nowUnix = std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count();
+  HelloVerdict verdict = checkHello(hello, server_.verifier, server_.options.sceneName, nowUnix);
+  std::optional<RejectMsg> reject = std::move(verdict.reject);
+  RejectCause cause = verdict.versionMismatch ? RejectCause::Version : RejectCause::Auth;
+  if (!reject && server_.established >= server_.options.maxClients) {
     reject = RejectMsg{kProtocolVersion, "server full: " + std::to_string(server_.established) +
                                              " clients connected, the cap is " +
                                              std::to_string(server_.options.maxClients)};
@@ -305,17 +336,22 @@ bool Session::onHello(const HelloMsg& hello) {
               {"reason", reject->reason}});
     ++server_.totals.rejected;
     ++server_.totals.rejects[std::size_t(cause)];
+    if (verdict.tokenError) ++server_.totals.tokenRejects[std::size_t(*verdict.tokenError)];
     // Nothing but the Reject goes out; the connection closes once it is written.
     closeAfterFlush_ = true;
     enqueue(share(encodeMessage(*reject)));
     return false;
   }
+  // The token names the client: what is logged and counted is the token's name and id, not
+  // what the client chose to call itself.
+  claims_ = std::move(verdict.claims);
+  name_ = claims_.client;
   const bool useUdp = !server_.options.tcpOnly && hello.wantsUdp && hello.udpPort != 0;
   if (useUdp) {
     boost::system::error_code ec;
     // Datagrams go only to the address the session came from: a client cannot aim the
     // server at a third party.
-    udpTarget_ = udp::endpoint(socket_.remote_endpoint(ec).address(), hello.udpPort);
+    udpTarget_ = udp::endpoint(stream_.socket().remote_endpoint(ec).address(), hello.udpPort);
     if (ec) {
       close(DisconnectCause::ClientClosed, "no remote address: " + ec.message());
       return false;
@@ -341,6 +377,8 @@ bool Session::onHello(const HelloMsg& hello) {
            {{"session", id_},
             {"peer", peer_},
             {"name", name_},
+            {"token", tokenIdHex(claims_.id)},
+            {"role", std::string(tokenRoleName(claims_.role))},
             {"transport", useUdp ? "udp" : "tcp"},
             {"udp_port", useUdp ? int(hello.udpPort) : 0}});
   enqueue(share(encodeMessage(WelcomeMsg{kProtocolVersion, id_})));
@@ -366,7 +404,7 @@ void Session::writeNext() {
   writeStartedAt_ = steadySeconds();
   auto self = shared_from_this();
   asio::async_write(
-      socket_, asio::buffer(*writes_.front()),
+      stream_, asio::buffer(*writes_.front()),
       [self](boost::system::error_code ec, std::size_t n) { self->onWritten(ec, n); });
 }
 

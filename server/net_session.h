@@ -7,7 +7,9 @@
 #include <optional>
 #include <string>
 
+#include "net/session_stream.h"
 #include "net_server_impl.h"
+#include "protocol/datagram_seal.h"
 #include "protocol/net_framing.h"
 #include "protocol/session_messages.h"
 
@@ -37,9 +39,10 @@ struct Bucket {
 // shared_ptr so it outlives any operation still in flight after close().
 class Session : public std::enable_shared_from_this<Session> {
  public:
-  Session(NetServer::Impl& server, tcp::socket socket, std::uint32_t id);
+  Session(NetServer::Impl& server, net::SessionStream stream, std::uint32_t id);
 
-  void start() { readPrefix(); }
+  // The TLS handshake (where the stream has TLS), then the first frame.
+  void start();
   bool welcomed() const { return sender_ != nullptr; }
 
   // Ends the session now: the socket closes, pending operations complete with errors and
@@ -67,6 +70,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::uint64_t tcpQueueFullPolls() const { return tcpQueueFullPolls_; }
 
  private:
+  void onHandshake(boost::system::error_code ec);
   void readPrefix();
   void onPrefix(boost::system::error_code ec);
   void onFrame(boost::system::error_code ec);
@@ -86,9 +90,12 @@ class Session : public std::enable_shared_from_this<Session> {
   void onWritten(boost::system::error_code ec, std::size_t n);
 
   NetServer::Impl& server_;
-  tcp::socket socket_;
+  net::SessionStream stream_;
   std::uint32_t id_;
+  // Seals this session's UDP datagrams with the key from its TLS session; none without TLS.
+  std::optional<DatagramSealer> sealer_;
   std::string peer_, name_;
+  TokenClaims claims_;  // the connect token's, once the Hello is accepted
   bool closed_ = false, closeAfterFlush_ = false;
   std::array<std::uint8_t, kFramePrefixBytes> prefix_{};
   Bytes frame_;

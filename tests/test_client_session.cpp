@@ -117,8 +117,12 @@ std::vector<SessionEvent::Kind> kinds(const std::vector<SessionEvent>& events) {
 }
 
 TEST(ClientSession, HandshakeThenStreamsUntilEveryBrickIsHeld) {
+  const KeyPair keys = keyPairFromSeed({3});
+  auto token =
+      issueToken(keys.signing, newTokenClaims("test-client", "*", TokenRole::Viewer, 1, 1000, 60));
+  ASSERT_TRUE(token.ok());
   ClientSessionOptions o;
-  o.token = "secret";
+  o.token = *token;
   o.name = "test-client";
   ClientSession session(o);
   EXPECT_EQ(session.phase(), SessionPhase::Idle);
@@ -131,11 +135,13 @@ TEST(ClientSession, HandshakeThenStreamsUntilEveryBrickIsHeld) {
   ASSERT_TRUE(hello.ok()) << hello.error().message;
   ASSERT_TRUE(std::holds_alternative<HelloMsg>(*hello));
   const HelloMsg& h = std::get<HelloMsg>(*hello);
-  EXPECT_EQ(h.authToken, "secret");
+  EXPECT_EQ(h.authToken, *token);
   EXPECT_EQ(h.clientName, "test-client");
   EXPECT_TRUE(h.wantsUdp);
   EXPECT_EQ(h.udpPort, 4242);
-  EXPECT_FALSE(checkHello(h, "secret").has_value()) << "the server's own check takes it";
+  const HelloVerdict verdict = checkHello(h, TokenVerifier({keys.verify}), "builtin", 1010);
+  EXPECT_FALSE(verdict.reject.has_value()) << "the server's own check takes it";
+  EXPECT_EQ(verdict.claims.client, "test-client");
   EXPECT_EQ(session.phase(), SessionPhase::AwaitingWelcome);
 
   // The handshake in pieces of 1 to 7 bytes: frames are put together across reads.

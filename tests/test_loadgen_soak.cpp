@@ -14,11 +14,28 @@
 #include "loadgen/proc_stats.h"
 #include "loadgen/server_load.h"
 #include "loadgen/server_process.h"
+#include "protocol/connect_token.h"
 
 namespace pc {
 namespace {
 
-constexpr const char* kToken = "soak-token";
+// The soak's token issuer (fixed: a test key) and one token per client.
+const KeyPair& soakKeys() {
+  static const KeyPair keys = keyPairFromSeed({42});
+  return keys;
+}
+std::vector<std::string> soakTokens(int clients) {
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+  std::vector<std::string> tokens;
+  for (int i = 0; i < clients; ++i) {
+    tokens.push_back(issueToken(soakKeys().signing, newTokenClaims("soak-" + std::to_string(i), "*",
+                                                                   TokenRole::Viewer, 1, now, 3600))
+                         .value());
+  }
+  return tokens;
+}
 // Resident memory the server may keep after the soak beyond its baseline: freed session
 // buffers that the allocator holds on to rather than returning to the system.
 constexpr double kRssToleranceMb = 8.0;
@@ -32,10 +49,11 @@ std::uint64_t soakConnects() {
 
 // Runs `sessions` short sessions from `clients` clients at once; returns the generator's
 // error count.
-std::uint64_t churn(std::uint16_t port, int clients, std::uint64_t sessions) {
+std::uint64_t churn(const load::ServerProcess& server, int clients, std::uint64_t sessions) {
   load::LoadOptions o;
-  o.port = port;
-  o.token = kToken;
+  o.port = server.port();
+  o.serverFingerprint = server.tlsFingerprint();
+  o.clientTokens = soakTokens(clients);
   o.clients = clients;
   o.rampSeconds = 0.2;
   o.sessionSeconds = 0.3;
@@ -75,10 +93,29 @@ TEST(LoadgenSoak, ServerFileDescriptorsAndMemoryReturnToBaselineAfterConnectCycl
   sp.logPath = std::string(PC_BUILD_DIR) + "/test_loadgen_soak_server.log";
   // The field freezes after 1 s of animation: no new versions, so the server's shared caches
   // stop growing and what remains is per-session state.
-  sp.args = {"--scene",          "builtin", "--bind",      "127.0.0.1", "--port",        "0",
-             "--token",          kToken,    "--rays",      "16",        "--warmup",      "2",
-             "--rate",           "10",      "--freeze-at", "1.0",       "--max-clients", "200",
-             "--stats-interval", "0"};
+  const std::string keyFile = std::string(PC_BUILD_DIR) + "/test_loadgen_soak.verify-key";
+  ASSERT_TRUE(writeKeyFile(keyFile, soakKeys().verify).ok());
+  sp.args = {"--scene",
+             "builtin",
+             "--bind",
+             "127.0.0.1",
+             "--port",
+             "0",
+             "--token-key",
+             keyFile,
+             "--dev-self-signed",
+             "--rays",
+             "16",
+             "--warmup",
+             "2",
+             "--rate",
+             "10",
+             "--freeze-at",
+             "1.0",
+             "--max-clients",
+             "200",
+             "--stats-interval",
+             "0"};
   auto server = load::ServerProcess::start(sp);
   ASSERT_TRUE(server.ok()) << server.error().message;
   const pid_t pid = (*server)->pid();
@@ -86,7 +123,7 @@ TEST(LoadgenSoak, ServerFileDescriptorsAndMemoryReturnToBaselineAfterConnectCycl
 
   // Warm-up round of the same shape as the soak (50 clients at a time): the first sessions
   // fill the encode cache, and the allocator's pools grow to the soak's peak concurrency.
-  EXPECT_EQ(churn((*server)->port(), 50, 200), 0u);
+  EXPECT_EQ(churn(**server, 50, 200), 0u);
   sleepSeconds(1.0);
   auto base = load::readProcStats(pid);
   ASSERT_TRUE(base.ok()) << base.error().message;
@@ -95,7 +132,7 @@ TEST(LoadgenSoak, ServerFileDescriptorsAndMemoryReturnToBaselineAfterConnectCycl
   std::printf("soak: %llu connects, 50 clients at a time; baseline %d fds, %.1f MB resident\n",
               (unsigned long long)connects, base->openFds, base->rssMb);
   const auto start = std::chrono::steady_clock::now();
-  EXPECT_EQ(churn((*server)->port(), 50, connects), 0u);
+  EXPECT_EQ(churn(**server, 50, connects), 0u);
   const double took =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 

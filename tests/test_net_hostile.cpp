@@ -13,11 +13,15 @@
 namespace pc::nettest {
 namespace {
 
-client::NetClientOptions goodOptions(std::uint16_t port) {
+// A client of the server whose certificate has `fingerprint`; without one, a client without
+// TLS (for the plain fake servers below).
+client::NetClientOptions goodOptions(std::uint16_t port, const std::string& fingerprint = {}) {
   client::NetClientOptions o;
   o.host = "127.0.0.1";
   o.port = port;
-  o.token = kToken;
+  o.serverFingerprint = fingerprint;
+  o.tls = !fingerprint.empty();
+  o.token = issueTestToken("good");  // the server knows a client by its token's name
   o.name = "good";
   return o;
 }
@@ -27,7 +31,7 @@ client::NetClientOptions goodOptions(std::uint16_t port) {
 class HostileFixture {
  public:
   explicit HostileFixture(NetServerOptions options = {})
-      : server_(-1.0, options), good_(mirror_, goodOptions(server_.port())) {
+      : server_(-1.0, options), good_(mirror_, goodOptions(server_.port(), server_.fingerprint())) {
     good_.start();
     EXPECT_TRUE(waitFor([&] { return good_.stats().synced; }, 20.0))
         << "the good client never synced";
@@ -129,7 +133,7 @@ TEST(NetHostile, ConnectionsThatNeverSayHelloAreCapped) {
   std::vector<std::unique_ptr<RawPeer>> silent;
   for (int i = 0; i < 3; ++i) silent.push_back(std::make_unique<RawPeer>(f.port()));
   ASSERT_TRUE(waitFor([&] { return f.stats().connections == 4; }, 5.0));
-  RawPeer fourth(f.port());
+  RawPeer fourth(f.port(), 0, /*tls=*/false);  // closed before any TLS handshake
   EXPECT_TRUE(fourth.closedByServer(5.0));
   f.expectOnlyCause(DisconnectCause::TooManyPending, 1);
   f.expectGoodClientUnaffected();

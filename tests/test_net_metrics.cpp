@@ -139,6 +139,7 @@ TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
     client::FieldMirror mirror;
     client::NetClientOptions co;
     co.port = server.port();
+    co.serverFingerprint = server.fingerprint();
     co.token = kToken;
     client::NetClient client(mirror, co);
     client.start();
@@ -203,7 +204,8 @@ TEST(NetMetrics, MetricsPortThatIsTakenIsAnError) {
   NetServerOptions taken;
   taken.bindAddress = "127.0.0.1";
   taken.port = 0;
-  taken.token = kToken;
+  taken.tokenKeys = {testKeys().verify};
+  taken.tls.devSelfSigned = true;
   taken.metricsPort = first.net().metricsPort();
   auto second = NetServer::create(hub, taken);
   ASSERT_FALSE(second.ok());

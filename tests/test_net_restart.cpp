@@ -19,6 +19,9 @@
 #include <thread>
 #include <vector>
 
+#include "net/tls_certificate.h"
+#include "protocol/connect_token.h"
+
 extern char** environ;
 
 namespace {
@@ -110,6 +113,33 @@ std::string readText(const fs::path& p) {
   return text.str();
 }
 
+// What a server and its clients need to meet: a token issuer's verify key, a token it signed
+// (and one signed by a stranger), and a TLS certificate with its key that the client trusts as
+// its CA file. The certificate lives in files, so a restarted server presents the same one.
+struct Credentials {
+  explicit Credentials(const fs::path& dir)
+      : verifyKey((dir / "issuer.pub").string()),
+        token((dir / "client.token").string()),
+        wrongToken((dir / "stranger.token").string()),
+        cert((dir / "cert.pem").string()),
+        key((dir / "key.pem").string()) {
+    const pc::KeyPair issuer = pc::generateKeyPair(), stranger = pc::generateKeyPair();
+    EXPECT_TRUE(pc::writeKeyFile(verifyKey, issuer.verify).ok());
+    const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
+                                 std::chrono::system_clock::now().time_since_epoch())
+                                 .count();
+    const pc::TokenClaims claims =
+        pc::newTokenClaims("restart-client", "*", pc::TokenRole::Viewer, 1, now, 3600);
+    std::ofstream(token) << pc::issueToken(issuer.signing, claims).value() << "\n";
+    std::ofstream(wrongToken) << pc::issueToken(stranger.signing, claims).value() << "\n";
+    auto dev = pc::net::makeDevCertificate();
+    EXPECT_TRUE(dev.ok());
+    std::ofstream(cert) << dev->certificatePem;
+    std::ofstream(key) << dev->keyPem;
+  }
+  std::string verifyKey, token, wrongToken, cert, key;
+};
+
 template <typename F>
 bool waitUntil(F&& done, double limit) {
   const double start = now();
@@ -128,11 +158,30 @@ TEST(NetRestart, HeadlessClientThatIsAlwaysRejectedExitsWithFour) {
   const fs::path dir = fs::path(PC_BUILD_DIR) / "test-net-rejected";
   fs::remove_all(dir);
   fs::create_directories(dir);
+  const Credentials creds(dir);
   const std::uint16_t port = freePort();
   const std::string portText = std::to_string(port);
-  Child server({kBin + "probecast-server", "--scene", "builtin", "--backend", "embree", "--rays",
-                "16", "--warmup", "1", "--bind", "127.0.0.1", "--port", portText, "--token",
-                "the-right-token", "--stats-interval", "0"},
+  Child server({kBin + "probecast-server",
+                "--scene",
+                "builtin",
+                "--backend",
+                "embree",
+                "--rays",
+                "16",
+                "--warmup",
+                "1",
+                "--bind",
+                "127.0.0.1",
+                "--port",
+                portText,
+                "--token-key",
+                creds.verifyKey,
+                "--tls-cert",
+                creds.cert,
+                "--tls-key",
+                creds.key,
+                "--stats-interval",
+                "0"},
                dir / "server.log");
   ASSERT_TRUE(server.running());
   ASSERT_TRUE(waitUntil([&] { return canConnect(port); }, 30.0)) << "server never listened";
@@ -141,8 +190,10 @@ TEST(NetRestart, HeadlessClientThatIsAlwaysRejectedExitsWithFour) {
                 "builtin",
                 "--connect",
                 "127.0.0.1:" + portText,
-                "--token",
-                "a-wrong-token",
+                "--token-file",
+                creds.wrongToken,
+                "--ca-file",
+                creds.cert,
                 "--width",
                 "32",
                 "--height",
@@ -170,6 +221,7 @@ TEST(NetRestart, HeadlessClientKeepsRenderingReconnectsAndResyncs) {
   const fs::path dir = fs::path(PC_BUILD_DIR) / "test-net-restart";
   fs::remove_all(dir);
   fs::create_directories(dir);
+  const Credentials creds(dir);
   const std::uint16_t port = freePort();
   const std::string portText = std::to_string(port);
   auto serverArgs = [&] {
@@ -188,8 +240,12 @@ TEST(NetRestart, HeadlessClientKeepsRenderingReconnectsAndResyncs) {
                                     "127.0.0.1",
                                     "--port",
                                     portText,
-                                    "--token",
-                                    "restart-token",
+                                    "--token-key",
+                                    creds.verifyKey,
+                                    "--tls-cert",
+                                    creds.cert,
+                                    "--tls-key",
+                                    creds.key,
                                     "--stats-interval",
                                     "0"};
   };
@@ -203,8 +259,10 @@ TEST(NetRestart, HeadlessClientKeepsRenderingReconnectsAndResyncs) {
                 "builtin",
                 "--connect",
                 "127.0.0.1:" + portText,
-                "--token",
-                "restart-token",
+                "--token-file",
+                creds.token,
+                "--ca-file",
+                creds.cert,
                 "--width",
                 "48",
                 "--height",
@@ -286,10 +344,12 @@ TEST(NetRestart, ServerStopsOnSigtermDuringItsWarmUp) {
   const fs::path dir = fs::path(PC_BUILD_DIR) / "test-net-warm-up-signal";
   fs::remove_all(dir);
   fs::create_directories(dir);
+  const Credentials creds(dir);
   const fs::path log = dir / "server.log";
   std::vector<std::string> args = {kBin + "probecast-server", "--port", std::to_string(freePort())};
   for (const char* a : {"--scene", "builtin", "--backend", "embree", "--rays", "64", "--warmup",
-                        "1000000", "--bind", "127.0.0.1", "--token", "t", "--stats-interval", "0"})
+                        "1000000", "--bind", "127.0.0.1", "--token-key", creds.verifyKey,
+                        "--tls-cert", creds.cert, "--tls-key", creds.key, "--stats-interval", "0"})
     args.push_back(a);
   Child server(args, log);
   ASSERT_TRUE(server.running());
@@ -316,6 +376,7 @@ TEST(NetRestart, ServerGoesOnOnTheCpuWhenItsGpuFails) {
   const fs::path dir = fs::path(PC_BUILD_DIR) / "test-net-gpu-failure";
   fs::remove_all(dir);
   fs::create_directories(dir);
+  const Credentials creds(dir);
   const std::uint16_t port = freePort();
   const std::string portText = std::to_string(port);
   const fs::path serverLog = dir / "server.log";
@@ -323,9 +384,28 @@ TEST(NetRestart, ServerGoesOnOnTheCpuWhenItsGpuFails) {
   // fails about 15 s after the server listens (later on busy cores), with the client synced
   // long before (about 0.1 s after it connects, here).
   std::vector<std::string> args = {kBin + "probecast-server", "--port", portText};
-  for (const char* a : {"--scene", "builtin", "--backend", "vulkan", "--rays", "32", "--warmup",
-                        "2", "--rate", "10", "--gpu-fail-submission", "150", "--bind", "127.0.0.1",
-                        "--token", "gpu-token", "--stats-interval", "0"})
+  for (const char* a : {"--scene",
+                        "builtin",
+                        "--backend",
+                        "vulkan",
+                        "--rays",
+                        "32",
+                        "--warmup",
+                        "2",
+                        "--rate",
+                        "10",
+                        "--gpu-fail-submission",
+                        "150",
+                        "--bind",
+                        "127.0.0.1",
+                        "--token-key",
+                        creds.verifyKey,
+                        "--tls-cert",
+                        creds.cert,
+                        "--tls-key",
+                        creds.key,
+                        "--stats-interval",
+                        "0"})
     args.push_back(a);
   Child server(args, serverLog);
   ASSERT_TRUE(server.running());
@@ -342,8 +422,10 @@ TEST(NetRestart, ServerGoesOnOnTheCpuWhenItsGpuFails) {
                 "builtin",
                 "--connect",
                 "127.0.0.1:" + portText,
-                "--token",
-                "gpu-token",
+                "--token-file",
+                creds.token,
+                "--ca-file",
+                creds.cert,
                 "--width",
                 "48",
                 "--height",

@@ -9,6 +9,7 @@
 #include <array>
 #include <atomic>
 #include <boost/asio.hpp>
+#include <boost/asio/ssl.hpp>
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -18,6 +19,7 @@
 
 #include "client/field_mirror.h"
 #include "client/net_client.h"
+#include "protocol/connect_token.h"
 #include "protocol/fault_link.h"
 #include "protocol/net_framing.h"
 #include "protocol/session_messages.h"
@@ -29,7 +31,22 @@
 
 namespace pc::nettest {
 
-inline constexpr const char* kToken = "test-token";
+// The tests' token issuer (a fixed key pair: never for real keys) and a token of it.
+inline const KeyPair& testKeys() {
+  static const KeyPair keys = keyPairFromSeed({7, 7, 7, 7});
+  return keys;
+}
+inline std::string issueTestToken(const std::string& client, std::int64_t ttlSeconds = 3600,
+                                  std::int64_t issuedAgo = 0) {
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+  auto token = issueToken(testKeys().signing, newTokenClaims(client, "*", TokenRole::Viewer, 1,
+                                                             now - issuedAgo, ttlSeconds));
+  EXPECT_TRUE(token.ok());
+  return token ? *token : std::string();
+}
+inline const std::string kToken = issueTestToken("test");
 
 inline void sleepFor(double seconds) {
   std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
@@ -67,7 +84,9 @@ class TestServer {
     (void)hub_->publish(field_, sceneStateMessage(evaluateScene(scene_, 0.0)), steadySeconds());
     net.port = port;
     net.bindAddress = "127.0.0.1";
-    if (net.token.empty()) net.token = kToken;
+    if (net.tokenKeys.empty()) net.tokenKeys = {testKeys().verify};
+    // TLS as in production, with a certificate made for the test; clients pin fingerprint().
+    if (net.tls.enabled && net.tls.certificateFile.empty()) net.tls.devSelfSigned = true;
     auto server = NetServer::create(*hub_, net);
     EXPECT_TRUE(server.ok()) << (server ? "" : server.error().message);
     server_ = std::move(server).value();
@@ -86,6 +105,7 @@ class TestServer {
     if (server_) server_->stop();
   }
   std::uint16_t port() const { return server_->port(); }
+  const std::string& fingerprint() const { return server_->tlsFingerprint(); }
   NetServer& net() { return *server_; }
   bool frozen() const { return loop_->stats().frozen; }
   const FieldLoop& loop() const { return *loop_; }
@@ -152,6 +172,15 @@ class UdpRelay {
     std::lock_guard lock(mutex_);
     return link_.stats();
   }
+  // Every datagram that came in, as it came, from now on (an eavesdropper's view of the path).
+  void capture(bool on) {
+    std::lock_guard lock(mutex_);
+    capturing_ = on;
+  }
+  std::vector<std::vector<std::uint8_t>> captured() const {
+    std::lock_guard lock(mutex_);
+    return captured_;
+  }
 
  private:
   void receive() {
@@ -160,6 +189,7 @@ class UdpRelay {
           if (stopped_) return;
           if (!ec) {
             std::lock_guard lock(mutex_);
+            if (capturing_) captured_.emplace_back(buffer_.begin(), buffer_.begin() + n);
             link_.send(std::vector<std::uint8_t>(buffer_.begin(), buffer_.begin() + n),
                        steadySeconds());
           }
@@ -193,24 +223,41 @@ class UdpRelay {
   std::array<std::uint8_t, 2048> buffer_{};
   mutable std::mutex mutex_;
   FaultLink link_;
+  bool capturing_ = false;
+  std::vector<std::vector<std::uint8_t>> captured_;
   bool stopped_ = false;
   std::thread thread_;
 };
 
-// A hand-driven TCP peer: sends whatever bytes a test wants and reads frames back.
+// A hand-driven peer of the session port: sends whatever bytes a test wants and reads frames
+// back, over TLS (as every client speaks to a server with TLS; the peer does not check the
+// certificate) or over plain TCP (`tls` false: what a stranger without TLS sends).
 class RawPeer {
  public:
-  explicit RawPeer(std::uint16_t port, int receiveBuffer = 0) : socket_(io_) {
+  using tcp = boost::asio::ip::tcp;
+  explicit RawPeer(std::uint16_t port, int receiveBuffer = 0, bool tls = true)
+      : context_(boost::asio::ssl::context::tls_client), stream_(io_, context_) {
     boost::system::error_code ec;
-    socket_.open(boost::asio::ip::tcp::v4(), ec);
+    tcp::socket& socket = stream_.next_layer();
+    socket.open(tcp::v4(), ec);
     if (receiveBuffer > 0)
-      socket_.set_option(boost::asio::socket_base::receive_buffer_size(receiveBuffer), ec);
-    socket_.connect({boost::asio::ip::make_address("127.0.0.1"), port}, ec);
+      socket.set_option(boost::asio::socket_base::receive_buffer_size(receiveBuffer), ec);
+    socket.connect({boost::asio::ip::make_address("127.0.0.1"), port}, ec);
     EXPECT_FALSE(ec) << ec.message();
+    if (tls && !ec) {
+      stream_.set_verify_mode(boost::asio::ssl::verify_none);
+      stream_.handshake(boost::asio::ssl::stream_base::client, ec);
+      EXPECT_FALSE(ec) << "TLS handshake: " << ec.message();
+      tls_ = !ec;
+    }
   }
   void send(const std::vector<std::uint8_t>& bytes) {
     boost::system::error_code ec;
-    boost::asio::write(socket_, boost::asio::buffer(bytes), ec);
+    if (tls_) {
+      boost::asio::write(stream_, boost::asio::buffer(bytes), ec);
+    } else {
+      boost::asio::write(stream_.next_layer(), boost::asio::buffer(bytes), ec);
+    }
   }
   // The next frame, or nothing at end of stream / error / `timeout`.
   std::optional<std::vector<std::uint8_t>> readFrame(double timeout = 10.0) {
@@ -228,20 +275,26 @@ class RawPeer {
     const double start = steadySeconds();
     std::array<std::uint8_t, 4096> sink{};
     while (steadySeconds() - start < timeout) {
+      if (!waitReadable(0.05)) continue;
       boost::system::error_code ec;
-      const std::size_t available = socket_.available(ec);
-      if (ec) return true;
-      if (available == 0 && !waitReadable(0.05)) continue;
-      const std::size_t n = socket_.read_some(boost::asio::buffer(sink), ec);
+      const std::size_t n = readSome(sink.data(), sink.size(), ec);
       if (ec || n == 0) return true;
     }
     return false;
   }
+  // The TCP socket under the stream.
+  tcp::socket& socket() { return stream_.next_layer(); }
 
  private:
+  // Readable: bytes on the socket, or (TLS) a decrypted record already buffered.
   bool waitReadable(double seconds) {
-    pollfd p{socket_.native_handle(), POLLIN, 0};
+    if (tls_ && SSL_pending(stream_.native_handle()) > 0) return true;
+    pollfd p{stream_.next_layer().native_handle(), POLLIN, 0};
     return ::poll(&p, 1, int(seconds * 1000)) > 0;
+  }
+  std::size_t readSome(std::uint8_t* out, std::size_t n, boost::system::error_code& ec) {
+    if (tls_) return stream_.read_some(boost::asio::buffer(out, n), ec);
+    return stream_.next_layer().read_some(boost::asio::buffer(out, n), ec);
   }
   bool readExactly(std::uint8_t* out, std::size_t n, double timeout) {
     const double start = steadySeconds();
@@ -250,7 +303,7 @@ class RawPeer {
       if (steadySeconds() - start > timeout) return false;
       if (!waitReadable(0.05)) continue;
       boost::system::error_code ec;
-      const std::size_t r = socket_.read_some(boost::asio::buffer(out + got, n - got), ec);
+      const std::size_t r = readSome(out + got, n - got, ec);
       if (ec || r == 0) return false;
       got += r;
     }
@@ -258,7 +311,9 @@ class RawPeer {
   }
 
   boost::asio::io_context io_;
-  boost::asio::ip::tcp::socket socket_;
+  boost::asio::ssl::context context_;
+  boost::asio::ssl::stream<tcp::socket> stream_;
+  bool tls_ = false;
 };
 
 inline std::vector<std::uint8_t> helloFrame(const std::string& token, bool udp = false,

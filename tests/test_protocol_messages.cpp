@@ -108,22 +108,49 @@ TEST(ProtocolMessages, AckGapsOutsideTheirUpdateAreRefused) {
 }
 
 TEST(ProtocolMessages, VersionRules) {
-  HelloMsg newer{kProtocolVersion + 1, "t", "c", true, 0};
-  auto reject = checkHello(roundTrip(newer), "t");
-  ASSERT_TRUE(reject.has_value());
-  EXPECT_TRUE(contains(reject->reason, "protocol version " + std::to_string(kProtocolVersion + 1) +
-                                           " is not supported"))
-      << reject->reason;
-  HelloMsg older{kMinProtocolVersion - 1, "t", "c", true, 0};
-  ASSERT_TRUE(checkHello(older, "t").has_value());
-  EXPECT_TRUE(contains(checkHello(older, "t")->reason, "this server speaks"));
-  EXPECT_FALSE(checkHello(HelloMsg{kProtocolVersion, "t", "c", true, 0}, "t").has_value());
+  const KeyPair keys = keyPairFromSeed({5});
+  const TokenVerifier verifier({keys.verify});
+  const std::int64_t now = 5000;
+  auto issued = issueToken(keys.signing,
+                           newTokenClaims("c", "scene-a", TokenRole::Viewer, 1, now - 10, 3600));
+  ASSERT_TRUE(issued.ok());
+  const std::string t = *issued;
+  HelloMsg newer{kProtocolVersion + 1, t, "c", true, 0};
+  HelloVerdict verdict = checkHello(roundTrip(newer), verifier, "scene-a", now);
+  ASSERT_TRUE(verdict.reject.has_value());
+  EXPECT_TRUE(verdict.versionMismatch);
+  EXPECT_TRUE(
+      contains(verdict.reject->reason,
+               "protocol version " + std::to_string(kProtocolVersion + 1) + " is not supported"))
+      << verdict.reject->reason;
+  HelloMsg older{kMinProtocolVersion - 1, t, "c", true, 0};
+  verdict = checkHello(older, verifier, "scene-a", now);
+  ASSERT_TRUE(verdict.reject.has_value());
+  EXPECT_TRUE(contains(verdict.reject->reason, "this server speaks"));
+  verdict = checkHello(HelloMsg{kProtocolVersion, t, "c", true, 0}, verifier, "scene-a", now);
+  EXPECT_FALSE(verdict.reject.has_value());
+  EXPECT_EQ(verdict.claims.client, "c");
 
-  auto badToken = checkHello(HelloMsg{kProtocolVersion, "wrong", "c", true, 0}, "t");
-  ASSERT_TRUE(badToken.has_value());
-  EXPECT_EQ(badToken->reason, "authentication failed");
-  EXPECT_TRUE(checkHello(HelloMsg{kProtocolVersion, "", "c", true, 0}, "t").has_value());
-  EXPECT_TRUE(checkHello(HelloMsg{kProtocolVersion, "tt", "c", true, 0}, "t").has_value());
+  // Each token fault is a Reject naming its cause, counted by the caller from tokenError.
+  const std::pair<HelloVerdict, TokenError> faults[] = {
+      {checkHello(HelloMsg{kProtocolVersion, "wrong", "c", true, 0}, verifier, "scene-a", now),
+       TokenError::Malformed},
+      {checkHello(HelloMsg{kProtocolVersion, "", "c", true, 0}, verifier, "scene-a", now),
+       TokenError::Malformed},
+      {checkHello(HelloMsg{kProtocolVersion, t, "c", true, 0}, verifier, "scene-b", now),
+       TokenError::WrongScene},
+      {checkHello(HelloMsg{kProtocolVersion, t, "c", true, 0}, verifier, "scene-a", now + 3600),
+       TokenError::Expired},
+      {checkHello(HelloMsg{kProtocolVersion, t, "c", true, 0},
+                  TokenVerifier({keyPairFromSeed({6}).verify}), "scene-a", now),
+       TokenError::BadSignature},
+  };
+  for (const auto& [v, cause] : faults) {
+    ASSERT_TRUE(v.reject.has_value());
+    ASSERT_TRUE(v.tokenError.has_value());
+    EXPECT_EQ(*v.tokenError, cause);
+    EXPECT_EQ(v.reject->reason, "authentication failed: " + std::string(tokenErrorName(cause)));
+  }
 
   EXPECT_TRUE(checkServerVersion(kProtocolVersion).ok());
   Status s = checkServerVersion(kProtocolVersion + 7);

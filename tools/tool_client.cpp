@@ -8,7 +8,9 @@
 #include "client/client_app.h"
 #include "client/net_app.h"
 #include "common/log.h"
+#include "net/tls_context.h"
 #include "tools/command_line.h"
+#include "tools/token_input.h"
 
 namespace {
 
@@ -72,11 +74,21 @@ int main(int argc, char** argv) {
   app.add_option("--test-resize", resize, "windowed: resize the window to WxH after 2 frames");
   // Network mode: the field comes from a server (the baked file stays the fallback).
   pc::client::NetRunConfig net;
-  std::string connect, token;
+  std::string connect;
   app.add_option("--connect", connect, "stream the field from a server at HOST:PORT");
-  app.add_option("--token", token, "--connect: auth token (else $PROBECAST_TOKEN)");
+  std::string tokenFile;
+  app.add_option("--token-file", tokenFile,
+                 "--connect: connect token file (else $PROBECAST_TOKEN_FILE or $PROBECAST_TOKEN)");
   app.add_option("--name", net.net.name, "--connect: client name the server logs");
   app.add_flag("--tcp-only", net.net.tcpOnly, "--connect: datagrams over TCP");
+  app.add_option("--server-fingerprint", net.net.serverFingerprint,
+                 "--connect: trust the server whose TLS certificate has this SHA-256 "
+                 "(sha256:<hex>, as the server prints it)");
+  app.add_option("--ca-file", net.net.caFile,
+                 "--connect: trust server certificates from this CA file (PEM) and check the "
+                 "host name (default: the system's trust store)");
+  app.add_flag("--no-tls{false}", net.net.tls,
+               "--connect: plain TCP, for a server run with --no-tls (nothing is encrypted)");
   app.add_option("--udp-advertise-port", net.net.udpAdvertisePort,
                  "--connect: UDP port the server sends to (a relay in front of this client)");
   app.add_option("--duration", net.duration, "--connect: seconds to run (instead of --frames)")
@@ -123,10 +135,14 @@ int main(int argc, char** argv) {
       return pc::logError("--connect: expected HOST:PORT"), 1;
     net.net.host = connect.substr(0, colon);
     net.net.port = std::uint16_t(port);
-    if (token.empty()) {
-      if (const char* env = std::getenv("PROBECAST_TOKEN")) token = env;
+    auto token = pc::connectToken(tokenFile);
+    if (!token) return pc::logError(token.error().message), 1;
+    net.net.token = *token;
+    if (net.net.tls) {
+      // Settings that cannot work stop the client now, not at every reconnect.
+      auto tls = pc::net::TlsClient::create({net.net.serverFingerprint, net.net.caFile});
+      if (!tls) return pc::logError("TLS: " + tls.error().message), 1;
     }
-    net.net.token = token;
     return c.windowed ? pc::client::runNetWindowed(c, net) : pc::client::runNetHeadless(c, net);
   }
   return c.windowed ? pc::client::runWindowed(c) : pc::client::runHeadless(c);

@@ -12,6 +12,7 @@
 #include "loadgen/load_generator.h"
 #include "loadgen/server_load.h"
 #include "tools/command_line.h"
+#include "tools/token_input.h"
 
 namespace {
 
@@ -27,10 +28,18 @@ int main(int argc, char** argv) {
   bool decodeEach = false;
   app.add_option("--host", o.host, "server address");
   app.add_option("--port", o.port, "server TCP port");
-  app.add_option("--token", o.token, "shared secret (else $PROBECAST_TOKEN)");
+  std::string tokenFile;
+  app.add_option("--token-file", tokenFile,
+                 "connect token (else $PROBECAST_TOKEN_FILE or $PROBECAST_TOKEN); every client "
+                 "presents it, so the server's --max-sessions-per-client must allow them");
   app.add_option("--clients", o.clients, "number of clients");
   app.add_option("--threads", o.threads, "network threads shared by all clients");
   app.add_flag("--tcp-only", o.tcpOnly, "ask for datagrams over TCP");
+  app.add_option("--server-fingerprint", o.serverFingerprint,
+                 "trust the server whose TLS certificate has this SHA-256 (sha256:<hex>)");
+  app.add_option("--ca-file", o.caFile,
+                 "trust server certificates from this CA file (PEM) and check the host name");
+  app.add_flag("--no-tls{false}", o.tls, "plain TCP, for a server run with --no-tls");
   app.add_option("--ramp", o.rampSeconds, "s over which clients first connect");
   app.add_option("--session-seconds", o.sessionSeconds,
                  "churn: end each session after about this long and reconnect (0: never)");
@@ -63,10 +72,9 @@ int main(int argc, char** argv) {
     o.links = *links;
   }
   o.shareDecoding = !decodeEach;
-  if (o.token.empty()) {
-    if (const char* env = std::getenv("PROBECAST_TOKEN")) o.token = env;
-  }
-  if (o.token.empty()) return pc::logError("no auth token: pass --token or set PROBECAST_TOKEN"), 1;
+  auto token = pc::connectToken(tokenFile);
+  if (!token) return pc::logError(token.error().message), 1;
+  o.token = *token;
   pc::load::raiseFileLimit();
 
   auto generator = pc::load::LoadGenerator::create(o);

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -50,6 +51,16 @@ std::string statsLine(const pc::NetServerStats& now, const pc::NetServerStats& b
 }
 
 // The command line's settings, and what follows from them once parsed.
+// The name connect tokens give a scene: "builtin", the folder of a file called scene.* (the
+// layout of scene collections: <name>/scene.gltf), else the file's stem.
+std::string sceneNameOf(const std::string& scenePath) {
+  if (scenePath == "builtin") return scenePath;
+  const std::filesystem::path path(scenePath);
+  if (path.stem() == "scene" && path.has_parent_path())
+    return path.parent_path().filename().string();
+  return path.stem().string();
+}
+
 struct ServerSetup {
   std::string scenePath = "builtin", sidecar, probes, backend = "auto", dumpField;
   pc::NetServerOptions net;
@@ -63,6 +74,8 @@ struct ServerSetup {
   int rays = 256, warmup = 32;
   double duration = 0, statsInterval = 2.0, rateLimit = 0;
   int metricsPort = 0;
+  std::vector<std::string> tokenKeyFiles;
+  std::string sceneName;
   std::string logFormat = "text", logLevel = "info";
 };
 
@@ -112,9 +125,26 @@ void addFieldOptions(CLI::App& app, ServerSetup& s) {
 void addStreamOptions(CLI::App& app, ServerSetup& s) {
   app.add_option("--bind", s.net.bindAddress, "address to listen on");
   app.add_option("--port", s.net.port, "TCP port (0: any free one)");
-  app.add_option("--token", s.net.token,
-                 "shared secret clients must present (else $PROBECAST_TOKEN)");
+  app.add_option("--token-key", s.tokenKeyFiles,
+                 "verify key file of a connect token issuer (probecast-token keygen); "
+                 "repeat it while keys rotate (else $PROBECAST_TOKEN_KEY_FILE)");
+  app.add_option("--revoked", s.net.revocationFile,
+                 "revocation list: token ids refused (read again when it changes)");
+  app.add_option("--scene-name", s.sceneName,
+                 "the scene name connect tokens must name (default: 'builtin', or the scene "
+                 "file's folder name when the file is called scene.*, else its stem)");
   app.add_flag("--tcp-only", s.net.tcpOnly, "send datagrams over TCP to every client");
+  app.add_option("--tls-cert", s.net.tls.certificateFile,
+                 "TLS certificate chain (PEM) of the session port");
+  app.add_option("--tls-key", s.net.tls.keyFile, "its private key (PEM)");
+  app.add_flag("--dev-self-signed", s.net.tls.devSelfSigned,
+               "make a self-signed certificate at start (development, tests); its fingerprint "
+               "is printed for clients to pin");
+  app.add_option("--dev-cert-out", s.net.tls.devCertificateOut,
+                 "write the --dev-self-signed certificate here (PEM), for clients' --ca-file");
+  app.add_flag("--no-tls{false}", s.net.tls.enabled,
+               "plain TCP and unsealed datagrams (measuring TLS's cost, a trusted loopback); "
+               "clients must say --no-tls too");
   app.add_option("--rate-limit", s.rateLimit, "bytes per second per client (0: default)");
   app.add_option("--stream-threshold", s.tuning.threshold,
                  "perceptual threshold T of the stream: changes of the gamma-encoded irradiance "
@@ -167,13 +197,24 @@ bool applyOptions(ServerSetup& s) {
   pc::setLogLevel(*level);
   if (s.metricsPort != 0) s.net.metricsPort = std::uint16_t(s.metricsPort);
 
-  if (s.net.token.empty()) {
-    if (const char* env = std::getenv("PROBECAST_TOKEN")) s.net.token = env;
+  if (s.tokenKeyFiles.empty()) {
+    if (const char* env = std::getenv("PROBECAST_TOKEN_KEY_FILE")) s.tokenKeyFiles.push_back(env);
   }
-  if (s.net.token.empty()) {
-    pc::logError("no auth token: pass --token or set PROBECAST_TOKEN");
+  if (s.tokenKeyFiles.empty()) {
+    pc::logError(
+        "no token verify key: pass --token-key FILE or set PROBECAST_TOKEN_KEY_FILE "
+        "(probecast-token keygen makes one)");
     return false;
   }
+  for (const std::string& file : s.tokenKeyFiles) {
+    auto key = pc::loadVerifyKey(file);
+    if (!key) {
+      pc::logError("--token-key: " + key.error().message);
+      return false;
+    }
+    s.net.tokenKeys.push_back(*key);
+  }
+  s.net.sceneName = !s.sceneName.empty() ? s.sceneName : sceneNameOf(s.scenePath);
   if (s.loop.rate <= 0 || s.loop.rate > 240) {
     pc::logError("--rate: expected 0 < rate <= 240");
     return false;
@@ -347,7 +388,13 @@ int serve(const pc::Scene& scene, pc::Tracer& tracer, pc::Field& field, const Se
     pc::logInfo("metrics at http://" + bind + ":" + std::to_string((*server)->metricsPort()) +
                 "/metrics");
   }
-  // A line a script can wait for before starting clients.
+  // Lines a script can wait for before starting clients: the certificate to pin, then ready.
+  if (!(*server)->tlsFingerprint().empty()) {
+    pc::logInfo("TLS certificate " + (*server)->tlsFingerprint());
+    std::printf("tls-fingerprint %s\n", (*server)->tlsFingerprint().c_str());
+  } else {
+    pc::logWarn("TLS is off (--no-tls): sessions and datagrams travel in clear");
+  }
   std::printf("ready port %u\n", unsigned((*server)->port()));
   std::fflush(stdout);
 

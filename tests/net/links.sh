@@ -49,13 +49,20 @@ link 1 0.5
 link 2 2
 link 3 10
 
-S "$server" --scene builtin --bind 0.0.0.0 --port 7471 --token links --rays 16 --rate 10 \
+# A token issuer for this run; the server makes its own certificate, the clients pin it.
+"$build/bin/probecast-token" keygen --signing-key "$work/issuer.key" --verify-key "$work/issuer.pub"
+"$build/bin/probecast-token" issue --signing-key "$work/issuer.key" --client links \
+  --out "$work/links.token"
+S "$server" --scene builtin --bind 0.0.0.0 --port 7471 --token-key "$work/issuer.pub" \
+  --dev-self-signed --rays 16 --rate 10 \
   --warmup 2 --max-clients 16 --stats-interval 0 --metrics-port 0 >"$work/server.log" 2>&1 &
 for _ in $(seq 100); do
-  grep -q "listening" "$work/server.log" 2>/dev/null && break
+  grep -q "^ready port" "$work/server.log" 2>/dev/null && break
   sleep 0.2
 done
-grep -q "listening" "$work/server.log" || { cat "$work/server.log"; echo "net links: server did not start"; exit 1; }
+grep -q "^ready port" "$work/server.log" || { cat "$work/server.log"; echo "net links: server did not start"; exit 1; }
+fingerprint=$(sed -n 's/^tls-fingerprint \(.*\)$/\1/p' "$work/server.log")
+auth=(--token-file "$work/links.token" --server-fingerprint "$fingerprint")
 
 fail=0
 check() { # description, condition (jq on the report)
@@ -69,7 +76,7 @@ check() { # description, condition (jq on the report)
 
 # Three clients, one per link, at the same time.
 for i in 1 2 3; do
-  C "$loadgen" --host "10.77.$i.1" --port 7471 --token links --clients 1 --warmup 3 --seconds 8 \
+  C "$loadgen" --host "10.77.$i.1" --port 7471 "${auth[@]}" --clients 1 --warmup 3 --seconds 8 \
     --min-held-psnr 0 --max-change-age 1e9 --json "$work/link$i.json" >"$work/link$i.log" 2>&1 &
 done
 wait $(jobs -p | tail -3)
@@ -95,7 +102,7 @@ done
 # Three clients sharing the 2 Mbit/s link.
 S tc qdisc del dev "${tag}s2" root
 S tc qdisc add dev "${tag}s2" root tbf rate 2mbit burst 4kb latency 100ms
-C "$loadgen" --host 10.77.2.1 --port 7471 --token links --clients 3 --ramp 2 --warmup 4 --seconds 10 \
+C "$loadgen" --host 10.77.2.1 --port 7471 "${auth[@]}" --clients 3 --ramp 2 --warmup 4 --seconds 10 \
   --min-held-psnr 0 --max-change-age 1e9 --json "$work/shared.json" >"$work/shared.log" 2>&1
 sent=$(S tc -s qdisc show dev "${tag}s2" | grep -o 'Sent [0-9]* bytes [0-9]* pkt' | awk '{print $4}')
 dropped=$(S tc -s qdisc show dev "${tag}s2" | grep -o 'dropped [0-9]*' | awk '{print $2}')

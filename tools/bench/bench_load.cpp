@@ -34,6 +34,7 @@ struct LoadSetup {
   double ramp = -1;  // < 0: 5 ms per client, at least 1 s
   int threads = 1;
   bool tcpOnly = false;
+  bool tls = true;
   double rateLimitMbit = 1.0;  // per client, the server's token bucket
   double fieldRate = 10;       // server field updates per second
   int rays = 64;
@@ -66,6 +67,8 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_option("--ramp", s.ramp, "s over which clients join (default 5 ms per client, >= 1 s)");
   cmd->add_option("--threads", s.threads, "the load generator's network threads");
   cmd->add_flag("--tcp-only", s.tcpOnly, "datagrams over TCP");
+  cmd->add_flag("--no-tls{false}", s.tls,
+                "plain sessions and unsealed datagrams (to measure what TLS costs)");
   cmd->add_option("--rate-limit", s.rateLimitMbit, "server send rate per client, Mbit/s");
   cmd->add_option("--field-rate", s.fieldRate, "server field updates per second");
   cmd->add_option("--rays", s.rays, "server rays per probe per update");
@@ -114,6 +117,7 @@ Benchmark addLoad(CLI::App& app) {
           o.load.clients = n;
           o.load.threads = s.threads;
           o.load.tcpOnly = s.tcpOnly;
+          o.load.tls = s.tls;
           o.load.rampSeconds = s.ramp >= 0 ? s.ramp : std::max(1.0, 0.005 * n);
           o.load.starveSeconds = s.starveSeconds;
           o.load.sessionSeconds = s.sessionSeconds;
