@@ -86,6 +86,8 @@ struct NetClient::Impl {
   void poll();
   void send(Bytes frame);
   void writeNext();
+  // Writes a line about the connection unless the budget for such lines is spent.
+  void logConnection(LogLevel level, const std::string& line);
 
   FieldMirror& mirror;
   NetClientOptions options;
@@ -106,6 +108,8 @@ struct NetClient::Impl {
   std::array<std::uint8_t, 16 * 1024> readBuffer{};
   std::array<std::uint8_t, 2048> udpBuffer{};
   udp::endpoint udpFrom;
+  asio::ip::address serverAddress;  // the TCP session's peer: datagrams must come from it
+  LogBudget logBudget{5, 10.0};     // lines about the connection: 5 every 10 s at most
   std::deque<Bytes> writes;
   std::size_t queuedBytes = 0;
   bool writing = false;
@@ -132,19 +136,21 @@ void NetClient::Impl::connect() {
       [this, id](boost::system::error_code ec, tcp::resolver::results_type results) {
         if (id != connection || stopping) return;
         if (ec) return fail("resolve " + options.host + ": " + ec.message());
-        asio::async_connect(
-            tcpSocket, results, [this, id](boost::system::error_code ec2, const tcp::endpoint&) {
-              if (id != connection || stopping) return;
-              if (ec2) return fail("connect: " + ec2.message());
-              tcpOpen = true;
-              boost::system::error_code ignored;
-              tcpSocket.set_option(tcp::no_delay(true), ignored);
-              const std::uint16_t udpPort = options.tcpOnly            ? 0
-                                            : options.udpAdvertisePort ? options.udpAdvertisePort
-                                                                       : udpPortNumber;
-              send(session.connected(netClockSeconds(), udpPort));
-              readStream();
-            });
+        asio::async_connect(tcpSocket, results,
+                            [this, id](boost::system::error_code ec2, const tcp::endpoint& server) {
+                              if (id != connection || stopping) return;
+                              if (ec2) return fail("connect: " + ec2.message());
+                              tcpOpen = true;
+                              serverAddress = server.address();
+                              boost::system::error_code ignored;
+                              tcpSocket.set_option(tcp::no_delay(true), ignored);
+                              const std::uint16_t udpPort = options.tcpOnly ? 0
+                                                            : options.udpAdvertisePort
+                                                                ? options.udpAdvertisePort
+                                                                : udpPortNumber;
+                              send(session.connected(netClockSeconds(), udpPort));
+                              readStream();
+                            });
       });
 }
 
@@ -167,8 +173,10 @@ void NetClient::Impl::fail(const std::string& why) {
   if (rejected) backoff = options.backoffMax;
   {
     std::lock_guard lock(mutex);
-    if (stats.lastError != why || wasConnected)
-      logWarn("server " + options.host + ":" + std::to_string(options.port) + ": " + why);
+    if (stats.lastError != why || wasConnected) {
+      logConnection(LogLevel::Warn,
+                    "server " + options.host + ":" + std::to_string(options.port) + ": " + why);
+    }
     stats.lastError = why;
     stats.connected = false;
     stats.synced = false;
@@ -203,7 +211,8 @@ void NetClient::Impl::receiveUdp() {
     // per datagram: keep receiving.
     if (!ec && n <= kMaxDatagramBytes) {
       const double now = netClockSeconds();
-      (void)session.onDatagram(std::span(udpBuffer.data(), n), now);
+      const DatagramSource source{tcpOpen && udpFrom.address() == serverAddress, udpFrom.port()};
+      (void)session.onDatagram(std::span(udpBuffer.data(), n), now, source);
       afterInput(now);
     }
     receiveUdp();
@@ -229,6 +238,7 @@ void NetClient::Impl::afterInput(double now) {
   stats.udpDatagrams = s.udpDatagrams;
   stats.tcpDatagrams = s.tcpDatagrams;
   stats.badDatagrams = s.badDatagrams;
+  stats.foreignDatagrams = s.foreignDatagrams;
 }
 
 void NetClient::Impl::onLayout(double now) {
@@ -250,9 +260,22 @@ void NetClient::Impl::onLayout(double now) {
   stats.bricksHeld = 0;
   stats.bricksTotal = session.bricksTotal();
   stats.lastError.clear();
-  logInfo("connected to " + options.host + ":" + std::to_string(options.port) + ", session " +
-          std::to_string(session.sessionId()) + ", " + std::to_string(session.bricksTotal()) +
-          " bricks" + (options.tcpOnly ? " (TCP only)" : ""));
+  logConnection(LogLevel::Info, "connected to " + options.host + ":" +
+                                    std::to_string(options.port) + ", session " +
+                                    std::to_string(session.sessionId()) + ", " +
+                                    std::to_string(session.bricksTotal()) + " bricks" +
+                                    (options.tcpOnly ? " (TCP only)" : ""));
+}
+
+// Called with `mutex` held.
+void NetClient::Impl::logConnection(LogLevel level, const std::string& line) {
+  if (!logBudget.take(netClockSeconds())) {
+    ++stats.suppressedLogLines;
+    return;
+  }
+  const std::uint64_t left = logBudget.takeSuppressed();
+  log(level,
+      left == 0 ? line : line + " (" + std::to_string(left) + " lines like it left out before)");
 }
 
 void NetClient::Impl::schedulePoll() {

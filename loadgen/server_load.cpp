@@ -116,6 +116,12 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   if (!metricsPort) return metricsPort.error();
   sp.args = {"--scene", "builtin", "--bind", "127.0.0.1",      "--port",
              "0",       "--token", token,    "--metrics-port", std::to_string(*metricsPort)};
+  // Every simulated client comes from this one address: the per-address caps, which keep one
+  // stranger from taking every place, would turn most of them away.
+  for (const char* cap : {"--max-pending-per-address", "--max-sessions-per-address",
+                          "--handshakes-per-second-per-address"}) {
+    sp.args.insert(sp.args.end(), {cap, "0"});
+  }
   sp.args.insert(sp.args.end(), options.serverArgs.begin(), options.serverArgs.end());
   auto server = ServerProcess::start(sp);
   if (!server) return server.error();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "common/log.h"
 #include "protocol/brick_codec.h"
 #include "protocol/net_framing.h"
 
@@ -84,6 +85,7 @@ void ClientSession::close() {
   bricksHeld_ = bricksTotal_ = 0;
   synced_ = false;
   report_.reset();
+  serverUdpPort_ = 0;
 }
 
 Error ClientSession::fail(std::string why, SessionPhase phase) {
@@ -145,7 +147,8 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
     return fail(name + " from the server: only a client sends it");
   if (const auto* reject = std::get_if<RejectMsg>(&message)) {
     ++stats_.rejects;
-    return fail("rejected: " + reject->reason.substr(0, kMaxQuotedReasonBytes),
+    // Quoted and cut: the reason is the server's text, and ends up in the client's log.
+    return fail("rejected: " + quoteUntrusted(reject->reason, kMaxQuotedReasonBytes),
                 SessionPhase::Rejected);
   }
   if (const auto* welcome = std::get_if<WelcomeMsg>(&message)) {
@@ -164,12 +167,14 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
     if (phase_ != SessionPhase::Streaming) return fail("StreamReport before SessionInfo");
     report_ = *report;
     reportAt_ = now;
+    receiver_->announceFieldVersion(report->fieldVersion);
     ++stats_.streamReports;
     events_.push_back(SessionEvent{SessionEvent::Kind::StreamReport, {}, {}});
     return Status::success();
   }
   auto& state = std::get<SceneStateMsg>(message);
   clock_.update(state.animationTime, now);
+  if (receiver_) receiver_->announceFieldVersion(state.fieldVersion);
   events_.push_back(SessionEvent{SessionEvent::Kind::SceneState, std::move(state), {}});
   return Status::success();
 }
@@ -213,13 +218,22 @@ Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
   return Status::success();
 }
 
-Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now) {
+Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now,
+                                 DatagramSource source) {
   events_.clear();
   ++stats_.udpDatagrams;
   stats_.udpBytes += bytes.size();
   if (!connectedPhase()) return Status::success();  // from no session of this client
-  lastHeard_ = now;
-  return handleDatagram(bytes, now);
+  if (!source.serverAddress || (serverUdpPort_ != 0 && source.port != serverUdpPort_)) {
+    ++stats_.foreignDatagrams;
+    return Error{"datagram from another source than the server"};
+  }
+  Status status = handleDatagram(bytes, now);
+  if (status && phase_ == SessionPhase::Streaming) {
+    lastHeard_ = now;
+    if (serverUdpPort_ == 0) serverUdpPort_ = source.port;
+  }
+  return status;
 }
 
 Status ClientSession::handleDatagram(std::span<const std::uint8_t> bytes, double now) {

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <iterator>
 
+#include "common/constant_time.h"
 #include "protocol/datagram.h"
 #include "protocol/session_generated.h"
 
@@ -410,16 +411,8 @@ std::optional<RejectMsg> checkHello(const HelloMsg& hello, std::string_view expe
                                            std::to_string(kMinProtocolVersion) + ".." +
                                            std::to_string(kProtocolVersion) + ")"};
   }
-  // Constant time over the longer of the two, so timing does not reveal a matching prefix.
-  const std::string& got = hello.authToken;
-  const std::size_t n = std::max(got.size(), expectedToken.size());
-  unsigned diff = got.size() == expectedToken.size() ? 0u : 1u;
-  for (std::size_t i = 0; i < n; ++i) {
-    const unsigned a = i < got.size() ? static_cast<unsigned char>(got[i]) : 0u;
-    const unsigned b = i < expectedToken.size() ? static_cast<unsigned char>(expectedToken[i]) : 0u;
-    diff |= a ^ b;
-  }
-  if (diff != 0) return RejectMsg{kProtocolVersion, "authentication failed"};
+  if (!sameSecret(hello.authToken, expectedToken))
+    return RejectMsg{kProtocolVersion, "authentication failed"};
   return std::nullopt;
 }
 

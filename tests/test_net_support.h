@@ -200,11 +200,16 @@ class UdpRelay {
 // A hand-driven TCP peer: sends whatever bytes a test wants and reads frames back.
 class RawPeer {
  public:
-  explicit RawPeer(std::uint16_t port, int receiveBuffer = 0) : socket_(io_) {
+  // `from`: the local address to connect from (on Linux all of 127/8 is loopback, so
+  // "127.0.0.2" is another client address on the same host).
+  explicit RawPeer(std::uint16_t port, int receiveBuffer = 0, const char* from = nullptr)
+      : socket_(io_) {
     boost::system::error_code ec;
     socket_.open(boost::asio::ip::tcp::v4(), ec);
     if (receiveBuffer > 0)
       socket_.set_option(boost::asio::socket_base::receive_buffer_size(receiveBuffer), ec);
+    if (from) socket_.bind({boost::asio::ip::make_address(from), 0}, ec);
+    EXPECT_FALSE(ec) << ec.message();
     socket_.connect({boost::asio::ip::make_address("127.0.0.1"), port}, ec);
     EXPECT_FALSE(ec) << ec.message();
   }
@@ -224,18 +229,23 @@ class RawPeer {
     return frame;
   }
   // True when the server closed the connection within `timeout` (skipping what it still sends).
-  bool closedByServer(double timeout = 10.0) {
+  bool closedByServer(double timeout = 10.0) { return bytesUntilClosed(timeout).has_value(); }
+  // The bytes the server sent until it closed the connection; nothing when it did not close
+  // it within `timeout`.
+  std::optional<std::size_t> bytesUntilClosed(double timeout = 10.0) {
     const double start = steadySeconds();
     std::array<std::uint8_t, 4096> sink{};
+    std::size_t total = 0;
     while (steadySeconds() - start < timeout) {
       boost::system::error_code ec;
       const std::size_t available = socket_.available(ec);
-      if (ec) return true;
+      if (ec) return total;
       if (available == 0 && !waitReadable(0.05)) continue;
       const std::size_t n = socket_.read_some(boost::asio::buffer(sink), ec);
-      if (ec || n == 0) return true;
+      total += n;
+      if (ec || n == 0) return total;
     }
-    return false;
+    return std::nullopt;
   }
 
  private:
