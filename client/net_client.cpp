@@ -88,6 +88,8 @@ struct NetClient::Impl {
   void poll();
   void send(Bytes frame);
   void writeNext();
+  // Writes a line about the connection unless the budget for such lines is spent.
+  void logConnection(LogLevel level, const std::string& line);
 
   FieldMirror& mirror;
   NetClientOptions options;
@@ -111,6 +113,8 @@ struct NetClient::Impl {
   std::array<std::uint8_t, 16 * 1024> readBuffer{};
   std::array<std::uint8_t, 2048> udpBuffer{};
   udp::endpoint udpFrom;
+  asio::ip::address serverAddress;  // the TCP session's peer: datagrams must come from it
+  LogBudget logBudget{5, 10.0};     // lines about the connection: 5 every 10 s at most
   std::deque<Bytes> writes;
   std::size_t queuedBytes = 0;
   bool writing = false;
@@ -144,11 +148,13 @@ void NetClient::Impl::connect() {
       [this, id, st = stream](boost::system::error_code ec, tcp::resolver::results_type results) {
         if (id != connection || stopping) return;
         if (ec) return fail("resolve " + options.host + ": " + ec.message());
-        asio::async_connect(st->socket(), results,
-                            [this, id, st](boost::system::error_code ec2, const tcp::endpoint&) {
-                              if (id != connection || stopping) return;
-                              if (ec2) return fail("connect: " + ec2.message());
-                              onConnected(id);
+        asio::async_connect(
+            st->socket(), results,
+            [this, id, st](boost::system::error_code ec2, const tcp::endpoint& server) {
+              if (id != connection || stopping) return;
+              if (ec2) return fail("connect: " + ec2.message());
+              serverAddress = server.address();
+              onConnected(id);
                             });
       });
 }
@@ -195,8 +201,10 @@ void NetClient::Impl::fail(const std::string& why) {
   if (rejected) backoff = options.backoffMax;
   {
     std::lock_guard lock(mutex);
-    if (stats.lastError != why || wasConnected)
-      logWarn("server " + options.host + ":" + std::to_string(options.port) + ": " + why);
+    if (stats.lastError != why || wasConnected) {
+      logConnection(LogLevel::Warn,
+                    "server " + options.host + ":" + std::to_string(options.port) + ": " + why);
+    }
     stats.lastError = why;
     stats.connected = false;
     stats.synced = false;
@@ -236,7 +244,8 @@ void NetClient::Impl::receiveUdp() {
     // per datagram: keep receiving.
     if (!ec && n <= kMaxDatagramBytes + kSealOverheadBytes) {
       const double now = netClockSeconds();
-      (void)session.onDatagram(std::span(udpBuffer.data(), n), now);
+      const DatagramSource source{tcpOpen && udpFrom.address() == serverAddress, udpFrom.port()};
+      (void)session.onDatagram(std::span(udpBuffer.data(), n), now, source);
       afterInput(now);
     }
     receiveUdp();
@@ -263,6 +272,7 @@ void NetClient::Impl::afterInput(double now) {
   stats.tcpDatagrams = s.tcpDatagrams;
   stats.badDatagrams = s.badDatagrams;
   stats.unsealedRefused = s.unsealedRefused;
+  stats.foreignDatagrams = s.foreignDatagrams;
 }
 
 void NetClient::Impl::onLayout(double now) {
@@ -284,9 +294,22 @@ void NetClient::Impl::onLayout(double now) {
   stats.bricksHeld = 0;
   stats.bricksTotal = session.bricksTotal();
   stats.lastError.clear();
-  logInfo("connected to " + options.host + ":" + std::to_string(options.port) + ", session " +
-          std::to_string(session.sessionId()) + ", " + std::to_string(session.bricksTotal()) +
-          " bricks" + (options.tcpOnly ? " (TCP only)" : ""));
+  logConnection(LogLevel::Info, "connected to " + options.host + ":" +
+                                    std::to_string(options.port) + ", session " +
+                                    std::to_string(session.sessionId()) + ", " +
+                                    std::to_string(session.bricksTotal()) + " bricks" +
+                                    (options.tcpOnly ? " (TCP only)" : ""));
+}
+
+// Called with `mutex` held.
+void NetClient::Impl::logConnection(LogLevel level, const std::string& line) {
+  if (!logBudget.take(netClockSeconds())) {
+    ++stats.suppressedLogLines;
+    return;
+  }
+  const std::uint64_t left = logBudget.takeSuppressed();
+  log(level,
+      left == 0 ? line : line + " (" + std::to_string(left) + " lines like it left out before)");
 }
 
 void NetClient::Impl::schedulePoll() {

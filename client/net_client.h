@@ -56,8 +56,13 @@ struct NetClientStats {
   std::uint64_t tcpBytes = 0, udpBytes = 0;  // received
   std::uint64_t udpDatagrams = 0, tcpDatagrams = 0, badDatagrams = 0;
   std::uint64_t unsealedRefused = 0;  // UDP datagrams that did not open with the session's key
-  std::uint64_t bricksApplied = 0;    // handed to the mirror
-  std::uint64_t layoutResets = 0;     // mirror reset to the server's layout
+  // UDP datagrams from another source than the server (ClientSessionStats), dropped unread.
+  std::uint64_t foreignDatagrams = 0;
+  // Log lines about the connection left out: a server that rejects or drops this client over
+  // and over gets a few lines every few seconds, not one per attempt.
+  std::uint64_t suppressedLogLines = 0;
+  std::uint64_t bricksApplied = 0;  // handed to the mirror
+  std::uint64_t layoutResets = 0;   // mirror reset to the server's layout
   std::uint64_t serverFieldVersion = 0;
   int bricksHeld = 0, bricksTotal = 0;  // this session
   double lastResyncSeconds = -1;        // connect -> every brick held, for the latest session

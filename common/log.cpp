@@ -61,10 +61,54 @@ std::string timestamp(LogFormat format) {
   return buf;
 }
 
+// The length of the well-formed UTF-8 sequence at s[i], with its code point in `cp`; 0 when
+// the bytes there are not UTF-8 (a stray continuation, an overlong form, a surrogate, a cut
+// sequence).
+std::size_t utf8Sequence(std::string_view s, std::size_t i, char32_t& cp) {
+  const unsigned char c = static_cast<unsigned char>(s[i]);
+  std::size_t n = 1;
+  char32_t least = 0;
+  if (c < 0x80) {
+    cp = c;
+    return 1;
+  } else if ((c & 0xE0) == 0xC0) {
+    n = 2, cp = c & 0x1F, least = 0x80;
+  } else if ((c & 0xF0) == 0xE0) {
+    n = 3, cp = c & 0x0F, least = 0x800;
+  } else if ((c & 0xF8) == 0xF0) {
+    n = 4, cp = c & 0x07, least = 0x10000;
+  } else {
+    return 0;
+  }
+  if (i + n > s.size()) return 0;
+  for (std::size_t k = 1; k < n; ++k) {
+    const unsigned char d = static_cast<unsigned char>(s[i + k]);
+    if ((d & 0xC0) != 0x80) return 0;
+    cp = cp << 6 | (d & 0x3F);
+  }
+  if (cp < least || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return 0;
+  return n;
+}
+
+std::string hexEscape(const char* format, unsigned value) {
+  char esc[12];
+  std::snprintf(esc, sizeof esc, format, value);
+  return esc;
+}
+
+// JSON strings: every control character escaped, and bytes that are not UTF-8 replaced by
+// U+FFFD, so a line is valid JSON whatever a peer put into a field.
 void appendJsonString(std::string& out, std::string_view s) {
   out.push_back('"');
-  for (const char c : s) {
-    switch (c) {
+  for (std::size_t i = 0; i < s.size();) {
+    char32_t cp = 0;
+    const std::size_t n = utf8Sequence(s, i, cp);
+    if (n == 0) {
+      out += "\\ufffd";
+      ++i;
+      continue;
+    }
+    switch (cp) {
       case '"':
         out += "\\\"";
         break;
@@ -81,22 +125,23 @@ void appendJsonString(std::string& out, std::string_view s) {
         out += "\\t";
         break;
       default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char esc[8];
-          std::snprintf(esc, sizeof esc, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
-          out += esc;
+        if (cp < 0x20 || (cp >= 0x7F && cp <= 0x9F)) {  // C0, DEL and C1 controls
+          out += hexEscape("\\u%04x", unsigned(cp));
         } else {
-          out.push_back(c);
+          out.append(s.substr(i, n));
         }
     }
+    i += n;
   }
   out.push_back('"');
 }
 
-// logfmt: a value with spaces, quotes, '=' or control characters is quoted and escaped.
+// logfmt: a value with spaces, quotes, '=', control characters or anything beyond ASCII is
+// quoted and escaped.
 void appendTextValue(std::string& out, std::string_view v) {
   const bool plain = !v.empty() && std::all_of(v.begin(), v.end(), [](char c) {
-    return static_cast<unsigned char>(c) > 0x20 && c != '"' && c != '=' && c != '\\';
+    const auto u = static_cast<unsigned char>(c);
+    return u > 0x20 && u < 0x7F && c != '"' && c != '=' && c != '\\';
   });
   if (plain) {
     out.append(v);
@@ -174,7 +219,15 @@ std::string formatLogLine(LogFormat format, std::string_view time, LogLevel leve
   line += "] [";
   line += levelName(level);
   line += "] ";
-  line.append(message);
+  // A message never spans lines or carries terminal controls, whatever was pasted into it.
+  for (const char c : message) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7F) {
+      line += hexEscape("\\x%02x", u);
+    } else {
+      line.push_back(c);
+    }
+  }
   for (const LogField& f : fields) {
     line.push_back(' ');
     line.append(f.key);
@@ -182,6 +235,74 @@ std::string formatLogLine(LogFormat format, std::string_view time, LogLevel leve
     appendTextValue(line, f.value);
   }
   return line;
+}
+
+namespace {
+
+// Appends the escaped form of `s` to `out` while it stays within maxBytes; returns how many
+// bytes of `s` it took.
+std::size_t appendEscaped(std::string& out, std::string_view s, std::size_t maxBytes) {
+  const std::size_t start = out.size();
+  std::size_t i = 0;
+  std::string piece;
+  while (i < s.size()) {
+    char32_t cp = 0;
+    std::size_t n = utf8Sequence(s, i, cp);
+    if (n == 0) {
+      piece = hexEscape("\\x%02x", static_cast<unsigned char>(s[i]));
+      n = 1;
+    } else if (cp == '"' || cp == '\\') {
+      piece = {'\\', char(cp)};
+    } else if (cp == '\n') {
+      piece = "\\n";
+    } else if (cp == '\r') {
+      piece = "\\r";
+    } else if (cp == '\t') {
+      piece = "\\t";
+    } else if (cp < 0x20 || cp == 0x7F) {
+      piece = hexEscape("\\x%02x", unsigned(cp));
+    } else if ((cp >= 0x80 && cp <= 0x9F) || (cp >= 0x2028 && cp <= 0x202E) ||
+               (cp >= 0x2066 && cp <= 0x2069)) {
+      // C1 controls (a terminal takes U+009B for an escape sequence), line separators and
+      // bidirectional overrides (which reorder what a reader sees).
+      piece = hexEscape("\\u%04x", unsigned(cp));
+    } else {
+      piece.assign(s.substr(i, n));
+    }
+    if (out.size() - start + piece.size() > maxBytes) break;
+    out += piece;
+    i += n;
+  }
+  return i;
+}
+
+}  // namespace
+
+std::string quoteUntrusted(std::string_view s, std::size_t maxBytes) {
+  std::string out = "\"";
+  const std::size_t taken = appendEscaped(out, s, maxBytes);
+  out.push_back('"');
+  if (taken < s.size()) out += "...(" + std::to_string(s.size() - taken) + " more bytes)";
+  return out;
+}
+
+std::string escapeUntrusted(std::string_view s, std::size_t maxBytes) {
+  std::string out;
+  appendEscaped(out, s, maxBytes);
+  return out;
+}
+
+bool LogBudget::take(double now) {
+  if (now - windowStart_ >= interval_) {
+    windowStart_ = now;
+    used_ = 0;
+  }
+  if (used_ < burst_) {
+    ++used_;
+    return true;
+  }
+  ++suppressed_;
+  return false;
 }
 
 void log(LogLevel level, std::string_view message) { logEvent(level, message, {}); }

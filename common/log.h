@@ -11,6 +11,7 @@
 #include <string>
 #include <string_view>
 #include <type_traits>
+#include <utility>
 
 namespace pc {
 
@@ -39,6 +40,35 @@ void logEvent(LogLevel level, std::string_view message, std::initializer_list<Lo
 inline void logInfo(std::string_view m) { log(LogLevel::Info, m); }
 inline void logWarn(std::string_view m) { log(LogLevel::Warn, m); }
 inline void logError(std::string_view m) { log(LogLevel::Error, m); }
+
+// A string a peer supplied (a client's name, a server's Reject reason, an HTTP request line),
+// made safe to log or print: quoted, with quotes and backslashes escaped, control characters
+// (C0, DEL, C1), bidirectional overrides and bytes that are not UTF-8 written as \xNN or
+// \uNNNN, so it can neither forge a log line nor drive a terminal; cut after about maxBytes
+// of output, the marker saying how many bytes of the original were left out.
+std::string quoteUntrusted(std::string_view s, std::size_t maxBytes = 200);
+// The same without the quotes and the marker, for a field of logEvent (which quotes a value
+// as its format needs): escaped, and cut after maxBytes.
+std::string escapeUntrusted(std::string_view s, std::size_t maxBytes = 200);
+
+// Lets through at most `burst` lines per `interval` seconds and counts the rest, so that a
+// loop driven by a peer (reconnects to a hostile server, refused connections) cannot fill a
+// disk with log. Not thread-safe: one per caller's thread.
+class LogBudget {
+ public:
+  LogBudget(int burst, double interval) : burst_(burst), interval_(interval) {}
+  // True when a line may be written at `now` (seconds on any steady clock).
+  bool take(double now);
+  // Lines refused since the previous call (for a "N similar lines suppressed" note).
+  std::uint64_t takeSuppressed() { return std::exchange(suppressed_, 0); }
+
+ private:
+  int burst_;
+  double interval_;
+  int used_ = 0;
+  double windowStart_ = -1e300;
+  std::uint64_t suppressed_ = 0;
+};
 
 // The line log/logEvent write (without the newline), for tests: `timestamp` is passed in.
 std::string formatLogLine(LogFormat format, std::string_view timestamp, LogLevel level,

@@ -237,6 +237,7 @@ class Client {
 
   std::array<std::uint8_t, 4096> readBuffer_{};
   std::array<std::uint8_t, 2048> udpBuffer_{};
+  udp::endpoint udpFrom_;  // a datagram's source: only the server's address counts
   std::deque<Bytes> writes_;
   std::size_t queuedBytes_ = 0;
   bool writing_ = false;
@@ -388,24 +389,27 @@ void Client::readStream() {
 
 void Client::receiveUdp() {
   const std::uint64_t id = connection_;
-  udp_.async_receive(asio::buffer(udpBuffer_),
-                     [this, id](boost::system::error_code ec, std::size_t n) {
-                       if (id != connection_ || worker_.stopping) return;
-                       // Errors on a UDP socket are per datagram (an ICMP error, a truncated read):
-                       // keep going.
-                       if (!ec && n <= kMaxDatagramBytes + kSealOverheadBytes) {
-                         const double now = nowSeconds();
-                         if (linkRate_ > 0) {
-                           enterLink(std::span(udpBuffer_.data(), n), now);
-                           deliverLink(now);
-                         } else {
-                           window_.bytesDown += n;
-                           (void)session_.onDatagram(std::span(udpBuffer_.data(), n), now);
-                           afterInput(now);
-                         }
-                       }
-                       if (id == connection_) receiveUdp();
-                     });
+  udp_.async_receive_from(asio::buffer(udpBuffer_), udpFrom_,
+                          [this, id](boost::system::error_code ec, std::size_t n) {
+                            if (id != connection_ || worker_.stopping) return;
+                            // Errors on a UDP socket are per datagram (an ICMP error, a truncated
+                            // read): keep going.
+                            if (!ec && n <= kMaxDatagramBytes + kSealOverheadBytes) {
+                              const double now = nowSeconds();
+                              const std::span bytes(udpBuffer_.data(), n);
+                              const DatagramSource source{
+                                  udpFrom_.address() == gen_.endpoint.address(), udpFrom_.port()};
+                              if (linkRate_ > 0 && source.serverAddress) {
+                                enterLink(bytes, now);
+                                deliverLink(now);
+                              } else {
+                                window_.bytesDown += n;
+                                (void)session_.onDatagram(bytes, now, source);
+                                afterInput(now);
+                              }
+                            }
+                            if (id == connection_) receiveUdp();
+                          });
 }
 
 void Client::afterInput(double now) {

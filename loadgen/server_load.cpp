@@ -133,6 +133,12 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   // TLS with a certificate the server makes at start, pinned by the load generator; or
   // neither (--no-tls) when the load says so, to measure what TLS costs.
   sp.args.push_back(options.load.tls ? "--dev-self-signed" : "--no-tls");
+  // Every simulated client comes from this one address: the per-address caps, which keep one
+  // stranger from taking every place, would turn most of them away.
+  for (const char* cap : {"--max-pending-per-address", "--max-sessions-per-address",
+                          "--handshakes-per-second-per-address"}) {
+    sp.args.insert(sp.args.end(), {cap, "0"});
+  }
   sp.args.insert(sp.args.end(), options.serverArgs.begin(), options.serverArgs.end());
   auto server = ServerProcess::start(sp);
   if (!server) return server.error();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "common/log.h"
 #include "protocol/brick_codec.h"
 #include "protocol/net_framing.h"
 
@@ -87,6 +88,7 @@ void ClientSession::close() {
   bricksHeld_ = bricksTotal_ = 0;
   synced_ = false;
   report_.reset();
+  serverUdpPort_ = 0;
 }
 
 Error ClientSession::fail(std::string why, SessionPhase phase) {
@@ -148,7 +150,8 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
     return fail(name + " from the server: only a client sends it");
   if (const auto* reject = std::get_if<RejectMsg>(&message)) {
     ++stats_.rejects;
-    return fail("rejected: " + reject->reason.substr(0, kMaxQuotedReasonBytes),
+    // Quoted and cut: the reason is the server's text, and ends up in the client's log.
+    return fail("rejected: " + quoteUntrusted(reject->reason, kMaxQuotedReasonBytes),
                 SessionPhase::Rejected);
   }
   if (const auto* welcome = std::get_if<WelcomeMsg>(&message)) {
@@ -162,7 +165,7 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
       opener_.emplace(*datagramKey_, sessionId_);
       std::deque<std::vector<std::uint8_t>> early = std::move(earlySealed_);
       earlySealed_.clear();
-      for (const auto& d : early) (void)openDatagram(d, now);
+      for (const auto& d : early) (void)openDatagram(d, now, 0);
     }
     return Status::success();
   }
@@ -173,12 +176,14 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
     if (phase_ != SessionPhase::Streaming) return fail("StreamReport before SessionInfo");
     report_ = *report;
     reportAt_ = now;
+    receiver_->announceFieldVersion(report->fieldVersion);
     ++stats_.streamReports;
     events_.push_back(SessionEvent{SessionEvent::Kind::StreamReport, {}, {}});
     return Status::success();
   }
   auto& state = std::get<SceneStateMsg>(message);
   clock_.update(state.animationTime, now);
+  if (receiver_) receiver_->announceFieldVersion(state.fieldVersion);
   events_.push_back(SessionEvent{SessionEvent::Kind::SceneState, std::move(state), {}});
   return Status::success();
 }
@@ -222,11 +227,16 @@ Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
   return Status::success();
 }
 
-Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now) {
+Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now,
+                                 DatagramSource source) {
   events_.clear();
   ++stats_.udpDatagrams;
   stats_.udpBytes += bytes.size();
   if (!connectedPhase()) return Status::success();  // from no session of this client
+  if (!source.serverAddress || (serverUdpPort_ != 0 && source.port != serverUdpPort_)) {
+    ++stats_.foreignDatagrams;
+    return Error{"datagram from another source than the server"};
+  }
   if (datagramKey_) {
     if (!opener_) {
       // Before the Welcome names the session: kept sealed until it does.
@@ -237,13 +247,18 @@ Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now
       }
       return Status::success();
     }
-    return openDatagram(bytes, now);
+    return openDatagram(bytes, now, source.port);
   }
-  lastHeard_ = now;
-  return handleDatagram(bytes, now);
+  Status status = handleDatagram(bytes, now);
+  if (status && phase_ == SessionPhase::Streaming) {
+    lastHeard_ = now;
+    if (serverUdpPort_ == 0) serverUdpPort_ = source.port;
+  }
+  return status;
 }
 
-Status ClientSession::openDatagram(std::span<const std::uint8_t> sealed, double now) {
+Status ClientSession::openDatagram(std::span<const std::uint8_t> sealed, double now,
+                                   std::uint16_t port) {
   auto plain = opener_->open(sealed);
   if (!plain) {
     ++stats_.unsealedRefused;
@@ -251,8 +266,10 @@ Status ClientSession::openDatagram(std::span<const std::uint8_t> sealed, double 
     events_.push_back(SessionEvent{SessionEvent::Kind::Datagram, {}, refused});
     return refused;
   }
-  // Only an authentic datagram of this session shows that the server is alive.
+  // Only an authentic datagram of this session shows that the server is alive, and names the
+  // port the server sends from.
   lastHeard_ = now;
+  if (serverUdpPort_ == 0) serverUdpPort_ = port;
   return handleDatagram(*plain, now);
 }
 

@@ -51,6 +51,14 @@ inline constexpr std::size_t kMaxEarlyDatagrams = 64;
 // A Reject's reason is quoted in the error up to this many bytes: a server could send 4 MiB.
 inline constexpr std::size_t kMaxQuotedReasonBytes = 200;
 
+// Where a UDP datagram came from, as far as the session needs to know: whether its source
+// address is the server's (the address the TCP session is connected to), and its source port.
+// The default is a datagram from the server (in-memory links, TCP-framed datagrams).
+struct DatagramSource {
+  bool serverAddress = true;
+  std::uint16_t port = 0;  // 0: not known
+};
+
 struct ClientSessionOptions {
   std::string token;  // the server's shared secret, sent in the Hello
   std::string name = "probecast-client";
@@ -94,6 +102,9 @@ struct ClientSessionStats {
   std::uint64_t udpDatagrams = 0, tcpDatagrams = 0;
   std::uint64_t badDatagrams = 0;           // refused by the receiver (or a fragment of them)
   std::uint64_t droppedEarlyDatagrams = 0;  // past kMaxEarlyDatagrams before SessionInfo
+  // UDP datagrams not from the server: another source address, or another port than the one
+  // the session's first accepted datagram came from. Dropped unread.
+  std::uint64_t foreignDatagrams = 0;
   std::uint64_t streamReports = 0;
   // UDP datagrams that failed to open with the session's key (forged, corrupted, replayed,
   // or for another session): dropped, and never taken as a sign of the server's life.
@@ -133,8 +144,11 @@ class ClientSession {
   // Bytes read from the TCP stream, in any pieces: each frame is handled once it is whole,
   // its size checked from its prefix before the body is awaited. An Error ends the session.
   Status onStreamBytes(std::span<const std::uint8_t> bytes, double now);
-  // One UDP datagram. Its status (also in its Datagram event) never ends the session.
-  Status onDatagram(std::span<const std::uint8_t> bytes, double now);
+  // One UDP datagram. Its status (also in its Datagram event) never ends the session. Only a
+  // datagram from the server (`source`: its address, and once the session accepted one, the
+  // same port) that the receiver accepts counts as a sign of the server's life for the
+  // silence timeout: junk or a replay from elsewhere cannot keep a dead server looking alive.
+  Status onDatagram(std::span<const std::uint8_t> bytes, double now, DatagramSource source = {});
   // What the latest onStreamBytes or onDatagram call did, in order; the next call replaces
   // them. Kept here rather than handed over, so that a datagram's event allocates nothing.
   const std::vector<SessionEvent>& events() const { return events_; }
@@ -179,7 +193,8 @@ class ClientSession {
   Status onMessage(SessionMessage& message, double now);
   Status onSessionInfo(const SessionInfoMsg& info, double now);
   Status handleDatagram(std::span<const std::uint8_t> bytes, double now);
-  Status openDatagram(std::span<const std::uint8_t> sealed, double now);
+  // `port`: the datagram's source port, pinned once one opens (0: not known).
+  Status openDatagram(std::span<const std::uint8_t> sealed, double now, std::uint16_t port);
   void collectChanges(double now);
   bool connectedPhase() const;
 
@@ -188,6 +203,7 @@ class ClientSession {
   std::string error_;
   double connectStartedAt_ = 0, lastHeard_ = 0, lastPoseAt_ = -1e30;
   std::uint32_t sessionId_ = 0;
+  std::uint16_t serverUdpPort_ = 0;  // source port of the first datagram accepted; 0: none yet
   SessionInfoMsg info_;
   std::optional<StreamReceiver> receiver_;
   std::vector<std::uint8_t> frame_;  // the TCP frame being read, prefix first

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <iterator>
 
+#include "common/constant_time.h"
 #include "protocol/datagram.h"
 #include "protocol/session_generated.h"
 

@@ -10,7 +10,9 @@ Result<StreamReceiver> StreamReceiver::create(const SessionInfoMsg& info, std::u
                                               ReceiverOptions options) {
   auto field = mirrorField(info);
   if (!field) return field.error();
-  return StreamReceiver(std::move(field.value()), sessionId, options);
+  StreamReceiver receiver(std::move(field.value()), sessionId, options);
+  receiver.announceFieldVersion(info.fieldVersion);
+  return receiver;
 }
 
 StreamReceiver::StreamReceiver(Field field, std::uint32_t sessionId, ReceiverOptions options)
@@ -48,6 +50,16 @@ std::vector<std::pair<int, int>> StreamReceiver::takeChangedBricks() {
 
 void StreamReceiver::requestRepair(BrickState& b) { b.wantRepair = true; }
 
+void StreamReceiver::announceFieldVersion(std::uint64_t version) {
+  announcedVersion_ = std::max(announcedVersion_, version);
+}
+
+std::uint64_t StreamReceiver::newestAcceptedVersion() const {
+  const std::uint64_t max = std::numeric_limits<std::uint64_t>::max();
+  return announcedVersion_ > max - kFieldVersionSlack ? max
+                                                      : announcedVersion_ + kFieldVersionSlack;
+}
+
 Status StreamReceiver::onDatagram(std::span<const std::uint8_t> bytes, double now) {
   auto d = decodeDatagram(bytes);
   if (!d) {
@@ -59,6 +71,13 @@ Status StreamReceiver::onDatagram(std::span<const std::uint8_t> bytes, double no
     ++stats_.rejectedDatagrams;
     stats_.lastError = "datagram: session " + std::to_string(d->sessionId) + ", expected " +
                        std::to_string(sessionId_);
+    return Error{stats_.lastError};
+  }
+  if (d->fieldVersion > newestAcceptedVersion()) {
+    ++stats_.rejectedDatagrams;
+    ++stats_.refusedVersions;
+    stats_.lastError = "datagram: field version " + std::to_string(d->fieldVersion) +
+                       " is beyond the newest announced, " + std::to_string(announcedVersion_);
     return Error{stats_.lastError};
   }
   ++stats_.datagrams;
@@ -82,6 +101,15 @@ Status StreamReceiver::onDatagram(std::span<const std::uint8_t> bytes, double no
       stats_.lastError = "datagram: fragment names cascade " + std::to_string(u.cascade) +
                          ", brick " + std::to_string(u.brick) + ", codec " +
                          std::to_string(u.codec) + ", not in this session's field";
+      result = Error{stats_.lastError};
+      continue;
+    }
+    if (u.version > newestAcceptedVersion()) {
+      ++stats_.rejectedFragments;
+      ++stats_.refusedVersions;
+      stats_.lastError = "datagram: brick version " + std::to_string(u.version) +
+                         " is beyond the newest announced field version, " +
+                         std::to_string(announcedVersion_);
       result = Error{stats_.lastError};
       continue;
     }

@@ -64,8 +64,21 @@ struct ReceiverStats {
   std::uint64_t repairBricks = 0;  // bricks named in repair requests
   std::uint64_t acks = 0;
   std::uint64_t gapReports = 0;  // partial updates whose missing fragments were asked for
+  // Datagrams and fragments refused for a field version beyond what the server announced
+  // over the session (plus kFieldVersionSlack): forged, or from another server.
+  std::uint64_t refusedVersions = 0;
   std::string lastError;
 };
+
+// How far a datagram's field version (and a brick update's version) may run ahead of the
+// newest one the server announced over the session (SessionInfo, SceneState, StreamReport).
+// Datagrams overtake the TCP stream, so a datagram may carry a version whose SceneState is
+// still on its way, but only by what the server publishes in that time: one version per
+// field update, 30 updates a second by default, and a SceneState follows every one. 1024
+// versions are over half a minute at that rate, and over 4 s even at the server's highest rate
+// (240 a second), while a forged version of 2^63 (which would hold a brick against every real
+// update) is refused.
+inline constexpr std::uint64_t kFieldVersionSlack = 1024;
 
 class StreamReceiver {
  public:
@@ -88,6 +101,11 @@ class StreamReceiver {
   double brickAge(int cascade, int brick, double now) const;
   // Newest field version the server announced.
   std::uint64_t serverFieldVersion() const { return serverVersion_; }
+  // The server announced `version` over the session (a SceneState, a StreamReport): versions
+  // up to it plus kFieldVersionSlack are accepted from now on. Versions never go back.
+  void announceFieldVersion(std::uint64_t version);
+  // The newest version a datagram or brick update may carry now.
+  std::uint64_t newestAcceptedVersion() const;
   // (cascade, brick) of every brick changed since the previous call, for tile uploads.
   std::vector<std::pair<int, int>> takeChangedBricks();
 
@@ -121,6 +139,7 @@ class StreamReceiver {
   std::uint32_t newestSequence_ = 0;          // of the datagrams received (wrapping)
   std::vector<DatagramArrivalMsg> arrivals_;  // since the last ack, kMaxAckArrivals at most
   std::uint64_t serverVersion_ = 0;
+  std::uint64_t announcedVersion_ = 0;  // over the session only: datagrams never raise it
   double lastAckAt_ = -1e30, lastFullAckAt_ = -1e30;
   ReceiverStats stats_;
 };

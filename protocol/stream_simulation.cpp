@@ -77,6 +77,10 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
         advance(server, t);
         (void)publisher.publish(server, t);
         ++r.fieldUpdates;
+        // The scene state a server sends with every update, announcing its field version.
+        SceneStateMsg state;
+        state.fieldVersion = server.version;
+        (void)client.onStreamBytes(encodeMessage(state), t);
       }
     }
 

@@ -48,10 +48,13 @@ class FieldHub {
     return Status::success();
   }
 
-  // Viewer positions by session, for the probe scheduler.
-  void setViewer(std::uint32_t session, glm::vec3 position) {
+  // Viewer positions by session, for the probe scheduler. A session holds one viewer (its
+  // newest pose replaces the previous one), which counts when its weight is at least 1: the
+  // scheduler ranks probes by their nearest viewer, so a weight never buys a client more
+  // viewers; weight 0 gives a session's pose no say at all.
+  void setViewer(std::uint32_t session, glm::vec3 position, int weight = 1) {
     std::lock_guard lock(mutex_);
-    viewers_[session] = position;
+    viewers_[session] = Viewer{position, weight};
   }
   void removeViewer(std::uint32_t session) {
     std::lock_guard lock(mutex_);
@@ -60,7 +63,9 @@ class FieldHub {
   std::vector<glm::vec3> viewers() const {
     std::lock_guard lock(mutex_);
     std::vector<glm::vec3> out;
-    for (const auto& [id, p] : viewers_) out.push_back(p);
+    for (const auto& [id, v] : viewers_) {
+      if (v.weight > 0) out.push_back(v.position);
+    }
     return out;
   }
 
@@ -79,7 +84,11 @@ class FieldHub {
   std::shared_ptr<const std::vector<std::uint8_t>> sceneFrame_;
   std::uint64_t sceneSerial_ = 0;
   double animationTime_ = 0;
-  std::map<std::uint32_t, glm::vec3> viewers_;
+  struct Viewer {
+    glm::vec3 position;
+    int weight;
+  };
+  std::map<std::uint32_t, Viewer> viewers_;
 };
 
 }  // namespace pc

@@ -6,9 +6,11 @@
 #include <boost/beast/http.hpp>
 #include <cmath>
 #include <cstdio>
+#include <list>
 #include <optional>
 #include <thread>
 
+#include "common/constant_time.h"
 #include "common/log.h"
 
 namespace pc {
@@ -96,16 +98,22 @@ std::string MetricsText::str() const {
   return out;
 }
 
+class MetricsConnection;
+
 struct MetricsHttpServer::Impl {
   Impl(MetricsHttpOptions o, std::function<std::string()> r)
       : options(std::move(o)), render(std::move(r)), acceptor(io) {}
   void acceptNext();
+  // Closes the oldest connection still awaiting its request; false when there is none.
+  bool dropOldestIdle();
 
   MetricsHttpOptions options;
   std::function<std::string()> render;
   // Declared before io: connections still pending when io is destroyed count themselves out.
   std::size_t connections = 0;  // io thread only
-  std::atomic<std::uint64_t> scrapes{0};
+  // Every connection in accept order (the oldest first); io thread only.
+  std::list<std::weak_ptr<MetricsConnection>> open;
+  std::atomic<std::uint64_t> scrapes{0}, unauthorized{0}, dropped{0};
   std::uint16_t port = 0;
   asio::io_context io;
   tcp::acceptor acceptor;
@@ -113,6 +121,17 @@ struct MetricsHttpServer::Impl {
 };
 
 namespace {
+
+bool authorized(const http::request<http::empty_body>& request, const std::string& token) {
+  if (token.empty()) return true;
+  constexpr std::string_view kScheme = "Bearer ";
+  const auto field = request[http::field::authorization];
+  const std::string_view value(field.data(), field.size());
+  if (value.size() < kScheme.size() || value.substr(0, kScheme.size()) != kScheme) return false;
+  return sameSecret(value.substr(kScheme.size()), token);
+}
+
+}  // namespace
 
 // One scrape: read a request, answer it, close. Keep-alive is not offered, so a connection
 // holds nothing between scrapes.
@@ -134,22 +153,34 @@ class MetricsConnection : public std::enable_shared_from_this<MetricsConnection>
     http::async_read(stream_, buffer_, *parser_,
                      [self](beast::error_code ec, std::size_t) { self->onRead(ec); });
   }
+  bool awaitingRequest() const { return !answered_; }
+  // Ends the connection: its pending operation completes with an error and lets go of it.
+  void drop() {
+    answered_ = true;
+    stream_.close();
+  }
 
  private:
   void onRead(beast::error_code ec) {
-    if (ec) return;  // timeout, oversized or malformed request, or the peer went away
+    if (ec || answered_) return;  // timeout, dropped, oversized or malformed, or the peer left
+    answered_ = true;
     const auto& request = parser_->get();
     response_.version(request.version());
     response_.keep_alive(false);
     response_.set(http::field::server, "probecast");
-    if (request.target() != "/metrics") {
+    response_.set(http::field::content_type, "text/plain; charset=utf-8");
+    if (!authorized(request, server_.options.bearerToken)) {
+      // Before the target is even looked at: an unauthorized client learns nothing.
+      ++server_.unauthorized;
+      response_.result(http::status::unauthorized);
+      response_.set(http::field::www_authenticate, "Bearer");
+      response_.body() = "unauthorized\n";
+    } else if (request.target() != "/metrics") {
       response_.result(http::status::not_found);
-      response_.set(http::field::content_type, "text/plain; charset=utf-8");
       response_.body() = "not found: only /metrics is served\n";
     } else if (request.method() != http::verb::get && request.method() != http::verb::head) {
       response_.result(http::status::method_not_allowed);
       response_.set(http::field::allow, "GET, HEAD");
-      response_.set(http::field::content_type, "text/plain; charset=utf-8");
       response_.body() = "method not allowed\n";
     } else {
       response_.result(http::status::ok);
@@ -171,19 +202,37 @@ class MetricsConnection : public std::enable_shared_from_this<MetricsConnection>
   beast::flat_buffer buffer_{16 * 1024};
   std::optional<http::request_parser<http::empty_body>> parser_;
   http::response<http::string_body> response_;
+  bool answered_ = false;
 };
 
-}  // namespace
+bool MetricsHttpServer::Impl::dropOldestIdle() {
+  for (auto it = open.begin(); it != open.end();) {
+    auto connection = it->lock();
+    it = open.erase(it);
+    if (connection && connection->awaitingRequest()) {
+      connection->drop();
+      ++dropped;
+      return true;
+    }
+  }
+  return false;
+}
 
 void MetricsHttpServer::Impl::acceptNext() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted) return;
     if (!ec) {
-      if (connections >= options.maxConnections) {
+      std::erase_if(open, [](const auto& c) { return c.expired(); });
+      // Full: the oldest connection that has not sent its request yet makes room (an idle or
+      // slow socket, not a scrape being answered). None: this one is closed, and a scraper
+      // that retries gets in once the others are done.
+      if (connections >= options.maxConnections && !dropOldestIdle()) {
         beast::error_code ignored;
-        socket.close(ignored);  // a scraper that retries gets in once the others are done
+        socket.close(ignored);
       } else {
-        std::make_shared<MetricsConnection>(*this, std::move(socket))->start();
+        auto connection = std::make_shared<MetricsConnection>(*this, std::move(socket));
+        open.push_back(connection);
+        connection->start();
       }
     }
     acceptNext();

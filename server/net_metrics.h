@@ -38,11 +38,15 @@ class MetricsText {
 struct MetricsHttpOptions {
   std::string bindAddress = "127.0.0.1";
   std::uint16_t port = 0;  // 0: any free port (see MetricsHttpServer::port)
-  // A scraper gets this long to send its request and read the answer; more than this many
-  // connections at once are closed on accept. Requests are small (GET): headers are capped at
-  // 8 KiB and bodies at 0.
+  // Non-empty: a request must carry `Authorization: Bearer <token>` (compared in constant
+  // time), else it gets 401.
+  std::string bearerToken;
+  // A scraper gets this long to send its request and read the answer. Requests are small
+  // (GET): headers are capped at 8 KiB and bodies at 0. Connections are served concurrently;
+  // with maxConnections open, a new one takes the place of the oldest still awaiting its
+  // request, so idle or slow sockets delay a scraper by nothing but their own places.
   double requestTimeout = 5.0;
-  std::size_t maxConnections = 8;
+  std::size_t maxConnections = 32;
 };
 
 class MetricsHttpServer {

@@ -7,11 +7,13 @@
 #include <array>
 #include <boost/asio.hpp>
 #include <cerrno>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <random>
 #include <thread>
 
+#include "address_limits.h"
 #include "common/log.h"
 #include "net_server_impl.h"
 #include "net_session.h"
@@ -48,6 +50,8 @@ const char* causeName(DisconnectCause cause) {
       return "rejected";
     case DisconnectCause::TooManyPending:
       return "too_many_pending";
+    case DisconnectCause::AddressLimit:
+      return "address_limit";
     case DisconnectCause::Shutdown:
       return "shutdown";
   }
@@ -62,6 +66,8 @@ const char* causeName(RejectCause cause) {
       return "version";
     case RejectCause::ServerFull:
       return "server_full";
+    case RejectCause::ClientLimit:
+      return "client_limit";
   }
   return "?";
 }
@@ -98,30 +104,46 @@ void NetServer::Impl::acceptNext() {
 }
 
 void NetServer::Impl::onAccepted(tcp::socket socket) {
+  boost::system::error_code ec;
+  const auto remote = socket.remote_endpoint(ec);
+  if (ec) return;  // gone already
+  const std::string key = addressKey(remote.address());
+  std::optional<std::string> refusal;
+  DisconnectCause cause = DisconnectCause::AddressLimit;
   if (sessions.size() - established >= options.maxPendingConnections) {
     // Too many connections still before their Hello: this one is not read at all (a full
     // server answers a Hello with a Reject, but only this many Hellos are awaited at once).
-    boost::system::error_code ignored;
-    const auto remote = socket.remote_endpoint(ignored);
-    ++totals.accepted;
-    ++totals.disconnected;
-    ++totals.disconnects[std::size_t(DisconnectCause::TooManyPending)];
-    logEvent(LogLevel::Warn, "client disconnected",
-             {{"peer", remote.address().to_string() + ":" + std::to_string(remote.port())},
-              {"cause", causeName(DisconnectCause::TooManyPending)},
-              {"detail", std::to_string(options.maxPendingConnections) +
-                             " connections already awaiting their Hello"}});
-    socket.close(ignored);
-    return;
+    cause = DisconnectCause::TooManyPending;
+    refusal =
+        std::to_string(options.maxPendingConnections) + " connections already awaiting their Hello";
+  } else {
+    refusal = addressLimits.admit(key, steadySeconds());
   }
+  ++totals.accepted;
+  if (refusal) return refuseAccepted(std::move(socket), key, cause, *refusal);
   const std::uint32_t id = nextSessionId++;
   auto session = std::make_shared<Session>(
       *this,
       tls ? net::SessionStream(std::move(socket), *tls) : net::SessionStream(std::move(socket)),
       id);
+  session->setAddressKey(key);
   sessions[id] = session;
-  ++totals.accepted;
   session->start();
+}
+
+void NetServer::Impl::refuseAccepted(tcp::socket socket, const std::string& key,
+                                     DisconnectCause cause, const std::string& detail) {
+  ++totals.disconnected;
+  ++totals.disconnects[std::size_t(cause)];
+  boost::system::error_code ignored;
+  socket.close(ignored);
+  // One line per address every few seconds at most: refusals must not become a flood of log.
+  std::uint64_t suppressed = 0;
+  const std::string logKey = cause == DisconnectCause::TooManyPending ? "*" : key;
+  if (!addressLimits.shouldLog(logKey, steadySeconds(), suppressed)) return;
+  logEvent(
+      LogLevel::Warn, "client disconnected",
+      {{"peer", key}, {"cause", causeName(cause)}, {"detail", detail}, {"suppressed", suppressed}});
 }
 
 void NetServer::Impl::schedulePoll() {
@@ -253,7 +275,10 @@ void NetServer::Impl::remove(std::uint32_t id, DisconnectCause cause) {
   totals.tcpQueueFullPolls += it->second->tcpQueueFullPolls();
   ++totals.disconnected;
   ++totals.disconnects[std::size_t(cause)];
-  if (it->second->welcomed()) --established;
+  const bool welcomed = it->second->welcomed();
+  if (welcomed) --established;
+  addressLimits.release(it->second->addressKey(), welcomed);
+  if (welcomed) addressLimits.releaseClient(it->second->clientKey());
   // The map's reference goes after this call returns: the session is still running code.
   asio::post(io, [s = it->second] {});
   sessions.erase(it);
@@ -368,6 +393,26 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
           double(s.changeCacheEntries));
 }
 
+namespace {
+
+// The box of every cascade's probe grid, grown by half its largest side: a viewer that far
+// outside the field still sees into it, one farther away gains nothing from probes near it.
+void setViewerBounds(NetServer::Impl& s, const SessionInfoMsg& info) {
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(std::numeric_limits<float>::lowest());
+  for (const gpu::CascadeDesc& c : info.cascades) {
+    const glm::vec3 far = c.origin + c.spacing * glm::vec3(c.counts - 1);
+    lo = glm::min(lo, glm::min(c.origin, far));
+    hi = glm::max(hi, glm::max(c.origin, far));
+  }
+  if (info.cascades.empty()) lo = hi = glm::vec3(0.0f);
+  const glm::vec3 extent = hi - lo;
+  const float margin = 0.5f * std::max({extent.x, extent.y, extent.z, 1.0f});
+  s.viewerMin = lo - margin;
+  s.viewerMax = hi + margin;
+}
+
+}  // namespace
+
 NetServer::NetServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 NetServer::~NetServer() { stop(); }
@@ -408,7 +453,15 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
     auto lock = hub.lock();
     for (int k = 0; k < hub.publisher().cascadeCount(); ++k)
       s.fieldBricks += std::size_t(hub.publisher().brickCount(k));
+    setViewerBounds(s, hub.publisher().sessionInfo());
   }
+  AddressLimitOptions limits;
+  limits.maxPendingPerAddress = s.options.maxPendingPerAddress;
+  limits.maxSessionsPerAddress = s.options.maxSessionsPerAddress;
+  limits.handshakesPerSecond = s.options.handshakesPerSecondPerAddress;
+  limits.handshakeBurst = std::max(1.0, 2 * s.options.handshakesPerSecondPerAddress);
+  limits.maxSessionsPerClient = s.options.maxSessionsPerClient;
+  s.addressLimits = AddressLimits(limits);
   s.maxMessageBytes =
       s.options.maxMessageBytes != 0
           ? s.options.maxMessageBytes
@@ -446,7 +499,8 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
   if (s.options.metricsPort) {
     MetricsHttpOptions mo;
     mo.bindAddress =
-        s.options.metricsBindAddress.empty() ? s.options.bindAddress : s.options.metricsBindAddress;
+        s.options.metricsBindAddress.empty() ? "127.0.0.1" : s.options.metricsBindAddress;
+    mo.bearerToken = s.options.metricsToken;
     mo.port = *s.options.metricsPort;
     auto metrics = MetricsHttpServer::create(mo, [&s] { return s.renderMetrics(); });
     if (!metrics) return metrics.error();

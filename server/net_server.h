@@ -41,14 +41,17 @@ enum class DisconnectCause {
   Rejected,        // the handshake was refused (see RejectCause); the Reject was written
   TlsHandshake,    // the TLS handshake failed (not TLS, no common cipher, a bad certificate)
   TooManyPending,  // accepted over maxPendingConnections: closed at once
+  AddressLimit,    // over a cap of its remote address (pending, sessions, handshake rate):
+                   // closed at once, nothing read
   Shutdown,        // the server stopped
 };
 inline constexpr std::size_t kDisconnectCauses = std::size_t(DisconnectCause::Shutdown) + 1;
 const char* causeName(DisconnectCause cause);
 
 // Why a Hello was answered with a Reject: the label of probecast_sessions_rejected_total.
-enum class RejectCause { Auth, Version, ServerFull };
-inline constexpr std::size_t kRejectCauses = std::size_t(RejectCause::ServerFull) + 1;
+// ClientLimit: the client identity already holds maxSessionsPerClient sessions.
+enum class RejectCause { Auth, Version, ServerFull, ClientLimit };
+inline constexpr std::size_t kRejectCauses = std::size_t(RejectCause::ClientLimit) + 1;
 const char* causeName(RejectCause cause);
 
 // TLS 1.3 on every session stream (net/tls_context.h); the datagram keys come from it. Off
@@ -81,6 +84,17 @@ struct NetServerOptions {
   // most helloTimeout each). Generous: many clients joining at once are all pending for a
   // moment.
   std::size_t maxPendingConnections = 256;
+  // Per remote address (an IPv4 address, an IPv6 /64), so that one address cannot take the
+  // places every other client needs: connections before their Hello, sessions, and handshakes
+  // started per second (a token bucket holding two seconds' worth). A connection over a cap
+  // is closed as soon as it is accepted, nothing read (DisconnectCause::AddressLimit), and
+  // logged at most once per address every few seconds. 0 turns a cap off.
+  std::size_t maxPendingPerAddress = 8;
+  std::size_t maxSessionsPerAddress = 16;
+  double handshakesPerSecondPerAddress = 4;
+  // Sessions one client identity (the Hello's client name) may hold at once; a Hello beyond
+  // it gets a Reject (RejectCause::ClientLimit). 0: no cap.
+  std::size_t maxSessionsPerClient = 4;
   // Largest frame an authenticated client may send, checked on the 4-byte prefix before
   // anything is allocated. 0: derived from the field, room for a full ack or repair request
   // naming every brick (32 bytes a brick + 4 KiB, at least 64 KiB, at most the protocol's
@@ -102,9 +116,12 @@ struct NetServerOptions {
   double silenceTimeout = 10.0;  // s without any message from a client (full acks come every 1 s)
   double pollInterval = 0.005;   // s between sender polls
   // Prometheus metrics (GET /metrics over HTTP) on this port; nothing: no endpoint; 0: any
-  // free port (NetServer::metricsPort). Bound on metricsBindAddress, else bindAddress.
+  // free port (NetServer::metricsPort). Bound on metricsBindAddress, else on loopback only
+  // (127.0.0.1): the figures name clients and their addresses. With a metricsToken, a
+  // request must carry `Authorization: Bearer <token>` (else 401).
   std::optional<std::uint16_t> metricsPort;
   std::string metricsBindAddress;
+  std::string metricsToken;
 };
 
 struct NetClientInfo {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "net/tls_context.h"
+#include "address_limits.h"
 #include "net_server.h"
 
 namespace pc {
@@ -33,6 +34,9 @@ struct NetServer::Impl {
 
   void acceptNext();
   void onAccepted(tcp::socket socket);
+  // A connection over a cap: closed at once, counted, logged (rate-limited per address).
+  void refuseAccepted(tcp::socket socket, const std::string& key, DisconnectCause cause,
+                      const std::string& detail);
   static constexpr int kAcceptBatch = 64;  // accepts per turn of the event loop, at most
   void schedulePoll();
   void poll();
@@ -66,7 +70,11 @@ struct NetServer::Impl {
   std::vector<UdpOut> udpBatch;
 
   std::map<std::uint32_t, std::shared_ptr<Session>> sessions;
-  std::size_t established = 0;  // sessions past the handshake
+  std::size_t established = 0;                         // sessions past the handshake
+  AddressLimits addressLimits{AddressLimitOptions{}};  // set from the options by create()
+  // Where viewer poses may be: the field's bounds and a margin (create()); poses beyond are
+  // ignored, so a client cannot steer the probe scheduler with positions no one views from.
+  glm::vec3 viewerMin{0.0f}, viewerMax{0.0f};
   std::uint32_t nextSessionId = 0;
   std::uint16_t tcpPort = 0, udpPortNumber = 0;
   // Limits derived from the options and the field (create()).

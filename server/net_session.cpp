@@ -14,6 +14,8 @@ namespace {
 constexpr std::size_t kMaxHelloFrameBytes = 4096;
 // A receive buffer grown past this by one large message (a full ack) is given back after it.
 constexpr std::size_t kKeptFrameCapacity = 64u << 10;
+// A client's name is kept (and logged, quoted) up to this many bytes.
+constexpr std::size_t kMaxClientNameBytes = 64;
 
 std::uint32_t readLittleEndian32(const std::array<std::uint8_t, kFramePrefixBytes>& b) {
   return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 |
@@ -62,7 +64,7 @@ void Session::close(DisconnectCause cause, const std::string& detail) {
   logEvent(misbehaviour(cause) ? LogLevel::Warn : LogLevel::Info, "client disconnected",
            {{"session", id_},
             {"peer", peer_},
-            {"name", name_},
+            {"name", escapeUntrusted(name_, kMaxClientNameBytes)},
             {"cause", causeName(cause)},
             {"detail", detail},
             {"seconds", steadySeconds() - acceptedAt_}});
@@ -281,8 +283,7 @@ bool Session::handle(const SessionMessage& message) {
     refuse(DisconnectCause::Invalid, *invalid);
     return false;
   }
-  if (const auto* pose = std::get_if<ViewerPoseMsg>(&message))
-    server_.hub.setViewer(id_, pose->position);
+  if (const auto* pose = std::get_if<ViewerPoseMsg>(&message)) setViewer(*pose);
   Status status;
   {
     auto lock = server_.hub.lock();
@@ -314,34 +315,45 @@ std::optional<std::string> Session::checkSize(const SessionMessage& message) con
 }
 
 bool Session::onHello(const HelloMsg& hello) {
-  name_ = hello.clientName.substr(0, 64);
+  name_ = hello.clientName.substr(0, kMaxClientNameBytes);
   const std::int64_t nowUnix = std::chrono::duration_cast<std::chrono::seconds>(
                                    std::chrono::system_clock::now().time_since_epoch())
                                    .count();
   HelloVerdict verdict = checkHello(hello, server_.verifier, server_.options.sceneName, nowUnix);
   std::optional<RejectMsg> reject = std::move(verdict.reject);
   RejectCause cause = verdict.versionMismatch ? RejectCause::Version : RejectCause::Auth;
+  // The per-client cap counts tokens: one token holder cannot take every place.
+  const std::string tokenKey = tokenIdHex(verdict.claims.id);
   if (!reject && server_.established >= server_.options.maxClients) {
-    reject = RejectMsg{kProtocolVersion, "server full: " + std::to_string(server_.established) +
-                                             " clients connected, the cap is " +
-                                             std::to_string(server_.options.maxClients)};
+    reject = RejectMsg{kProtocolVersion,
+                       "server full: cap " + std::to_string(server_.options.maxClients)};
     cause = RejectCause::ServerFull;
+  } else if (!reject) {
+    if (auto why = server_.addressLimits.admitClient(tokenKey)) {
+      reject = RejectMsg{kProtocolVersion, "client limit: " + *why};
+      cause = RejectCause::ClientLimit;
+    }
   }
   if (reject) {
     logEvent(LogLevel::Warn, "client rejected",
              {{"session", id_},
               {"peer", peer_},
-              {"name", name_},
+              {"name", escapeUntrusted(name_, kMaxClientNameBytes)},
               {"cause", causeName(cause)},
               {"reason", reject->reason}});
     ++server_.totals.rejected;
     ++server_.totals.rejects[std::size_t(cause)];
     if (verdict.tokenError) ++server_.totals.tokenRejects[std::size_t(*verdict.tokenError)];
-    // Nothing but the Reject goes out; the connection closes once it is written.
-    closeAfterFlush_ = true;
-    enqueue(share(encodeMessage(*reject)));
+    sendReject(std::move(*reject));
     return false;
   }
+  if (auto why = server_.addressLimits.promote(addressKey_)) {
+    server_.addressLimits.releaseClient(tokenKey);
+    close(DisconnectCause::AddressLimit, *why);
+    return false;
+  }
+  // The identity the per-client cap counts; released by the server when the session ends.
+  clientKey_ = tokenKey;
   // The token names the client: what is logged and counted is the token's name and id, not
   // what the client chose to call itself.
   claims_ = std::move(verdict.claims);
@@ -376,7 +388,7 @@ bool Session::onHello(const HelloMsg& hello) {
   logEvent(LogLevel::Info, "client joined",
            {{"session", id_},
             {"peer", peer_},
-            {"name", name_},
+            {"name", escapeUntrusted(name_, kMaxClientNameBytes)},
             {"token", tokenIdHex(claims_.id)},
             {"role", std::string(tokenRoleName(claims_.role))},
             {"transport", useUdp ? "udp" : "tcp"},
@@ -385,6 +397,30 @@ bool Session::onHello(const HelloMsg& hello) {
   enqueue(share(encodeMessage(info)));
   if (scene) enqueue(scene);
   return !closed_;
+}
+
+void Session::sendReject(RejectMsg reject) {
+  // Nothing but the Reject goes out; the connection closes once it is written.
+  closeAfterFlush_ = true;
+  Bytes frame = encodeMessage(reject);
+  while (frame.size() > bytesReceived_ && !reject.reason.empty()) {
+    const std::size_t over = frame.size() - std::size_t(bytesReceived_);
+    reject.reason.resize(reject.reason.size() - std::min(over, reject.reason.size()));
+    frame = encodeMessage(reject);
+  }
+  if (frame.size() > bytesReceived_)
+    return close(DisconnectCause::Rejected, "Hello too short for a Reject");
+  enqueue(share(std::move(frame)));
+}
+
+void Session::setViewer(const ViewerPoseMsg& pose) {
+  const glm::vec3 p = pose.position;
+  const bool inside = glm::all(glm::greaterThanEqual(p, server_.viewerMin)) &&
+                      glm::all(glm::lessThanEqual(p, server_.viewerMax));  // false for NaN
+  if (!inside) return;  // ignored: the session's previous viewer stays
+  // One viewer per session, of its weight: more sessions give one client more say only up to
+  // the per-client and per-address session caps.
+  server_.hub.setViewer(id_, p, viewerWeight_);
 }
 
 void Session::enqueue(SharedBytes bytes) {

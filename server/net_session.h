@@ -44,6 +44,11 @@ class Session : public std::enable_shared_from_this<Session> {
   // The TLS handshake (where the stream has TLS), then the first frame.
   void start();
   bool welcomed() const { return sender_ != nullptr; }
+  // The keys this session is counted under in the server's AddressLimits: its remote address
+  // (set on accept), and its client identity (set once the Hello is accepted).
+  void setAddressKey(std::string key) { addressKey_ = std::move(key); }
+  const std::string& addressKey() const { return addressKey_; }
+  const std::string& clientKey() const { return clientKey_; }
 
   // Ends the session now: the socket closes, pending operations complete with errors and
   // find the session closed. The cause is logged (one structured event) and counted once.
@@ -85,6 +90,12 @@ class Session : public std::enable_shared_from_this<Session> {
   std::optional<std::string> checkSize(const SessionMessage& message) const;
 
   bool onHello(const HelloMsg& hello);
+  // Writes the Reject and closes once it is out. Before its Hello is accepted a peer never
+  // gets more bytes than it sent: the reason is cut to fit, and nothing is written when not
+  // even an empty reason fits.
+  void sendReject(RejectMsg reject);
+  // Applies a viewer pose to the probe scheduler's viewer set, within the field's bounds.
+  void setViewer(const ViewerPoseMsg& pose);
   void enqueue(SharedBytes bytes);
   void writeNext();
   void onWritten(boost::system::error_code ec, std::size_t n);
@@ -96,6 +107,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::optional<DatagramSealer> sealer_;
   std::string peer_, name_;
   TokenClaims claims_;  // the connect token's, once the Hello is accepted
+  std::string addressKey_, clientKey_;
   bool closed_ = false, closeAfterFlush_ = false;
   std::array<std::uint8_t, kFramePrefixBytes> prefix_{};
   Bytes frame_;
@@ -116,6 +128,9 @@ class Session : public std::enable_shared_from_this<Session> {
   std::size_t pendingBricks_ = 0;
   std::uint64_t resends_ = 0, repairedFragments_ = 0;
   Bucket messageBucket_, byteBucket_;
+  // What this session's viewer counts for in the probe scheduler's viewer set (FieldHub):
+  // 1, the same for every client.
+  int viewerWeight_ = 1;
 };
 
 }  // namespace pc

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "protocol/client_session.h"
+#include "protocol/datagram.h"
 #include "protocol/fault_link.h"
 #include "protocol/field_publisher.h"
 #include "protocol/net_framing.h"
@@ -226,9 +227,9 @@ TEST(ClientSession, RejectEndsTheSessionWithTheServersReason) {
   (void)session.connected(0.0, 0);
   Status s = session.onStreamBytes(encodeMessage(RejectMsg{kProtocolVersion, "bad token"}), 0.1);
   ASSERT_FALSE(s.ok());
-  EXPECT_EQ(s.error().message, "rejected: bad token");
+  EXPECT_EQ(s.error().message, "rejected: \"bad token\"");
   EXPECT_EQ(session.phase(), SessionPhase::Rejected);
-  EXPECT_EQ(session.error(), "rejected: bad token");
+  EXPECT_EQ(session.error(), "rejected: \"bad token\"");
   EXPECT_EQ(session.stats().rejects, 1u);
   EXPECT_EQ(session.receiver(), nullptr);
   // Ended: nothing more is read, and polls send nothing.
@@ -236,13 +237,15 @@ TEST(ClientSession, RejectEndsTheSessionWithTheServersReason) {
   ASSERT_TRUE(session.poll(5.0).ok());
   EXPECT_TRUE(session.poll(5.0)->empty());
 
-  // A reason of megabytes is quoted only in part.
+  // A reason of megabytes is quoted only in part, its escapes escaped.
   session.connecting(1.0);
   (void)session.connected(1.0, 0);
-  s = session.onStreamBytes(encodeMessage(RejectMsg{kProtocolVersion, std::string(100000, 'x')}),
-                            1.0);
+  s = session.onStreamBytes(
+      encodeMessage(RejectMsg{kProtocolVersion, "\x1b[2J" + std::string(100000, 'x')}), 1.0);
   ASSERT_FALSE(s.ok());
-  EXPECT_EQ(s.error().message, "rejected: " + std::string(kMaxQuotedReasonBytes, 'x'));
+  EXPECT_EQ(s.error().message,
+            "rejected: \"\\x1b[2J" + std::string(kMaxQuotedReasonBytes - 7, 'x') + "\"...(" +
+                std::to_string(100000 - (kMaxQuotedReasonBytes - 7)) + " more bytes)");
   EXPECT_EQ(session.stats().rejects, 2u);
 }
 
@@ -428,6 +431,88 @@ TEST(ClientSession, TimeoutsEndTheSession) {
     EXPECT_EQ(session.phase(), SessionPhase::Idle);
     EXPECT_EQ(session.receiver(), nullptr);
   }
+}
+
+// A datagram of the server's, re-encoded with another field version and brick versions.
+Bytes forged(const Bytes& real, std::uint64_t fieldVersion, std::uint64_t brickVersion) {
+  auto d = decodeDatagram(real);
+  EXPECT_TRUE(d.ok());
+  if (!d) return {};
+  std::vector<FragmentRef> refs;
+  for (Fragment& f : d->fragments) {
+    f.update.version = brickVersion;
+    refs.push_back(FragmentRef{f.update, f.index, f.data});
+  }
+  return encodeDatagram(d->sessionId, d->sequence, fieldVersion, refs);
+}
+
+TEST(ClientSession, VersionsBeyondWhatTheServerAnnouncedAreRefused) {
+  InMemoryServer server(17);
+  ClientSession session({});
+  join(session, server, 0.0);
+  const std::uint64_t announced = server.field.version;
+  auto datagrams = server.sender->poll(0.01);
+  ASSERT_FALSE(datagrams.empty());
+  const Bytes& real = datagrams.front();
+  const StreamReceiver& receiver = *session.receiver();
+
+  // A brick version of 2^63 (which would hold the brick against every real update), and a
+  // heartbeat's field version beyond the bound: refused, nothing applied.
+  constexpr std::uint64_t kFar = std::uint64_t(1) << 63;
+  EXPECT_FALSE(session.onDatagram(forged(real, announced, kFar), 0.02).ok());
+  EXPECT_FALSE(session.onDatagram(encodeDatagram(server.sessionId, 99, kFar, {}), 0.02).ok());
+  EXPECT_FALSE(session
+                   .onDatagram(forged(real, announced + kFieldVersionSlack + 1,
+                                      announced + kFieldVersionSlack + 1),
+                               0.02)
+                   .ok());
+  EXPECT_EQ(receiver.stats().refusedVersions, 3u);
+  EXPECT_EQ(receiver.stats().applied, 0u);
+  EXPECT_LE(receiver.serverFieldVersion(), announced) << "a refused datagram announces nothing";
+
+  // Within the slack (a datagram overtaking its SceneState): applied.
+  const std::uint64_t ahead = announced + kFieldVersionSlack;
+  for (const Bytes& d : datagrams) {
+    EXPECT_TRUE(session.onDatagram(forged(d, ahead, ahead), 0.03).ok())
+        << receiver.stats().lastError;
+  }
+  EXPECT_GT(receiver.stats().applied, 0u);
+  EXPECT_EQ(receiver.serverFieldVersion(), announced + kFieldVersionSlack);
+
+  // A SceneState over the session moves the bound on; a datagram's own version never does.
+  SceneStateMsg later;
+  later.fieldVersion = announced + 5000;
+  ASSERT_TRUE(session.onStreamBytes(encodeMessage(later), 0.04).ok());
+  EXPECT_TRUE(
+      session.onDatagram(encodeDatagram(server.sessionId, 100, announced + 5000 + 1000, {}), 0.05)
+          .ok());
+  EXPECT_EQ(receiver.stats().refusedVersions, 3u);
+}
+
+TEST(ClientSession, OnlyTheServersDatagramsCountAsItsLife) {
+  ClientSessionOptions o;
+  o.silenceTimeout = 1.0;
+  InMemoryServer server(19);
+  ClientSession session(o);
+  join(session, server, 0.0);
+  auto datagrams = server.sender->poll(0.01);
+  ASSERT_GE(datagrams.size(), 2u);
+  // The first accepted datagram fixes the server's port; the same bytes from elsewhere are
+  // dropped unread.
+  EXPECT_TRUE(session.onDatagram(datagrams[0], 0.5, DatagramSource{true, 5000}).ok());
+  EXPECT_FALSE(session.onDatagram(datagrams[1], 0.6, DatagramSource{false, 5000}).ok());
+  EXPECT_FALSE(session.onDatagram(datagrams[1], 0.6, DatagramSource{true, 5001}).ok());
+  EXPECT_EQ(session.stats().foreignDatagrams, 2u);
+  // Junk from the server's address and port, and foreign datagrams, keep nothing alive.
+  for (double t = 0.7; t < 1.6; t += 0.1) {
+    (void)session.onDatagram(Bytes(100, 0x5A), t, DatagramSource{true, 5000});
+    (void)session.onDatagram(datagrams[1], t, DatagramSource{false, 5000});
+    (void)session.onDatagram(datagrams[1], t, DatagramSource{true, 5001});
+  }
+  EXPECT_TRUE(session.poll(1.45).ok());
+  auto r = session.poll(1.55);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().message, "server silent for 1.000000 s");
 }
 
 TEST(ClientSession, DatagramsBeforeTheLayoutAreKeptForIt) {

@@ -19,15 +19,17 @@ struct HttpResponse {
 
 // One HTTP/1.1 request over a plain socket; the server closes after answering.
 std::optional<HttpResponse> httpGet(std::uint16_t port, const std::string& target,
-                                    const std::string& method = "GET") {
+                                    const std::string& method = "GET",
+                                    const std::string& headers = "") {
   namespace asio = boost::asio;
   asio::io_context io;
   asio::ip::tcp::socket socket(io);
   boost::system::error_code ec;
   socket.connect({asio::ip::make_address("127.0.0.1"), port}, ec);
   if (ec) return std::nullopt;
-  const std::string request =
-      method + " " + target + " HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n";
+  const std::string request = method + " " + target +
+                              " HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n" + headers +
+                              "\r\n";
   asio::write(socket, asio::buffer(request), ec);
   if (ec) return std::nullopt;
   std::string raw;
@@ -194,23 +196,126 @@ TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
   EXPECT_EQ(post->status, 405);
 }
 
+// A field of one small volume, for servers that are created and never started.
+Field smallLayout() {
+  return Field::create({ProbeVolume{glm::vec3(0.0f), 1.0f, glm::ivec3(4)}}, FieldSettings{});
+}
+
+NetServerOptions unstartedOptions(const char* bind, std::uint16_t metricsPort) {
+  NetServerOptions o;
+  o.bindAddress = bind;
+  o.port = 0;
+  o.tokenKeys = {testKeys().verify};
+  o.tls.devSelfSigned = true;
+  o.metricsPort = metricsPort;
+  return o;
+}
+
 TEST(NetMetrics, MetricsPortThatIsTakenIsAnError) {
   NetServerOptions o;
   o.metricsPort = 0;
   TestServer first(-1.0, o);
-  Field layout =
-      Field::create({ProbeVolume{glm::vec3(0.0f), 1.0f, glm::ivec3(4)}}, FieldSettings{});
-  FieldHub hub(layout);
-  NetServerOptions taken;
-  taken.bindAddress = "127.0.0.1";
-  taken.port = 0;
-  taken.tokenKeys = {testKeys().verify};
-  taken.tls.devSelfSigned = true;
-  taken.metricsPort = first.net().metricsPort();
-  auto second = NetServer::create(hub, taken);
+  FieldHub hub(smallLayout());
+  auto second = NetServer::create(hub, unstartedOptions("127.0.0.1", first.net().metricsPort()));
   ASSERT_FALSE(second.ok());
   std::printf("error: %s\n", second.error().message.c_str());
   EXPECT_NE(second.error().message.find("metrics"), std::string::npos);
+}
+
+TEST(NetMetrics, ScrapableWhileIdleSocketsAreOpen) {
+  NetServerOptions o;
+  o.metricsPort = 0;
+  TestServer server(-1.0, o);
+  const std::uint16_t port = server.net().metricsPort();
+  // Sockets that connect and never send a request: as many as the endpoint holds at once,
+  // then as many again (each new one takes the place of the oldest idle one).
+  std::vector<std::unique_ptr<RawPeer>> idle;
+  for (int i = 0; i < 32; ++i) idle.push_back(std::make_unique<RawPeer>(port));
+  for (int round = 0; round < 3; ++round) {
+    const Scrape s = scrape(port);
+    EXPECT_EQ(s["probecast_clients"], 0.0) << "round " << round;
+    for (int i = 0; i < 16; ++i) idle.push_back(std::make_unique<RawPeer>(port));
+  }
+  // A slow request (half a request line) is one more idle socket, and does not block either.
+  RawPeer slow(port);
+  slow.send({'G', 'E', 'T', ' '});
+  EXPECT_EQ(scrape(port)["probecast_clients"], 0.0);
+}
+
+TEST(NetMetrics, BearerTokenIsRequiredWhenSet) {
+  NetServerOptions o;
+  o.metricsPort = 0;
+  o.metricsToken = "s3cret-metrics";
+  TestServer server(-1.0, o);
+  const std::uint16_t port = server.net().metricsPort();
+  for (const std::string& header : {std::string(), std::string("Authorization: Bearer wrong\r\n"),
+                                    std::string("Authorization: Bearer s3cret-metricsX\r\n"),
+                                    std::string("Authorization: Basic s3cret-metrics\r\n")}) {
+    auto r = httpGet(port, "/metrics", "GET", header);
+    ASSERT_TRUE(r.has_value());
+    EXPECT_EQ(r->status, 401) << header;
+    EXPECT_EQ(r->body.find("probecast_"), std::string::npos) << "figures leaked";
+  }
+  auto ok = httpGet(port, "/metrics", "GET", "Authorization: Bearer s3cret-metrics\r\n");
+  ASSERT_TRUE(ok.has_value());
+  EXPECT_EQ(ok->status, 200);
+  EXPECT_NE(ok->body.find("probecast_clients"), std::string::npos);
+}
+
+TEST(NetMetrics, EndpointListensOnLoopbackByDefault) {
+  // The session port on every address; the metrics, without --metrics-bind, on 127.0.0.1.
+  FieldHub hub(smallLayout());
+  auto server = NetServer::create(hub, unstartedOptions("0.0.0.0", 0));
+  ASSERT_TRUE(server.ok()) << server.error().message;
+  namespace asio = boost::asio;
+  const auto reachable = [](const char* address, std::uint16_t port) {
+    asio::io_context io;
+    asio::ip::tcp::socket socket(io);
+    boost::system::error_code ec;
+    socket.connect({asio::ip::make_address(address), port}, ec);
+    return !ec;
+  };
+  EXPECT_TRUE(reachable("127.0.0.2", (*server)->port()));
+  EXPECT_TRUE(reachable("127.0.0.1", (*server)->metricsPort()));
+  EXPECT_FALSE(reachable("127.0.0.2", (*server)->metricsPort()));
+}
+
+TEST(Log, UntrustedStringsAreQuotedEscapedAndCut) {
+  EXPECT_EQ(quoteUntrusted("plain name"), "\"plain name\"");
+  EXPECT_EQ(quoteUntrusted("a\"b\\c"), "\"a\\\"b\\\\c\"");
+  EXPECT_EQ(quoteUntrusted("x\x1b[2J\r\ny\tz\x7f"), "\"x\\x1b[2J\\r\\ny\\tz\\x7f\"");
+  // Not UTF-8 (a stray byte, a cut sequence, an overlong '/'), C1 controls and bidirectional
+  // overrides are escaped; other UTF-8 passes.
+  EXPECT_EQ(quoteUntrusted("\xff\xc3"), "\"\\xff\\xc3\"");
+  EXPECT_EQ(quoteUntrusted("\xc0\xaf"), "\"\\xc0\\xaf\"");
+  EXPECT_EQ(quoteUntrusted("\xc2\x9b"
+                           "31m"),
+            "\"\\u009b31m\"");
+  EXPECT_EQ(quoteUntrusted("\xe2\x80\xae"
+                           "abc"),
+            "\"\\u202eabc\"");
+  EXPECT_EQ(quoteUntrusted("caf\xc3\xa9"), "\"caf\xc3\xa9\"");
+  // For a log field: the same escapes, no quotes, cut without a marker.
+  EXPECT_EQ(escapeUntrusted("a\x1b\"b", 6), "a\\x1b");
+  // Cut after maxBytes of output, never inside an escape, with the count left out.
+  const std::string huge(4u << 20, '\n');
+  const std::string quoted = quoteUntrusted(huge, 200);
+  std::string expected = "\"";
+  for (int i = 0; i < 100; ++i) expected += "\\n";
+  expected += "\"...(" + std::to_string((4u << 20) - 100) + " more bytes)";
+  EXPECT_EQ(quoted, expected);
+}
+
+TEST(Log, LinesStayOneLineWhateverTheyCarry) {
+  // Text: a message with a line break and an escape sequence stays one line.
+  const std::string text = formatLogLine(LogFormat::Text, "t", LogLevel::Warn,
+                                         "bad\n[t] [error] forged\x1b[0m", {{"k", "v\xff"}});
+  EXPECT_EQ(text, "[t] [warn] bad\\x0a[t] [error] forged\\x1b[0m k=\"v\\ufffd\"");
+  // JSON: bytes that are not UTF-8 become U+FFFD, DEL and C1 controls are escaped.
+  const std::string json =
+      formatLogLine(LogFormat::Json, "t", LogLevel::Info, "m", {{"name", "a\xff\x7f\xc2\x9b"}});
+  EXPECT_EQ(json,
+            "{\"ts\":\"t\",\"level\":\"info\",\"msg\":\"m\",\"name\":\"a\\ufffd\\u007f\\u009b\"}");
 }
 
 TEST(Log, TextLinesCarryFieldsAsKeyValue) {

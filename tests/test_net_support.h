@@ -235,13 +235,18 @@ class UdpRelay {
 class RawPeer {
  public:
   using tcp = boost::asio::ip::tcp;
-  explicit RawPeer(std::uint16_t port, int receiveBuffer = 0, bool tls = true)
+  // `from`: the local address to connect from (on Linux all of 127/8 is loopback, so
+  // "127.0.0.2" is another client address on the same host). `tls` false: plain TCP.
+  explicit RawPeer(std::uint16_t port, int receiveBuffer = 0, const char* from = nullptr,
+                   bool tls = true)
       : context_(boost::asio::ssl::context::tls_client), stream_(io_, context_) {
     boost::system::error_code ec;
     tcp::socket& socket = stream_.next_layer();
     socket.open(tcp::v4(), ec);
     if (receiveBuffer > 0)
       socket.set_option(boost::asio::socket_base::receive_buffer_size(receiveBuffer), ec);
+    if (from) socket.bind({boost::asio::ip::make_address(from), 0}, ec);
+    EXPECT_FALSE(ec) << ec.message();
     socket.connect({boost::asio::ip::make_address("127.0.0.1"), port}, ec);
     EXPECT_FALSE(ec) << ec.message();
     if (tls && !ec) {
@@ -271,16 +276,21 @@ class RawPeer {
     return frame;
   }
   // True when the server closed the connection within `timeout` (skipping what it still sends).
-  bool closedByServer(double timeout = 10.0) {
+  bool closedByServer(double timeout = 10.0) { return bytesUntilClosed(timeout).has_value(); }
+  // The bytes the server sent until it closed the connection; nothing when it did not close
+  // it within `timeout`.
+  std::optional<std::size_t> bytesUntilClosed(double timeout = 10.0) {
     const double start = steadySeconds();
     std::array<std::uint8_t, 4096> sink{};
+    std::size_t total = 0;
     while (steadySeconds() - start < timeout) {
       if (!waitReadable(0.05)) continue;
       boost::system::error_code ec;
       const std::size_t n = readSome(sink.data(), sink.size(), ec);
-      if (ec || n == 0) return true;
+      total += n;
+      if (ec || n == 0) return total;
     }
-    return false;
+    return std::nullopt;
   }
   // The TCP socket under the stream.
   tcp::socket& socket() { return stream_.next_layer(); }

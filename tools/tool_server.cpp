@@ -6,16 +6,20 @@
 #include <signal.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "common/log.h"
 #include "common/volume_placement.h"
@@ -29,8 +33,9 @@
 
 namespace {
 
-std::string statsLine(const pc::NetServerStats& now, const pc::NetServerStats& before,
-                      double seconds, const pc::FieldLoopStats& field) {
+// The statistics: one line for the server, then one per client (a log line never spans lines).
+std::vector<std::string> statsLines(const pc::NetServerStats& now, const pc::NetServerStats& before,
+                                    double seconds, const pc::FieldLoopStats& field) {
   char line[256];
   const double rate = seconds > 0 ? double(now.bytesSent - before.bytesSent) / seconds : 0.0;
   std::snprintf(line, sizeof line,
@@ -39,15 +44,31 @@ std::string statsLine(const pc::NetServerStats& now, const pc::NetServerStats& b
                 now.clients.size(), rate / 1e3, (unsigned long long)field.fieldVersion,
                 field.animationTime, field.lastUpdateMs, field.lastBricksChanged,
                 (unsigned long long)now.accepted, (unsigned long long)now.rejected);
-  std::string s = line;
+  std::vector<std::string> lines{line};
   for (const pc::NetClientInfo& c : now.clients) {
+    // The name is the client's own text: quoted, so it cannot pose as another line.
     std::snprintf(line, sizeof line,
-                  "\n  session %u %s (%s, %s): %.1f kB sent, %llu datagrams, %zu bricks pending",
-                  c.sessionId, c.name.c_str(), c.peer.c_str(), c.udp ? "udp" : "tcp",
-                  double(c.bytesSent) / 1e3, (unsigned long long)c.datagrams, c.pendingBricks);
-    s += line;
+                  "  session %u %s (%s, %s): %.1f kB sent, %llu datagrams, %zu bricks pending",
+                  c.sessionId, pc::quoteUntrusted(c.name, 64).c_str(), c.peer.c_str(),
+                  c.udp ? "udp" : "tcp", double(c.bytesSent) / 1e3, (unsigned long long)c.datagrams,
+                  c.pendingBricks);
+    lines.emplace_back(line);
   }
-  return s;
+  return lines;
+}
+
+// A bearer token from a file: its first line, without surrounding white space.
+pc::Result<std::string> readTokenFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return pc::Error{"cannot read " + path};
+  std::string token;
+  std::getline(in, token);
+  const auto space = [](unsigned char c) { return std::isspace(c) != 0; };
+  while (!token.empty() && space(token.back())) token.pop_back();
+  const auto first = std::find_if_not(token.begin(), token.end(), space);
+  token.erase(token.begin(), first);
+  if (token.empty()) return pc::Error{path + " holds no token"};
+  return token;
 }
 
 // The command line's settings, and what follows from them once parsed.
@@ -76,6 +97,7 @@ struct ServerSetup {
   int metricsPort = 0;
   std::vector<std::string> tokenKeyFiles;
   std::string sceneName;
+  std::string metricsTokenFile;
   std::string logFormat = "text", logLevel = "info";
 };
 
@@ -161,7 +183,9 @@ void addReportOptions(CLI::App& app, ServerSetup& s) {
                  "serve Prometheus metrics at http://BIND:PORT/metrics (0: off)")
       ->check(CLI::Range(0, 65535));
   app.add_option("--metrics-bind", s.net.metricsBindAddress,
-                 "address the metrics endpoint listens on (default: --bind's)");
+                 "address the metrics endpoint listens on (default: 127.0.0.1)");
+  app.add_option("--metrics-token-file", s.metricsTokenFile,
+                 "file holding a bearer token every scrape must present (else 401)");
   app.add_option("--log-format", s.logFormat, "log lines: text, or json (one object per line)");
   app.add_option("--log-level", s.logLevel, "least severe level logged: debug, info, warn, error");
 }
@@ -178,6 +202,15 @@ void addLimitOptions(CLI::App& app, ServerSetup& s) {
                  "messages a client may send per second before it is disconnected as a flood");
   app.add_option("--max-write-queue", net.maxWriteQueueBytes,
                  "bytes queued to a client before it counts as not reading");
+  app.add_option("--max-pending-per-address", net.maxPendingPerAddress,
+                 "connections awaiting their Hello from one address (IPv6: /64) (0: no cap)");
+  app.add_option("--max-sessions-per-address", net.maxSessionsPerAddress,
+                 "sessions from one address (IPv6: /64) (0: no cap)");
+  app.add_option("--handshakes-per-second-per-address", net.handshakesPerSecondPerAddress,
+                 "connections one address may open per second, burst of two seconds' worth "
+                 "(0: no cap)");
+  app.add_option("--max-sessions-per-client", net.maxSessionsPerClient,
+                 "sessions one client name may hold; more get a Reject (0: no cap)");
 }
 
 // What the options imply beyond their values (logging, the token, the stream's tuning), after
@@ -196,6 +229,14 @@ bool applyOptions(ServerSetup& s) {
   pc::setLogFormat(*format);
   pc::setLogLevel(*level);
   if (s.metricsPort != 0) s.net.metricsPort = std::uint16_t(s.metricsPort);
+  if (!s.metricsTokenFile.empty()) {
+    auto token = readTokenFile(s.metricsTokenFile);
+    if (!token) {
+      pc::logError("--metrics-token-file: " + token.error().message);
+      return false;
+    }
+    s.net.metricsToken = std::move(token).value();
+  }
 
   if (s.tokenKeyFiles.empty()) {
     if (const char* env = std::getenv("PROBECAST_TOKEN_KEY_FILE")) s.tokenKeyFiles.push_back(env);
@@ -363,7 +404,8 @@ void waitForTheEnd(const pc::NetServer& server, const pc::FieldLoop& fieldLoop,
     }
     if (s.statsInterval > 0 && now - lastStats >= s.statsInterval) {
       pc::NetServerStats stats = server.stats();
-      pc::logInfo(statsLine(stats, before, now - lastStats, fieldLoop.stats()));
+      for (const std::string& line : statsLines(stats, before, now - lastStats, fieldLoop.stats()))
+        pc::logInfo(line);
       before = stats;
       lastStats = now;
     }
@@ -383,8 +425,8 @@ int serve(const pc::Scene& scene, pc::Tracer& tracer, pc::Field& field, const Se
   pc::logInfo("listening on " + s.net.bindAddress + ":" + std::to_string((*server)->port()) +
               " (TCP), datagrams from UDP port " + std::to_string((*server)->udpPort()));
   if ((*server)->metricsPort() != 0) {
-    const std::string& bind =
-        s.net.metricsBindAddress.empty() ? s.net.bindAddress : s.net.metricsBindAddress;
+    const std::string bind =
+        s.net.metricsBindAddress.empty() ? "127.0.0.1" : s.net.metricsBindAddress;
     pc::logInfo("metrics at http://" + bind + ":" + std::to_string((*server)->metricsPort()) +
                 "/metrics");
   }
