@@ -87,6 +87,7 @@ class TestServer {
   }
   std::uint16_t port() const { return server_->port(); }
   NetServer& net() { return *server_; }
+  const FieldHub& hub() const { return *hub_; }
   bool frozen() const { return loop_->stats().frozen; }
   const FieldLoop& loop() const { return *loop_; }
   // Only once frozen() (the field thread no longer writes it).
