@@ -12,7 +12,7 @@
 #include <thread>
 #include <vector>
 
-#include "address_limits.h"
+#include "net_address_limits.h"
 #include "net_server.h"
 
 namespace pc {
