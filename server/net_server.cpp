@@ -13,8 +13,8 @@
 #include <random>
 #include <thread>
 
-#include "address_limits.h"
 #include "common/log.h"
+#include "net_address_limits.h"
 #include "net_server_impl.h"
 #include "net_session.h"
 #include "protocol/net_framing.h"

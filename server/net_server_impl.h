@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "net/tls_context.h"
-#include "address_limits.h"
+#include "net_address_limits.h"
 #include "net_server.h"
 
 namespace pc {

@@ -161,6 +161,42 @@ TEST(NetLimits, UnauthenticatedPeerNeverGetsMoreThanItSent) {
   f.expectGoodClientUnaffected();
 }
 
+TEST(NetLimits, AClientSteersTheSchedulerWithOneViewerInsideTheField) {
+  HostileFixture f;  // the good client sends no poses: the viewer set is empty
+  auto peer = std::make_unique<RawPeer>(f.port());
+  peer->send(encodeMessage(hello(kToken, "steer")));
+  ASSERT_TRUE(peer->readFrame(5.0).has_value());
+  ViewerPoseMsg pose;
+  const auto viewers = [&] { return f.server().hub().viewers(); };
+  // Poses inside the field: each replaces the session's one viewer.
+  for (float x : {-0.5f, 0.0f, 0.5f}) {
+    pose.position = glm::vec3(x, 0.5f, 0.0f);
+    peer->send(encodeMessage(pose));
+  }
+  ASSERT_TRUE(waitFor(
+      [&] { return viewers().size() == 1 && viewers()[0] == glm::vec3(0.5f, 0.5f, 0.0f); }, 5.0));
+  const auto received = [&] {
+    for (const NetClientInfo& c : f.stats().clients)
+      if (c.name == "steer") return c.messagesReceived;
+    return std::uint64_t(0);
+  };
+  const std::uint64_t before = received();
+  // Far outside the field, and just past its bounds grown by half their largest side (a pose
+  // that is not finite does not even decode): ignored, the viewer stays where it was.
+  for (glm::vec3 p :
+       {glm::vec3(1e6f, 0.0f, 0.0f), glm::vec3(0.0f, -50.0f, 0.0f), glm::vec3(0.0f, 0.5f, 1.9f)}) {
+    pose.position = p;
+    peer->send(encodeMessage(pose));
+  }
+  ASSERT_TRUE(waitFor([&] { return received() >= before + 3; }, 5.0));
+  ASSERT_EQ(viewers().size(), 1u);
+  EXPECT_EQ(viewers()[0], glm::vec3(0.5f, 0.5f, 0.0f));
+  // Its viewer leaves with the session.
+  peer.reset();
+  EXPECT_TRUE(waitFor([&] { return viewers().empty(); }, 5.0));
+  f.expectGoodClientUnaffected();
+}
+
 TEST(NetHostileServer, JunkDatagramsDoNotKeepADeadServerAlive) {
   // The fake server answers the handshake (session 7), then never sends anything again.
   FakeServer fake(builtinInfo());

@@ -302,7 +302,11 @@ Benchmark addStream(CLI::App& app) {
             probeUpdates += std::uint64_t(us.probesUpdated);
             brickChanges += std::uint64_t(us.bricksChanged);
             ++ticks;
-            for (Client& c : clients) (void)c.publisher->publish(server, t);
+            for (Client& c : clients) {
+              (void)c.publisher->publish(server, t);
+              // The SceneState a server sends with every update: the receiver's version bound.
+              if (c.receiver) c.receiver->announceFieldVersion(server.version);
+            }
           }
           bool allJoined = true;
           for (Client& c : clients) {

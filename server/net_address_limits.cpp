@@ -1,4 +1,4 @@
-#include "address_limits.h"
+#include "net_address_limits.h"
 
 #include <algorithm>
 
