@@ -155,7 +155,7 @@ void NetClient::Impl::connect() {
               if (ec2) return fail("connect: " + ec2.message());
               serverAddress = server.address();
               onConnected(id);
-                            });
+            });
       });
 }
 

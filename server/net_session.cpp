@@ -358,6 +358,7 @@ bool Session::onHello(const HelloMsg& hello) {
   // what the client chose to call itself.
   claims_ = std::move(verdict.claims);
   name_ = claims_.client;
+  viewerWeight_ = int(claims_.weight);  // what the token allows this client's viewer
   const bool useUdp = !server_.options.tcpOnly && hello.wantsUdp && hello.udpPort != 0;
   if (useUdp) {
     boost::system::error_code ec;

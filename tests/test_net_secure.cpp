@@ -109,8 +109,8 @@ bool contains(const Bytes& haystack, std::span<const std::uint8_t> needle) {
          haystack.end();
 }
 bool contains(const Bytes& haystack, std::string_view needle) {
-  return contains(haystack, std::span(reinterpret_cast<const std::uint8_t*>(needle.data()),
-                                      needle.size()));
+  return contains(haystack,
+                  std::span(reinterpret_cast<const std::uint8_t*>(needle.data()), needle.size()));
 }
 
 // What must never be seen on the path: the token, the client's name, a session message or
@@ -145,8 +145,8 @@ TEST(NetSecure, NoFieldPayloadTravelsInClear) {
   Bytes udp;
   const auto datagrams = relay.captured();
   for (const Bytes& d : datagrams) udp.insert(udp.end(), d.begin(), d.end());
-  std::printf("captured: %zu TCP bytes, %zu datagrams (%zu bytes)\n", tcp.size(),
-              datagrams.size(), udp.size());
+  std::printf("captured: %zu TCP bytes, %zu datagrams (%zu bytes)\n", tcp.size(), datagrams.size(),
+              udp.size());
   ASSERT_GT(tcp.size(), 1000u);
   ASSERT_GT(datagrams.size(), 10u);
   // The plain stream starts with a size prefix and a session message; TLS starts with a
@@ -183,8 +183,8 @@ TEST(NetSecure, ForgedAndReplayedDatagramsAreDroppedAndTheVictimIsUnchanged) {
   client::NetClient victim(mirror, o);
   victim.start();
   relay.setTarget(victim.udpPort());
-  ASSERT_TRUE(waitFor([&] { return server.frozen() && mirrorDifference(mirror, server.field()) == 0; },
-                      30.0));
+  ASSERT_TRUE(waitFor(
+      [&] { return server.frozen() && mirrorDifference(mirror, server.field()) == 0; }, 30.0));
   const NetServerStats ss = server.net().stats();
   ASSERT_EQ(ss.clients.size(), 1u);
   const std::uint32_t sessionId = ss.clients[0].sessionId;
@@ -208,9 +208,12 @@ TEST(NetSecure, ForgedAndReplayedDatagramsAreDroppedAndTheVictimIsUnchanged) {
     attack.push_back(plain);  // the old, unsealed form
   }
   const client::NetClientStats before = victim.stats();
+  // Sent through the relay: they reach the victim from the address and port its datagrams
+  // come from, as an attacker on the path (or one spoofing the server's address) would send
+  // them. Only the seal can tell them apart.
   asio::io_context io;
   udp::socket attacker(io, udp::endpoint(udp::v4(), 0));
-  const udp::endpoint target(asio::ip::make_address("127.0.0.1"), victim.udpPort());
+  const udp::endpoint target(asio::ip::make_address("127.0.0.1"), relay.port());
   std::size_t attackBytes = 0;
   for (const Bytes& d : attack) {
     attacker.send_to(asio::buffer(d), target);
@@ -220,8 +223,8 @@ TEST(NetSecure, ForgedAndReplayedDatagramsAreDroppedAndTheVictimIsUnchanged) {
   const auto seen = relay.captured();
   const std::size_t replays = std::min<std::size_t>(seen.size(), 50);
   for (std::size_t i = 0; i < replays; ++i) attacker.send_to(asio::buffer(seen[i]), target);
-  std::printf("sent %zu forged datagrams (%zu bytes) and %zu replays\n", attack.size(),
-              attackBytes, replays);
+  std::printf("sent %zu forged datagrams (%zu bytes) and %zu replays\n", attack.size(), attackBytes,
+              replays);
   ASSERT_GT(replays, 10u);
 
   ASSERT_TRUE(waitFor(
@@ -357,8 +360,8 @@ TEST(NetSecure, WrongExpiredRevokedTamperedOrMisplacedTokensAreRejected) {
 
   // Revoked while the server runs: the list is read again when it changes.
   std::ofstream(revoked, std::ios::app) << tokenIdHex(parseTokenUnverified(good)->id) << "\n";
-  ASSERT_TRUE(waitFor([&] { return rejectFor(server, good) == "authentication failed: revoked"; },
-                      5.0));
+  ASSERT_TRUE(
+      waitFor([&] { return rejectFor(server, good) == "authentication failed: revoked"; }, 5.0));
 
   const NetServerStats s = server.net().stats();
   EXPECT_EQ(s.tokenRejects[std::size_t(TokenError::Expired)], 1u);

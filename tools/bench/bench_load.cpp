@@ -35,6 +35,7 @@ struct LoadSetup {
   int threads = 1;
   bool tcpOnly = false;
   bool tls = true;
+  bool tlsCost = false;
   double rateLimitMbit = 1.0;  // per client, the server's token bucket
   double fieldRate = 10;       // server field updates per second
   int rays = 64;
@@ -69,6 +70,9 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_flag("--tcp-only", s.tcpOnly, "datagrams over TCP");
   cmd->add_flag("--no-tls{false}", s.tls,
                 "plain sessions and unsealed datagrams (to measure what TLS costs)");
+  cmd->add_flag("--tls-cost", s.tlsCost,
+                "run every client count twice, with TLS and sealed datagrams and without, "
+                "and print the ratio of their cpu_ms_per_client_s");
   cmd->add_option("--rate-limit", s.rateLimitMbit, "server send rate per client, Mbit/s");
   cmd->add_option("--field-rate", s.fieldRate, "server field updates per second");
   cmd->add_option("--rays", s.rays, "server rays per probe per update");
@@ -88,7 +92,16 @@ Benchmark addLoad(CLI::App& app) {
   return {
       cmd, [] {
         std::vector<load::ServerLoadResult> runs;
+        std::vector<std::pair<int, bool>> plan;
         for (int n : s.clients) {
+          if (s.tlsCost) {
+            plan.push_back({n, true});
+            plan.push_back({n, false});
+          } else {
+            plan.push_back({n, s.tls});
+          }
+        }
+        for (const auto& [n, tls] : plan) {
           load::ServerLoadOptions o;
           o.serverExecutable =
               s.server.empty() ? load::siblingExecutable("probecast-server") : s.server;
@@ -117,14 +130,15 @@ Benchmark addLoad(CLI::App& app) {
           o.load.clients = n;
           o.load.threads = s.threads;
           o.load.tcpOnly = s.tcpOnly;
-          o.load.tls = s.tls;
+          o.load.tls = tls;
           o.load.rampSeconds = s.ramp >= 0 ? s.ramp : std::max(1.0, 0.005 * n);
           o.load.starveSeconds = s.starveSeconds;
           o.load.sessionSeconds = s.sessionSeconds;
           o.warmupSeconds = s.warmup;
           o.fieldNice = s.fieldNice;
           o.seconds = s.seconds;
-          std::printf("load: %d clients, %.0f s window\n", n, s.seconds);
+          std::printf("load: %d clients, %.0f s window, %s\n", n, s.seconds,
+                      tls ? "TLS and sealed datagrams" : "plain (--no-tls)");
           std::fflush(stdout);
           auto r = load::runServerLoad(o, [](const std::string& line) {
             std::printf("  %s\n", line.c_str());
@@ -211,6 +225,21 @@ Benchmark addLoad(CLI::App& app) {
           figure("encode_cache_mb" + sfx, r.encodeCacheMb, "MB");
           figure("brick_history_mb" + sfx, r.historyMb, "MB");
         };
+        if (s.tlsCost) {
+          // Pairs: with TLS, then without, for each client count.
+          std::printf("\n%7s %14s %14s %7s\n", "clients", "net/cl/s TLS", "net/cl/s plain",
+                      "ratio");
+          for (std::size_t i = 0; i + 1 < runs.size(); i += 2) {
+            const double with = runs[i].cpuMsPerClientS, without = runs[i + 1].cpuMsPerClientS;
+            const double ratio = without > 0 ? with / without : 0.0;
+            std::printf("%7d %14.4f %14.4f %7.3f\n", runs[i].report.clients, with, without, ratio);
+            const std::string sfx = suffix(runs[i].report.clients);
+            figures(runs[i], sfx + ".tls");
+            figures(runs[i + 1], sfx + ".plain");
+            figure("tls_cpu_ratio" + sfx, ratio, "ratio");
+          }
+          return 0;
+        }
         if (runs.size() > 1) {
           for (const load::ServerLoadResult& r : runs) figures(r, suffix(r.report.clients));
         }
