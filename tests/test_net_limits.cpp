@@ -49,7 +49,9 @@ TEST(NetLimits, IdleSocketsFromOneAddressAreCappedAnotherAddressStillJoins) {
   o.helloTimeout = 60;                  // the idle sockets stay for the whole test
   HostileFixture f(o);
   std::vector<std::unique_ptr<RawPeer>> idle;
-  for (int i = 0; i < 20; ++i) idle.push_back(std::make_unique<RawPeer>(f.port()));
+  // Idle: connected, never a byte sent (not even a TLS handshake).
+  for (int i = 0; i < 20; ++i)
+    idle.push_back(std::make_unique<RawPeer>(f.port(), 0, nullptr, /*tls=*/false));
   // 8 (the default cap) await their Hello; the other 12 are closed as soon as accepted.
   f.expectOnlyCause(DisconnectCause::AddressLimit, 12);
   EXPECT_EQ(f.stats().connections, 1u + 8u);
@@ -66,7 +68,8 @@ TEST(NetLimits, HandshakeFloodFromOneAddressIsCapped) {
   constexpr int kFlood = 40;
   std::vector<std::unique_ptr<RawPeer>> flood;
   const double start = steadySeconds();
-  for (int i = 0; i < kFlood; ++i) flood.push_back(std::make_unique<RawPeer>(f.port()));
+  for (int i = 0; i < kFlood; ++i)
+    flood.push_back(std::make_unique<RawPeer>(f.port(), 0, nullptr, /*tls=*/false));
   ASSERT_TRUE(waitFor([&] { return f.stats().accepted >= acceptedBefore + kFlood; }, 10.0));
   const double elapsed = steadySeconds() - start;
   const NetServerStats s = f.stats();
@@ -164,7 +167,7 @@ TEST(NetLimits, UnauthenticatedPeerNeverGetsMoreThanItSent) {
 TEST(NetLimits, AClientSteersTheSchedulerWithOneViewerInsideTheField) {
   HostileFixture f;  // the good client sends no poses: the viewer set is empty
   auto peer = std::make_unique<RawPeer>(f.port());
-  peer->send(encodeMessage(hello(kToken, "steer")));
+  peer->send(encodeMessage(hello(issueTestToken("steer"), "steer")));
   ASSERT_TRUE(peer->readFrame(5.0).has_value());
   ViewerPoseMsg pose;
   const auto viewers = [&] { return f.server().hub().viewers(); };

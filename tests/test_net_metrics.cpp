@@ -230,14 +230,15 @@ TEST(NetMetrics, ScrapableWhileIdleSocketsAreOpen) {
   // Sockets that connect and never send a request: as many as the endpoint holds at once,
   // then as many again (each new one takes the place of the oldest idle one).
   std::vector<std::unique_ptr<RawPeer>> idle;
-  for (int i = 0; i < 32; ++i) idle.push_back(std::make_unique<RawPeer>(port));
+  // Plain TCP: the metrics endpoint speaks HTTP.
+  for (int i = 0; i < 32; ++i) idle.push_back(std::make_unique<RawPeer>(port, 0, nullptr, false));
   for (int round = 0; round < 3; ++round) {
     const Scrape s = scrape(port);
     EXPECT_EQ(s["probecast_clients"], 0.0) << "round " << round;
-    for (int i = 0; i < 16; ++i) idle.push_back(std::make_unique<RawPeer>(port));
+    for (int i = 0; i < 16; ++i) idle.push_back(std::make_unique<RawPeer>(port, 0, nullptr, false));
   }
   // A slow request (half a request line) is one more idle socket, and does not block either.
-  RawPeer slow(port);
+  RawPeer slow(port, 0, nullptr, false);
   slow.send({'G', 'E', 'T', ' '});
   EXPECT_EQ(scrape(port)["probecast_clients"], 0.0);
 }
