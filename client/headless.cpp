@@ -23,7 +23,10 @@ int runHeadless(const ClientConfig& config) {
     return 1;
   }
   FieldMirror mirror;
-  loadFallbackField(*scene, config, mirror);
+  if (Status s = loadFallbackField(*scene, config, mirror); !s) {
+    logError(s.error().message);
+    return 1;
+  }
   auto ctx = createClientContext(config, {});
   if (!ctx) {
     logError(ctx.error().message);
