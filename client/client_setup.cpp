@@ -43,7 +43,11 @@ Status loadFallbackField(const Scene& scene, const ClientConfig& config, FieldMi
     return Status::success();
   }
   auto field = readBakedField(config.probes, scene.hash);
-  if (!field) return Error{"cannot use the baked field: " + field.error().message};
+  if (!field) {
+    Error e{"cannot use the baked field: " + field.error().message};
+    logError(e.message);
+    return e;
+  }
   mirror.reset(std::move(field).value(), secondsNow());
   return Status::success();
 }

@@ -23,10 +23,7 @@ int runHeadless(const ClientConfig& config) {
     return 1;
   }
   FieldMirror mirror;
-  if (Status s = loadFallbackField(*scene, config, mirror); !s) {
-    logError(s.error().message);
-    return 1;
-  }
+  if (!loadFallbackField(*scene, config, mirror)) return 1;  // logged
   auto ctx = createClientContext(config, {});
   if (!ctx) {
     logError(ctx.error().message);

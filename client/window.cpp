@@ -60,12 +60,8 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
     return 1;
   }
   FieldMirror mirror;
-  if (!net || !config.probes.empty()) {
-    if (Status s = loadFallbackField(*scene, config, mirror); !s) {
-      logError(s.error().message);
-      return 1;
-    }
-  }
+  if ((!net || !config.probes.empty()) && !loadFallbackField(*scene, config, mirror))
+    return 1;  // logged
   std::optional<NetClient> client;
   if (net) {
     client.emplace(mirror, net->net);
