@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "common/scene.h"
 #include "light_pack.h"
 #include "renderer.h"
 
@@ -15,6 +16,7 @@ namespace pc::client {
 struct ClientConfig {
   std::string scene;             // scene file, or "builtin"
   std::string sidecar;           // optional scene.json
+  SceneLoadOptions sceneLoad;    // what the scene file may read and allocate
   std::string probes;            // baked .probes file; empty: none (ambient)
   std::string outDir = ".";      // headless output folder
   std::string prefix = "frame";  // headless file names: <prefix>_<frame>[_left|_right].png/.exr

@@ -15,7 +15,7 @@ double secondsNow() {
 
 Result<Scene> loadClientScene(const ClientConfig& config) {
   if (config.scene.empty() || config.scene == "builtin") return builtinScene();
-  Result<Scene> scene = loadScene(config.scene, config.sidecar);
+  Result<Scene> scene = loadScene(config.scene, config.sidecar, config.sceneLoad);
   if (scene) logInfo(sidecarReport(*scene));
   return scene;
 }
@@ -37,18 +37,19 @@ Result<Camera> clientCamera(const Scene& scene, const ClientConfig& config) {
   return c;
 }
 
-void loadFallbackField(const Scene& scene, const ClientConfig& config, FieldMirror& mirror) {
+Status loadFallbackField(const Scene& scene, const ClientConfig& config, FieldMirror& mirror) {
   if (config.probes.empty()) {
     logWarn("no baked field given (--probes): indirect light is a plain ambient term");
-    return;
+    return Status::success();
   }
   auto field = readBakedField(config.probes, scene.hash);
   if (!field) {
-    logError("cannot use the baked field: " + field.error().message +
-             "; indirect light is a plain ambient term");
-    return;
+    Error e{"cannot use the baked field: " + field.error().message};
+    logError(e.message);
+    return e;
   }
   mirror.reset(std::move(field).value(), secondsNow());
+  return Status::success();
 }
 
 Result<std::unique_ptr<vk::Context>> createClientContext(

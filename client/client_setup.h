@@ -16,9 +16,11 @@ namespace pc::client {
 
 Result<Scene> loadClientScene(const ClientConfig& config);
 Result<Camera> clientCamera(const Scene& scene, const ClientConfig& config);
-// Loads config.probes into `mirror`. Any problem (none given, missing, corrupt, another
-// scene's) is logged as an error that says the client falls back to an ambient term; never fatal.
-void loadFallbackField(const Scene& scene, const ClientConfig& config, FieldMirror& mirror);
+// Loads config.probes into `mirror`. None given: a warning that indirect light is a plain
+// ambient term. A file that cannot be used (missing, corrupt, another scene's) is logged and
+// returned as an error, which the front ends exit 1 with: the user asked for that field, and
+// an image without it would pass for one lit by it.
+Status loadFallbackField(const Scene& scene, const ClientConfig& config, FieldMirror& mirror);
 // The context, or an error saying what to install when no Vulkan device is usable.
 Result<std::unique_ptr<vk::Context>> createClientContext(
     const ClientConfig& config, const std::vector<std::string>& instanceExtensions);

@@ -23,7 +23,7 @@ int runHeadless(const ClientConfig& config) {
     return 1;
   }
   FieldMirror mirror;
-  loadFallbackField(*scene, config, mirror);
+  if (!loadFallbackField(*scene, config, mirror)) return 1;  // logged
   auto ctx = createClientContext(config, {});
   if (!ctx) {
     logError(ctx.error().message);

@@ -60,7 +60,8 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
     return 1;
   }
   FieldMirror mirror;
-  if (!net || !config.probes.empty()) loadFallbackField(*scene, config, mirror);
+  if ((!net || !config.probes.empty()) && !loadFallbackField(*scene, config, mirror))
+    return 1;  // logged
   std::optional<NetClient> client;
   if (net) {
     client.emplace(mirror, net->net);

@@ -158,6 +158,23 @@ struct Scene {
   const Material* materialOf(const Instance& inst) const;
 };
 
+// What a scene file, which may come from anyone, is allowed to read and to make us allocate.
+// Each limit is checked before the memory it guards is allocated (from file headers and
+// accessor counts where the format gives them), and exceeding one is an error naming the file,
+// what exceeded it and the limit.
+struct SceneLoadOptions {
+  // Files a scene names (glTF buffers and images, OBJ material libraries and texture maps) must
+  // resolve, symbolic links followed, to a place inside the scene file's folder; true lifts
+  // that (tools: --allow-outside-paths). data: URIs are always read.
+  bool allowOutsidePaths = false;
+  // Texels per side of one texture, read from the image header before decoding.
+  int maxTextureSize = 8192;
+  // Texels of all the scene's textures together (512 Mi: 2 GiB as 8-bit RGBA).
+  std::uint64_t maxSceneTexels = std::uint64_t(512) << 20;
+  // Triangles the meshes hold, and triangles drawn over all instances.
+  std::uint64_t maxTriangles = 50'000'000;
+};
+
 // Loads .gltf/.glb/.obj; `sidecar` (scene.json format, see docs/SCENES.md) may be empty, in
 // which case <scene dir>/scene.json, then <scene file stem>.json and <scene dir name>.json in
 // the sidecar folders (beside the executable in sidecars/, the install's
@@ -165,7 +182,8 @@ struct Scene {
 // Scene::sidecar names the one applied. Errors name the file and the
 // problem: "<file>: <problem>", and for a sidecar "<file>: at <JSON pointer>: <problem>".
 Result<Scene> loadScene(const std::filesystem::path& path,
-                        const std::filesystem::path& sidecar = {});
+                        const std::filesystem::path& sidecar = {},
+                        const SceneLoadOptions& options = {});
 // Cornell-style room with a moving light and a rotating block; needs no files.
 Scene builtinScene();
 // A closed cube of side `size` whose walls all have albedo `albedo` and emit `emission`

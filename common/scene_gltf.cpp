@@ -1,6 +1,7 @@
 // glTF 2.0 (.gltf, .glb) through tinygltf: triangle primitives (one pc::Mesh each), the node
 // hierarchy, base colour and emission (with their textures), KHR_lights_punctual and
 // perspective cameras. Every index the file holds is checked before it is followed.
+#include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -37,7 +38,8 @@ struct GltfError {
 
 class GltfReader {
  public:
-  GltfReader(const tinygltf::Model& model, Scene& scene) : m_(model), scene_(scene) {}
+  GltfReader(const tinygltf::Model& model, Scene& scene, const SceneLoadOptions& options)
+      : m_(model), scene_(scene), options_(options) {}
 
   void readScene() {
     int sceneIndex = m_.defaultScene >= 0 ? m_.defaultScene : 0;
@@ -90,6 +92,11 @@ class GltfReader {
     check(nodeIndex, m_.nodes.size(), "node");
     // A cycle in the hierarchy would recurse forever; real files are far shallower.
     if (depth > 256) throw GltfError{"node hierarchy deeper than 256 (a cycle?)"};
+    // Nodes that list one child twice, level after level, make a few bytes of file visit
+    // 2^depth nodes, each an instance: the visits are bounded as the depth is.
+    if (++nodeVisits_ > kMaxNodeVisits)
+      throw GltfError{"node hierarchy reaches more than " + std::to_string(kMaxNodeVisits) +
+                      " nodes (nodes reached through many paths?)"};
     const tinygltf::Node& node = m_.nodes[nodeIndex];
     glm::mat4 world = parent * localMatrix(node);
     std::string nodeName = node.name.empty() ? "node" + std::to_string(nodeIndex) : node.name;
@@ -97,6 +104,12 @@ class GltfReader {
     if (node.mesh >= 0) {
       check(node.mesh, m_.meshes.size(), "mesh");
       for (int meshIndex : meshesFor(node.mesh)) {
+        drawnTriangles_ += scene_.meshes[std::size_t(meshIndex)].triangleCount();
+        if (Status s = checkTriangleLimit(
+                "node '" + nodeName + "': the triangles drawn over all instances", drawnTriangles_,
+                options_);
+            !s)
+          throw GltfError{s.error().message};
         Instance inst;
         inst.name = nodeName;
         inst.mesh = meshIndex;
@@ -446,6 +459,17 @@ class GltfReader {
       return false;
     auto pos = prim.attributes.find("POSITION");
     if (pos == prim.attributes.end()) throw GltfError{"primitive has no POSITION"};
+    // The triangle count from the accessor counts, before anything is allocated for them.
+    const int cornersFrom = prim.indices >= 0 ? prim.indices : pos->second;
+    check(cornersFrom, m_.accessors.size(), "accessor");
+    const std::uint64_t corners = m_.accessors[std::size_t(cornersFrom)].count;
+    storedTriangles_ += mode == TINYGLTF_MODE_TRIANGLES ? corners / 3
+                        : corners > 2                   ? corners - 2
+                                                        : 0;
+    if (Status s =
+            checkTriangleLimit("the triangles of the meshes so far", storedTriangles_, options_);
+        !s)
+      throw GltfError{s.error().message};
     std::vector<float> p = readFloats(pos->second, 3, "POSITION");
     std::size_t n = p.size() / 3;
     mesh.positions.resize(n);
@@ -615,8 +639,12 @@ class GltfReader {
     }
   }
 
+  static constexpr std::uint64_t kMaxNodeVisits = std::uint64_t(1) << 22;
+
   const tinygltf::Model& m_;
   Scene& scene_;
+  const SceneLoadOptions& options_;
+  std::uint64_t nodeVisits_ = 0, storedTriangles_ = 0, drawnTriangles_ = 0;
   std::map<int, std::vector<int>> meshCache_;
   std::map<int, int> materialCache_;
   std::map<std::tuple<int, TextureWrap, TextureWrap>, int> imageCache_;  // image and wrap modes
@@ -629,14 +657,42 @@ std::string trimmed(std::string s) {
   return s;
 }
 
+// What tinygltf's callbacks need of one load: the model (for image buffer views), the folder
+// every file the scene names must stay in, the texture budget, and the first thing refused,
+// which becomes the load's error whatever tinygltf makes of the callback's failure (for an
+// image, only a warning).
+struct LoadContext {
+  LoadContext(const tinygltf::Model& m, const std::filesystem::path& file,
+              const SceneLoadOptions& options)
+      : model(m),
+        sceneFile(file.string()),
+        budget(options),
+        allowOutside(options.allowOutsidePaths) {
+    // tinygltf resolves a URI against the scene file's folder as written in its path.
+    const std::size_t slash = sceneFile.find_last_of('/');
+    folder = slash == std::string::npos ? std::string() : sceneFile.substr(0, slash);
+  }
+  const tinygltf::Model& model;
+  std::string sceneFile, folder;
+  TextureBudget budget;
+  bool allowOutside;
+  Status refused;
+
+  void refuse(const std::string& message) {
+    if (refused.ok()) refused = Error{message};
+  }
+};
+
 // tinygltf hands an image's buffer view to its decoder without checking that the view lies
 // within its buffer, and the decoder then reads past the buffer's end. This loader runs in its
-// place: it checks the view (the model's buffers and views are parsed before its images) and
-// then decodes as tinygltf's own loader does.
+// place: it checks the view (the model's buffers and views are parsed before its images), then
+// the image's size from its header against the texture limits, and then decodes as tinygltf's
+// own loader does.
 bool loadImageInBounds(tinygltf::Image* image, const int index, std::string* err, std::string* warn,
                        int width, int height, const unsigned char* bytes, int size,
-                       void* modelPointer) {
-  const auto* model = static_cast<const tinygltf::Model*>(modelPointer);
+                       void* contextPointer) {
+  auto* context = static_cast<LoadContext*>(contextPointer);
+  const tinygltf::Model* model = &context->model;
   if (image->bufferView >= 0) {
     // tinygltf has checked the view's and its buffer's indices.
     const tinygltf::BufferView& view = model->bufferViews[std::size_t(image->bufferView)];
@@ -648,6 +704,17 @@ bool loadImageInBounds(tinygltf::Image* image, const int index, std::string* err
                 std::to_string(image->bufferView) + " (offset " + std::to_string(view.byteOffset) +
                 ", " + std::to_string(view.byteLength) + " bytes) lies outside its buffer (" +
                 std::to_string(bufferBytes) + " bytes)\n";
+      return false;
+    }
+  }
+  int w = 0, h = 0, comps = 0;
+  if (size > 0 && stbi_info_from_memory(bytes, size, &w, &h, &comps)) {
+    const std::string name = !image->uri.empty()    ? image->uri
+                             : !image->name.empty() ? image->name
+                                                    : "image " + std::to_string(index);
+    if (Status s = context->budget.admit(name, w, h); !s) {
+      context->refuse(s.error().message);
+      if (err) *err += s.error().message + "\n";
       return false;
     }
   }
@@ -664,7 +731,26 @@ bool pathExists(const std::string& path, void*) {
 }
 
 bool readRegularFile(std::vector<unsigned char>* out, std::string* err, const std::string& path,
-                     void*) {
+                     void* contextPointer) {
+  auto* context = static_cast<LoadContext*>(contextPointer);
+  // Buffers and images must stay in the scene's folder (the scene file itself is read here
+  // too, and may be a link to anywhere).
+  if (path != context->sceneFile) {
+    // The URI as the file wrote it: tinygltf joined it to the folder, or to "." when the
+    // folder did not hold it.
+    std::string uri = path;
+    const std::string inFolder = context->folder + "/";
+    if (!context->folder.empty() && uri.rfind(inFolder, 0) == 0)
+      uri.erase(0, inFolder.size());
+    else if (uri.rfind("./", 0) == 0)
+      uri.erase(0, 2);
+    const std::filesystem::path folder = context->folder.empty() ? "." : context->folder;
+    if (Status s = checkInsideSceneFolder(path, uri, folder, context->allowOutside); !s) {
+      context->refuse("buffer or image URI " + s.error().message);
+      if (err) *err += s.error().message + "\n";
+      return false;
+    }
+  }
   std::error_code ec;
   const std::filesystem::file_status status = std::filesystem::status(path, ec);
   if (ec || !std::filesystem::is_regular_file(status)) {
@@ -708,7 +794,7 @@ Status checkGlbLength(const std::filesystem::path& path) {
 
 }  // namespace
 
-Result<Scene> loadGltf(const std::filesystem::path& path) {
+Result<Scene> loadGltf(const std::filesystem::path& path, const SceneLoadOptions& options) {
   const std::string file = path.string();
   tinygltf::Model model;
   tinygltf::TinyGLTF loader;
@@ -718,9 +804,10 @@ Result<Scene> loadGltf(const std::filesystem::path& path) {
                  [](unsigned char c) { return char(std::tolower(c)); });
   if (ext == ".glb")
     if (Status s = checkGlbLength(path); !s) return s.error();
-  loader.SetImageLoader(loadImageInBounds, &model);
+  LoadContext context(model, path, options);
+  loader.SetImageLoader(loadImageInBounds, &context);
   loader.SetFsCallbacks({&pathExists, &tinygltf::ExpandFilePath, &readRegularFile,
-                         &tinygltf::WriteWholeFile, nullptr});
+                         &tinygltf::WriteWholeFile, &context});
   bool ok = false;
   try {
     ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, file)
@@ -728,6 +815,7 @@ Result<Scene> loadGltf(const std::filesystem::path& path) {
   } catch (const std::exception& e) {  // allocations sized by the file (std::bad_alloc)
     return Error{file + ": cannot parse glTF: " + e.what()};
   }
+  if (!context.refused.ok()) return Error{file + ": " + context.refused.error().message};
   // Refuse what we cannot honour before anything else: tinygltf itself ignores the list.
   for (const std::string& req : model.extensionsRequired)
     if (!kSupportedExtensions.count(req))
@@ -743,7 +831,7 @@ Result<Scene> loadGltf(const std::filesystem::path& path) {
   Scene scene;
   if (!warn.empty()) scene.warnings.push_back(file + ": " + trimmed(warn));
   try {
-    GltfReader reader(model, scene);
+    GltfReader reader(model, scene, options);
     reader.readScene();
   } catch (const GltfError& e) {
     return Error{file + ": " + e.message};

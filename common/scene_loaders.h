@@ -13,11 +13,40 @@ namespace pc::scene_detail {
 
 // Format readers. They fill meshes, materials, textures, instances, lights and cameras in the
 // file's own units and axes; normals may be left empty (generated later).
-Result<Scene> loadGltf(const std::filesystem::path& path);
-Result<Scene> loadObj(const std::filesystem::path& path);
+Result<Scene> loadGltf(const std::filesystem::path& path, const SceneLoadOptions& options);
+Result<Scene> loadObj(const std::filesystem::path& path, const SceneLoadOptions& options);
 
-// Decodes an image file (PNG, JPEG, ...) to 8-bit RGBA.
-Status loadImageFile(const std::filesystem::path& path, Texture& out);
+// ---- what a scene file may read and allocate (scene_limits.cpp) ----
+
+// Checks that `file`, which the scene file names as `reference`, lies inside `sceneFolder` once
+// both are made absolute and every symbolic link in them is resolved (unless allowOutside).
+// The error names the reference, where it leads and the folder.
+Status checkInsideSceneFolder(const std::filesystem::path& file, const std::string& reference,
+                              const std::filesystem::path& sceneFolder, bool allowOutside);
+
+// The texture limits of the load options, applied to each image's size as its header gives
+// it, before any texel is decoded.
+class TextureBudget {
+ public:
+  explicit TextureBudget(const SceneLoadOptions& options) : options_(options) {}
+  // Admits a width x height texture called `name` and counts it against the scene's total.
+  Status admit(const std::string& name, int width, int height);
+  // Whether admit refused a texture: a scene over its limits fails to load, where a texture
+  // that is missing or undecodable only costs a warning.
+  bool exceeded() const { return exceeded_; }
+
+ private:
+  SceneLoadOptions options_;
+  std::uint64_t texels_ = 0;
+  bool exceeded_ = false;
+};
+
+// An error when `triangles` (what `what` holds or brings the scene to) is over the limit.
+Status checkTriangleLimit(const std::string& what, std::uint64_t triangles,
+                          const SceneLoadOptions& options);
+
+// Decodes an image file (PNG, JPEG, ...) to 8-bit RGBA once `budget` admits its size.
+Status loadImageFile(const std::filesystem::path& path, Texture& out, TextureBudget& budget);
 
 // Folders of the sidecars written for known scenes, in the order they are searched: beside
 // the running executable (sidecars/, as scripts/bundle lays them out), the install's

@@ -1,6 +1,5 @@
 // Wavefront OBJ + MTL through tinyobjloader: one mesh per (group, material), diffuse colour and
 // texture (map_Kd), emission (Ke). Missing textures are warnings: such scenes still light.
-#include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
@@ -15,25 +14,6 @@
 #include "common/scene_loaders.h"
 
 namespace pc::scene_detail {
-
-Status loadImageFile(const std::filesystem::path& path, Texture& out) {
-  // A FIFO would block the load until something wrote to it; a directory is no image.
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    return Error{path.string() + ": cannot read image: not a regular file"};
-  int w = 0, h = 0, comps = 0;
-  stbi_uc* data = stbi_load(path.string().c_str(), &w, &h, &comps, 4);
-  if (!data) {
-    const char* why = stbi_failure_reason();
-    return Error{path.string() + ": cannot read image: " + (why ? why : "unknown error")};
-  }
-  out.width = w;
-  out.height = h;
-  out.rgba.assign(data, data + std::size_t(w) * h * 4);
-  out.name = path.filename().string();
-  stbi_image_free(data);
-  return Status::success();
-}
 
 namespace {
 
@@ -56,11 +36,12 @@ struct CornerHash {
 
 class ObjBuilder {
  public:
-  ObjBuilder(const std::filesystem::path& path, const tinyobj::attrib_t& attrib, Scene& scene)
-      : path_(path), attrib_(attrib), scene_(scene) {}
+  ObjBuilder(const std::filesystem::path& path, const tinyobj::attrib_t& attrib, Scene& scene,
+             const SceneLoadOptions& options)
+      : path_(path), attrib_(attrib), scene_(scene), options_(options), budget_(options) {}
 
-  void addMaterials(const std::vector<tinyobj::material_t>& mats) {
-    std::filesystem::path dir = path_.parent_path();
+  // Fails where a texture map lies outside the scene's folder or over the texture limits.
+  Status addMaterials(const std::vector<tinyobj::material_t>& mats) {
     for (const auto& m : mats) {
       Material mat;
       mat.name = m.name;
@@ -70,7 +51,7 @@ class ObjBuilder {
         // MTL files often give map_Kd without Kd (tinyobj then reports Kd = 0): the texture
         // is the colour.
         bool noKd = mat.baseColor == glm::vec3(0.0f);
-        mat.baseColorTexture = texture(dir / m.diffuse_texname, m.diffuse_texopt.clamp);
+        mat.baseColorTexture = texture(m.diffuse_texname, m.diffuse_texopt.clamp);
         if (noKd)
           mat.baseColor = glm::vec3(mat.baseColorTexture >= 0 ? 1.0f : kMissingTextureAlbedo);
       }
@@ -79,7 +60,7 @@ class ObjBuilder {
       // are grey images). A map that cannot be read leaves the surface opaque (texture()
       // warns).
       if (!m.alpha_texname.empty()) {
-        const int alpha = texture(dir / m.alpha_texname, m.alpha_texopt.clamp);
+        const int alpha = texture(m.alpha_texname, m.alpha_texopt.clamp);
         if (alpha >= 0) {
           const std::vector<std::uint8_t>& rgba = scene_.textures[alpha].rgba;
           bool hasAlpha = false;
@@ -89,8 +70,10 @@ class ObjBuilder {
           mat.alphaChannel = hasAlpha ? 3 : 0;
         }
       }
+      if (!refused_.ok()) return refused_;
       scene_.materials.push_back(mat);
     }
+    return Status::success();
   }
 
   // Face corners of shape `shapeIndex`, split by material into meshes. Fails on an index
@@ -172,17 +155,25 @@ class ObjBuilder {
     }
   }
 
+  // The texture map `name` (relative to the OBJ's folder); -1 where it cannot be used.
   // `clamp`: the MTL's "-clamp on" (texture coordinates clamped to the edge texels).
-  int texture(const std::filesystem::path& file, bool clamp = false) {
+  int texture(const std::string& name, bool clamp = false) {
+    const std::filesystem::path file = path_.parent_path() / name;
     const std::string key = file.string() + (clamp ? "#clamp" : "");
     auto it = textureCache_.find(key);
     if (it != textureCache_.end()) return it->second;
     Texture tex;
     int index = -1;
-    if (Status s = loadImageFile(file, tex); s) {
+    if (Status inside =
+            checkInsideSceneFolder(file, name, path_.parent_path(), options_.allowOutsidePaths);
+        !inside) {
+      refused_ = Error{path_.string() + ": texture map " + inside.error().message};
+    } else if (Status s = loadImageFile(file, tex, budget_); s) {
       if (clamp) tex.wrapU = tex.wrapV = TextureWrap::ClampToEdge;
       index = int(scene_.textures.size());
       scene_.textures.push_back(std::move(tex));
+    } else if (budget_.exceeded()) {
+      refused_ = s.error();
     } else {
       scene_.warnings.push_back(s.error().message);
     }
@@ -203,20 +194,48 @@ class ObjBuilder {
   const std::filesystem::path& path_;
   const tinyobj::attrib_t& attrib_;
   Scene& scene_;
+  const SceneLoadOptions& options_;
+  TextureBudget budget_;
+  Status refused_;  // the first texture the options refuse: fails the load
   std::map<std::string, int> textureCache_;
   int defaultMaterial_ = -1;
 };
 
+// What scanObjText finds before tinyobj parses the file.
+struct ObjText {
+  std::vector<std::string> mtllibs;  // each mtllib line's whole argument, for MtlReader
+  std::uint64_t triangles = 0;       // the face lines' triangles once triangulated
+};
+
+// Triangles a face line makes once triangulated as a fan: one per corner past the second.
+std::uint64_t faceTriangles(const std::string& line, std::size_t from) {
+  std::uint64_t corners = 0;
+  bool inToken = false;
+  for (std::size_t i = from; i < line.size(); ++i) {
+    const bool space = line[i] == ' ' || line[i] == '\t' || line[i] == '\r';
+    if (!space && !inToken) ++corners;
+    inToken = !space;
+  }
+  return corners > 2 ? corners - 2 : 0;
+}
+
 // tinyobj reads "nan", "inf", words and missing coordinates as 0, so vertex lines are checked
 // in the text itself (the file is read once more; cheap next to parsing). The same pass keeps each
-// mtllib line's whole argument for MtlReader.
-Status checkVertexLines(const std::filesystem::path& path, std::vector<std::string>& mtllibs) {
+// mtllib line's whole argument for MtlReader, and counts the triangles the faces will make, so
+// that the triangle limit is applied before tinyobj allocates for them.
+Status scanObjText(const std::filesystem::path& path, ObjText& out) {
+  std::vector<std::string>& mtllibs = out.mtllibs;
   std::ifstream in(path, std::ios::binary);
   std::string line;
   std::size_t lineNo = 0, vertex = 0;
   while (std::getline(in, line)) {
     ++lineNo;
     std::size_t i = line.find_first_not_of(" \t");
+    if (i != std::string::npos && line[i] == 'f' && i + 1 < line.size() &&
+        (line[i + 1] == ' ' || line[i + 1] == '\t')) {
+      out.triangles += faceTriangles(line, i + 2);
+      continue;
+    }
     if (i != std::string::npos && line.compare(i, 7, "mtllib ") == 0) {
       std::string name = line.substr(i + 7);
       while (!name.empty() && (name.back() == '\r' || name.back() == ' ' || name.back() == '\t'))
@@ -256,8 +275,11 @@ Status checkVertexLines(const std::filesystem::path& path, std::vector<std::stri
 // it that is a file.
 class MtlReader : public tinyobj::MaterialReader {
  public:
-  MtlReader(std::filesystem::path dir, std::vector<std::string> lines)
-      : dir_(std::move(dir)), lines_(std::move(lines)) {}
+  MtlReader(std::filesystem::path dir, std::vector<std::string> lines, bool allowOutside)
+      : dir_(std::move(dir)), lines_(std::move(lines)), allowOutside_(allowOutside) {}
+
+  // The first material file the load options refuse (outside the scene's folder).
+  const Status& refused() const { return refused_; }
 
   bool operator()(const std::string& name, std::vector<tinyobj::material_t>* materials,
                   std::map<std::string, int>* materialMap, std::string* warn,
@@ -281,6 +303,10 @@ class MtlReader : public tinyobj::MaterialReader {
     }
     for (const std::string& f : files) {
       if (!read_.insert(f).second) continue;  // read for an earlier line
+      if (Status inside = checkInsideSceneFolder(dir_ / f, f, dir_, allowOutside_); !inside) {
+        if (refused_.ok()) refused_ = Error{"material library " + inside.error().message};
+        continue;
+      }
       std::ifstream in(dir_ / f, std::ios::binary);
       tinyobj::LoadMtl(materialMap, materials, &in, warn, err);
     }
@@ -301,26 +327,30 @@ class MtlReader : public tinyobj::MaterialReader {
 
   std::filesystem::path dir_;
   std::vector<std::string> lines_;
+  bool allowOutside_;
   std::set<std::string> read_;
+  Status refused_;
 };
 
 }  // namespace
 
-Result<Scene> loadObj(const std::filesystem::path& path) {
-  std::vector<std::string> mtllibs;
-  if (Status s = checkVertexLines(path, mtllibs); !s) return s.error();
+Result<Scene> loadObj(const std::filesystem::path& path, const SceneLoadOptions& options) {
+  ObjText text;
+  if (Status s = scanObjText(path, text); !s) return s.error();
+  if (Status s = checkTriangleLimit(path.string(), text.triangles, options); !s) return s.error();
   std::ifstream objText(path, std::ios::binary);
   if (!objText) return Error{path.string() + ": cannot open"};
   tinyobj::attrib_t attrib;
   std::vector<tinyobj::shape_t> shapes;
   std::vector<tinyobj::material_t> materials;
   std::string warning, why;
-  MtlReader mtl(path.parent_path(), mtllibs);
+  MtlReader mtl(path.parent_path(), text.mtllibs, options.allowOutsidePaths);
   if (!tinyobj::LoadObj(&attrib, &shapes, &materials, &warning, &why, &objText, &mtl,
                         /*triangulate=*/true, /*default_vcols_fallback=*/false)) {
     while (!why.empty() && why.back() == '\n') why.pop_back();
     return Error{path.string() + ": cannot parse OBJ: " + (why.empty() ? "unknown error" : why)};
   }
+  if (!mtl.refused().ok()) return Error{path.string() + ": " + mtl.refused().error().message};
   Scene scene;
   // A missing .mtl only costs colours; tinyobj reports it as a warning.
   if (!warning.empty()) {
@@ -333,8 +363,8 @@ Result<Scene> loadObj(const std::filesystem::path& path) {
     if (!std::isfinite(attrib.vertices[i]))
       return Error{path.string() + ": vertex " + std::to_string(i / 3 + 1) +
                    " has a non-finite position"};
-  ObjBuilder builder(path, attrib, scene);
-  builder.addMaterials(materials);
+  ObjBuilder builder(path, attrib, scene, options);
+  if (Status s = builder.addMaterials(materials); !s) return s.error();
   for (std::size_t s = 0; s < shapes.size(); ++s)
     if (Status st = builder.addShape(shapes[s], s); !st) return st.error();
   return scene;

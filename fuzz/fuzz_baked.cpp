@@ -1,11 +1,13 @@
 // Baked field files (protocol/baked_file.h): decodeBakedField on any bytes returns a field that
-// passes validateField, or an Error. The input is tried as read and with its size prefix made
-// to fit, so that mutations reach the flatbuffer and atlas checks. A decoded field survives
+// passes validateField, or an Error. The input is tried as read, with its size prefix made
+// to fit, and with that and its whole-file checksum made to fit (sealBakedChecksum), so that
+// mutations reach the flatbuffer and atlas checks past the checksum. A decoded field survives
 // re-encoding (float32, stored atlases) unchanged.
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <vector>
 
 #include "fuzz_support.h"
 #include "protocol/baked_file.h"
@@ -44,6 +46,8 @@ void check(std::span<const std::uint8_t> bytes) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   check(std::span<const std::uint8_t>(data, size));
-  check(fuzz::withFittedPrefix(data, size));
+  std::vector<std::uint8_t> fitted = fuzz::withFittedPrefix(data, size);
+  check(fitted);
+  if (sealBakedChecksum(fitted)) check(fitted);
   return 0;
 }

@@ -17,7 +17,9 @@
 #include <string>
 #include <system_error>
 
+#include "common/temp_file.h"
 #include "protocol/baked_field_generated.h"
+#include "protocol/crc64.h"
 
 namespace pc {
 
@@ -276,24 +278,59 @@ Result<Atlas> decodeAtlas(const wire::Atlas* w, const AtlasSpec& spec, std::int6
   return a;
 }
 
+// ---- whole-file checksum -------------------------------------------------------------------
+
+constexpr std::size_t kChecksumBytes = 8;
+
+// The verifier limits for a baked file's buffer.
+flatbuffers::Verifier::Options verifierOptions() {
+  flatbuffers::Verifier::Options opts;
+  opts.max_depth = kMaxDepth;
+  opts.max_tables = kMaxTables;
+  return opts;
+}
+
+// The root table of a size-prefixed buffer, having verified the table's start and its format
+// version and checksum fields (not the rest of the buffer); null when those do not verify.
+// `data` must be 8-byte aligned (the Verifier checks alignment against the address).
+const flatbuffers::Table* verifiedRootStart(const std::uint8_t* data, std::size_t size) {
+  flatbuffers::Verifier v(data, size, verifierOptions());
+  const flatbuffers::uoffset_t o = v.VerifyOffset(sizeof(flatbuffers::uoffset_t));
+  if (o == 0) return nullptr;
+  const auto* table = reinterpret_cast<const flatbuffers::Table*>(data + 4 + o);
+  if (!table->VerifyTableStart(v) ||
+      !table->VerifyField<std::uint32_t>(v, wire::BakedField::VT_FORMAT_VERSION, 4) ||
+      !table->VerifyField<std::uint64_t>(v, wire::BakedField::VT_CHECKSUM, 8))
+    return nullptr;
+  return table;
+}
+
+// The checksum's byte offset in the buffer, or 0 when the root table has no checksum field.
+std::size_t checksumOffset(const std::uint8_t* data, const flatbuffers::Table* root) {
+  const std::uint8_t* at = root->GetAddressOf(wire::BakedField::VT_CHECKSUM);
+  return at ? std::size_t(at - data) : 0;
+}
+
+// CRC-64 of the whole buffer with the checksum's own bytes taken as zero.
+std::uint64_t fileChecksum(std::span<const std::uint8_t> bytes, std::size_t at) {
+  const std::uint8_t zeros[kChecksumBytes] = {};
+  std::uint64_t crc = crc64(bytes.first(at));
+  crc = crc64(zeros, crc);
+  return crc64(bytes.subspan(at + kChecksumBytes), crc);
+}
+
+std::uint64_t readU64(const std::uint8_t* p) {
+  std::uint64_t v;
+  std::memcpy(&v, p, sizeof v);
+  return flatbuffers::EndianScalar(v);
+}
+
 // ---- files ---------------------------------------------------------------------------------
 
 struct FileCloser {
   void operator()(std::FILE* f) const { std::fclose(f); }
 };
 using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
-
-// Removes a temporary file unless released.
-struct TempFile {
-  std::filesystem::path path;
-  bool keep = false;
-  ~TempFile() {
-    if (!keep) {
-      std::error_code ec;
-      std::filesystem::remove(path, ec);
-    }
-  }
-};
 
 }  // namespace
 
@@ -405,13 +442,35 @@ Result<std::vector<std::uint8_t>> encodeBakedField(const Field& f,
                            s.viewBias, s.maxRayDistance, s.occlusionDistance, s.blendMargin);
   auto layout = wire::CreateLayout(fbb, PC_IRRADIANCE_TEXELS, PC_DEPTH_TEXELS, PC_OCCLUSION_TEXELS,
                                    PC_BRICK_SIZE, PC_ATLAS_TILES_PER_ROW, PC_MAX_CASCADES);
+  // The checksum is written as a placeholder (a non-default value, so the field is stored)
+  // and filled in once the buffer is whole.
   auto root = wire::CreateBakedField(
       fbb, kBakedFormatVersion, f.sceneHash, f.version, layout, settings, f.desc.probeCount,
       f.desc.hysteresis, f.desc.distanceExponent, f.desc.occlusionDistance, f.desc.atlasTileRows,
-      cascadesOff, probesOff, irrOff, depOff, occOff);
+      cascadesOff, probesOff, irrOff, depOff, occOff, ~std::uint64_t(0));
   // Size-prefixed: a reader tells a truncated file from a corrupt one by the announced size.
   wire::FinishSizePrefixedBakedFieldBuffer(fbb, root);
-  return std::vector<std::uint8_t>(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+  std::vector<std::uint8_t> bytes(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+  if (!sealBakedChecksum(bytes)) return Error{"cannot encode field: no checksum field to fill"};
+  return bytes;
+}
+
+bool sealBakedChecksum(std::span<std::uint8_t> bytes) {
+  if (bytes.size() < 12) return false;
+  // The Verifier checks alignment against the address: work on an aligned copy if need be.
+  std::vector<std::uint8_t> aligned;
+  const std::uint8_t* data = bytes.data();
+  if (reinterpret_cast<std::uintptr_t>(data) % 8 != 0) {
+    aligned.assign(bytes.begin(), bytes.end());
+    data = aligned.data();
+  }
+  const flatbuffers::Table* root = verifiedRootStart(data, bytes.size());
+  const std::size_t at = root ? checksumOffset(data, root) : 0;
+  if (at == 0) return false;
+  std::memset(bytes.data() + at, 0, kChecksumBytes);
+  const std::uint64_t crc = flatbuffers::EndianScalar(fileChecksum(bytes, at));
+  std::memcpy(bytes.data() + at, &crc, kChecksumBytes);
+  return true;
 }
 
 Result<Field> decodeBakedField(std::span<const std::uint8_t> bytes, std::uint64_t expectedSceneHash,
@@ -454,30 +513,34 @@ Result<Field> decodeBakedField(std::span<const std::uint8_t> bytes, std::uint64_
     aligned.assign(bytes.begin(), bytes.end());
     data = aligned.data();
   }
-  flatbuffers::Verifier::Options opts;
-  opts.max_depth = kMaxDepth;
-  opts.max_tables = kMaxTables;
-
   // The format version first, verified on its own, so a file from a newer or older writer is
   // reported as such rather than as corrupt.
   {
-    flatbuffers::Verifier v(data, size, opts);
-    const flatbuffers::uoffset_t o = v.VerifyOffset(sizeof(flatbuffers::uoffset_t));
-    if (o == 0) return fail("corrupt (bad root offset)");
-    const auto* table = reinterpret_cast<const flatbuffers::Table*>(data + 4 + o);
-    if (!table->VerifyTableStart(v) ||
-        !table->VerifyField<std::uint32_t>(v, wire::BakedField::VT_FORMAT_VERSION, 4)) {
-      return fail("corrupt (bad root table)");
-    }
+    const flatbuffers::Table* table = verifiedRootStart(data, size);
+    if (!table) return fail("corrupt (bad root table)");
     const auto version = table->GetField<std::uint32_t>(wire::BakedField::VT_FORMAT_VERSION, 0);
     if (version < kBakedMinFormatVersion || version > kBakedFormatVersion) {
       return fail("format version " + std::to_string(version) +
                   " is not supported (this build reads " + std::to_string(kBakedMinFormatVersion) +
-                  ".." + std::to_string(kBakedFormatVersion) + ")");
+                  ".." + std::to_string(kBakedFormatVersion) +
+                  (version < kBakedMinFormatVersion ? "; bake the field again" : "") + ")");
+    }
+    // Then the whole file's checksum, before anything else is read from it: a flipped bit
+    // anywhere (in a count, a bias, a probe state, an uncompressed atlas) is caught here, not
+    // loaded as a slightly different field.
+    const std::size_t at = checksumOffset(data, table);
+    if (at == 0)
+      return fail("no checksum (format version " + std::to_string(version) +
+                  " files carry one): the file is corrupt");
+    const std::uint64_t stored = readU64(data + at);
+    const std::uint64_t computed = fileChecksum({data, size}, at);
+    if (stored != computed) {
+      return fail("checksum mismatch (stored " + hex(stored) + ", computed " + hex(computed) +
+                  "): the file is corrupt");
     }
   }
   {
-    flatbuffers::Verifier v(data, size, opts);
+    flatbuffers::Verifier v(data, size, verifierOptions());
     if (!wire::VerifySizePrefixedBakedFieldBuffer(v)) {
       return fail("corrupt (flatbuffer verification failed)");
     }
@@ -616,11 +679,12 @@ Status writeBakedField(const std::filesystem::path& path, const Field& field,
   if (!bytes) return Error{prefix + bytes.error().message};
 
   // Same folder as the target, so the rename cannot cross file systems.
-  TempFile tmp{path.string() + ".tmp." + std::to_string(::getpid())};
+  // Removed on every failure below, and by the bake's signal handler if a signal ends it.
+  TempFile tmp(path.string() + ".tmp." + std::to_string(::getpid()));
   {
-    FilePtr f(std::fopen(tmp.path.c_str(), "wb"));
+    FilePtr f(std::fopen(tmp.path().c_str(), "wb"));
     if (!f)
-      return Error{prefix + "cannot create " + tmp.path.string() + ": " + std::strerror(errno)};
+      return Error{prefix + "cannot create " + tmp.path().string() + ": " + std::strerror(errno)};
     if (std::fwrite(bytes->data(), 1, bytes->size(), f.get()) != bytes->size() ||
         std::fflush(f.get()) != 0) {
       return Error{prefix + "write failed: " + std::strerror(errno)};
@@ -632,11 +696,7 @@ Status writeBakedField(const std::filesystem::path& path, const Field& field,
     if (std::fclose(f.release()) != 0)
       return Error{prefix + "close failed: " + std::strerror(errno)};
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp.path, path, ec);
-  if (ec)
-    return Error{prefix + "cannot rename " + tmp.path.string() + " into place: " + ec.message()};
-  tmp.keep = true;
+  if (Status s = tmp.commit(path); !s) return Error{prefix + s.error().message};
   return Status::success();
 }
 

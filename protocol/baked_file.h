@@ -19,9 +19,10 @@
 
 namespace pc {
 
-// The version this code writes, and the oldest it still reads.
-inline constexpr std::uint32_t kBakedFormatVersion = 1;
-inline constexpr std::uint32_t kBakedMinFormatVersion = 1;
+// The version this code writes, and the oldest it still reads. Version 2 added the whole-file
+// checksum; version 1 files, which have none, are refused (PROTOCOL.md, Versioning).
+inline constexpr std::uint32_t kBakedFormatVersion = 2;
+inline constexpr std::uint32_t kBakedMinFormatVersion = 2;
 
 // Files larger than this are rejected before they are read (flatbuffers' 2 GiB limit with
 // room to spare).
@@ -40,6 +41,11 @@ struct BakedWriteOptions {
 
 Result<std::vector<std::uint8_t>> encodeBakedField(const Field& field,
                                                    const BakedWriteOptions& options = {});
+// Writes the whole-file checksum into encoded bytes (encodeBakedField does so itself); for
+// tests and fuzzers that change a file on purpose so that the checks past the checksum see it.
+// False where the bytes hold no root table with a checksum field.
+bool sealBakedChecksum(std::span<std::uint8_t> bytes);
+
 // `name` only labels error messages. expectedSceneHash 0 accepts any scene.
 Result<Field> decodeBakedField(std::span<const std::uint8_t> bytes, std::uint64_t expectedSceneHash,
                                std::string_view name = "<memory>");

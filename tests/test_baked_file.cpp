@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -13,8 +14,10 @@
 #include <string>
 #include <vector>
 
+#include "common/temp_file.h"
 #include "protocol/baked_field_generated.h"
 #include "protocol/baked_file.h"
+#include "protocol/crc64.h"
 
 namespace fs = std::filesystem;
 
@@ -206,34 +209,105 @@ TEST(BakedField, TrailingBytesRejected) {
   EXPECT_TRUE(contains(r.error().message, "unexpected bytes")) << r.error().message;
 }
 
-TEST(BakedField, ByteFlipsRejectedOrValid) {
-  // Compressed (checksummed) and raw atlases; flips anywhere, and concentrated on the tables
-  // at the front of the buffer where the structure lives.
+// Flipped bits anywhere in a file, in the tables where the structure lives and in the atlases:
+// each is refused with a message, never loaded as a slightly different field. (Before the
+// whole-file checksum, format version 1, most flips outside the zstd frames loaded silently.)
+// A small field with compressed atlases: every bit of every byte. The same field with stored
+// atlases (half a megabyte): every byte of its first 2 KiB and last 64 bytes, and 1,000 bits
+// drawn at random.
+TEST(BakedField, EveryFlipRejected) {
+  std::vector<pc::ProbeVolume> volumes(1);
+  volumes[0].counts = glm::ivec3(2, 2, 2);
+  pc::Field small = pc::Field::create(volumes, {});
+  small.sceneHash = kSceneHash;
+  for (int level : {3, 0}) {
+    pc::BakedWriteOptions o;
+    o.zstdLevel = level;
+    const std::vector<std::uint8_t> bytes = encode(small, o);
+    std::vector<std::uint8_t> bad = bytes;
+    int flips = 0, byChecksum = 0;
+    auto tryFlip = [&](std::size_t at, std::uint8_t mask) {
+      bad[at] ^= mask;
+      auto r = pc::decodeBakedField(bad, 0, "f.probes");
+      bad[at] ^= mask;
+      ++flips;
+      ASSERT_FALSE(r.ok()) << "byte " << at << " mask " << int(mask) << " loaded";
+      ASSERT_TRUE(contains(r.error().message, "baked file f.probes: ")) << r.error().message;
+      if (contains(r.error().message, "checksum mismatch")) ++byChecksum;
+    };
+    if (level > 0) {
+      ASSERT_LT(bytes.size(), 16384u);
+      for (std::size_t at = 0; at < bytes.size(); ++at)
+        for (int bit = 0; bit < 8; ++bit) tryFlip(at, std::uint8_t(1u << bit));
+    } else {
+      for (std::size_t at = 0; at < 2048; ++at) tryFlip(at, 0xff);
+      for (std::size_t at = bytes.size() - 64; at < bytes.size(); ++at) tryFlip(at, 0xff);
+      std::mt19937 rng(5);
+      for (int i = 0; i < 1000; ++i) tryFlip(rng() % bytes.size(), std::uint8_t(1u << (rng() % 8)));
+    }
+    // The few flips another check catches first: size prefix, identifier, root offset and
+    // table start, format version.
+    EXPECT_GT(byChecksum, flips * 9 / 10) << byChecksum << " of " << flips;
+    RecordProperty("flips_level_" + std::to_string(level), flips);
+    RecordProperty("by_checksum_level_" + std::to_string(level), byChecksum);
+    std::printf("zstd level %d: %zu-byte file, %d flips rejected, %d by the checksum\n", level,
+                bytes.size(), flips, byChecksum);
+  }
+}
+
+// Mutations past the checksum (as a fuzzer sealing its inputs makes them) still meet the
+// structure and value checks.
+TEST(BakedField, SealedRandomFlipsRejectedOrValid) {
   for (int level : {0, 3}) {
     pc::BakedWriteOptions o;
     o.zstdLevel = level;
     const std::vector<std::uint8_t> bytes = encode(makeField(6, false), o);
     std::mt19937 rng(77 + level);
-    int rejected = 0, accepted = 0;
-    for (int trial = 0; trial < 1500; ++trial) {
+    int rejected = 0;
+    for (int trial = 0; trial < 500; ++trial) {
       std::vector<std::uint8_t> bad = bytes;
       const std::size_t span = trial % 2 ? bad.size() : std::min<std::size_t>(bad.size(), 1024);
       const int flips = 1 + int(rng() % 4);
       for (int i = 0; i < flips; ++i) bad[rng() % span] ^= std::uint8_t(1 + rng() % 255);
+      pc::sealBakedChecksum(bad);
       auto r = pc::decodeBakedField(bad, 0);
       if (!r.ok()) {
         ++rejected;
         ASSERT_TRUE(contains(r.error().message, "baked file")) << r.error().message;
         continue;
       }
-      ++accepted;
       // Whatever decodes is a usable field.
       pc::Status s = pc::validateField(*r);
       ASSERT_TRUE(s.ok()) << s.error().message;
     }
     EXPECT_GT(rejected, 0);
-    RecordProperty("accepted_level_" + std::to_string(level), accepted);
   }
+}
+
+TEST(BakedField, ChecksumIsCrc64OfTheWholeFile) {
+  const char* check = "123456789";  // the catalogue's check value for CRC-64/XZ
+  EXPECT_EQ(pc::crc64({reinterpret_cast<const std::uint8_t*>(check), 9}), 0x995DC9BBDF1939FAull);
+  // Split anywhere, the running form gives the same value.
+  EXPECT_EQ(pc::crc64({reinterpret_cast<const std::uint8_t*>(check) + 4, 5},
+                      pc::crc64({reinterpret_cast<const std::uint8_t*>(check), 4})),
+            0x995DC9BBDF1939FAull);
+
+  const std::vector<std::uint8_t> bytes = encode(makeField(15, false));
+  const auto* root = pc::wire::GetSizePrefixedBakedField(bytes.data());
+  const std::size_t at = fieldOffset(bytes, root, pc::wire::BakedField::VT_CHECKSUM);
+  std::vector<std::uint8_t> zeroed = bytes;
+  std::memset(&zeroed[at], 0, 8);
+  std::uint64_t stored;
+  std::memcpy(&stored, &bytes[at], 8);
+  EXPECT_EQ(stored, pc::crc64(zeroed));
+  // A wrong checksum is named as such.
+  std::vector<std::uint8_t> bad = bytes;
+  bad[at] ^= 1;
+  auto r = pc::decodeBakedField(bad, 0, "c.probes");
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error().message, "baked file c.probes: checksum mismatch (stored 0x"))
+      << r.error().message;
+  EXPECT_TRUE(contains(r.error().message, "the file is corrupt")) << r.error().message;
 }
 
 TEST(BakedField, SceneHashChecked) {
@@ -273,6 +347,15 @@ TEST(BakedField, FormatVersionChecked) {
         contains(r.error().message, "format version " + std::to_string(v) + " is not supported"))
         << r.error().message;
   }
+  // Version 1 files (no checksum) are refused with what to do about them.
+  std::vector<std::uint8_t> v1 = bytes;
+  putU32(v1, at, 1);
+  auto r = pc::decodeBakedField(v1, 0);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error().message,
+                       "format version 1 is not supported (this build reads 2..2; bake the "
+                       "field again)"))
+      << r.error().message;
 }
 
 TEST(BakedField, LayoutConstantsChecked) {
@@ -280,6 +363,7 @@ TEST(BakedField, LayoutConstantsChecked) {
   const auto* root = pc::wire::GetSizePrefixedBakedField(bytes.data());
   std::vector<std::uint8_t> bad = bytes;
   putU32(bad, fieldOffset(bytes, root->layout(), pc::wire::Layout::VT_IRRADIANCE_TEXELS), 6);
+  ASSERT_TRUE(pc::sealBakedChecksum(bad));
   auto r = pc::decodeBakedField(bad, 0);
   ASSERT_FALSE(r.ok());
   EXPECT_TRUE(contains(r.error().message, "layout constants")) << r.error().message;
@@ -297,6 +381,7 @@ TEST(BakedField, InvalidValuesRejected) {
   const std::size_t stateAt =
       std::size_t(reinterpret_cast<const std::uint8_t*>(probe) - bytes.data()) + 12;
   putU32(bad, stateAt, 9);
+  ASSERT_TRUE(pc::sealBakedChecksum(bad));
   auto r = pc::decodeBakedField(bad, 0);
   ASSERT_FALSE(r.ok());
   EXPECT_TRUE(contains(r.error().message, "probe 5: invalid state 9")) << r.error().message;
@@ -306,6 +391,7 @@ TEST(BakedField, InvalidValuesRejected) {
   const std::size_t nanAt = std::size_t(root->irradiance()->data()->data() - bytes.data()) + 400;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::memcpy(&bad[nanAt], &nan, 4);
+  ASSERT_TRUE(pc::sealBakedChecksum(bad));
   r = pc::decodeBakedField(bad, 0);
   ASSERT_FALSE(r.ok());
   EXPECT_TRUE(contains(r.error().message, "irradiance atlas value 100 not finite"))
@@ -317,8 +403,10 @@ TEST(BakedField, InvalidValuesRejected) {
   const std::size_t countsAt =
       std::size_t(reinterpret_cast<const std::uint8_t*>(cascade->counts()) - bytes.data());
   putU32(bad, countsAt, 9);
+  ASSERT_TRUE(pc::sealBakedChecksum(bad));
   EXPECT_FALSE(pc::decodeBakedField(bad, 0).ok());
   putU32(bad, countsAt, 0x7fffffff);
+  ASSERT_TRUE(pc::sealBakedChecksum(bad));
   r = pc::decodeBakedField(bad, 0);
   ASSERT_FALSE(r.ok());
   EXPECT_TRUE(contains(r.error().message, "out of range")) << r.error().message;
@@ -361,6 +449,58 @@ TEST_F(BakedFileTest, FileRoundTripAndAtomicWrite) {
 
   // A failed write leaves no file.
   EXPECT_FALSE(pc::writeBakedField(dir_ / "no" / "such.probes", f).ok());
+}
+
+// Names in the test folder that look like a writer's temporaries.
+int tempFiles(const fs::path& dir) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename().string().find(".tmp.") != std::string::npos) ++n;
+  return n;
+}
+
+// A write that fails after its temporary file exists (here the rename: the target is a folder
+// that is not empty) removes the temporary and says why.
+TEST_F(BakedFileTest, FailedWriteLeavesNoTemporary) {
+  const fs::path target = dir_ / "taken.probes";
+  fs::create_directories(target / "inside");
+  pc::Status s = pc::writeBakedField(target, makeField(16, false));
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(contains(s.error().message, "baked file " + target.string() + ": cannot rename " +
+                                              target.string() + ".tmp."))
+      << s.error().message;
+  EXPECT_EQ(tempFiles(dir_), 0);
+}
+
+// A SIGTERM (or SIGINT) while a temporary is pending: the handler the bake installs removes it
+// and the process ends by that signal.
+TEST_F(BakedFileTest, SignalRemovesPendingTemporary) {
+  const fs::path tmp = dir_ / "field.probes.tmp.123";
+  EXPECT_EXIT(
+      {
+        pc::installTempFileCleanup();
+        pc::TempFile pending(tmp);
+        std::ofstream(tmp) << "part of a field";
+        if (!fs::exists(tmp)) std::exit(3);
+        std::raise(SIGTERM);
+        std::exit(4);  // not reached
+      },
+      ::testing::KilledBySignal(SIGTERM), "");
+  EXPECT_FALSE(fs::exists(tmp));
+  EXPECT_EQ(tempFiles(dir_), 0);
+  // Without a signal, the destructor removes it; a committed one is kept under its new name.
+  {
+    pc::TempFile dropped(tmp);
+    std::ofstream(tmp) << "x";
+  }
+  EXPECT_FALSE(fs::exists(tmp));
+  {
+    pc::TempFile kept(tmp);
+    std::ofstream(tmp) << "x";
+    ASSERT_TRUE(kept.commit(dir_ / "kept").ok());
+  }
+  EXPECT_TRUE(fs::exists(dir_ / "kept"));
+  EXPECT_EQ(tempFiles(dir_), 0);
 }
 
 TEST_F(BakedFileTest, MissingAndTruncatedFiles) {

@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "common/scene.h"
 #include "protocol/stream_limits.h"
 
 namespace pc {
@@ -43,6 +44,20 @@ inline std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv)
     return app.exit(e) == 0 ? 0 : 1;
   }
   return std::nullopt;
+}
+
+// The options that bound what a scene file may read and make the tool allocate
+// (SceneLoadOptions), for every tool and subcommand that loads scenes.
+inline void addSceneLoadOptions(CLI::App& app, SceneLoadOptions& o) {
+  app.add_flag("--allow-outside-paths", o.allowOutsidePaths,
+               "let the scene read files outside its folder (glTF buffers and images, OBJ "
+               "material libraries and texture maps)");
+  app.add_option("--max-texture-size", o.maxTextureSize, "texels per side of one texture, at most")
+      ->check(CLI::Range(1, 1 << 24));
+  app.add_option("--max-scene-texels", o.maxSceneTexels,
+                 "texels of all the scene's textures together, at most");
+  app.add_option("--max-triangles", o.maxTriangles,
+                 "triangles the scene's meshes hold, and draw over all instances, at most");
 }
 
 // A finite number: CLI11 reads "nan" and "inf" as numbers, which no option here means.

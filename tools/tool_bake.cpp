@@ -12,6 +12,7 @@
 #include "common/image.h"
 #include "common/log.h"
 #include "common/output_path.h"
+#include "common/temp_file.h"
 #include "common/volume_placement.h"
 #include "cpu/path_tracer.h"
 #include "cpu/probe_lit_render.h"
@@ -66,10 +67,16 @@ int main(int argc, char** argv) {
                  "ambient occlusion of the probe-lit render's indirect light (GTAO): radius in "
                  "probe spacings, 0 off (--render)")
       ->check(pc::kFinite & CLI::NonNegativeNumber);
+  pc::SceneLoadOptions sceneLoad;
+  pc::addSceneLoadOptions(app, sceneLoad);
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
+  // A signal during the bake ends it as before; during the write it also removes the
+  // temporary file, so that no <out>.tmp.<pid> is left behind.
+  pc::installTempFileCleanup();
 
-  pc::Result<pc::Scene> scene = scenePath == "builtin" ? pc::Result<pc::Scene>(pc::builtinScene())
-                                                       : pc::loadScene(scenePath, sidecar);
+  pc::Result<pc::Scene> scene = scenePath == "builtin"
+                                    ? pc::Result<pc::Scene>(pc::builtinScene())
+                                    : pc::loadScene(scenePath, sidecar, sceneLoad);
   if (!scene) {
     pc::logError(scene.error().message);
     return 1;

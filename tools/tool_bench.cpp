@@ -24,9 +24,14 @@ std::string machineDescription() {
   return model + ", " + std::to_string(std::thread::hardware_concurrency()) + " hardware threads";
 }
 
+SceneLoadOptions& sceneLoadOptions() {
+  static SceneLoadOptions options;
+  return options;
+}
+
 Result<Scene> loadBenchScene(const std::string& path, const std::string& sidecar) {
   if (path.empty() || path == "builtin") return builtinScene();
-  return loadScene(path, sidecar);
+  return loadScene(path, sidecar, sceneLoadOptions());
 }
 
 }  // namespace pc::bench

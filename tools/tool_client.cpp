@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   app.add_option("--scene", c.scene, "scene file (.gltf/.glb/.obj) or 'builtin'")->required();
   app.add_option("--sidecar", c.sidecar, "scene.json sidecar");
   app.add_option("--probes", c.probes, "baked field (.probes): the fallback indirect light");
+  pc::addSceneLoadOptions(app, c.sceneLoad);
   app.add_option("--out", c.outDir, "headless: output folder");
   app.add_option("--prefix", c.prefix, "headless: file name prefix");
   app.add_option("--width", c.width, "render width")->check(CLI::Range(1, 16384));

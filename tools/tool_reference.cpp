@@ -42,13 +42,15 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--out", outDir, "output folder");
   app.add_flag("--pfm", pfm, "write reference.pfm instead of reference.exr");
+  pc::SceneLoadOptions sceneLoad;
+  pc::addSceneLoadOptions(app, sceneLoad);
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 
   pc::Scene scene;
   if (scenePath.empty()) {
     scene = pc::builtinScene();
   } else {
-    auto loaded = pc::loadScene(scenePath, sidecarPath);
+    auto loaded = pc::loadScene(scenePath, sidecarPath, sceneLoad);
     if (!loaded) return fail(loaded.error().message);
     scene = std::move(loaded.value());
   }

@@ -84,6 +84,7 @@ std::string sceneNameOf(const std::string& scenePath) {
 
 struct ServerSetup {
   std::string scenePath = "builtin", sidecar, probes, backend = "auto", dumpField;
+  pc::SceneLoadOptions sceneLoad;
   pc::NetServerOptions net;
   pc::FieldLoopOptions loop;
   pc::TracerOptions tracerOptions;
@@ -104,6 +105,7 @@ struct ServerSetup {
 void addTracerOptions(CLI::App& app, ServerSetup& s) {
   app.add_option("--scene", s.scenePath, "glTF/OBJ scene, or 'builtin'");
   app.add_option("--sidecar", s.sidecar, "scene.json sidecar");
+  pc::addSceneLoadOptions(app, s.sceneLoad);
   app.add_option("--probes", s.probes, "start from this baked field (else a short warm-up bake)");
   app.add_option("--backend", s.backend, "tracer: auto, embree or vulkan");
   app.add_option(
@@ -466,9 +468,9 @@ int main(int argc, char** argv) {
   if (auto code = parseOptions(argc, argv, setup)) return *code;
   const Signals signals;
 
-  pc::Result<pc::Scene> scene = setup.scenePath == "builtin"
-                                    ? pc::Result<pc::Scene>(pc::builtinScene())
-                                    : pc::loadScene(setup.scenePath, setup.sidecar);
+  pc::Result<pc::Scene> scene =
+      setup.scenePath == "builtin" ? pc::Result<pc::Scene>(pc::builtinScene())
+                                   : pc::loadScene(setup.scenePath, setup.sidecar, setup.sceneLoad);
   if (!scene) return pc::logError(scene.error().message), 1;
   pc::logInfo(pc::sidecarReport(*scene));
   for (const std::string& w : scene->warnings) pc::logWarn(w);

@@ -10,6 +10,7 @@
 
 #include "common/result.h"
 #include "common/scene.h"
+#include "tools/command_line.h"
 
 namespace pc::bench {
 
@@ -17,6 +18,9 @@ void figure(const std::string& name, double value, const std::string& unit);
 // One-line description of this machine (CPU model, cores) for the tables.
 std::string machineDescription();
 // Loads --scene PATH (or the built-in scene when PATH is "builtin"), with --sidecar.
+// What the subcommands' --allow-outside-paths and --max-* options set (addSceneLoadOptions),
+// for every scene loadBenchScene loads.
+SceneLoadOptions& sceneLoadOptions();
 Result<Scene> loadBenchScene(const std::string& path, const std::string& sidecar);
 
 // Each benchmark registers its subcommand; `run` is called when it was chosen.

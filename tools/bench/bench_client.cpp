@@ -41,6 +41,7 @@ Benchmark addClient(CLI::App& app) {
   static int msaa = 4;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
+  addSceneLoadOptions(*cmd, sceneLoadOptions());
   cmd->add_option("--out", outDir, "write the images here");
   cmd->add_option("--speed-width", speedWidth, "width of the timed frames");
   cmd->add_option("--speed-height", speedHeight, "height of the timed frames");

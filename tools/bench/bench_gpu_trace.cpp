@@ -54,6 +54,7 @@ Benchmark addGpuTrace(CLI::App& app) {
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
+  addSceneLoadOptions(*cmd, sceneLoadOptions());
   cmd->add_option("--measured", updates,
                   "measured updates (after --updates bake updates of both backends)");
   cmd->add_option("--rays", rays, "rays per probe");

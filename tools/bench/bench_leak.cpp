@@ -42,6 +42,7 @@ Benchmark addLeak(CLI::App& app) {
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene with a sealed room");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
+  addSceneLoadOptions(*cmd, sceneLoadOptions());
   cmd->add_option("--closed-camera", closedCamera,
                   "camera inside the sealed room (default: name has 'closed')");
   cmd->add_option("--open-camera", openCamera,

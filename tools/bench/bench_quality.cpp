@@ -248,6 +248,7 @@ Benchmark addQuality(CLI::App& app) {
   static QualityOptions o;
   cmd->add_option("--scene", o.scenePath, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", o.sidecar, "scene.json sidecar (with --scene)");
+  addSceneLoadOptions(*cmd, sceneLoadOptions());
   cmd->add_flag("--all", o.all, "every scene with lights under the shared scenes folder");
   cmd->add_option("--scenes", o.scenesDir,
                   "every .gltf/.glb/.obj under this folder (each with its sidecar, if any)");

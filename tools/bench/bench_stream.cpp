@@ -172,6 +172,7 @@ Benchmark addStream(CLI::App& app) {
   static StreamSetup s;
   cmd->add_option("--scene", s.scene, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", s.sidecar, "scene.json sidecar");
+  addSceneLoadOptions(*cmd, sceneLoadOptions());
   cmd->add_option("--seconds", s.seconds, "simulated seconds measured after the client joined");
   cmd->add_option("--join-limit", s.joinLimit, "simulated seconds allowed for the join");
   cmd->add_option("--rate", s.rate, "field updates per simulated second");

@@ -23,6 +23,7 @@ Benchmark addTrace(CLI::App& app) {
                   "all traced)")
       ->capture_default_str();
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
+  addSceneLoadOptions(*cmd, sceneLoadOptions());
   cmd->add_option("--updates", updates, "measured updates");
   cmd->add_option("--warmup", warmup, "updates before measuring (states, indirect light)");
   cmd->add_option("--rays", rays, "rays per probe");
