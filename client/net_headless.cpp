@@ -57,7 +57,8 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
   auto camera = clientCamera(*scene, config);
   if (!camera) return logError(camera.error().message), 1;
   FieldMirror mirror;
-  if (!config.probes.empty()) loadFallbackField(*scene, config, mirror);
+  // A fallback that cannot be read is bad input, as without --connect: exit 1, nothing drawn.
+  if (!config.probes.empty() && !loadFallbackField(*scene, config, mirror)) return 1;  // logged
 
   NetClient client(mirror, run.net);
   client.setViewer(camera->position, glm::quatLookAt(glm::normalize(camera->forward), camera->up));

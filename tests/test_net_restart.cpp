@@ -347,9 +347,10 @@ TEST(NetRestart, ServerStopsOnSigtermDuringItsWarmUp) {
   const Credentials creds(dir);
   const fs::path log = dir / "server.log";
   std::vector<std::string> args = {kBin + "probecast-server", "--port", std::to_string(freePort())};
-  for (const char* a : {"--scene", "builtin", "--backend", "embree", "--rays", "64", "--warmup",
-                        "1000000", "--bind", "127.0.0.1", "--token-key", creds.verifyKey,
-                        "--tls-cert", creds.cert, "--tls-key", creds.key, "--stats-interval", "0"})
+  for (const std::string& a : std::initializer_list<std::string>{
+           "--scene", "builtin", "--backend", "embree", "--rays", "64", "--warmup", "1000000",
+           "--bind", "127.0.0.1", "--token-key", creds.verifyKey, "--tls-cert", creds.cert,
+           "--tls-key", creds.key, "--stats-interval", "0"})
     args.push_back(a);
   Child server(args, log);
   ASSERT_TRUE(server.running());
@@ -384,28 +385,28 @@ TEST(NetRestart, ServerGoesOnOnTheCpuWhenItsGpuFails) {
   // fails about 15 s after the server listens (later on busy cores), with the client synced
   // long before (about 0.1 s after it connects, here).
   std::vector<std::string> args = {kBin + "probecast-server", "--port", portText};
-  for (const char* a : {"--scene",
-                        "builtin",
-                        "--backend",
-                        "vulkan",
-                        "--rays",
-                        "32",
-                        "--warmup",
-                        "2",
-                        "--rate",
-                        "10",
-                        "--gpu-fail-submission",
-                        "150",
-                        "--bind",
-                        "127.0.0.1",
-                        "--token-key",
-                        creds.verifyKey,
-                        "--tls-cert",
-                        creds.cert,
-                        "--tls-key",
-                        creds.key,
-                        "--stats-interval",
-                        "0"})
+  for (const std::string& a : std::initializer_list<std::string>{"--scene",
+                                                                 "builtin",
+                                                                 "--backend",
+                                                                 "vulkan",
+                                                                 "--rays",
+                                                                 "32",
+                                                                 "--warmup",
+                                                                 "2",
+                                                                 "--rate",
+                                                                 "10",
+                                                                 "--gpu-fail-submission",
+                                                                 "150",
+                                                                 "--bind",
+                                                                 "127.0.0.1",
+                                                                 "--token-key",
+                                                                 creds.verifyKey,
+                                                                 "--tls-cert",
+                                                                 creds.cert,
+                                                                 "--tls-key",
+                                                                 creds.key,
+                                                                 "--stats-interval",
+                                                                 "0"})
     args.push_back(a);
   Child server(args, serverLog);
   ASSERT_TRUE(server.running());
