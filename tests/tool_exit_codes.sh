@@ -41,8 +41,11 @@ printf "\\$(printf %03o $((byte ^ 4)))" |
 
 expect 1 "cannot use the baked field: baked file .*field.probes: checksum mismatch" \
   "$bin/probecast-client" --scene builtin --probes "$work/field.probes" --out "$work/out"
+"$bin/probecast-token" keygen --signing-key "$work/issuer.key" --verify-key "$work/issuer.pub" \
+  >/dev/null || { echo "FAIL: probecast-token keygen"; exit 1; }
 expect 1 "baked file .*field.probes: checksum mismatch" \
-  "$bin/probecast-server" --backend embree --port 0 --token exit-code-test --probes "$work/field.probes"
+  "$bin/probecast-server" --backend embree --port 0 --token-key "$work/issuer.pub" \
+  --dev-self-signed --probes "$work/field.probes"
 
 printf 'newmtl m\nKd 1 0 0\n' >"$work/outside.mtl"
 printf 'mtllib ../outside.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n' \
