@@ -9,15 +9,18 @@
 
 #include "common/scene.h"
 #include "protocol/stream_limits.h"
+#include "tools/build_info.h"
 
 namespace pc {
 
-// What --version prints: the tool, the release, and the protocol versions it speaks, so that
-// a report names what ran ("probecast-server 0.1.0 (protocol 2, accepts 2 and later)").
+// What --version prints: the tool, the release, the git revision and build type it was built
+// from, and the protocol versions it speaks, so that a report names what ran
+// ("probecast-server 0.1.0 (git 5bd65b5-dirty, RelWithDebInfo; protocol 4, accepts 4 and later)").
 inline std::string versionText(const char* argv0) {
   const std::string tool = std::filesystem::path(argv0 ? argv0 : "probecast").filename().string();
-  return tool + " " + PC_VERSION + " (protocol " + std::to_string(kProtocolVersion) + ", accepts " +
-         std::to_string(kMinProtocolVersion) + " and later)";
+  return tool + " " + PC_VERSION + " (git " + gitRevision() + ", " + buildType() + "; protocol " +
+         std::to_string(kProtocolVersion) + ", accepts " + std::to_string(kMinProtocolVersion) +
+         " and later)";
 }
 
 // Records every option's value as it stands (the tool's default) for --help to show, in this
@@ -36,8 +39,9 @@ inline void captureDefaults(CLI::App& app) {
 // Use: if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 inline std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv) {
   captureDefaults(app);
-  app.set_version_flag("--version", versionText(argc > 0 ? argv[0] : nullptr),
-                       "print the tool's version and protocol version, and exit");
+  app.set_version_flag(
+      "--version", versionText(argc > 0 ? argv[0] : nullptr),
+      "print the tool's version, git revision, build type and protocol version, and exit");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
