@@ -194,50 +194,77 @@ void Session::onHandshake(boost::system::error_code ec) {
     if (!secret) return close(DisconnectCause::TlsHandshake, secret.error().message);
     sealer_.emplace(deriveDatagramKeys(*secret).serverToClient, id_);
   }
-  readPrefix();
+  readMore();
 }
 
-void Session::readPrefix() {
+// Reads whatever the stream holds (up to the input buffer) and handles every whole frame in
+// it: one read per batch of messages, not two per message. Over TLS each read is a pass
+// through the SSL engine, and a client sends about 60 small messages a second.
+void Session::readMore() {
   auto self = shared_from_this();
-  asio::async_read(stream_, asio::buffer(prefix_),
-                   [self](boost::system::error_code ec, std::size_t) { self->onPrefix(ec); });
+  stream_.async_read_some(asio::buffer(input_), [self](boost::system::error_code ec,
+                                                       std::size_t n) { self->onRead(ec, n); });
 }
 
-void Session::onPrefix(boost::system::error_code ec) {
+void Session::onRead(boost::system::error_code ec, std::size_t n) {
   if (closed_) return;
   if (ec) return close(DisconnectCause::ClientClosed, readFailure(ec));
-  // Every check on the prefix alone, before the frame's buffer is allocated.
-  const std::size_t limit = sender_ ? server_.maxMessageBytes : kMaxHelloFrameBytes;
-  const std::size_t announced = readLittleEndian32(prefix_) + kFramePrefixBytes;
-  if (announced > limit) {
-    return refuse(DisconnectCause::Oversized,
-                  "frame of " + std::to_string(announced) + " bytes announced, the cap is " +
-                      std::to_string(limit) + (sender_ ? "" : " before a Hello"));
+  std::span<const std::uint8_t> bytes(input_.data(), n);
+  while (!bytes.empty()) {
+    if (frameBytes_ == 0) {
+      const std::size_t take = std::min(kFramePrefixBytes - frame_.size(), bytes.size());
+      frame_.insert(frame_.end(), bytes.begin(), bytes.begin() + std::ptrdiff_t(take));
+      bytes = bytes.subspan(take);
+      if (frame_.size() < kFramePrefixBytes) break;
+      if (!acceptPrefix()) return;
+    }
+    const std::size_t take = std::min(frameBytes_ - frame_.size(), bytes.size());
+    frame_.insert(frame_.end(), bytes.begin(), bytes.begin() + std::ptrdiff_t(take));
+    bytes = bytes.subspan(take);
+    if (frame_.size() < frameBytes_) break;
+    if (!onFrame()) return;
+    frameBytes_ = 0;
+    frame_.clear();
+    if (frame_.capacity() > kKeptFrameCapacity) Bytes().swap(frame_);
   }
-  auto size = frameSize(prefix_, limit);
-  if (!size) return refuse(DisconnectCause::Malformed, "bad frame: " + size.error().message);
+  readMore();
+}
+
+bool Session::acceptPrefix() {
+  // Every check on the prefix alone, before the frame's buffer grows past it.
+  const std::size_t limit = sender_ ? server_.maxMessageBytes : kMaxHelloFrameBytes;
+  std::array<std::uint8_t, kFramePrefixBytes> prefix{};
+  std::copy_n(frame_.begin(), kFramePrefixBytes, prefix.begin());
+  const std::size_t announced = readLittleEndian32(prefix) + kFramePrefixBytes;
+  if (announced > limit) {
+    refuse(DisconnectCause::Oversized, "frame of " + std::to_string(announced) +
+                                           " bytes announced, the cap is " + std::to_string(limit) +
+                                           (sender_ ? "" : " before a Hello"));
+    return false;
+  }
+  auto size = frameSize(prefix, limit);
+  if (!size) {
+    refuse(DisconnectCause::Malformed, "bad frame: " + size.error().message);
+    return false;
+  }
   const double now = steadySeconds();
   if (!messageBucket_.take(1, now)) {
-    return refuse(DisconnectCause::Flood, "more than " +
-                                              std::to_string(server_.options.maxMessagesPerSecond) +
-                                              " messages per second");
+    refuse(DisconnectCause::Flood, "more than " +
+                                       std::to_string(server_.options.maxMessagesPerSecond) +
+                                       " messages per second");
+    return false;
   }
   if (!byteBucket_.take(double(*size), now)) {
-    return refuse(
-        DisconnectCause::Flood,
-        "more than " + std::to_string(server_.maxReceiveBytesPerSecond) + " bytes per second");
+    refuse(DisconnectCause::Flood,
+           "more than " + std::to_string(server_.maxReceiveBytesPerSecond) + " bytes per second");
+    return false;
   }
-  frame_.assign(prefix_.begin(), prefix_.end());
-  frame_.resize(*size);
-  auto self = shared_from_this();
-  asio::async_read(stream_,
-                   asio::buffer(frame_.data() + kFramePrefixBytes, *size - kFramePrefixBytes),
-                   [self](boost::system::error_code ec2, std::size_t) { self->onFrame(ec2); });
+  frameBytes_ = *size;
+  frame_.reserve(*size);
+  return true;
 }
 
-void Session::onFrame(boost::system::error_code ec) {
-  if (closed_) return;
-  if (ec) return close(DisconnectCause::ClientClosed, readFailure(ec));
+bool Session::onFrame() {
   bytesReceived_ += frame_.size();
   ++messagesReceived_;
   lastHeard_ = steadySeconds();
@@ -245,16 +272,18 @@ void Session::onFrame(boost::system::error_code ec) {
     case FrameKind::SessionMessage:
       break;
     case FrameKind::Datagram:
-      return refuse(DisconnectCause::WrongDirection,
-                    "a datagram frame: only the server sends datagrams");
+      refuse(DisconnectCause::WrongDirection, "a datagram frame: only the server sends datagrams");
+      return false;
     case FrameKind::Unknown:
-      return refuse(DisconnectCause::Malformed, "not a session message frame");
+      refuse(DisconnectCause::Malformed, "not a session message frame");
+      return false;
   }
   auto message = decodeMessage(frame_);
-  if (!message) return refuse(DisconnectCause::Malformed, message.error().message);
-  if (frame_.capacity() > kKeptFrameCapacity) Bytes().swap(frame_);
-  if (!handle(*message)) return;
-  readPrefix();
+  if (!message) {
+    refuse(DisconnectCause::Malformed, message.error().message);
+    return false;
+  }
+  return handle(*message) && !closed_;
 }
 
 bool Session::handle(const SessionMessage& message) {

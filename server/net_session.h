@@ -76,9 +76,11 @@ class Session : public std::enable_shared_from_this<Session> {
 
  private:
   void onHandshake(boost::system::error_code ec);
-  void readPrefix();
-  void onPrefix(boost::system::error_code ec);
-  void onFrame(boost::system::error_code ec);
+  void readMore();
+  void onRead(boost::system::error_code ec, std::size_t n);
+  // False when the session ended (the frame was refused, or handling it closed the session).
+  bool acceptPrefix();
+  bool onFrame();
 
   // False when the session ended. A client changes nothing but its own pose and acks: the
   // session is the connection, so nothing it sends can name another session.
@@ -109,8 +111,9 @@ class Session : public std::enable_shared_from_this<Session> {
   TokenClaims claims_;  // the connect token's, once the Hello is accepted
   std::string addressKey_, clientKey_;
   bool closed_ = false, closeAfterFlush_ = false;
-  std::array<std::uint8_t, kFramePrefixBytes> prefix_{};
-  Bytes frame_;
+  std::array<std::uint8_t, 4096> input_{};  // what one read takes from the stream
+  Bytes frame_;                             // the frame being put together, prefix first
+  std::size_t frameBytes_ = 0;              // its whole size once its prefix passed; 0 before
   std::deque<SharedBytes> writes_;
   std::size_t queuedBytes_ = 0;
   bool writing_ = false;
