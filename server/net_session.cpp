@@ -12,6 +12,8 @@ namespace {
 // Before a client has shown a valid token it may send one small Hello, nothing bigger: an
 // unauthenticated peer never makes the server allocate the full message limit.
 constexpr std::size_t kMaxHelloFrameBytes = 4096;
+// The most bytes of queued frames one write takes together.
+constexpr std::size_t kWriteBatchBytes = 64u << 10;
 // A receive buffer grown past this by one large message (a full ack) is given back after it.
 constexpr std::size_t kKeptFrameCapacity = 64u << 10;
 // A client's name is kept (and logged, quoted) up to this many bytes.
@@ -468,6 +470,22 @@ void Session::enqueue(SharedBytes bytes) {
 void Session::writeNext() {
   writing_ = true;
   writeStartedAt_ = steadySeconds();
+  // Frames queued while the last write was out leave together, up to kWriteBatchBytes: one
+  // TLS record and one send for a scene state, a report and datagram frames, not one each.
+  if (writes_.size() > 1 && writes_.front()->size() < kWriteBatchBytes) {
+    std::size_t total = 0;
+    for (const SharedBytes& w : writes_) {
+      if (total + w->size() > kWriteBatchBytes) break;
+      total += w->size();
+    }
+    Bytes batch;
+    batch.reserve(total);
+    while (!writes_.empty() && batch.size() + writes_.front()->size() <= kWriteBatchBytes) {
+      batch.insert(batch.end(), writes_.front()->begin(), writes_.front()->end());
+      writes_.pop_front();
+    }
+    writes_.push_front(share(std::move(batch)));  // the same bytes: queuedBytes_ holds
+  }
   auto self = shared_from_this();
   asio::async_write(
       stream_, asio::buffer(*writes_.front()),
