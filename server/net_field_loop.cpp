@@ -15,7 +15,10 @@ void FieldLoop::sleepSeconds(double s) {
 UpdateStats FieldLoop::update(const SceneState& state, std::uint64_t tick) {
   UpdateRequest request;
   request.rotationSeed = std::uint32_t(tick);
-  request.probes = scheduler_.plan(field_, tick, hub_.viewers());
+  std::vector<glm::vec3> viewers;
+  std::vector<float> weights;
+  hub_.weightedViewers(viewers, weights);
+  request.probes = scheduler_.plan(field_, tick, viewers, weights);
   request.changeThreshold = options_.changeThreshold;
   while (tracer_) {
     Result<UpdateStats> updated = moveAndUpdate(state, request);

@@ -50,8 +50,9 @@ class FieldHub {
 
   // Viewer positions by session, for the probe scheduler. A session holds one viewer (its
   // newest pose replaces the previous one), which counts when its weight is at least 1: the
-  // scheduler ranks probes by their nearest viewer, so a weight never buys a client more
-  // viewers; weight 0 gives a session's pose no say at all.
+  // scheduler ranks probes by their nearest viewer, a viewer of weight w counting as w times
+  // nearer, so a weight never buys a client more viewers; weight 0 gives a session's pose no
+  // say at all.
   void setViewer(std::uint32_t session, glm::vec3 position, int weight = 1) {
     std::lock_guard lock(mutex_);
     viewers_[session] = Viewer{position, weight};
@@ -59,6 +60,17 @@ class FieldHub {
   void removeViewer(std::uint32_t session) {
     std::lock_guard lock(mutex_);
     viewers_.erase(session);
+  }
+  // The same with each viewer's weight, for the scheduler (ProbeScheduler::plan).
+  void weightedViewers(std::vector<glm::vec3>& positions, std::vector<float>& weights) const {
+    std::lock_guard lock(mutex_);
+    positions.clear();
+    weights.clear();
+    for (const auto& [id, v] : viewers_) {
+      if (v.weight <= 0) continue;
+      positions.push_back(v.position);
+      weights.push_back(float(v.weight));
+    }
   }
   std::vector<glm::vec3> viewers() const {
     std::lock_guard lock(mutex_);

@@ -6,7 +6,8 @@
 namespace pc {
 
 std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tick,
-                                           const std::vector<glm::vec3>& viewers) {
+                                           const std::vector<glm::vec3>& viewers,
+                                           const std::vector<float>& weights) {
   if (lastUpdate_.size() != field.probes.size()) lastUpdate_.assign(field.probes.size(), 0);
   struct Candidate {
     ProbeRef ref;
@@ -33,7 +34,10 @@ std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tic
       if (!viewers.empty()) {
         distance = std::numeric_limits<float>::max();
         glm::vec3 p = field.probePosition(k, s);
-        for (const glm::vec3& v : viewers) distance = std::min(distance, glm::length(p - v));
+        for (std::size_t i = 0; i < viewers.size(); ++i) {
+          const float weight = i < weights.size() ? std::max(1.0f, weights[i]) : 1.0f;
+          distance = std::min(distance, glm::length(p - viewers[i]) / weight);
+        }
       }
       candidates.push_back({{k, s}, staleness / (1.0f + distance / c.spacing)});
     }

@@ -20,9 +20,12 @@ struct SchedulerOptions {
 class ProbeScheduler {
  public:
   explicit ProbeScheduler(SchedulerOptions options = {}) : options_(options) {}
-  // `viewers`: world positions of the viewers (empty: no preference).
+  // `viewers`: world positions of the viewers (empty: no preference). `weights` (empty: all 1;
+  // else one per viewer, >= 1): a viewer of weight w counts as w times nearer, so under a
+  // budget its surroundings come first in proportion to what its connect token allows.
   std::vector<ProbeRef> plan(const Field& field, std::uint64_t tick,
-                             const std::vector<glm::vec3>& viewers = {});
+                             const std::vector<glm::vec3>& viewers = {},
+                             const std::vector<float>& weights = {});
   // Forces every probe into the next plan (scene cut, history reset).
   void resetAll() { lastUpdate_.clear(); }
 

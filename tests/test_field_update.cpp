@@ -461,6 +461,33 @@ TEST(ProbeScheduler, SleepingAndInsideProbesAreStaggered) {
   EXPECT_EQ(scheduler.plan(field, 40).size(), 128u);
 }
 
+// Two viewers at opposite corners: with equal weights the budget splits between them; a viewer
+// of weight 4 (what its connect token allows) draws most of it to its side.
+TEST(ProbeScheduler, AHeavierViewerDrawsTheBudgetToItsSide) {
+  Field field = schedulerField();
+  SchedulerOptions options;
+  options.budget = 16;
+  const glm::vec3 a(1.2f, 0.7f, 0.4f), b = field.probePosition(0, 127);
+  auto nearerA = [&](const std::vector<ProbeRef>& plan) {
+    int n = 0;
+    for (const ProbeRef& p : plan) {
+      const glm::vec3 x = field.probePosition(p.cascade, p.slot);
+      n += glm::length(x - a) < glm::length(x - b) ? 1 : 0;
+    }
+    return n;
+  };
+  ProbeScheduler even(options), weighted(options);
+  const int evenA = nearerA(even.plan(field, 1, {a, b}, {1.0f, 1.0f}));
+  const int weightedA = nearerA(weighted.plan(field, 1, {a, b}, {4.0f, 1.0f}));
+  std::printf("probes nearer the first viewer: %d of 16 at equal weights, %d at weight 4\n", evenA,
+              weightedA);
+  EXPECT_GT(weightedA, evenA);
+  EXPECT_GE(weightedA, 12);
+  // No weights: as equal weights.
+  ProbeScheduler plain(options);
+  EXPECT_EQ(nearerA(plain.plan(field, 1, {a, b})), evenA);
+}
+
 TEST(ProbeScheduler, BudgetServesNearestViewerFirstWithoutStarving) {
   Field field = schedulerField();
   SchedulerOptions options;
