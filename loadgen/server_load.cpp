@@ -117,9 +117,7 @@ Result<ServerLoadResult> runServerLoad(const ServerLoadOptions& options,
   const std::string keyFile = options.serverLog + ".verify-key";
   if (Status s = writeKeyFile(keyFile, keys.verify); !s) return s.error();
   std::vector<std::string> tokens;
-  const std::int64_t nowUnix = std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count();
+  const std::int64_t nowUnix = unixSeconds();
   for (int i = 0; i < options.load.clients; ++i) {
     auto token = issueToken(keys.signing, newTokenClaims("loadgen-" + std::to_string(i), "*",
                                                          TokenRole::Viewer, 1, nowUnix, 86400));

@@ -3,6 +3,7 @@
 #include <sodium.h>
 #include <sys/stat.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 
@@ -422,6 +423,12 @@ Result<TokenClaims> TokenVerifier::verify(std::string_view token, std::string_vi
     return refuse(TokenError::WrongScene,
                   who + " is for scene '" + c.scene + "', not '" + std::string(scene) + "'");
   return std::move(parts->claims);
+}
+
+std::int64_t unixSeconds() {
+  return std::chrono::duration_cast<std::chrono::seconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
 }
 
 }  // namespace pc

@@ -67,6 +67,9 @@ Result<TokenRole> parseTokenRole(std::string_view name);
 std::string tokenIdHex(const TokenId& id);  // 32 lower-case hex digits
 Result<TokenId> parseTokenIdHex(std::string_view hex);
 
+// The clock tokens are issued and checked on: seconds since the Unix epoch, now.
+std::int64_t unixSeconds();
+
 // Claims for a new token: a random id, issued at `nowUnix`, expiring `ttlSeconds` later.
 TokenClaims newTokenClaims(std::string client, std::string scene, TokenRole role,
                            std::uint32_t weight, std::int64_t nowUnix, std::int64_t ttlSeconds);

@@ -347,9 +347,7 @@ std::optional<std::string> Session::checkSize(const SessionMessage& message) con
 
 bool Session::onHello(const HelloMsg& hello) {
   name_ = hello.clientName.substr(0, kMaxClientNameBytes);
-  const std::int64_t nowUnix = std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count();
+  const std::int64_t nowUnix = unixSeconds();
   HelloVerdict verdict = checkHello(hello, server_.verifier, server_.options.sceneName, nowUnix);
   std::optional<RejectMsg> reject = std::move(verdict.reject);
   RejectCause cause = verdict.versionMismatch ? RejectCause::Version : RejectCause::Auth;

@@ -25,9 +25,7 @@ const KeyPair& soakKeys() {
   return keys;
 }
 std::vector<std::string> soakTokens(int clients) {
-  const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
-                               std::chrono::system_clock::now().time_since_epoch())
-                               .count();
+  const std::int64_t now = unixSeconds();
   std::vector<std::string> tokens;
   for (int i = 0; i < clients; ++i) {
     tokens.push_back(issueToken(soakKeys().signing, newTokenClaims("soak-" + std::to_string(i), "*",

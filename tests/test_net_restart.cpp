@@ -125,9 +125,7 @@ struct Credentials {
         key((dir / "key.pem").string()) {
     const pc::KeyPair issuer = pc::generateKeyPair(), stranger = pc::generateKeyPair();
     EXPECT_TRUE(pc::writeKeyFile(verifyKey, issuer.verify).ok());
-    const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
-                                 std::chrono::system_clock::now().time_since_epoch())
-                                 .count();
+    const std::int64_t now = pc::unixSeconds();
     const pc::TokenClaims claims =
         pc::newTokenClaims("restart-client", "*", pc::TokenRole::Viewer, 1, now, 3600);
     std::ofstream(token) << pc::issueToken(issuer.signing, claims).value() << "\n";

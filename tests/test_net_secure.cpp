@@ -22,12 +22,6 @@ using asio::ip::tcp;
 using asio::ip::udp;
 using Bytes = std::vector<std::uint8_t>;
 
-std::int64_t unixNow() {
-  return std::chrono::duration_cast<std::chrono::seconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
 client::NetClientOptions clientOptions(const TestServer& server, const std::string& name) {
   client::NetClientOptions o;
   o.host = "127.0.0.1";
@@ -333,7 +327,7 @@ TEST(NetSecure, WrongExpiredRevokedTamperedOrMisplacedTokensAreRejected) {
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const std::string revoked = (dir / "revoked.txt").string();
-  const std::int64_t now = unixNow();
+  const std::int64_t now = unixSeconds();
   const std::string good = issueTestToken("good");
   const std::string expired = issueTestToken("late", 60, 120);
   const std::string early =

@@ -38,9 +38,7 @@ inline const KeyPair& testKeys() {
 }
 inline std::string issueTestToken(const std::string& client, std::int64_t ttlSeconds = 3600,
                                   std::int64_t issuedAgo = 0) {
-  const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
-                               std::chrono::system_clock::now().time_since_epoch())
-                               .count();
+  const std::int64_t now = unixSeconds();
   auto token = issueToken(testKeys().signing, newTokenClaims(client, "*", TokenRole::Viewer, 1,
                                                              now - issuedAgo, ttlSeconds));
   EXPECT_TRUE(token.ok());

@@ -4,27 +4,20 @@
 #pragma once
 
 #include <cstdlib>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include "common/result.h"
 #include "protocol/connect_token.h"
+#include "protocol/secure_io.h"
 
 namespace pc {
 
 inline Result<std::string> readTokenFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{"token file " + path + ": cannot be read"};
-  std::string text;
-  text.resize(kMaxTokenChars + 2);
-  in.read(text.data(), std::streamsize(text.size()));
-  text.resize(std::size_t(in.gcount()));
+  auto read = readSmallFile(path, kMaxTokenChars + 2);  // a token and its line end
+  if (!read) return Error{"token file: " + read.error().message};
+  std::string text = std::move(read).value();
   while (!text.empty() && (text.back() == '\n' || text.back() == '\r' || text.back() == ' '))
     text.pop_back();
-  if (text.size() > kMaxTokenChars)
-    return Error{"token file " + path + ": longer than a token (" + std::to_string(kMaxTokenChars) +
-                 " characters)"};
   if (text.empty()) return Error{"token file " + path + ": empty"};
   return text;
 }

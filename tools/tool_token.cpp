@@ -84,8 +84,6 @@ std::string utcTime(std::int64_t unix) {
   return text;
 }
 
-std::int64_t nowUnix() { return std::int64_t(std::time(nullptr)); }
-
 // A token file: the token and at most one line ending after it.
 Result<std::string> readTokenFile(const std::string& path) {
   auto text = readSmallFile(path, kMaxTokenFileBytes);
@@ -138,7 +136,7 @@ int issue(const IssueArgs& a) {
   auto key = signingKey(a.signingPath);
   if (!key) return fail(key.error().message);
   const TokenClaims claims = newTokenClaims(a.client, a.scene, parseTokenRole(a.role).value(),
-                                            a.weight, nowUnix(), *parseTtl(a.ttl));
+                                            a.weight, unixSeconds(), *parseTtl(a.ttl));
   auto token = issueToken(key.value(), claims);
   if (!token) return fail(token.error().message);
   if (a.out.empty()) {
@@ -187,7 +185,7 @@ int inspect(const InspectArgs& a) {
   // Without --scene the token is checked for its own scene (any scene passes).
   TokenError cause = TokenError::Malformed;
   auto verified =
-      verifier.verify(token.value(), a.scene.empty() ? c.scene : a.scene, nowUnix(), &cause);
+      verifier.verify(token.value(), a.scene.empty() ? c.scene : a.scene, unixSeconds(), &cause);
   if (!verified) {
     std::printf("status   invalid: %s\n", std::string(tokenErrorName(cause)).c_str());
     return fail(verified.error().message);
@@ -235,7 +233,7 @@ int revoke(const RevokeArgs& a) {
     if (!list.empty() && list.back() != '\n') list += '\n';
     mode = unsigned(fs::status(a.listPath, ec).permissions()) & 0777;
   }
-  list += tokenIdHex(id) + "  # " + note + "revoked " + utcTime(nowUnix()) + "\n";
+  list += tokenIdHex(id) + "  # " + note + "revoked " + utcTime(unixSeconds()) + "\n";
   // Replaced whole, so that a verifier reloading it never reads half a line.
   if (Status s = writeFileAtomically(a.listPath, list, mode); !s) return fail(s.error().message);
   std::printf("revoked %s in %s\n", tokenIdHex(id).c_str(), a.listPath.c_str());
