@@ -68,6 +68,8 @@ const char* causeName(RejectCause cause) {
       return "server_full";
     case RejectCause::ClientLimit:
       return "client_limit";
+    case RejectCause::AddressLimit:
+      return "address_limit";
   }
   return "?";
 }

@@ -50,8 +50,8 @@ const char* causeName(DisconnectCause cause);
 
 // Why a Hello was answered with a Reject: the label of probecast_sessions_rejected_total.
 // ClientLimit: the client identity already holds maxSessionsPerClient sessions.
-enum class RejectCause { Auth, Version, ServerFull, ClientLimit };
-inline constexpr std::size_t kRejectCauses = std::size_t(RejectCause::ClientLimit) + 1;
+enum class RejectCause { Auth, Version, ServerFull, ClientLimit, AddressLimit };
+inline constexpr std::size_t kRejectCauses = std::size_t(RejectCause::AddressLimit) + 1;
 const char* causeName(RejectCause cause);
 
 // TLS 1.3 on every session stream (net/tls_context.h); the datagram keys come from it. Off

@@ -361,6 +361,12 @@ bool Session::onHello(const HelloMsg& hello) {
     if (auto why = server_.addressLimits.admitClient(tokenKey)) {
       reject = RejectMsg{kProtocolVersion, "client limit: " + *why};
       cause = RejectCause::ClientLimit;
+    } else if (auto whyAddress = server_.addressLimits.promote(addressKey_)) {
+      // Over its address's session cap: the client hears why, so that it backs off rather
+      // than reading a bare close as a fault.
+      server_.addressLimits.releaseClient(tokenKey);
+      reject = RejectMsg{kProtocolVersion, "address limit: " + *whyAddress};
+      cause = RejectCause::AddressLimit;
     }
   }
   if (reject) {
@@ -374,11 +380,6 @@ bool Session::onHello(const HelloMsg& hello) {
     ++server_.totals.rejects[std::size_t(cause)];
     if (verdict.tokenError) ++server_.totals.tokenRejects[std::size_t(*verdict.tokenError)];
     sendReject(std::move(*reject));
-    return false;
-  }
-  if (auto why = server_.addressLimits.promote(addressKey_)) {
-    server_.addressLimits.releaseClient(tokenKey);
-    close(DisconnectCause::AddressLimit, *why);
     return false;
   }
   // The identity the per-client cap counts; released by the server when the session ends.

@@ -104,6 +104,46 @@ TEST(NetLimits, SessionsPerAddressAreCapped) {
   expectJoinsAndReceives(f.port(), kOtherAddress, "other");
 }
 
+// Two connections may both be admitted while a place remains; the one whose Hello comes
+// second hears why it cannot join, as a Reject, rather than a bare close.
+TEST(NetLimits, HelloOverTheAddressCapIsRejectedWithItsCause) {
+  NetServerOptions o;
+  o.maxSessionsPerAddress = 2;  // the good client's and one more
+  HostileFixture f(o);
+  auto first = std::make_unique<RawPeer>(f.port());
+  RawPeer second(f.port());
+  first->send(encodeMessage(hello(kToken, "first")));
+  auto welcome = first->readFrame(5.0);
+  ASSERT_TRUE(welcome.has_value());
+  auto w = decodeMessage(*welcome);
+  ASSERT_TRUE(w.ok() && std::holds_alternative<WelcomeMsg>(*w));
+  const std::vector<std::uint8_t> helloBytes = encodeMessage(hello(kToken, "second"));
+  second.send(helloBytes);
+  auto frame = second.readFrame(5.0);
+  ASSERT_TRUE(frame.has_value());
+  auto m = decodeMessage(*frame);
+  ASSERT_TRUE(m.ok() && std::holds_alternative<RejectMsg>(*m));
+  const std::string& reason = std::get<RejectMsg>(*m).reason;
+  std::printf("reject reason: %s\n", reason.c_str());
+  EXPECT_EQ(reason.rfind("address limit: ", 0), 0u);
+  EXPECT_LE(frame->size(), helloBytes.size());
+  EXPECT_TRUE(waitFor([&] { return f.stats().rejectsBy(RejectCause::AddressLimit) == 1; }, 5.0));
+  EXPECT_EQ(f.stats().clients.size(), 2u);
+  // The place freed by the first is taken again by a newcomer from the same address.
+  first.reset();
+  ASSERT_TRUE(waitFor([&] { return f.stats().clients.size() == 1; }, 5.0));
+  {
+    RawPeer third(f.port());
+    third.send(encodeMessage(hello(kToken, "third")));
+    auto again = third.readFrame(5.0);
+    ASSERT_TRUE(again.has_value());
+    auto a = decodeMessage(*again);
+    ASSERT_TRUE(a.ok() && std::holds_alternative<WelcomeMsg>(*a));
+  }
+  ASSERT_TRUE(waitFor([&] { return f.stats().clients.size() == 1; }, 5.0));
+  f.expectGoodClientUnaffected();
+}
+
 TEST(NetLimits, SessionsPerTokenAreCapped) {
   HostileFixture f;  // "good" holds one session; the holder of the token "raw" may hold 4
   const std::string raw = issueTestToken("raw");
