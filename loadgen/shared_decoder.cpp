@@ -13,7 +13,8 @@ Result<std::shared_ptr<const QuantizedBrick>> SharedBrickDecoder::decode(
     const std::shared_ptr<const QuantizedBrick>& base) {
   const std::uint64_t hash = std::hash<std::string_view>{}(
       std::string_view(reinterpret_cast<const char*>(payload.data()), payload.size()));
-  const Key key{hash, payload.size(), base.get(), update.cascade, update.brick, update.version};
+  const Key key{hash,         payload.size(), base.get(),      update.cascade,
+                update.brick, update.version, update.precision};
   {
     std::lock_guard lock(mutex_);
     auto it = entries_.find(key);
@@ -33,7 +34,7 @@ Result<std::shared_ptr<const QuantizedBrick>> SharedBrickDecoder::decode(
   std::lock_guard lock(mutex_);
   ++stats_.decoded;
   std::weak_ptr<const QuantizedBrick>& canonical =
-      versions_[VersionKey{update.cascade, update.brick, update.version}];
+      versions_[VersionKey{update.cascade, update.brick, update.version, update.precision}];
   if (auto held = canonical.lock()) {
     if (*held == *result) {
       result = held;

@@ -42,6 +42,7 @@ class SharedBrickDecoder final : public BrickDecoder {
     int cascade;
     std::uint32_t brick;
     std::uint64_t version;
+    std::uint8_t precision;
     auto operator<=>(const Key&) const = default;
   };
   struct Entry {
@@ -50,7 +51,8 @@ class SharedBrickDecoder final : public BrickDecoder {
     std::shared_ptr<const QuantizedBrick> result;
     std::uint64_t lastUse = 0;
   };
-  using VersionKey = std::tuple<int, std::uint32_t, std::uint64_t>;
+  // (cascade, brick, version, precision level): each level of a version is its own content.
+  using VersionKey = std::tuple<int, std::uint32_t, std::uint64_t, std::uint8_t>;
 
   void evictLocked();
 

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <string>
 
+#include "protocol/brick_precision.h"
 #include "protocol/crc32.h"
 #include "protocol/datagram_generated.h"
 
@@ -35,9 +36,9 @@ std::vector<std::uint8_t> encodeDatagram(std::uint32_t sessionId, std::uint32_t 
   for (const FragmentRef& f : fragments) {
     auto data = fbb.CreateVector(f.data.data(), f.data.size());
     const UpdateHeader& u = f.update;
-    offs.push_back(net::CreateBrickFragment(fbb, u.updateId, std::uint8_t(u.cascade), u.brick,
-                                            u.version, u.baseVersion, u.codec, u.totalSize, f.index,
-                                            fragmentCount(u.totalSize), data));
+    offs.push_back(net::CreateBrickFragment(
+        fbb, u.updateId, std::uint8_t(u.cascade), u.brick, u.version, u.baseVersion, u.codec,
+        u.totalSize, f.index, fragmentCount(u.totalSize), data, u.precision, u.basePrecision));
   }
   auto vec = fbb.CreateVector(offs);
   auto root = net::CreateDatagram(fbb, sessionId, sequence, fieldVersion, vec);
@@ -87,6 +88,8 @@ Result<Datagram> decodeDatagram(std::span<const std::uint8_t> bytes) {
       u.baseVersion = f->base_version();
       u.codec = f->codec();
       u.totalSize = f->total_size();
+      u.precision = f->precision();
+      u.basePrecision = f->base_precision();
       out.index = f->fragment_index();
       out.count = f->fragment_count();
       const std::string at = "fragment " + std::to_string(d.fragments.size()) + ": ";
@@ -104,7 +107,15 @@ Result<Datagram> decodeDatagram(std::span<const std::uint8_t> bytes) {
       if (got != expected) {
         return fail(at + std::to_string(got) + " data bytes, expected " + std::to_string(expected));
       }
-      if (u.version == 0 || u.baseVersion >= u.version) {
+      if (u.precision > kMaxPrecision || u.basePrecision > kMaxPrecision) {
+        return fail(at + "precision level " + std::to_string(u.precision) + " on " +
+                    std::to_string(u.basePrecision) + ", the finest is 0 and the coarsest " +
+                    std::to_string(kMaxPrecision));
+      }
+      // A residual builds on an older version, or refines its own version held coarser.
+      const bool refinement =
+          u.baseVersion == u.version && u.basePrecision > u.precision && u.baseVersion != 0;
+      if (u.version == 0 || (u.baseVersion >= u.version && !refinement)) {
         return fail(at + "version " + std::to_string(u.version) + " on base " +
                     std::to_string(u.baseVersion));
       }

@@ -24,10 +24,13 @@ struct UpdateHeader {
   std::uint64_t baseVersion = 0;  // 0: self-contained
   std::uint8_t codec = 0;
   std::uint32_t totalSize = 0;  // payload bytes
+  // Precision levels (brick_precision.h) of the payload's codes and of the base it is a
+  // residual on; 0: the codec's own.
+  std::uint8_t precision = 0, basePrecision = 0;
   bool sameUpdate(const UpdateHeader& o) const {
     return updateId == o.updateId && cascade == o.cascade && brick == o.brick &&
            version == o.version && baseVersion == o.baseVersion && codec == o.codec &&
-           totalSize == o.totalSize;
+           totalSize == o.totalSize && precision == o.precision && basePrecision == o.basePrecision;
   }
 };
 

@@ -16,6 +16,9 @@ std::uint32_t updateIdFor(const EncodeKey& key) {
   std::uint64_t h = mix(std::uint64_t(std::uint32_t(key.cascade)) << 32 | key.brick);
   h = mix(h ^ key.version);
   h = mix(h ^ (key.base + 0x9e3779b97f4a7c15ull));
+  // Levels other than 0 change the id; at level 0 it is what it always was.
+  if (key.precision != 0 || key.basePrecision != 0)
+    h = mix(h ^ (std::uint64_t(key.precision) << 8 | key.basePrecision));
   const std::uint32_t id = std::uint32_t(h ^ (h >> 32));
   return id != 0 ? id : 1u;
 }
@@ -40,7 +43,9 @@ std::shared_ptr<const EncodedUpdate> EncodeCache::insert(const EncodeKey& key, s
                            key.version,
                            key.base,
                            codec,
-                           std::uint32_t(payload.size())};
+                           std::uint32_t(payload.size()),
+                           key.precision,
+                           key.basePrecision};
   u->payload = std::move(payload);
   if (auto it = map_.find(key); it != map_.end()) erase(it);
   bytes_ += u->payload.capacity();

@@ -27,6 +27,8 @@ struct EncodeKey {
   int cascade = 0;
   std::uint32_t brick = 0;
   std::uint64_t version = 0, base = 0;
+  // Precision levels of the version's codes and of the base's (brick_precision.h).
+  std::uint8_t precision = 0, basePrecision = 0;
   auto operator<=>(const EncodeKey&) const = default;
 };
 

@@ -6,6 +6,8 @@
 #include <chrono>
 #include <string>
 
+#include "protocol/brick_precision.h"
+
 namespace pc {
 
 namespace {
@@ -183,20 +185,32 @@ std::shared_ptr<const QuantizedBrick> FieldPublisher::find(int cascade, int bric
   return nullptr;
 }
 
+std::shared_ptr<const QuantizedBrick> FieldPublisher::find(int cascade, int brick,
+                                                           std::uint64_t version,
+                                                           int precision) const {
+  auto content = find(cascade, brick, version);
+  if (!content || precision <= 0) return content;
+  return std::make_shared<const QuantizedBrick>(coarsenBrick(*content, precision));
+}
+
 std::shared_ptr<const EncodedUpdate> FieldPublisher::encoded(int cascade, int brick,
                                                              std::uint64_t version,
-                                                             std::uint64_t base) {
-  const EncodeKey key{cascade, std::uint32_t(brick), version, base};
+                                                             std::uint64_t base, int precision,
+                                                             int basePrecision) {
+  precision = std::clamp(precision, 0, kMaxPrecision);
+  basePrecision = base != 0 ? std::clamp(basePrecision, 0, kMaxPrecision) : 0;
+  const EncodeKey key{cascade, std::uint32_t(brick),    version,
+                      base,    std::uint8_t(precision), std::uint8_t(basePrecision)};
   // A version asked for is about to reach a client, which may later name it as its base.
   for (BrickVersion& v : bricks_[cascade][brick]) {
     if (v.version == version) v.sent = true;
   }
   if (auto hit = cache_.find(key)) return hit;
-  auto content = find(cascade, brick, version);
+  auto content = find(cascade, brick, version, precision);
   if (!content) return nullptr;
   std::shared_ptr<const QuantizedBrick> baseContent;
   if (base != 0) {
-    baseContent = find(cascade, brick, base);
+    baseContent = find(cascade, brick, base, basePrecision);
     if (!baseContent) return nullptr;
   }
   ++encodes_;

@@ -93,9 +93,15 @@ class FieldPublisher {
   // Content of an older (or the current) version, while it is in the history; else null.
   std::shared_ptr<const QuantizedBrick> find(int cascade, int brick, std::uint64_t version) const;
   // Encoded update for `version` on top of `base` (0: self-contained), from the cache or
-  // encoded now. Null when either version is no longer in the history.
+  // encoded now. Null when either version is no longer in the history. `precision` rounds the
+  // version's codes (brick_precision.h); `basePrecision` is the level the base is held at.
   std::shared_ptr<const EncodedUpdate> encoded(int cascade, int brick, std::uint64_t version,
-                                               std::uint64_t base);
+                                               std::uint64_t base, int precision = 0,
+                                               int basePrecision = 0);
+  // Content of a version at a precision level (find() at level 0); null when not in the
+  // history.
+  std::shared_ptr<const QuantizedBrick> find(int cascade, int brick, std::uint64_t version,
+                                             int precision) const;
 
   const EncodeCache& cache() const { return cache_; }
   // Bytes of the quantized versions held beyond each brick's current one (an upper bound:

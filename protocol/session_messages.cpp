@@ -10,6 +10,7 @@
 #include <iterator>
 
 #include "common/constant_time.h"
+#include "protocol/brick_precision.h"
 #include "protocol/datagram.h"
 #include "protocol/session_generated.h"
 
@@ -123,7 +124,17 @@ struct Encoder {
         arrivals.emplace_back(a.sequence, a.arrivalMicros);
       arrivalsOff = fbb.CreateVectorOfStructs(arrivals);
     }
-    return net::CreateAck(fbb, m.full, m.fieldVersion, rangesOff, gapsOff, arrivalsOff).Union();
+    fb::Offset<fb::Vector<const net::BrickPrecision*>> precisionsOff;
+    if (!m.precisions.empty()) {
+      std::vector<net::BrickPrecision> precisions;
+      precisions.reserve(m.precisions.size());
+      for (const BrickPrecisionMsg& p : m.precisions)
+        precisions.emplace_back(p.brick, std::uint8_t(p.cascade), std::uint8_t(p.precision));
+      precisionsOff = fbb.CreateVectorOfStructs(precisions);
+    }
+    return net::CreateAck(fbb, m.full, m.fieldVersion, rangesOff, gapsOff, arrivalsOff,
+                          precisionsOff)
+        .Union();
   }
   fb::Offset<void> operator()(const StreamReportMsg& m) {
     return net::CreateStreamReport(fbb, m.rate, m.delivered, m.queueDelayMs, m.loss,
@@ -137,7 +148,16 @@ struct Encoder {
       refs.emplace_back(r.haveVersion, r.brick, std::uint8_t(r.cascade));
     }
     auto refsOff = fbb.CreateVectorOfStructs(refs);
-    return net::CreateRepairRequest(fbb, refsOff).Union();
+    fb::Offset<fb::Vector<std::uint8_t>> precisionsOff;
+    const bool coarse = std::any_of(m.bricks.begin(), m.bricks.end(),
+                                    [](const BrickRefMsg& r) { return r.havePrecision != 0; });
+    if (coarse) {
+      std::vector<std::uint8_t> precisions;
+      precisions.reserve(m.bricks.size());
+      for (const BrickRefMsg& r : m.bricks) precisions.push_back(std::uint8_t(r.havePrecision));
+      precisionsOff = fbb.CreateVector(precisions);
+    }
+    return net::CreateRepairRequest(fbb, refsOff, precisionsOff).Union();
   }
 };
 
@@ -364,6 +384,23 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
         for (const net::DatagramArrival* a : *w->arrivals())
           m.arrivals.push_back(DatagramArrivalMsg{a->sequence(), a->arrival_us()});
       }
+      if (w->precisions()) {
+        // At most one entry per listed brick.
+        std::uint64_t listed = 0;
+        for (const AckRange& r : m.ranges) listed += r.count;
+        if (w->precisions()->size() > listed) {
+          return fail("ack: " + std::to_string(w->precisions()->size()) + " brick precisions for " +
+                      std::to_string(listed) + " bricks listed");
+        }
+        m.precisions.reserve(w->precisions()->size());
+        for (const net::BrickPrecision* p : *w->precisions()) {
+          if (p->precision() > kMaxPrecision) {
+            return fail("ack: precision level " + std::to_string(p->precision()) +
+                        " (the coarsest is " + std::to_string(kMaxPrecision) + ")");
+          }
+          m.precisions.push_back(BrickPrecisionMsg{p->cascade(), p->brick(), p->precision()});
+        }
+      }
       return SessionMessage(std::move(m));
     }
     case net::Body::RepairRequest: {
@@ -375,7 +412,21 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
           net::BrickRef copy;  // possibly misaligned in the buffer, as above
           std::memcpy(&copy, p, sizeof copy);
           const net::BrickRef* r = &copy;
-          m.bricks.push_back(BrickRefMsg{r->cascade(), r->brick(), r->have_version()});
+          m.bricks.push_back(BrickRefMsg{r->cascade(), r->brick(), r->have_version(), 0});
+        }
+        if (const auto* precisions = w->have_precisions(); precisions && precisions->size() > 0) {
+          if (precisions->size() != m.bricks.size()) {
+            return fail("repair request: " + std::to_string(precisions->size()) +
+                        " precisions for " + std::to_string(m.bricks.size()) + " bricks");
+          }
+          for (std::size_t i = 0; i < m.bricks.size(); ++i) {
+            const std::uint8_t p = precisions->Get(flatbuffers::uoffset_t(i));
+            if (p > kMaxPrecision) {
+              return fail("repair request: precision level " + std::to_string(p) +
+                          " (the coarsest is " + std::to_string(kMaxPrecision) + ")");
+            }
+            m.bricks[i].havePrecision = p;
+          }
         }
       }
       return SessionMessage(std::move(m));

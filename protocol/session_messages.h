@@ -112,18 +112,28 @@ struct DatagramArrivalMsg {
 // (20 ms), in which 1,024 datagrams of 1,200 bytes are 490 Mbit/s.
 inline constexpr std::size_t kMaxAckArrivals = 1024;
 
+// A brick held at a precision level above 0 (protocol/brick_precision.h).
+struct BrickPrecisionMsg {
+  int cascade = 0;
+  std::uint32_t brick = 0;
+  int precision = 0;
+};
+
 struct AckMsg {
   bool full = false;  // every held brick is listed; unlisted bricks hold nothing
   std::uint64_t fieldVersion = 0;
   std::vector<AckRange> ranges;
   std::vector<FragmentGapMsg> gaps;
   std::vector<DatagramArrivalMsg> arrivals;  // since the previous Ack, in order of arrival
+  // Bricks of `ranges` held coarser than the codec's own precision; the others are at 0.
+  std::vector<BrickPrecisionMsg> precisions;
 };
 
 struct BrickRefMsg {
   int cascade = 0;
   std::uint32_t brick = 0;
   std::uint64_t haveVersion = 0;
+  int havePrecision = 0;  // the precision level `haveVersion` is held at
 };
 
 struct RepairRequestMsg {

@@ -16,10 +16,15 @@ namespace pc {
 // Version 4: the session runs over TLS 1.3, UDP datagrams are sealed with keys exported from
 // it (datagram_seal.h), and the Hello carries a signed connect token (connect_token.h).
 // Older clients speak none of it, so they are not served.
-inline constexpr std::uint32_t kProtocolVersion = 4;
+// Version 5: brick updates may carry coarser precision levels (brick_precision.h), and acks
+// and repair requests say which level each brick is held at; a version 4 client is sent the
+// codec's own precision only.
+inline constexpr std::uint32_t kProtocolVersion = 5;
 inline constexpr std::uint32_t kMinProtocolVersion = 4;
 // The first version whose clients report arrivals and take StreamReport.
 inline constexpr std::uint32_t kCongestionControlVersion = 3;
+// The first version whose clients take coarser precision levels.
+inline constexpr std::uint32_t kPrecisionLevelsVersion = 5;
 
 // UDP datagrams never exceed this (fits the IPv6 minimum MTU of 1280 with headers).
 inline constexpr std::size_t kMaxDatagramBytes = 1200;

@@ -122,15 +122,19 @@ Status StreamReceiver::onDatagram(std::span<const std::uint8_t> bytes, double no
 
 Status StreamReceiver::apply(const CompletedUpdate& u, double now) {
   BrickState& b = bricks_[u.update.cascade][u.update.brick];
-  if (u.update.version <= b.version) {
+  // Newer, or the version held refined to a finer precision.
+  const bool newer = u.update.version > b.version ||
+                     (u.update.version == b.version && u.update.precision < b.precision);
+  if (!newer) {
     ++stats_.stale;
     return Status::success();
   }
   std::shared_ptr<const QuantizedBrick> base;
   if (u.update.baseVersion != 0) {
-    if (u.update.baseVersion == b.version) {
+    if (u.update.baseVersion == b.version && u.update.basePrecision == b.precision) {
       base = b.content;
-    } else if (u.update.baseVersion == b.previousVersion && b.previous) {
+    } else if (u.update.baseVersion == b.previousVersion &&
+               u.update.basePrecision == b.previousPrecision && b.previous) {
       base = b.previous;
     } else {
       ++stats_.missingBase;
@@ -155,8 +159,10 @@ Status StreamReceiver::apply(const CompletedUpdate& u, double now) {
   if (options_.keepField) applyBrick(field_, u.update.cascade, int(u.update.brick), **q);
   b.previous = std::move(b.content);
   b.previousVersion = b.version;
+  b.previousPrecision = b.precision;
   b.content = std::move(q.value());
   b.version = u.update.version;
+  b.precision = u.update.precision;
   b.appliedAt = now;
   b.ackDirty = true;
   b.changed = true;
@@ -208,6 +214,7 @@ std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
         } else {
           ack.ranges.push_back(AckRange{k, i, 1, b.version});
         }
+        if (b.precision != 0) ack.precisions.push_back(BrickPrecisionMsg{k, i, b.precision});
       }
     }
     out.push_back(encodeMessage(ack));
@@ -223,7 +230,7 @@ std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
       if (!b.wantRepair || now - b.repairAt < options_.repairInterval) continue;
       b.wantRepair = false;
       b.repairAt = now;
-      repair.bricks.push_back(BrickRefMsg{k, i, b.version});
+      repair.bricks.push_back(BrickRefMsg{k, i, b.version, b.precision});
     }
   }
   if (!repair.bricks.empty()) {

@@ -1,8 +1,9 @@
 // Client side of the stream, without sockets or clocks: fed datagrams and the time, it keeps a
 // mirror of the server's field and says what to send back (acks, repair requests).
 //
-// An update is applied only when it is newer than the brick's version and either
-// self-contained or a residual on exactly the version held; otherwise the brick keeps what it
+// An update is applied only when it is newer than the brick's version (or the same version at
+// a finer precision level) and either self-contained or a residual on exactly the version and
+// precision held; otherwise the brick keeps what it
 // has and a repair request goes out (at most one per brick per repair interval). Duplicated,
 // reordered, stale, corrupt or foreign datagrams therefore change nothing. Acks report the
 // versions held: changes at most every ack interval, the whole state every full-ack interval.
@@ -97,6 +98,8 @@ class StreamReceiver {
   std::uint64_t brickVersion(int cascade, int brick) const {
     return bricks_[cascade][brick].version;
   }
+  // The precision level the brick's version is held at (0: the codec's own).
+  int brickPrecision(int cascade, int brick) const { return bricks_[cascade][brick].precision; }
   // Seconds since the brick last changed here; infinity while it holds nothing.
   double brickAge(int cascade, int brick, double now) const;
   // Newest field version the server announced.
@@ -115,12 +118,14 @@ class StreamReceiver {
  private:
   struct BrickState {
     std::uint64_t version = 0;
+    int precision = 0;  // the level `content` is rounded to (brick_precision.h)
     double appliedAt = 0;
     std::shared_ptr<const QuantizedBrick> content;  // codes of `version`: residuals' base
     // The version held before `version`, also a base: the server sends one version of a brick
     // at a time, but when an ack is late it sends the next one on the version acknowledged,
     // which this client may just have replaced.
     std::uint64_t previousVersion = 0;
+    int previousPrecision = 0;
     std::shared_ptr<const QuantizedBrick> previous;
     double repairAt = -1e30;
     bool wantRepair = false;

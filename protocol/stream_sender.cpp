@@ -48,8 +48,8 @@ class Packer {
 
 std::optional<BrickChange> BrickChangeCache::get(const FieldPublisher& publisher, int cascade,
                                                  int brick, std::uint64_t version,
-                                                 std::uint64_t ref) {
-  const Key key{cascade, brick, version, ref};
+                                                 std::uint64_t ref, int refPrecision) {
+  const Key key{cascade, brick, version, ref, refPrecision};
   if (auto it = entries_.find(key); it != entries_.end()) {
     ++hits_;
     return it->second;
@@ -69,7 +69,7 @@ std::optional<BrickChange> BrickChangeCache::get(const FieldPublisher& publisher
   ++computed_;
   std::optional<BrickChange> change;
   auto cur = publisher.find(cascade, brick, version);
-  auto old = publisher.find(cascade, brick, ref);
+  auto old = publisher.find(cascade, brick, ref, refPrecision);
   if (cur && old) change = brickChange(*cur, *old);
   entries_.emplace(key, change);
   return change;
@@ -106,10 +106,10 @@ double StreamSender::sendRate() const {
 }
 
 std::optional<BrickChange> StreamSender::changeOf(int k, int b, std::uint64_t version,
-                                                  std::uint64_t ref) {
-  if (changes_) return changes_->get(publisher_, k, b, version, ref);
+                                                  std::uint64_t ref, int refPrecision) {
+  if (changes_) return changes_->get(publisher_, k, b, version, ref, refPrecision);
   auto cur = publisher_.find(k, b, version);
-  auto old = publisher_.find(k, b, ref);
+  auto old = publisher_.find(k, b, ref, refPrecision);
   if (!cur || !old) return std::nullopt;
   return brickChange(*cur, *old);
 }
@@ -140,11 +140,13 @@ HeldFieldReport StreamSender::heldField(double now) {
       }
       if (t.acked == 0) continue;
       ++r.heldBricks;
-      if (t.acked == cur.version) {
+      if (t.acked == cur.version && t.ackedPrecision == 0) {
         ++measured;
         continue;
       }
-      const std::optional<BrickChange> change = changeOf(k, b, cur.version, t.acked);
+      // Against what the client holds: the acknowledged version at its precision level.
+      const std::optional<BrickChange> change =
+          changeOf(k, b, cur.version, t.acked, t.ackedPrecision);
       if (!change) {
         ++r.unknownBricks;
         continue;
@@ -227,6 +229,14 @@ Status StreamSender::onAck(const AckMsg& ack, double now) {
                    std::to_string(g.cascade) + ", outside the field"};
     }
   }
+  for (const BrickPrecisionMsg& p : ack.precisions) {
+    if (p.cascade < 0 || p.cascade >= int(tracks_.size()) || p.brick >= tracks_[p.cascade].size() ||
+        p.precision < 0 || p.precision > kMaxPrecision) {
+      return Error{"ack: precision " + std::to_string(p.precision) + " of brick " +
+                   std::to_string(p.brick) + " of cascade " + std::to_string(p.cascade) +
+                   ", outside the field or the levels"};
+    }
+  }
   // A full ack lists every brick the client holds: the others it holds nothing of.
   //
   // Its bricks also give round-trip samples, as if just acknowledged, of the time since their
@@ -255,8 +265,11 @@ Status StreamSender::onAck(const AckMsg& ack, double now) {
         }
       }
       t.acked = r.version;
+      t.ackedPrecision = 0;  // unless the ack names a coarser level below
     }
   }
+  for (const BrickPrecisionMsg& p : ack.precisions)
+    tracks_[p.cascade][p.brick].ackedPrecision = p.precision;
   for (const FragmentGapMsg& g : ack.gaps) queueRepair(g);
   if (options_.congestionControl && !ack.arrivals.empty()) {
     std::vector<RateController::Arrival> arrivals;
@@ -275,8 +288,10 @@ Status StreamSender::onAck(const AckMsg& ack, double now) {
 // else the client reports is stale (the brick moved on, or arrived since), and is ignored.
 void StreamSender::queueRepair(const FragmentGapMsg& g) {
   const Track& t = tracks_[g.cascade][g.brick];
-  if (g.missing.empty() || t.sent != g.version || t.acked == g.version) return;
-  auto update = publisher_.encoded(g.cascade, int(g.brick), g.version, g.baseVersion);
+  if (g.missing.empty() || t.sent != g.version || heldAsSent(t)) return;
+  // The update in flight was encoded at the levels it was sent at.
+  auto update = publisher_.encoded(g.cascade, int(g.brick), g.version, g.baseVersion,
+                                   t.sentPrecision, t.sentBasePrecision);
   if (!update || update->header.updateId != g.updateId ||
       fragmentCount(update->header.totalSize) != g.fragmentCount)
     return;
@@ -295,20 +310,26 @@ Status StreamSender::onRepair(const RepairRequestMsg& repair) {
     if (r.cascade < 0 || r.cascade >= int(tracks_.size()) || r.brick >= tracks_[r.cascade].size()) {
       return Error{"repair request: brick outside the field"};
     }
+    if (r.havePrecision < 0 || r.havePrecision > kMaxPrecision) {
+      return Error{"repair request: precision level " + std::to_string(r.havePrecision)};
+    }
   }
   for (const BrickRefMsg& r : repair.bricks) {
     Track& t = tracks_[r.cascade][r.brick];
     t.acked = r.haveVersion;
+    t.ackedPrecision = r.haveVersion != 0 ? r.havePrecision : 0;
     t.repair = true;
     t.sent = 0;  // not in flight any more: what was sent did not help
   }
   return Status::success();
 }
 
-bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version,
-                                   std::uint64_t ref) {
-  if (t.skipVersion == version && t.skipRef == ref && t.skipLevel == level_) return t.skipBelow;
-  const std::optional<BrickChange> change = changeOf(k, b, version, ref);
+bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version, std::uint64_t ref,
+                                   int refPrecision) {
+  if (t.skipVersion == version && t.skipRef == ref && t.skipRefPrecision == refPrecision &&
+      t.skipLevel == level_)
+    return t.skipBelow;
+  const std::optional<BrickChange> change = changeOf(k, b, version, ref, refPrecision);
   bool below = false;
   Reason reason = Reason::First;  // a version no longer in the history: as if new
   // Each quality level doubles every threshold.
@@ -335,6 +356,7 @@ bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version
   }
   t.skipVersion = version;
   t.skipRef = ref;
+  t.skipRefPrecision = refPrecision;
   t.skipBelow = below;
   t.skipReason = reason;
   t.skipLevel = level_;
@@ -380,6 +402,9 @@ void StreamSender::count(Reason reason) {
     case Reason::Aged:
       ++stats_.aged;
       break;
+    case Reason::Refine:
+      ++r.refine;
+      break;
   }
 }
 
@@ -406,9 +431,12 @@ void StreamSender::adjustQuality(double now) {
     roomySince_ = -1;
   } else {
     // A level comes down after a second with room: the thresholds it lowers make more
-    // versions worth sending, which the next interval shows.
+    // versions worth sending, which the next interval shows. Where the client lacked no change
+    // over the interval (a still field), each interval with room takes one down: what is left
+    // to send is the refinement of what it holds coarse.
     if (roomySince_ < 0) roomySince_ = now;
-    if (level_ > 0 && now - roomySince_ >= 1.0 && oldestPending_ < 0.5 * options_.ageBound) {
+    const double hold = oldestPending_ > 0 ? 1.0 : options_.qualityInterval;
+    if (level_ > 0 && now - roomySince_ >= hold && oldestPending_ < 0.5 * options_.ageBound) {
       --level_;
       roomySince_ = now;
     }
@@ -442,7 +470,8 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     const Repair& r = repairs_[repaired];
     const EncodedUpdate& u = *r.update;
     Track& t = tracks_[r.cascade][r.brick];
-    if (t.sent != u.header.version || t.acked == u.header.version) continue;  // moved on since
+    if (t.sent != u.header.version || t.sentPrecision != u.header.precision || heldAsSent(t))
+      continue;  // moved on since
     for (std::uint16_t i : r.fragments) {
       const FragmentRef f = fragmentOf(u, i);
       packer.add(f);
@@ -465,11 +494,14 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   const double agedAfter = std::max(0.0, options_.ageBound - options_.ageLead);
   // Lost updates of several fragments, which the receiver may hold in part.
   std::size_t lostUpdates = 0, lostBytes = 0;
+  const int precision = precisionNow();
   for (int k = 0; k < int(tracks_.size()); ++k) {
     for (int b = 0; b < int(tracks_[k].size()); ++b) {
       Track& t = tracks_[k][b];
       const BrickVersion& cur = publisher_.current(k, b);
-      if (cur.version == 0 || t.acked == cur.version) {
+      // Holds the current version, at a precision the quality level allows (else: refine).
+      const bool current = t.acked == cur.version;
+      if (cur.version == 0 || (current && t.ackedPrecision <= precision)) {
         t.pendingSince = -1;
         t.repair = false;
         continue;
@@ -477,7 +509,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       if (t.pendingSince < 0) t.pendingSince = now;
       const double age = changeAge(t, k, b, now);
       if (t.acked != 0) oldestPending_ = std::max(oldestPending_, age);
-      const bool unacked = t.sent != 0 && t.sent != t.acked;
+      const bool unacked = t.sent != 0 && !heldAsSent(t);
       // A brick the client holds nothing of, whose update of several fragments was not
       // acknowledged (yet), goes again as it was while the publisher holds that version: the
       // receiver completes it from the fragments of every send. A brick the client holds gets
@@ -521,13 +553,21 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       Reason reason = Reason::Timeout;
       if (t.repair) {
         reason = Reason::Repair;
+      } else if (current) {
+        // The current version, held coarser than the level allows now: its value is the
+        // rounding's error.
+        reason = Reason::Refine;
+        if (const auto change = changeOf(k, b, cur.version, cur.version, t.ackedPrecision))
+          t.skipChange = change->irradianceMean;
       } else if (t.sent != cur.version) {
         // A new version: hold it back while the change is small, still moving, the client
         // heard from this brick recently and its oldest change is young.
-        const std::uint64_t ref = std::max(t.acked, t.sent);
+        const bool sentNewer = t.sent > t.acked;
+        const std::uint64_t ref = sentNewer ? t.sent : t.acked;
+        const int refPrecision = sentNewer ? t.sentPrecision : t.ackedPrecision;
         if (ref == 0) {
           reason = Reason::First;
-        } else if (!belowThresholds(t, k, b, cur.version, ref)) {
+        } else if (!belowThresholds(t, k, b, cur.version, ref, refPrecision)) {
           reason = t.skipReason;
         } else if (now - cur.publishedAt >= options_.settleTime) {
           reason = Reason::Settled;
@@ -563,16 +603,22 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     Track& t = tracks_[c.cascade][c.brick];
     std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
     std::uint64_t base = 0;
+    int level = precision, baseLevel = 0;
+    // A residual builds on what the client holds: an older version, or this one held coarser.
+    const bool buildsOn = t.acked < version || (t.acked == version && t.ackedPrecision > level);
     if (c.again) {
       version = t.sent;  // self-contained, as it was sent
-    } else if (t.acked != 0 && t.acked < version &&
+      level = t.sentPrecision;
+    } else if (t.acked != 0 && buildsOn &&
                now - t.selfContainedAt < options_.selfContainedInterval) {
       base = t.acked;
+      baseLevel = t.ackedPrecision;
     }
-    auto update = publisher_.encoded(c.cascade, c.brick, version, base);
+    auto update = publisher_.encoded(c.cascade, c.brick, version, base, level, baseLevel);
     if (!update && base != 0 && !c.again) {
       base = 0;  // the acknowledged version left the history
-      update = publisher_.encoded(c.cascade, c.brick, version, 0);
+      baseLevel = 0;
+      update = publisher_.encoded(c.cascade, c.brick, version, 0, level, 0);
     }
     if (!update) continue;
     const std::size_t fragments = fragmentCount(update->header.totalSize);
@@ -582,13 +628,16 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       continue;  // the receiver may be holding as many partial updates as it can
     }
     tokens_ -= double(update->payload.size() + fragments * kFragmentOverheadBytes);
-    if (t.sent == version) {
+    if (t.sent == version && t.sentPrecision == level) {
       ++stats_.resends;
       t.resent = true;
     } else {
       t.resent = false;
     }
     t.sent = version;
+    t.sentPrecision = level;
+    t.sentBasePrecision = baseLevel;
+    stats_.coarseUpdates += level != 0;
     t.sentBytes = std::uint32_t(update->payload.size());
     t.sentAt = now;
     if (base == 0) t.selfContainedAt = now;

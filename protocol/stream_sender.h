@@ -41,6 +41,7 @@
 #include <vector>
 
 #include "common/result.h"
+#include "protocol/brick_precision.h"
 #include "protocol/field_publisher.h"
 #include "protocol/rate_controller.h"
 #include "protocol/session_messages.h"
@@ -69,6 +70,11 @@ struct SenderOptions {
   // perceptual thresholds, so the client holds a coarser but current field rather than an
   // exact but old one; levels come down again when the rate has room. 0 keeps full quality.
   int maxQualityLevel = 4;
+  // Each level also sends coarser precision (brick_precision.h): versions are rounded to
+  // min(level, maxPrecision), so that the changes the age bound forces out cost fewer bits.
+  // Bricks held coarser than the level allows are refined once the level comes down. 0: the
+  // codec's own precision always (clients of protocol version 4).
+  int maxPrecision = kMaxPrecision;
   double qualityInterval = 0.25;   // s between ladder decisions
   double minResendTimeout = 0.05;  // s; the timeout is max(this, 2 x smoothed round trip)
   double initialRtt = 0.1;         // s, until acks give samples
@@ -115,8 +121,10 @@ struct SenderStats {
   // the client asked for a repair; or the version was sent before and not acknowledged in time.
   struct Reasons {
     std::uint64_t first = 0, irradiance = 0, irradianceMean = 0, depth = 0, occlusion = 0,
-                  offset = 0, state = 0, settled = 0, refresh = 0, repair = 0, timeout = 0;
+                  offset = 0, state = 0, settled = 0, refresh = 0, repair = 0, timeout = 0,
+                  refine = 0;  // the version held, again at a finer precision
   } reasons;
+  std::uint64_t coarseUpdates = 0;  // updates sent at a precision level above 0
   std::uint64_t badMessages = 0;
   std::uint64_t aged = 0;       // updates sent because a change reached the age bound's lead
   double srtt = 0, rttvar = 0;  // smoothed round trip and its mean deviation, s
@@ -145,8 +153,9 @@ class BrickChangeCache {
       : maxEntries_(maxEntries), pruneAt_(std::min(kMinPruneAt, maxEntries)) {}
   // The change from `ref` to `version` of the brick; nullopt when either version has left the
   // publisher's history.
+  // `refPrecision`: the level `ref` is held at (brick_precision.h).
   std::optional<BrickChange> get(const FieldPublisher& publisher, int cascade, int brick,
-                                 std::uint64_t version, std::uint64_t ref);
+                                 std::uint64_t version, std::uint64_t ref, int refPrecision = 0);
   std::uint64_t computed() const { return computed_; }
   std::size_t entries() const { return entries_.size(); }
   // Heap bytes held, estimated: a node per entry (key, value, next pointer, cached hash) and
@@ -163,12 +172,14 @@ class BrickChangeCache {
   struct Key {
     int cascade, brick;
     std::uint64_t version, ref;
+    int refPrecision;
     bool operator==(const Key&) const = default;
   };
   struct KeyHash {
     std::size_t operator()(const Key& k) const {
       std::uint64_t h = k.version * 0x9E3779B97F4A7C15ull ^ k.ref * 0xC2B2AE3D27D4EB4Full;
-      h ^= std::uint64_t(k.cascade) << 48 ^ std::uint64_t(k.brick) << 20;
+      h ^= std::uint64_t(k.cascade) << 48 ^ std::uint64_t(k.brick) << 20 ^
+           std::uint64_t(k.refPrecision) << 8;
       return std::size_t(h ^ (h >> 29));
     }
   };
@@ -221,12 +232,15 @@ class StreamSender {
     Refresh,
     Repair,
     Timeout,
-    Aged
+    Aged,
+    Refine
   };
   struct Track {
-    std::uint64_t acked = 0;      // what the client holds, from acks and repair requests
-    std::uint64_t sent = 0;       // newest version sent
-    std::uint32_t sentBytes = 0;  // its payload
+    std::uint64_t acked = 0;  // what the client holds, from acks and repair requests
+    int ackedPrecision = 0;   // the precision level it holds `acked` at
+    std::uint64_t sent = 0;   // newest version sent
+    int sentPrecision = 0, sentBasePrecision = 0;  // its level, and its base's
+    std::uint32_t sentBytes = 0;                   // its payload
     double sentAt = -1e30;
     bool resent = false;  // sent more than once: no round-trip sample (Karn)
     double selfContainedAt = -1e30;
@@ -238,6 +252,7 @@ class StreamSender {
     bool repair = false;  // the client asked: bypass the thresholds
     // Cached perceptual decision for (current version, reference version).
     std::uint64_t skipVersion = 0, skipRef = 0;
+    int skipRefPrecision = 0;
     bool skipBelow = false;
     Reason skipReason = Reason::First;  // which threshold the change passed, when not below
     int skipLevel = 0;                  // the quality level the decision was taken at
@@ -263,12 +278,20 @@ class StreamSender {
   Status onAck(const AckMsg& ack, double now);
   void queueRepair(const FragmentGapMsg& gap);
   Status onRepair(const RepairRequestMsg& repair);
-  // Whether the change from `ref` to `version` is below every threshold; if not, t.skipReason
-  // names the first threshold it passed.
-  bool belowThresholds(Track& t, int k, int b, std::uint64_t version, std::uint64_t ref);
-  // The change from `ref` to `version` (from the shared cache when there is one); nullopt when
-  // either version left the history.
-  std::optional<BrickChange> changeOf(int k, int b, std::uint64_t version, std::uint64_t ref);
+  // Whether the change from `ref` (at `refPrecision`) to `version` is below every threshold; if
+  // not, t.skipReason names the first threshold it passed.
+  bool belowThresholds(Track& t, int k, int b, std::uint64_t version, std::uint64_t ref,
+                       int refPrecision);
+  // The change from `ref` held at `refPrecision` to `version` (from the shared cache when there
+  // is one); nullopt when either version left the history.
+  std::optional<BrickChange> changeOf(int k, int b, std::uint64_t version, std::uint64_t ref,
+                                      int refPrecision);
+  // The precision level versions are sent at now: the quality level's, within maxPrecision.
+  int precisionNow() const { return std::min(level_, options_.maxPrecision); }
+  // The client acknowledged what was last sent, at the level it was sent at.
+  static bool heldAsSent(const Track& t) {
+    return t.acked == t.sent && t.ackedPrecision == t.sentPrecision;
+  }
   void count(Reason reason);
   double distanceInBricks(int k, int b) const;
   void adjustQuality(double now);

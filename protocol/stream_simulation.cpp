@@ -12,7 +12,10 @@ namespace {
 bool allVersionsMatch(const Field& server, const StreamReceiver& receiver) {
   for (int k = 0; k < server.cascadeCount(); ++k) {
     for (std::size_t b = 0; b < server.brickVersions[k].size(); ++b) {
-      if (receiver.brickVersion(k, int(b)) != server.brickVersions[k][b]) return false;
+      // The current version at the codec's own precision: a coarser one is not converged yet.
+      if (receiver.brickVersion(k, int(b)) != server.brickVersions[k][b] ||
+          receiver.brickPrecision(k, int(b)) != 0)
+        return false;
     }
   }
   return true;
@@ -64,6 +67,7 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
   const double faultStart = o.warmupSeconds, faultEnd = o.warmupSeconds + o.faultSeconds;
   const double end = faultEnd + o.settleLimitSeconds;
   double nextTick = o.tickInterval;
+  double nextHeldSample = faultStart;
   for (long i = 1;; ++i) {
     const double t = double(i) * o.step;
     if (t > end) break;
@@ -105,6 +109,15 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
     r.maxCacheBytes = std::max(r.maxCacheBytes, publisher.cache().bytes());
     r.maxHistoryBytes = std::max(r.maxHistoryBytes, publisher.historyBytes());
     r.seconds = t;
+    if (faulty && t >= nextHeldSample) {
+      // What the client holds while the field changes (the sender's own measure).
+      nextHeldSample = t + 0.25;
+      const HeldFieldReport held = sender.heldField(t);
+      if (held.heldBricks > 0) {
+        r.heldAges.push_back(held.oldestChangeSeconds);
+        r.heldPsnrs.push_back(held.psnrDb);
+      }
+    }
     if (r.heldEverySeconds < 0 && holdsEveryBrick(server, receiver)) r.heldEverySeconds = t;
 
     if (t >= faultEnd && allVersionsMatch(server, receiver)) {

@@ -10,6 +10,7 @@
 #include <functional>
 #include <glm/glm.hpp>
 #include <optional>
+#include <vector>
 
 #include "common/field.h"
 #include "protocol/fault_link.h"
@@ -51,7 +52,10 @@ struct StreamSimulationResult {
   std::size_t maxCacheBytes = 0, maxHistoryBytes = 0;
   std::uint64_t fieldUpdates = 0;
   double seconds = 0;  // simulated, in all
-  Field mirror;        // the receiver's field at the end
+  // The sender's held-field measures (HeldFieldReport) every 0.25 s of the fault phase: the
+  // age of the oldest change the client lacked, and the held field's PSNR.
+  std::vector<double> heldAges, heldPsnrs;
+  Field mirror;  // the receiver's field at the end
 };
 
 // `advance` applies one field update at time t (bumping versions as the tracer does).

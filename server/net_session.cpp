@@ -1,5 +1,6 @@
 #include "net_session.h"
 
+#include <algorithm>
 #include <chrono>
 #include <variant>
 
@@ -409,6 +410,8 @@ bool Session::onHello(const HelloMsg& hello) {
     SenderOptions senderOptions = server_.options.sender;
     reports_ = hello.protocolVersion >= kCongestionControlVersion;
     senderOptions.congestionControl &= reports_;
+    // Coarser precision levels only for clients that say which level they hold.
+    if (hello.protocolVersion < kPrecisionLevelsVersion) senderOptions.maxPrecision = 0;
     sender_ = std::make_unique<StreamSender>(server_.hub.publisher(), id_, senderOptions,
                                              &server_.changeCache);
     scene = server_.hub.sceneFrame();
@@ -424,7 +427,9 @@ bool Session::onHello(const HelloMsg& hello) {
             {"role", std::string(tokenRoleName(claims_.role))},
             {"transport", useUdp ? "udp" : "tcp"},
             {"udp_port", useUdp ? int(hello.udpPort) : 0}});
-  enqueue(share(encodeMessage(WelcomeMsg{kProtocolVersion, id_})));
+  // The version both ends speak: an older client hears its own, which it accepts.
+  const std::uint32_t spoken = std::min(kProtocolVersion, hello.protocolVersion);
+  enqueue(share(encodeMessage(WelcomeMsg{spoken, id_})));
   enqueue(share(encodeMessage(info)));
   if (scene) enqueue(scene);
   return !closed_;

@@ -1,0 +1,43 @@
+#include "brick_precision.h"
+
+#include <algorithm>
+
+namespace pc {
+
+namespace {
+
+using namespace brick_layout;
+
+// Rounds each code in [begin, end) to the nearest multiple of 2^bits, never above maxCode.
+void roundCodes(QuantizedBrick& q, std::size_t begin, std::size_t end, int bits,
+                std::uint32_t maxCode) {
+  if (bits <= 0) return;
+  const std::uint32_t half = 1u << (bits - 1);
+  const std::uint32_t top = (maxCode >> bits) << bits;  // the largest multiple in range
+  for (std::size_t i = begin; i < end; ++i) {
+    std::uint16_t& c = q.codes[i];
+    if (c == 0) continue;  // zero stays exact (irradiance: no light)
+    const std::uint32_t rounded = ((std::uint32_t(c) + half) >> bits) << bits;
+    c = std::uint16_t(std::min(rounded, top));
+  }
+}
+
+}  // namespace
+
+int droppedIrradianceBits(int precision) { return std::clamp(precision, 0, 3); }
+int droppedDepthBits(int precision) { return std::clamp(2 * precision, 0, 6); }
+int droppedOcclusionBits(int precision) { return std::clamp(precision, 0, 3); }
+
+QuantizedBrick coarsenBrick(const QuantizedBrick& q, int precision) {
+  QuantizedBrick out = q;
+  precision = std::min(precision, kMaxPrecision);
+  if (precision <= 0 || out.codes.size() != kCodes) return out;
+  // The irradiance code is a float (exponent over mantissa), so rounding the integer rounds the
+  // mantissa and carries into the exponent; its largest code has every bit set.
+  roundCodes(out, kIrradiance, kDepth, droppedIrradianceBits(precision), 0xFFF);
+  roundCodes(out, kDepth, kOcclusion, droppedDepthBits(precision), 0xFFFF);
+  roundCodes(out, kOcclusion, kOffset, droppedOcclusionBits(precision), 0xFF);
+  return out;
+}
+
+}  // namespace pc
