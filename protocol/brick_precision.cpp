@@ -24,7 +24,13 @@ void roundCodes(QuantizedBrick& q, std::size_t begin, std::size_t end, int bits,
 
 }  // namespace
 
-int droppedIrradianceBits(int precision) { return std::clamp(precision, 0, 3); }
+int droppedIrradianceBits(int precision, std::uint16_t code) {
+  if (code == 0 || precision <= 0) return 0;
+  // The code's exponent slot s holds e in [2^(s-16), 2^(s-15)), where one mantissa step is
+  // 2^(s-23); 2^d steps stay within the level's step 2^(L-8) while d <= L + 15 - s.
+  const int slot = code >> kIrradianceMantissaBits;
+  return std::clamp(std::min(precision, kMaxPrecision) + 15 - slot, 0, kMaxIrradianceDropBits);
+}
 int droppedDepthBits(int precision) { return std::clamp(2 * precision, 0, 6); }
 int droppedOcclusionBits(int precision) { return std::clamp(precision, 0, 3); }
 
@@ -33,8 +39,15 @@ QuantizedBrick coarsenBrick(const QuantizedBrick& q, int precision) {
   precision = std::min(precision, kMaxPrecision);
   if (precision <= 0 || out.codes.size() != kCodes) return out;
   // The irradiance code is a float (exponent over mantissa), so rounding the integer rounds the
-  // mantissa and carries into the exponent; its largest code has every bit set.
-  roundCodes(out, kIrradiance, kDepth, droppedIrradianceBits(precision), 0xFFF);
+  // mantissa and carries into the exponent (to a code whose mantissa is 0, which rounding
+  // again leaves as it is); its largest code has every bit set.
+  for (std::size_t i = kIrradiance; i < kDepth; ++i) {
+    std::uint16_t& c = out.codes[i];
+    const int bits = droppedIrradianceBits(precision, c);
+    if (bits == 0) continue;
+    const std::uint32_t rounded = ((std::uint32_t(c) + (1u << (bits - 1))) >> bits) << bits;
+    c = std::uint16_t(std::min(rounded, (0xFFFu >> bits) << bits));
+  }
   roundCodes(out, kDepth, kOcclusion, droppedDepthBits(precision), 0xFFFF);
   roundCodes(out, kOcclusion, kOffset, droppedOcclusionBits(precision), 0xFF);
   return out;

@@ -152,7 +152,11 @@ void RateController::decide(double now) {
       congestive > options_.lossOveruse && estimate_.queueDelay > options_.lossQueueDelay;
   if (estimate_.queueDelay > options_.queueDelayTarget || congestionLoss) {
     if (now >= holdUntil_) {
-      const double arrived = estimate_.delivered > 0 ? estimate_.delivered : rate;
+      // What arrived is the link's rate only while the sender had more to send: an
+      // application-limited sender's deliveries say nothing of the link, and cutting to them
+      // would leave a sender that sends little (a still field, coarse versions) at a rate far
+      // below its link when its changes come back. Then the cut is from the rate.
+      const double arrived = estimate_.delivered > 0 && !appLimited_ ? estimate_.delivered : rate;
       lastOveruseRate_ = arrived;
       rate = std::min(rate, options_.decrease * arrived);
       ++estimate_.overuses;

@@ -17,7 +17,8 @@
 // - From BBR: the rate is a pacing rate (the sender spends tokens at it), and only a sender
 //   that used its rate learns from growing it: while the application had less to send than
 //   the rate allowed (app-limited), the rate does not grow, so a quiet stream does not earn a
-//   rate it never tested and then burst into a queue.
+//   rate it never tested and then burst into a queue; nor is it cut to what arrived then (a
+//   quiet stream's deliveries are not the link's rate), only by `decrease` from the rate.
 // Sharing one bottleneck: every stream on it sees the same queueing delay, so over-use is
 // detected by all at once and each cuts by the same factor; the additive part of the growth
 // (additiveIncrease, the same for every stream) then moves the shares towards equal

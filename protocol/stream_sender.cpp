@@ -421,7 +421,7 @@ double StreamSender::distanceInBricks(int k, int b) const {
 
 void StreamSender::adjustQuality(double now) {
   if (now - levelAt_ < options_.qualityInterval) return;
-  // Short of rate: bricks waited for tokens in most polls of the interval.
+  // Short of rate: changes at the age bound waited for tokens in most polls of the interval.
   const bool shortOfRate = shortPolls_ * 2 > levelPolls_;
   if (shortOfRate && oldestPending_ > 0.5 * options_.ageBound &&
       level_ < options_.maxQualityLevel) {
@@ -648,8 +648,15 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     chosen.push_back(std::move(update));
     if (chosen.size() * 2 >= options_.maxDatagramsPerPoll) break;
   }
-  // Bricks waited for tokens: the rate, not the field, limits what this client holds.
+  // Bricks waited for tokens: the rate, not the field, limits what this client holds (and the
+  // sender is not application-limited). The quality ladder counts only changes at the age
+  // bound that waited: the perceptual thresholds hold small changes back on purpose, pacing
+  // leaves some brick waiting in most polls, and refinements are sent with what room there
+  // is (counting them would hold the level up by the very bricks it made coarse).
   const bool waited = considered < candidates.size();
+  const bool changesWaited =
+      std::any_of(candidates.begin() + std::ptrdiff_t(considered), candidates.end(),
+                  [](const Candidate& c) { return c.aged; });
 
   for (const auto& u : chosen) {
     const std::uint16_t n = fragmentCount(u->header.totalSize);
@@ -673,7 +680,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   ++reportPolls_;
   appLimitedPolls_ += !waited;
   ++levelPolls_;
-  shortPolls_ += waited;
+  shortPolls_ += changesWaited;
   adjustQuality(now);
   return out;
 }

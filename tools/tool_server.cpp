@@ -24,6 +24,7 @@
 #include "common/log.h"
 #include "common/volume_placement.h"
 #include "protocol/baked_file.h"
+#include "protocol/brick_precision.h"
 #include "protocol/stream_tuning.h"
 #include "server/bake.h"
 #include "server/net_field_loop.h"
@@ -175,6 +176,10 @@ void addStreamOptions(CLI::App& app, ServerSetup& s) {
                  "below T are held back (0: every version exactly; docs/BENCHMARKS.md has the "
                  "bandwidth and PSNR for each T)")
       ->check(CLI::Range(0.0, 0.5));
+  app.add_option("--max-precision", s.net.sender.maxPrecision,
+                 "coarsest precision level a short link is sent (0: the codec's own always; "
+                 "PROTOCOL.md, Precision levels)")
+      ->check(CLI::Range(0, pc::kMaxPrecision));
 }
 
 // How long the process runs and what it reports.

@@ -22,6 +22,7 @@
 #include "bench.h"
 #include "loadgen/server_load.h"
 #include "loadgen/server_process.h"
+#include "protocol/brick_precision.h"
 
 namespace pc::bench {
 
@@ -38,8 +39,9 @@ struct LoadSetup {
   bool tlsCost = false;
   double rateLimitMbit = 1.0;  // per client, the server's token bucket
   double fieldRate = 10;       // server field updates per second
-  int rays = 64;
+  int rays = 256;              // the server's default
   int serverWarmup = 8;
+  int maxPrecision = kMaxPrecision;  // the server's default
   double starveSeconds = 2.0;
   std::string server;     // default: probecast-server beside this executable
   std::string serverLog;  // default: load-server.log in the build folder of the server
@@ -77,6 +79,9 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_option("--field-rate", s.fieldRate, "server field updates per second");
   cmd->add_option("--rays", s.rays, "server rays per probe per update");
   cmd->add_option("--server-warmup", s.serverWarmup, "server warm-up bake updates");
+  cmd->add_option("--max-precision", s.maxPrecision,
+                  "server's coarsest precision level for short links (0: the codec's own)")
+      ->check(CLI::Range(0, kMaxPrecision));
   cmd->add_option("--starve-seconds", s.starveSeconds, "gap that makes a client starved");
   cmd->add_option("--session-seconds", s.sessionSeconds,
                   "churn: sessions end after about this long");
@@ -125,6 +130,7 @@ Benchmark addLoad(CLI::App& app) {
                           "--warmup",         std::to_string(s.serverWarmup),
                           "--rate-limit",     std::to_string(s.rateLimitMbit * 1e6 / 8),
                           "--max-clients",    std::to_string(n + 16),
+                          "--max-precision",  std::to_string(s.maxPrecision),
                           "--stats-interval", "0"};
           if (s.tcpOnly) o.serverArgs.push_back("--tcp-only");
           o.load.clients = n;
