@@ -48,9 +48,10 @@ Status checkTriangleLimit(const std::string& what, std::uint64_t triangles,
 // Decodes an image file (PNG, JPEG, ...) to 8-bit RGBA once `budget` admits its size.
 Status loadImageFile(const std::filesystem::path& path, Texture& out, TextureBudget& budget);
 
-// Folders of the sidecars written for known scenes, in the order they are searched: beside
-// the running executable (sidecars/, as scripts/bundle lays them out), the install's
-// share/probecast/sidecars, then the source tree's data/sidecars.
+// Folders of the sidecars written for known scenes, in the order they are searched: sidecars/
+// in each data folder (common/data_folders.h: beside the running executable, as the build
+// tree and scripts/bundle lay them out; the install's share/probecast/sidecars;
+// $PROBECAST_DATA/sidecars).
 std::vector<std::filesystem::path> sidecarFolders();
 // The sidecar that applies to `scene`: the explicit one, else <scene dir>/scene.json, else
 // <scene stem>.json or <scene dir name>.json in the first of sidecarFolders() holding one;

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <vector>
 
+#include "common/data_folders.h"
 #include "common/scene_loaders.h"
 #include "shaders/interop/field_desc.h"
 
@@ -18,13 +19,7 @@ using json = nlohmann::json;
 
 std::vector<fs::path> sidecarFolders() {
   std::vector<fs::path> folders;
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    folders.push_back(exe.parent_path() / "sidecars");                                // a bundle
-    folders.push_back(exe.parent_path().parent_path() / "share/probecast/sidecars");  // installed
-  }
-  folders.push_back(fs::path(PC_SOURCE_DIR) / "data" / "sidecars");  // the build tree's source
+  for (const fs::path& folder : dataFolders()) folders.push_back(folder / "sidecars");
   return folders;
 }
 
