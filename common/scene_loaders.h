@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/scene.h"
@@ -53,9 +54,12 @@ Status loadImageFile(const std::filesystem::path& path, Texture& out, TextureBud
 // tree and scripts/bundle lay them out; the install's share/probecast/sidecars;
 // $PROBECAST_DATA/sidecars).
 std::vector<std::filesystem::path> sidecarFolders();
+// Whether `name` ("rtxgi-cornell.json") is one of the sidecars probecast ships (data/sidecars).
+bool isShippedSidecar(std::string_view name);
 // The sidecar that applies to `scene`: the explicit one, else <scene dir>/scene.json, else
 // <scene stem>.json or <scene dir name>.json in the first of sidecarFolders() holding one;
-// empty when there is none.
+// empty when there is none; an Error when that name is one probecast ships (the scene needs
+// it: its lights and volumes are there) and no folder holds it.
 Result<std::filesystem::path> findSidecar(const std::filesystem::path& scene,
                                           const std::filesystem::path& explicitSidecar);
 // Reads the sidecar and applies it: unit scale and up axis to what the file gave, then the

@@ -2,9 +2,9 @@
 # The install as a user gets it: `cmake --install` into a temporary prefix, then, from a folder
 # outside the source and build trees:
 #   - the installed probecast-bake bakes a scene whose sidecar only the install holds
-#     (share/probecast/sidecars/rtxgi-cornell.json: 729 probes) to the build tree's probe count,
-#     says which sidecar it took, and still finds it with the prefix moved under
-#     $PROBECAST_DATA;
+#     (share/probecast/sidecars/rtxgi-cornell.json: 729 probes) to the build tree's probe count
+#     and says which sidecar it took; copied without its data it stops, naming the sidecar it
+#     lacks, and with the data under $PROBECAST_DATA it finds it again;
 #   - the installed tools load their SPIR-V from share/probecast/shaders: a bake on the Vulkan
 #     backend and one headless client frame (skipped where no Vulkan device is found);
 #   - a consumer project (tests/install/consumer) built with find_package(probecast), and the
@@ -61,9 +61,15 @@ installed=$(probes_baked bake_installed.log)
 [[ $installed == 729 && $installed == "$tree" ]] ||
   fail "the installed bake made '$installed' probes, the build tree's '$tree' (the sidecar: 729)"
 
-# The prefix moved: the executables' relative lookup misses, $PROBECAST_DATA finds the data.
+# The executable copied without its data: the scene's own sidecar is missing, which stops the
+# bake (exit 1, naming it) rather than baking the scene without its lights and volumes.
 mkdir -p "$work/moved"
 cp "$prefix/bin/probecast-bake" "$work/moved/"
+rc=0
+"$work/moved/probecast-bake" "${bake[@]}" --out lost.probes >bake_lost.log 2>&1 || rc=$?
+[[ $rc == 1 && ! -e lost.probes ]] || fail "the bake without its sidecar exited $rc"
+has bake_lost.log "its sidecar rtxgi-cornell.json (one of probecast's own) is in none of"
+# $PROBECAST_DATA then finds the data.
 cp -r "$prefix/share/probecast" "$work/moved/data"
 PROBECAST_DATA=$work/moved/data run bake_moved.log "$work/moved/probecast-bake" "${bake[@]}" \
   --out moved.probes
