@@ -10,7 +10,8 @@
 #   - a consumer project (tests/install/consumer) built with find_package(probecast), and the
 #     same source built with pkg-config alone, reads the baked file and holds the installed
 #     probecast-server's field over TLS with a token from the installed probecast-token; it
-#     needs neither GLFW nor Vulkan (ldd).
+#     needs neither GLFW nor Vulkan (ldd); the installed probecast-loadgen connects with
+#     --connect HOST:PORT and with the older --host/--port.
 #   tests/install_and_consume.sh SOURCE-DIR BUILD-DIR WORK-DIR    (CTest: install_and_consume)
 set -uo pipefail
 src=$(realpath "$1")
@@ -134,6 +135,14 @@ else
     has "$log" "baked: $installed probes"
     has "$log" ", $installed probes, version"
   done
+  # The installed load generator names the server as the client does (--connect), and still
+  # takes the older --host/--port.
+  run loadgen.log "$prefix/bin/probecast-loadgen" --connect "127.0.0.1:$port" \
+    --token-file consumer.token --server-fingerprint "$fingerprint" --clients 1 --ramp 0 \
+    --warmup 0 --seconds 1
+  run loadgen_old_flags.log "$prefix/bin/probecast-loadgen" --host 127.0.0.1 --port "$port" \
+    --token-file consumer.token --server-fingerprint "$fingerprint" --clients 1 --ramp 0 \
+    --warmup 0 --seconds 1
 fi
 
 if ((failures > 0)); then
