@@ -178,7 +178,7 @@ struct SceneLoadOptions {
 // Loads .gltf/.glb/.obj; `sidecar` (scene.json format, see docs/SCENES.md) may be empty, in
 // which case <scene dir>/scene.json, then <scene file stem>.json and <scene dir name>.json in
 // the sidecar folders (beside the executable in sidecars/, the install's
-// share/probecast/sidecars, the source tree's data/sidecars) are tried in that order;
+// share/probecast/sidecars, $PROBECAST_DATA/sidecars) are tried in that order;
 // Scene::sidecar names the one applied. Errors name the file and the
 // problem: "<file>: <problem>", and for a sidecar "<file>: at <JSON pointer>: <problem>".
 Result<Scene> loadScene(const std::filesystem::path& path,

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/scene.h"
@@ -48,13 +49,17 @@ Status checkTriangleLimit(const std::string& what, std::uint64_t triangles,
 // Decodes an image file (PNG, JPEG, ...) to 8-bit RGBA once `budget` admits its size.
 Status loadImageFile(const std::filesystem::path& path, Texture& out, TextureBudget& budget);
 
-// Folders of the sidecars written for known scenes, in the order they are searched: beside
-// the running executable (sidecars/, as scripts/bundle lays them out), the install's
-// share/probecast/sidecars, then the source tree's data/sidecars.
+// Folders of the sidecars written for known scenes, in the order they are searched: sidecars/
+// in each data folder (common/data_folders.h: beside the running executable, as the build
+// tree and scripts/bundle lay them out; the install's share/probecast/sidecars;
+// $PROBECAST_DATA/sidecars).
 std::vector<std::filesystem::path> sidecarFolders();
+// Whether `name` ("rtxgi-cornell.json") is one of the sidecars probecast ships (data/sidecars).
+bool isShippedSidecar(std::string_view name);
 // The sidecar that applies to `scene`: the explicit one, else <scene dir>/scene.json, else
 // <scene stem>.json or <scene dir name>.json in the first of sidecarFolders() holding one;
-// empty when there is none.
+// empty when there is none; an Error when that name is one probecast ships (the scene needs
+// it: its lights and volumes are there) and no folder holds it.
 Result<std::filesystem::path> findSidecar(const std::filesystem::path& scene,
                                           const std::filesystem::path& explicitSidecar);
 // Reads the sidecar and applies it: unit scale and up axis to what the file gave, then the

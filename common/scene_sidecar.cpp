@@ -8,6 +8,7 @@
 #include <sstream>
 #include <vector>
 
+#include "common/data_folders.h"
 #include "common/scene_loaders.h"
 #include "shaders/interop/field_desc.h"
 
@@ -16,15 +17,24 @@ namespace pc::scene_detail {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
+// The names of data/sidecars/*.json (set by common/CMakeLists.txt), comma-separated.
+#ifndef PC_SHIPPED_SIDECARS
+#define PC_SHIPPED_SIDECARS ""
+#endif
+
+bool isShippedSidecar(std::string_view name) {
+  std::string_view list = PC_SHIPPED_SIDECARS;
+  while (!list.empty()) {
+    const std::size_t comma = list.find(',');
+    if (list.substr(0, comma) == name) return true;
+    list = comma == std::string_view::npos ? std::string_view() : list.substr(comma + 1);
+  }
+  return false;
+}
+
 std::vector<fs::path> sidecarFolders() {
   std::vector<fs::path> folders;
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    folders.push_back(exe.parent_path() / "sidecars");                                // a bundle
-    folders.push_back(exe.parent_path().parent_path() / "share/probecast/sidecars");  // installed
-  }
-  folders.push_back(fs::path(PC_SOURCE_DIR) / "data" / "sidecars");  // the build tree's source
+  for (const fs::path& folder : dataFolders()) folders.push_back(folder / "sidecars");
   return folders;
 }
 
@@ -43,6 +53,13 @@ Result<fs::path> findSidecar(const fs::path& scene, const fs::path& explicitSide
   for (const fs::path& folder : sidecarFolders())
     for (const std::string& name : names)
       if (fs::is_regular_file(folder / name, ec)) return folder / name;
+  // A shared scene without the sidecar made for it loses its lights and volumes and bakes
+  // something else without a word: a copy of the tools that lacks its data stops instead.
+  for (const std::string& name : names)
+    if (isShippedSidecar(name))
+      return Error{scene.string() + ": its sidecar " + name +
+                   " (one of probecast's own) is in none of " + dataFolderList("sidecars") +
+                   "; set $PROBECAST_DATA to the folder holding sidecars/, or give --sidecar"};
   return fs::path();
 }
 

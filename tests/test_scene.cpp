@@ -13,7 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "common/data_folders.h"
 #include "common/scene.h"
+#include "common/scene_loaders.h"
 
 namespace fs = std::filesystem;
 using pc::Scene;
@@ -965,6 +967,42 @@ TEST(Sidecar, FoundBesideTheExecutableAndReported) {
   ASSERT_EQ(withSidecar->lights.size(), 1u);
   EXPECT_EQ(withSidecar->lights[0].name, "lamp");
   EXPECT_NE(pc::sidecarReport(*withSidecar).find("sidecar " + sidecar.string()), std::string::npos);
+}
+
+// Where the executable's folders hold none, $PROBECAST_DATA/sidecars is looked in too (a copy
+// of the tools laid out otherwise); the report and the data folders list name it.
+TEST(Sidecar, FoundUnderProbecastData) {
+  TempDir dir;
+  const std::string stem = "pc_under_probecast_data_" + std::to_string(::getpid());
+  const fs::path data = dir / "data";
+  fs::create_directories(dir / "scene");
+  fs::create_directories(data / "sidecars");
+  writeFile(dir / "scene" / (stem + ".obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  writeFile(data / "sidecars" / (stem + ".json"),
+            R"({"lights": [{"name": "lamp", "type": "point", "position": [0, 1, 1]}]})");
+  ::setenv("PROBECAST_DATA", data.c_str(), 1);
+  auto scene = pc::loadScene(dir / "scene" / (stem + ".obj"));
+  const std::string folders = pc::dataFolderList("sidecars");
+  auto missing = pc::findDataFile("sidecars", "pc_nowhere.json");
+  ::unsetenv("PROBECAST_DATA");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  EXPECT_EQ(scene->sidecar, data / "sidecars" / (stem + ".json"));
+  ASSERT_EQ(scene->lights.size(), 1u);
+  EXPECT_NE(folders.find((data / "sidecars").string()), std::string::npos) << folders;
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("pc_nowhere.json: not found in " + folders),
+            std::string::npos)
+      << missing.error().message;
+}
+
+// The sidecars the project ships are known by name, so that a scene named for one that finds
+// none stops the tool (install_and_consume checks that on a copy without its data).
+TEST(Sidecar, ShippedSidecarsAreKnownByName) {
+  EXPECT_TRUE(pc::scene_detail::isShippedSidecar("rtxgi-cornell.json"));
+  EXPECT_TRUE(pc::scene_detail::isShippedSidecar("sauer-pandora.json"));
+  EXPECT_FALSE(pc::scene_detail::isShippedSidecar("rtxgi-cornell"));
+  EXPECT_FALSE(pc::scene_detail::isShippedSidecar("cornell.json"));
+  EXPECT_FALSE(pc::scene_detail::isShippedSidecar(""));
 }
 
 TEST(Sidecar, UnitScaleUpAxisCamerasVolumesAnimations) {

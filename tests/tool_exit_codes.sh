@@ -2,7 +2,8 @@
 # The tools end with exit code 1 and a message naming the file and the problem when a file
 # they were given cannot be used (README, Executables): a baked field with one flipped bit
 # given to probecast-client and probecast-server, a scene that reaches outside its folder given
-# to probecast-bake, and a missing scene given to probecast-reference.
+# to probecast-bake, and a missing scene given to probecast-reference; and a --connect without
+# a port given to probecast-client and probecast-loadgen.
 #
 #   tests/tool_exit_codes.sh BIN_DIR WORK_DIR
 set -uo pipefail
@@ -54,5 +55,10 @@ expect 1 "escape.obj: material library '../outside.mtl' leads to .*outside the s
   "$bin/probecast-bake" --scene "$work/scene/escape.obj" --updates 1 -o "$work/escape.probes"
 expect 1 "nope.gltf: file not found" \
   "$bin/probecast-reference" --scene "$work/scene/nope.gltf" --out "$work/ref"
+# A server address without a port: a usage error before anything connects.
+expect 1 "--connect: expected HOST:PORT, got 'localhost'" \
+  "$bin/probecast-client" --scene builtin --connect localhost --out "$work/out"
+expect 1 "--connect: expected HOST:PORT, got 'localhost'" \
+  "$bin/probecast-loadgen" --connect localhost --clients 1
 
 exit $failed

@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -62,6 +63,28 @@ inline void addSceneLoadOptions(CLI::App& app, SceneLoadOptions& o) {
                  "texels of all the scene's textures together, at most");
   app.add_option("--max-triangles", o.maxTriangles,
                  "triangles the scene's meshes hold, and draw over all instances, at most");
+}
+
+// --connect HOST:PORT, the server a tool connects to (probecast-client, probecast-loadgen): sets
+// `host` and `port` where given. A value without a port in 1..65535 is a usage error.
+inline CLI::Option* addConnectOption(CLI::App& app, std::string& host, std::uint16_t& port,
+                                     const std::string& description) {
+  auto parse = [&host, &port](const std::string& text) {
+    const std::size_t colon = text.rfind(':');
+    int value = 0;
+    std::size_t used = 0;
+    try {
+      if (colon != std::string::npos) value = std::stoi(text.substr(colon + 1), &used);
+    } catch (const std::exception&) {
+    }
+    if (colon == std::string::npos || colon == 0 || used == 0 || colon + 1 + used != text.size() ||
+        value <= 0 || value > 65535)
+      throw CLI::ValidationError("--connect", "expected HOST:PORT, got '" + text + "'");
+    host = text.substr(0, colon);
+    port = static_cast<std::uint16_t>(value);
+  };
+  return app.add_option_function<std::string>("--connect", parse, description)
+      ->type_name("HOST:PORT");
 }
 
 // A finite number: CLI11 reads "nan" and "inf" as numbers, which no option here means.

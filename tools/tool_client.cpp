@@ -75,8 +75,8 @@ int main(int argc, char** argv) {
   app.add_option("--test-resize", resize, "windowed: resize the window to WxH after 2 frames");
   // Network mode: the field comes from a server (the baked file stays the fallback).
   pc::client::NetRunConfig net;
-  std::string connect;
-  app.add_option("--connect", connect, "stream the field from a server at HOST:PORT");
+  auto* connect =
+      pc::addConnectOption(app, net.net.host, net.net.port, "stream the field from this server");
   std::string tokenFile;
   app.add_option("--token-file", tokenFile,
                  "--connect: connect token file (else $PROBECAST_TOKEN_FILE or $PROBECAST_TOKEN)");
@@ -128,14 +128,7 @@ int main(int argc, char** argv) {
   }
   c.overlay = !noOverlay;
   c.writeExr = !noExr;
-  if (!connect.empty()) {
-    const auto colon = connect.rfind(':');
-    int port = 0;
-    if (colon == std::string::npos || std::sscanf(connect.c_str() + colon + 1, "%d", &port) != 1 ||
-        port <= 0 || port > 65535)
-      return pc::logError("--connect: expected HOST:PORT"), 1;
-    net.net.host = connect.substr(0, colon);
-    net.net.port = std::uint16_t(port);
+  if (connect->count() > 0) {
     auto token = pc::connectToken(tokenFile);
     if (!token) return pc::logError(token.error().message), 1;
     net.net.token = *token;

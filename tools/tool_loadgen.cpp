@@ -26,8 +26,10 @@ int main(int argc, char** argv) {
   double seconds = 10, warmup = 2;
   std::string jsonPath;
   bool decodeEach = false;
-  app.add_option("--host", o.host, "server address");
-  app.add_option("--port", o.port, "server TCP port");
+  pc::addConnectOption(app, o.host, o.port, "the server");
+  // The spelling before --connect, as probecast-client has it; kept for one release.
+  app.add_option("--host", o.host, "deprecated: --connect HOST:PORT")->group("Deprecated");
+  app.add_option("--port", o.port, "deprecated: --connect HOST:PORT")->group("Deprecated");
   std::string tokenFile;
   app.add_option("--token-file", tokenFile,
                  "connect token (else $PROBECAST_TOKEN_FILE or $PROBECAST_TOKEN); every client "

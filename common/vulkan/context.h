@@ -308,8 +308,10 @@ void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 srcStage, VkAccess
 
 // ---- shaders ------------------------------------------------------------------------------------
 
-// <directory of the running executable>/shaders/<name>, where pc_compile_shaders puts SPIR-V.
-// `name` is the source file name plus ".spv", e.g. "probe_trace.rgen.spv".
+// The SPIR-V file `name` in the first data folder's shaders/ that holds it
+// (common/data_folders.h: beside the executable, where pc_compile_shaders puts it, then the
+// install's share/probecast/shaders, then $PROBECAST_DATA/shaders); where none does, the path
+// beside the executable. `name` is the source file name plus ".spv", e.g. "probe_trace.rgen.spv".
 std::filesystem::path shaderPath(std::string_view name);
 Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name);
 Result<UniqueShaderModule> createShaderModule(const Context& ctx,

@@ -2,12 +2,14 @@
 
 #include <fstream>
 
+#include "common/data_folders.h"
 #include "context.h"
 
 namespace pc::vk {
 
 std::filesystem::path shaderPath(std::string_view name) {
-  // The executable's own location, so a bundle copied anywhere finds its shaders beside it.
+  if (auto found = findDataFile("shaders", name)) return *found;
+  // Where the build puts it, for a message: beside the executable.
   std::error_code ec;
   std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
   std::filesystem::path dir = ec ? std::filesystem::current_path() : exe.parent_path();
@@ -56,9 +58,11 @@ Result<UniquePipelineLayout> createPipelineLayout(const Context& ctx,
 }
 
 Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name) {
-  const std::filesystem::path path = shaderPath(name);
+  auto found = findDataFile("shaders", name);
+  if (!found) return Error{"shader " + found.error().message};
+  const std::filesystem::path path = *found;
   std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) return Error{path.string() + ": cannot open shader (built by the pc_shaders target?)"};
+  if (!in) return Error{path.string() + ": cannot open shader"};
   const std::streamsize bytes = in.tellg();
   if (bytes <= 0 || bytes % 4 != 0) return Error{path.string() + ": not a SPIR-V file"};
   std::vector<std::uint32_t> words(std::size_t(bytes) / 4);
