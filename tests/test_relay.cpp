@@ -1,0 +1,332 @@
+// Field distribution through NATS JetStream: the field server's exporter puts its field into a
+// key-value bucket, relays follow it and serve clients with the server's own network layer.
+// Each test starts its own nats-server (JetStream in a temporary folder, a free loopback port)
+// and skips where the nats-server binary is absent. The field server runs in the test's
+// process (the built-in scene on Embree, as the socket tests run it); relays run in-process or
+// as probecast-relay processes, and clients are the real client's network side (NetClient).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "net/tls_certificate.h"
+#include "relay/field_bucket.h"
+#include "relay/field_export.h"
+#include "relay/relay.h"
+#include "test_child_process.h"
+#include "test_net_support.h"
+
+namespace pc {
+namespace {
+
+namespace fs = std::filesystem;
+using nettest::kToken;
+using nettest::mirrorDifference;
+using nettest::sleepFor;
+using nettest::testKeys;
+using nettest::TestServer;
+using nettest::waitFor;
+
+const std::string kBin = std::string(PC_BUILD_DIR) + "/bin/";
+const char* const kNatsServer = "/usr/sbin/nats-server";
+
+bool natsServerPresent() { return fs::exists(kNatsServer); }
+
+// A nats-server with JetStream on a free loopback port, its store in `dir` (so a restart on
+// the same port and folder finds the bucket again).
+class NatsServer {
+ public:
+  explicit NatsServer(const fs::path& dir) : dir_(dir), port_(test::freePort()) { start(); }
+  void start() {
+    fs::create_directories(dir_ / "store");
+    child_ = std::make_unique<test::Child>(
+        std::vector<std::string>{kNatsServer, "-a", "127.0.0.1", "-p", std::to_string(port_), "-js",
+                                 "-sd", (dir_ / "store").string()},
+        dir_ / "nats.log");
+    EXPECT_TRUE(waitFor([&] { return test::canConnect(port_); }, 20.0))
+        << "nats-server never listened";
+  }
+  void kill() { child_.reset(); }  // SIGKILL
+  std::string url() const { return "nats://127.0.0.1:" + std::to_string(port_); }
+
+ private:
+  fs::path dir_;
+  std::uint16_t port_;
+  std::unique_ptr<test::Child> child_;
+};
+
+fs::path testDir(const std::string& name) {
+  const fs::path dir = fs::path(PC_BUILD_DIR) / ("test-relay-" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::unique_ptr<pc::relay::FieldExporter> startExporter(FieldHub& hub, const std::string& url) {
+  pc::relay::ExportOptions o;
+  o.nats.urls = url;
+  auto exporter = pc::relay::FieldExporter::create(hub, o);
+  EXPECT_TRUE(exporter.ok()) << (exporter ? "" : exporter.error().message);
+  if (!exporter) return nullptr;
+  (*exporter)->start();
+  return std::move(exporter).value();
+}
+
+std::unique_ptr<pc::relay::Relay> startRelay(const std::string& url, const std::string& id) {
+  pc::relay::RelayOptions o;
+  o.nats.urls = url;
+  o.relayId = id;
+  o.net.bindAddress = "127.0.0.1";
+  o.net.port = 0;
+  o.net.tokenKeys = {testKeys().verify};
+  o.net.tls.devSelfSigned = true;
+  auto relay = pc::relay::Relay::create(o);
+  EXPECT_TRUE(relay.ok()) << (relay ? "" : relay.error().message);
+  if (!relay) return nullptr;
+  const Status started = (*relay)->start(30.0);
+  EXPECT_TRUE(started.ok()) << (started ? "" : started.error().message);
+  return std::move(relay).value();
+}
+
+client::NetClientOptions clientOptions(std::uint16_t port, const std::string& fingerprint) {
+  client::NetClientOptions o;
+  o.host = "127.0.0.1";
+  o.port = port;
+  o.serverFingerprint = fingerprint;
+  o.token = kToken;
+  o.name = "relay-test";
+  return o;
+}
+
+// Every brick's current version in a hub, [cascade][brick].
+std::vector<std::vector<std::uint64_t>> versionsOf(const FieldHub& hub) {
+  std::vector<std::vector<std::uint64_t>> v;
+  const FieldPublisher& p = const_cast<FieldHub&>(hub).publisher();
+  for (int k = 0; k < p.cascadeCount(); ++k) {
+    v.emplace_back();
+    for (int b = 0; b < p.brickCount(k); ++b) v.back().push_back(p.current(k, b).version);
+  }
+  return v;
+}
+
+TEST(FieldBucket, RecordsRoundTripAndRefuseOtherBytes) {
+  pc::relay::BrickRecord b;
+  b.epoch = 77;
+  b.cascade = 2;
+  b.brick = 513;
+  b.version = 9;
+  b.wallTime = 1.5e9;
+  b.payload = {1, 2, 3, 4};
+  auto back = pc::relay::decodeBrickRecord(pc::relay::encodeBrickRecord(b));
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->epoch, 77u);
+  EXPECT_EQ(back->cascade, 2);
+  EXPECT_EQ(back->brick, 513u);
+  EXPECT_EQ(back->version, 9u);
+  EXPECT_EQ(back->payload, b.payload);
+  std::vector<std::uint8_t> bytes = pc::relay::encodeBrickRecord(b);
+  bytes.resize(20);
+  EXPECT_FALSE(pc::relay::decodeBrickRecord(bytes).ok());
+  EXPECT_FALSE(pc::relay::decodeCatalogue(pc::relay::encodeBrickRecord(b)).ok());  // another kind
+  EXPECT_EQ(pc::relay::parseBrickKey(pc::relay::brickKey(3, 70)),
+            std::make_pair(3, std::uint32_t(70)));
+  EXPECT_FALSE(pc::relay::parseBrickKey("brick.1.2.3").has_value());
+  EXPECT_FALSE(pc::relay::parseBrickKey("state").has_value());
+
+  pc::relay::PosesMessage poses;
+  poses.relay = "r1";
+  poses.positions = {{1, 2, 3}, {NAN, 0, 0}, {4, 5, 6}};
+  poses.weights = {1, 1, 2};
+  auto decoded = pc::relay::decodePoses(pc::relay::encodePoses(poses));
+  ASSERT_TRUE(decoded.ok());
+  ASSERT_EQ(decoded->positions.size(), 2u);  // the NaN position is left out
+  EXPECT_EQ(decoded->positions[1], glm::vec3(4, 5, 6));
+  EXPECT_EQ(decoded->weights[1], 2.0f);
+  auto load = pc::relay::decodeLoad(pc::relay::encodeLoad({"r1", "10.0.0.1:7450", 12, 64}));
+  ASSERT_TRUE(load.ok());
+  EXPECT_EQ(load->clients, 12u);
+  EXPECT_EQ(load->endpoint, "10.0.0.1:7450");
+  EXPECT_FALSE(pc::relay::validToken("a.b"));
+  EXPECT_FALSE(pc::relay::validToken("*"));
+}
+
+// A relay started after the field server has published (and frozen) its field catches up from
+// the bucket, holds every brick at the server's version, and its client converges to the same
+// field as a client of the server itself.
+TEST(Relay, StartsLateCatchesUpAndServesTheServersField) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  const fs::path dir = testDir("catch-up");
+  NatsServer nats(dir);
+  TestServer server(0.8);
+  auto exporter = startExporter(server.hub(), nats.url());
+  ASSERT_TRUE(exporter);
+  ASSERT_TRUE(waitFor([&] { return server.frozen(); }, 60.0));
+  const std::uint64_t frozenVersion = server.field().version;
+  ASSERT_TRUE(waitFor([&] { return exporter->stats().fieldVersion == frozenVersion; }, 20.0))
+      << exporter->stats().lastError;
+
+  auto relay = startRelay(nats.url(), "late");
+  ASSERT_TRUE(relay);
+  std::vector<std::vector<std::uint64_t>> relayVersions, serverVersions;
+  ASSERT_TRUE(waitFor([&] { return relay->stats().fieldVersion == frozenVersion; }, 20.0));
+  ASSERT_TRUE(relay->withHub([&](const FieldHub& h) { relayVersions = versionsOf(h); }));
+  {
+    auto lock = server.hub().lock();
+    serverVersions = versionsOf(server.hub());
+  }
+  EXPECT_EQ(relayVersions, serverVersions);
+
+  client::FieldMirror direct, relayed;
+  client::NetClient directClient(direct, clientOptions(server.port(), server.fingerprint()));
+  client::NetClient relayClient(relayed, clientOptions(relay->port(), relay->tlsFingerprint()));
+  directClient.start();
+  relayClient.start();
+  EXPECT_TRUE(waitFor([&] { return mirrorDifference(direct, server.field()) == 0; }, 30.0));
+  EXPECT_TRUE(waitFor([&] { return mirrorDifference(relayed, server.field()) == 0; }, 30.0))
+      << mirrorDifference(relayed, server.field()) << " bricks differ";
+  const client::NetClientStats d = directClient.stats(), r = relayClient.stats();
+  EXPECT_TRUE(r.synced);
+  EXPECT_EQ(r.serverFieldVersion, d.serverFieldVersion);
+  EXPECT_EQ(r.sessions, 1u);
+  const pc::relay::RelayStats rs = relay->stats();
+  EXPECT_EQ(rs.badRecords, 0u);
+  EXPECT_GT(rs.bricksApplied, 0u);
+  std::printf("FIGURE relay_catch_up bricks=%llu nats_latency_ms=%.1f\n",
+              (unsigned long long)rs.bricksApplied, rs.natsLatencyMs);
+  // The relay's client's viewer reaches the field server's scheduler (through the relay's
+  // pose messages); the direct client has none.
+  const glm::vec3 eye(0.25f, 0.5f, 0.75f);
+  relayClient.setViewer(eye, glm::quat(1, 0, 0, 0));
+  EXPECT_TRUE(waitFor(
+      [&] {
+        const std::vector<glm::vec3> viewers = server.hub().viewers();
+        return viewers.size() == 1 && viewers[0] == eye;
+      },
+      5.0));
+  EXPECT_GT(exporter->stats().poseMessages, 0u);
+}
+
+// Two probecast-relay processes; clients given both endpoints are on the first when it is
+// killed (SIGKILL: no goodbye). Each moves to the other relay and resyncs, and its mirror
+// holds the server's field at every moment of the move.
+TEST(Relay, ClientsOfAKilledRelayMoveToTheOtherAndKeepTheirField) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  ASSERT_TRUE(fs::exists(kBin + "probecast-relay")) << "probecast-relay is not built";
+  const fs::path dir = testDir("kill");
+  NatsServer nats(dir);
+  TestServer server(0.8);
+  auto exporter = startExporter(server.hub(), nats.url());
+  ASSERT_TRUE(exporter);
+  ASSERT_TRUE(waitFor([&] { return server.frozen(); }, 60.0));
+
+  // Both relays present one certificate, which clients trust as their CA file.
+  const std::string keyFile = (dir / "issuer.pub").string(), cert = (dir / "cert.pem").string(),
+                    key = (dir / "key.pem").string();
+  ASSERT_TRUE(writeKeyFile(keyFile, testKeys().verify).ok());
+  auto dev = net::makeDevCertificate();
+  ASSERT_TRUE(dev.ok());
+  std::ofstream(cert) << dev->certificatePem;
+  std::ofstream(key) << dev->keyPem;
+  const std::uint16_t portA = test::freePort(), portB = test::freePort();
+  auto relayProcess = [&](const std::string& id, std::uint16_t port) {
+    return std::make_unique<test::Child>(
+        std::vector<std::string>{kBin + "probecast-relay", "--nats", nats.url(), "--relay-id", id,
+                                 "--bind", "127.0.0.1", "--port", std::to_string(port),
+                                 "--token-key", keyFile, "--tls-cert", cert, "--tls-key", key,
+                                 "--stats-interval", "0"},
+        dir / ("relay-" + id + ".log"));
+  };
+  auto relayA = relayProcess("a", portA);
+  auto relayB = relayProcess("b", portB);
+  ASSERT_TRUE(waitFor([&] { return test::canConnect(portA) && test::canConnect(portB); }, 30.0))
+      << "the relays never listened (see " << dir.string() << ")";
+
+  constexpr int kClients = 3;
+  std::vector<std::unique_ptr<client::FieldMirror>> mirrors;
+  std::vector<std::unique_ptr<client::NetClient>> clients;
+  for (int i = 0; i < kClients; ++i) {
+    client::NetClientOptions o = clientOptions(portA, "");
+    o.caFile = cert;
+    o.alternates = {{"127.0.0.1", portB}};
+    mirrors.push_back(std::make_unique<client::FieldMirror>());
+    clients.push_back(std::make_unique<client::NetClient>(*mirrors.back(), o));
+    clients.back()->start();
+  }
+  const std::string endpointB = "127.0.0.1:" + std::to_string(portB);
+  for (int i = 0; i < kClients; ++i) {
+    ASSERT_TRUE(waitFor([&] { return mirrorDifference(*mirrors[i], server.field()) == 0; }, 30.0))
+        << "client " << i << " never converged through relay a";
+    ASSERT_NE(clients[i]->stats().endpoint, endpointB);
+  }
+
+  relayA->kill(SIGKILL);
+  const double killed = steadySeconds();
+  std::vector<double> movedAfter(kClients, -1);
+  int worstDifference = 0;
+  while (steadySeconds() - killed < 30.0) {
+    bool all = true;
+    for (int i = 0; i < kClients; ++i) {
+      // The mirror is what the client renders: it must hold the field throughout.
+      worstDifference = std::max(worstDifference, mirrorDifference(*mirrors[i], server.field()));
+      const client::NetClientStats st = clients[i]->stats();
+      if (movedAfter[i] < 0 && st.synced && st.endpoint == endpointB)
+        movedAfter[i] = steadySeconds() - killed;
+      all &= movedAfter[i] >= 0;
+    }
+    if (all) break;
+    sleepFor(0.01);
+  }
+  double failover = 0;
+  for (int i = 0; i < kClients; ++i) {
+    EXPECT_GE(movedAfter[i], 0.0) << "client " << i << " never resynced on relay b";
+    failover = std::max(failover, movedAfter[i]);
+    EXPECT_EQ(clients[i]->stats().sessions, 2u);
+  }
+  EXPECT_EQ(worstDifference, 0) << "a mirror lost bricks while its client moved";
+  for (int i = 0; i < kClients; ++i)
+    EXPECT_EQ(mirrorDifference(*mirrors[i], server.field()), 0) << "client " << i;
+  std::printf("FIGURE relay_failover clients=%d failover_s=%.3f\n", kClients, failover);
+}
+
+// The NATS server is killed and started again (same port, same store) while the field moves:
+// the relay keeps its client in session, serving what it holds, and follows the field again
+// once NATS is back.
+TEST(Relay, KeepsServingThroughANatsRestartAndResumes) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  const fs::path dir = testDir("nats-restart");
+  NatsServer nats(dir);
+  TestServer server(-1.0);  // never frozen: new versions keep coming
+  auto exporter = startExporter(server.hub(), nats.url());
+  ASSERT_TRUE(exporter);
+  auto relay = startRelay(nats.url(), "steady");
+  ASSERT_TRUE(relay);
+  client::FieldMirror mirror;
+  client::NetClient client(mirror, clientOptions(relay->port(), relay->tlsFingerprint()));
+  client.start();
+  ASSERT_TRUE(waitFor([&] { return client.stats().synced; }, 30.0));
+
+  nats.kill();
+  const std::uint64_t before = relay->stats().fieldVersion;
+  sleepFor(2.5);
+  EXPECT_TRUE(client.stats().connected) << "the relay dropped its client while NATS was away";
+  EXPECT_TRUE(relay->stats().serving);
+  EXPECT_EQ(relay->serverStats().clients.size(), 1u);
+  EXPECT_TRUE(mirror.present());
+
+  nats.start();
+  ASSERT_TRUE(waitFor([&] { return relay->stats().fieldVersion > before + 2; }, 30.0))
+      << "the relay never followed the field again: " << relay->stats().lastError;
+  EXPECT_TRUE(waitFor([&] { return client.stats().serverFieldVersion > before + 2; }, 10.0));
+  const client::NetClientStats c = client.stats();
+  EXPECT_EQ(c.sessions, 1u) << "the client's session should have survived the NATS restart";
+  EXPECT_TRUE(c.connected);
+  EXPECT_TRUE(exporter->stats().connected);
+  std::printf("FIGURE relay_nats_restart watch_restarts=%llu republishes=%llu\n",
+              (unsigned long long)relay->stats().watchRestarts,
+              (unsigned long long)exporter->stats().republishes);
+}
+
+}  // namespace
+}  // namespace pc
