@@ -55,7 +55,7 @@ void appendExportMetrics(MetricsText& out, const ExportStats& stats);
 class FieldExporter {
  public:
   // Connects to NATS; the bucket is created (or opened) by the thread, which retries while
-  // NATS is away.
+  // NATS is away. `hub` must outlive the exporter.
   static Result<std::unique_ptr<FieldExporter>> create(FieldHub& hub, ExportOptions options);
   ~FieldExporter();  // stop()
   FieldExporter(const FieldExporter&) = delete;

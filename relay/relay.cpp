@@ -7,6 +7,7 @@
 #include <chrono>
 
 #include "common/log.h"
+#include "net/tls_certificate.h"
 #include "relay/field_export.h"
 
 namespace pc::relay {
@@ -35,6 +36,14 @@ Result<std::unique_ptr<Relay>> Relay::create(RelayOptions options) {
   if (!validToken(options.bucket))
     return Error{"bucket name '" + options.bucket + "': letters, digits, '-' and '_' only"};
   if (options.nats.name.empty()) options.nats.name = "probecast-relay " + options.relayId;
+  // One development certificate for the relay's life: the server it makes again for a new
+  // field server run presents the same one, which clients have pinned.
+  if (options.net.tls.enabled && options.net.tls.devSelfSigned && !options.net.tls.devCertificate) {
+    auto dev = net::makeDevCertificate();
+    if (!dev) return Error{"TLS: " + dev.error().message};
+    options.net.tls.devCertificate =
+        std::make_shared<const net::DevCertificate>(std::move(dev).value());
+  }
   auto nats = NatsConnection::connect(options.nats);
   if (!nats) return nats.error();
   return std::unique_ptr<Relay>(new Relay(std::move(options), std::move(nats).value()));

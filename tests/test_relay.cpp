@@ -328,5 +328,41 @@ TEST(Relay, KeepsServingThroughANatsRestartAndResumes) {
               (unsigned long long)exporter->stats().republishes);
 }
 
+// The field server is stopped and another run starts (a new epoch, another field): the relay
+// takes the new run's catalogue, makes its server again on the same port and certificate, and
+// its client reconnects and converges to the new field.
+TEST(Relay, FollowsARestartedFieldServer) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  const fs::path dir = testDir("server-restart");
+  NatsServer nats(dir);
+  auto first = std::make_unique<TestServer>(0.8);
+  auto exporter = startExporter(first->hub(), nats.url());
+  ASSERT_TRUE(exporter);
+  ASSERT_TRUE(waitFor([&] { return first->frozen(); }, 60.0));
+  auto relay = startRelay(nats.url(), "follower");
+  ASSERT_TRUE(relay);
+  const std::uint16_t port = relay->port();
+  client::FieldMirror mirror;
+  client::NetClient client(mirror, clientOptions(port, relay->tlsFingerprint()));
+  client.start();
+  ASSERT_TRUE(waitFor([&] { return mirrorDifference(mirror, first->field()) == 0; }, 30.0));
+  exporter.reset();
+  first.reset();
+
+  TestServer second(1.6);  // another moment of the animation: another field
+  exporter = startExporter(second.hub(), nats.url());
+  ASSERT_TRUE(exporter);
+  ASSERT_TRUE(waitFor([&] { return second.frozen(); }, 60.0));
+  ASSERT_NE(mirrorDifference(mirror, second.field()), 0) << "both runs made the same field";
+  EXPECT_TRUE(waitFor([&] { return mirrorDifference(mirror, second.field()) == 0; }, 30.0))
+      << "the relay's client never got the new run's field: " << relay->stats().lastError;
+  const pc::relay::RelayStats rs = relay->stats();
+  EXPECT_EQ(rs.epochChanges, 1u);
+  EXPECT_EQ(rs.epoch, exporter->stats().epoch);
+  EXPECT_EQ(relay->port(), port);
+  EXPECT_EQ(client.stats().sessions, 2u);
+  exporter.reset();  // before the hub it follows
+}
+
 }  // namespace
 }  // namespace pc
