@@ -197,11 +197,16 @@ void Relay::handle(const KvChange& change, double now) {
     // What came before the catalogue, now that there is a layout to put it in.
     std::vector<KvChange> early = std::move(early_);
     early_.clear();
+    earlyBytes_ = 0;
     for (const KvChange& c : early) handle(c, now);
     return;
   }
   if (!catalogue_) {
-    if (early_.size() < 1u << 20) early_.push_back(change);
+    // The catalogue is the bucket's first key, so this holds little; bounded all the same.
+    if (earlyBytes_ + change.value.size() <= kMaxEarlyBytes) {
+      earlyBytes_ += change.value.size();
+      early_.push_back(change);
+    }
     return;
   }
   if (change.key == kStateKey) {

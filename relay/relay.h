@@ -106,6 +106,8 @@ class Relay {
   double pendingSince_ = 0, pendingWall_ = 0;
   bool caughtUp_ = false;
   std::vector<KvChange> early_;  // changes before the catalogue arrived
+  std::size_t earlyBytes_ = 0;
+  static constexpr std::size_t kMaxEarlyBytes = 256u << 20;
 
   mutable std::mutex serveMutex_;  // guards hub_ and server_ against readers on other threads
   std::unique_ptr<FieldHub> hub_;

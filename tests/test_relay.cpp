@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -38,18 +39,26 @@ bool natsServerPresent() { return fs::exists(kNatsServer); }
 // the same port and folder finds the bucket again).
 class NatsServer {
  public:
-  explicit NatsServer(const fs::path& dir) : dir_(dir), port_(test::freePort()) { start(); }
+  // `config`: more of nats-server's configuration (users, say), written to a file beside.
+  explicit NatsServer(const fs::path& dir, const std::string& config = "")
+      : dir_(dir), port_(test::freePort()) {
+    std::ofstream(dir_ / "nats.conf") << config;
+    start();
+  }
   void start() {
     fs::create_directories(dir_ / "store");
     child_ = std::make_unique<test::Child>(
-        std::vector<std::string>{kNatsServer, "-a", "127.0.0.1", "-p", std::to_string(port_), "-js",
-                                 "-sd", (dir_ / "store").string()},
+        std::vector<std::string>{kNatsServer, "-c", (dir_ / "nats.conf").string(), "-a",
+                                 "127.0.0.1", "-p", std::to_string(port_), "-js", "-sd",
+                                 (dir_ / "store").string()},
         dir_ / "nats.log");
     EXPECT_TRUE(waitFor([&] { return test::canConnect(port_); }, 20.0))
         << "nats-server never listened";
   }
   void kill() { child_.reset(); }  // SIGKILL
-  std::string url() const { return "nats://127.0.0.1:" + std::to_string(port_); }
+  std::string url(const std::string& user = "") const {
+    return "nats://" + user + (user.empty() ? "" : "@") + "127.0.0.1:" + std::to_string(port_);
+  }
 
  private:
   fs::path dir_;
@@ -72,6 +81,11 @@ std::unique_ptr<pc::relay::FieldExporter> startExporter(FieldHub& hub, const std
   if (!exporter) return nullptr;
   (*exporter)->start();
   return std::move(exporter).value();
+}
+
+std::string readText(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
 std::unique_ptr<pc::relay::Relay> startRelay(const std::string& url, const std::string& id) {
@@ -362,6 +376,49 @@ TEST(Relay, FollowsARestartedFieldServer) {
   EXPECT_EQ(relay->port(), port);
   EXPECT_EQ(client.stats().sessions, 2u);
   exporter.reset();  // before the hub it follows
+}
+
+// NATS users as deploy/local makes them: the field server's may do anything, a relay's has the
+// permissions of deploy/nats-relay-permissions.conf. The relay catches up, serves and reports
+// its viewers under them, and NATS refuses it anything else: writing into the field's bucket,
+// making a bucket.
+TEST(Relay, ARelaysNatsUserReadsTheFieldAndWritesNothingButPosesAndLoad) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  const fs::path dir = testDir("permissions");
+  fs::copy_file(fs::path(PC_SOURCE_DIR) / "deploy/nats-relay-permissions.conf",
+                dir / "nats-relay-permissions.conf");
+  NatsServer nats(dir, R"(authorization {
+  users = [
+    { user: field, password: "field-secret" }
+    { user: relay, password: "relay-secret", permissions: { include "nats-relay-permissions.conf" } }
+  ]
+})");
+  TestServer server(0.8);
+  auto exporter = startExporter(server.hub(), nats.url("field:field-secret"));
+  ASSERT_TRUE(exporter);
+  ASSERT_TRUE(waitFor([&] { return server.frozen(); }, 60.0));
+  auto relay = startRelay(nats.url("relay:relay-secret"), "restricted");
+  ASSERT_TRUE(relay);
+  EXPECT_TRUE(waitFor([&] { return relay->stats().fieldVersion == server.field().version; }, 20.0));
+  EXPECT_TRUE(waitFor([&] { return exporter->stats().poseMessages > 0; }, 5.0));
+  EXPECT_TRUE(waitFor([&] { return !exporter->stats().relays.empty(); }, 5.0));
+  EXPECT_EQ(readText(dir / "nats.log").find("Violation"), std::string::npos)
+      << "NATS refused the relay something it needs:\n"
+      << readText(dir / "nats.log");
+
+  pc::relay::NatsOptions o;
+  o.urls = nats.url("relay:relay-secret");
+  auto intruder = pc::relay::NatsConnection::connect(o);
+  ASSERT_TRUE(intruder.ok()) << intruder.error().message;
+  auto bucket = intruder->openBucket("probecast-field");
+  ASSERT_TRUE(bucket.ok()) << bucket.error().message;  // reading is allowed
+  const std::vector<std::uint8_t> forged{1, 2, 3};
+  EXPECT_FALSE(bucket->put(pc::relay::brickKey(0, 0), forged).ok());
+  pc::relay::BucketOptions other;
+  other.name = "another";
+  EXPECT_FALSE(intruder->createBucket(other).ok());
+  relay.reset();
+  exporter.reset();
 }
 
 }  // namespace
