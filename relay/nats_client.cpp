@@ -163,8 +163,11 @@ Result<NatsConnection> NatsConnection::connect(const NatsOptions& options) {
   if (s != NATS_OK) return natsError("NATS connect to " + options.urls, s);
   NatsConnection c;
   c.nc_.reset(nc);
+  jsOptions jsOpts;
+  jsOptions_Init(&jsOpts);
+  jsOpts.Wait = millis(options.requestTimeout);
   jsCtx* js = nullptr;
-  s = natsConnection_JetStream(&js, nc, nullptr);
+  s = natsConnection_JetStream(&js, nc, &jsOpts);
   if (s != NATS_OK) return natsError("JetStream context", s);
   c.js_.reset(js);
   return c;

@@ -33,6 +33,9 @@ struct NatsOptions {
   double connectTimeout = 2.0;  // s per server and attempt
   // Every attempt after the connection was lost waits this long (libnats retries forever).
   double reconnectWait = 0.25;
+  // How long a JetStream request (a put, a watch, a bucket) waits for its answer: after a
+  // cluster node is lost, requests in flight time out and are made again against the others.
+  double requestTimeout = 2.0;
 };
 
 // A key-value bucket's settings where it is created (an existing bucket keeps its own).

@@ -421,5 +421,71 @@ TEST(Relay, ARelaysNatsUserReadsTheFieldAndWritesNothingButPosesAndLoad) {
   exporter.reset();
 }
 
+// A three-node NATS cluster with the bucket on every node (3 replicas); one node is killed
+// while the field moves: the field server and the relay move to the other nodes and the relay
+// goes on following the field, its client in session throughout.
+TEST(Relay, GoesOnWhenOneNodeOfAThreeNodeNatsClusterIsLost) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  const fs::path dir = testDir("cluster");
+  std::vector<std::uint16_t> clientPorts, routePorts;
+  for (int i = 0; i < 3; ++i) {
+    clientPorts.push_back(test::freePort());
+    routePorts.push_back(test::freePort());
+  }
+  std::string urls;
+  std::vector<std::unique_ptr<test::Child>> nodes;
+  for (int i = 0; i < 3; ++i) {
+    const fs::path node = dir / ("n" + std::to_string(i));
+    fs::create_directories(node);
+    std::string routes;
+    for (int j = 0; j < 3; ++j)
+      if (j != i)
+        routes += std::string(routes.empty() ? "" : ", ") +
+                  "nats-route://127.0.0.1:" + std::to_string(routePorts[std::size_t(j)]);
+    std::ofstream(node / "nats.conf")
+        << "server_name: n" << i << "\nlisten: 127.0.0.1:" << clientPorts[std::size_t(i)]
+        << "\njetstream { store_dir: \"" << (node / "store").string() << "\" }\n"
+        << "cluster { name: probecast, listen: 127.0.0.1:" << routePorts[std::size_t(i)]
+        << ", routes: [" << routes << "] }\n";
+    nodes.push_back(std::make_unique<test::Child>(
+        std::vector<std::string>{kNatsServer, "-c", (node / "nats.conf").string()},
+        node / "nats.log"));
+    urls += (i ? "," : "") + std::string("nats://127.0.0.1:") +
+            std::to_string(clientPorts[std::size_t(i)]);
+  }
+  for (std::uint16_t port : clientPorts)
+    ASSERT_TRUE(waitFor([&] { return test::canConnect(port); }, 20.0)) << "a node never listened";
+
+  TestServer server(-1.0);
+  pc::relay::ExportOptions eo;
+  eo.nats.urls = urls;
+  eo.bucket.replicas = 3;
+  auto exporter = pc::relay::FieldExporter::create(server.hub(), eo);
+  ASSERT_TRUE(exporter.ok()) << exporter.error().message;
+  (*exporter)->start();
+  // The cluster elects its JetStream leader first; the exporter retries until the bucket exists.
+  ASSERT_TRUE(waitFor([&] { return (*exporter)->stats().statesPut > 0; }, 60.0))
+      << (*exporter)->stats().lastError;
+  auto relay = startRelay(urls, "clustered");
+  ASSERT_TRUE(relay);
+  client::FieldMirror mirror;
+  client::NetClient client(mirror, clientOptions(relay->port(), relay->tlsFingerprint()));
+  client.start();
+  ASSERT_TRUE(waitFor([&] { return client.stats().synced; }, 30.0));
+
+  nodes[0].reset();  // SIGKILL
+  const std::uint64_t before = relay->stats().fieldVersion;
+  EXPECT_TRUE(waitFor([&] { return relay->stats().fieldVersion > before + 5; }, 40.0))
+      << "the relay stopped following the field: " << relay->stats().lastError;
+  EXPECT_TRUE(waitFor([&] { return client.stats().serverFieldVersion > before + 5; }, 10.0));
+  EXPECT_EQ(client.stats().sessions, 1u);
+  EXPECT_TRUE(client.stats().connected);
+  std::printf("FIGURE relay_cluster_node_lost watch_restarts=%llu export_errors=%llu\n",
+              (unsigned long long)relay->stats().watchRestarts,
+              (unsigned long long)(*exporter)->stats().putErrors);
+  relay.reset();
+  exporter->reset();
+}
+
 }  // namespace
 }  // namespace pc
