@@ -474,15 +474,19 @@ TEST(Relay, GoesOnWhenOneNodeOfAThreeNodeNatsClusterIsLost) {
   ASSERT_TRUE(waitFor([&] { return client.stats().synced; }, 30.0));
 
   nodes[0].reset();  // SIGKILL
+  const double killed = steadySeconds();
   const std::uint64_t before = relay->stats().fieldVersion;
   EXPECT_TRUE(waitFor([&] { return relay->stats().fieldVersion > before + 5; }, 40.0))
       << "the relay stopped following the field: " << relay->stats().lastError;
+  const double recovered = steadySeconds() - killed;
   EXPECT_TRUE(waitFor([&] { return client.stats().serverFieldVersion > before + 5; }, 10.0));
   EXPECT_EQ(client.stats().sessions, 1u);
   EXPECT_TRUE(client.stats().connected);
-  std::printf("FIGURE relay_cluster_node_lost watch_restarts=%llu export_errors=%llu\n",
-              (unsigned long long)relay->stats().watchRestarts,
-              (unsigned long long)(*exporter)->stats().putErrors);
+  std::printf(
+      "FIGURE relay_cluster_node_lost following_again_s=%.2f watch_restarts=%llu "
+      "export_errors=%llu\n",
+      recovered, (unsigned long long)relay->stats().watchRestarts,
+      (unsigned long long)(*exporter)->stats().putErrors);
   relay.reset();
   exporter->reset();
 }
