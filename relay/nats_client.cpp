@@ -4,6 +4,8 @@
 
 #include <algorithm>
 
+#include "protocol/secure_io.h"
+
 namespace pc::relay {
 
 namespace {
@@ -153,6 +155,16 @@ Result<NatsConnection> NatsConnection::connect(const NatsOptions& options) {
     s = natsOptions_SetSecure(raw, true);
     if (s == NATS_OK) s = natsOptions_LoadCATrustedCertificates(raw, options.caFile.c_str());
     if (s != NATS_OK) return natsError("NATS CA file " + options.caFile, s);
+  }
+  if (!options.passwordFile.empty()) {
+    if (options.user.empty())
+      return Error{"NATS password file " + options.passwordFile + ": no user"};
+    auto text = readSmallFile(options.passwordFile, 4096);
+    if (!text) return Error{"NATS password file: " + text.error().message};
+    std::string password = text->substr(0, text->find_first_of("\r\n"));
+    if (password.empty()) return Error{"NATS password file " + options.passwordFile + ": empty"};
+    s = natsOptions_SetUserInfo(raw, options.user.c_str(), password.c_str());
+    if (s != NATS_OK) return natsError("NATS user " + options.user, s);
   }
   if (!options.credentialsFile.empty()) {
     s = natsOptions_SetUserCredentialsFromFiles(raw, options.credentialsFile.c_str(), nullptr);

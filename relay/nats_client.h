@@ -29,6 +29,9 @@ struct NatsOptions {
   std::string urls = "nats://127.0.0.1:4222";
   std::string name;             // the connection's name, shown by the NATS server's monitoring
   std::string credentialsFile;  // a .creds file (user JWT and nkey seed), else none
+  // Or a user and the file holding its password (its first line): never on the command line,
+  // where `ps` shows it.
+  std::string user, passwordFile;
   std::string caFile;           // trust these CAs for tls:// servers (else the system's)
   double connectTimeout = 2.0;  // s per server and attempt
   // Every attempt after the connection was lost waits this long (libnats retries forever).

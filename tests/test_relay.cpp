@@ -448,8 +448,11 @@ TEST(Relay, ARelaysNatsUserReadsTheFieldAndWritesNothingButPosesAndLoad) {
       << "NATS refused the relay something it needs:\n"
       << readText(dir / "nats.log");
 
-  pc::relay::NatsOptions o;
-  o.urls = nats.url("relay:relay-secret");
+  pc::relay::NatsOptions o;  // the relay's user again, its password from a file this time
+  o.urls = nats.url();
+  o.user = "relay";
+  o.passwordFile = (dir / "relay.password").string();
+  std::ofstream(o.passwordFile) << "relay-secret\n";
   auto intruder = pc::relay::NatsConnection::connect(o);
   ASSERT_TRUE(intruder.ok()) << intruder.error().message;
   auto bucket = intruder->openBucket("probecast-field");

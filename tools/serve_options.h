@@ -109,6 +109,9 @@ inline void addNatsOptions(CLI::App& app, pc::relay::NatsOptions& nats, std::str
                  "whose JetStream key-value bucket carries the field to relays");
   app.add_option("--nats-creds", nats.credentialsFile,
                  "NATS credentials file (.creds: user JWT and nkey seed)");
+  app.add_option("--nats-user", nats.user, "NATS user name (with --nats-password-file)");
+  app.add_option("--nats-password-file", nats.passwordFile,
+                 "file whose first line is the NATS user's password");
   app.add_option("--nats-ca", nats.caFile,
                  "CA file (PEM) the NATS servers' TLS certificates chain to");
   app.add_option("--nats-bucket", bucket,
