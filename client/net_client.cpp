@@ -110,6 +110,16 @@ struct NetClient::Impl {
   std::uint64_t connection = 0;  // bumps per connection: handlers of an old one do nothing
   bool tcpOpen = false;
   double backoff = 0;
+  // Which endpoint: 0 is options.host:port, i > 0 is options.alternates[i - 1].
+  std::size_t endpointIndex = 0;
+  NetEndpoint first;
+  const NetEndpoint& currentEndpoint() {
+    if (endpointIndex == 0) {
+      first = NetEndpoint{options.host, options.port};
+      return first;
+    }
+    return options.alternates[endpointIndex - 1];
+  }
   std::array<std::uint8_t, 16 * 1024> readBuffer{};
   std::array<std::uint8_t, 2048> udpBuffer{};
   udp::endpoint udpFrom;
@@ -139,24 +149,28 @@ void NetClient::Impl::connect() {
   if (options.tls && !tls) return fail("TLS is not set up");
   stream = tls ? std::make_shared<net::SessionStream>(tcp::socket(io), tls->context())
                : std::make_shared<net::SessionStream>(tcp::socket(io));
-  if (tls) {
-    if (Status s = tls->prepare(*stream->tlsStream(), options.host); !s)
-      return fail(s.error().message);
+  const NetEndpoint& to = currentEndpoint();
+  {
+    std::lock_guard lock(mutex);
+    stats.endpoint = to.host + ":" + std::to_string(to.port);
   }
-  resolver.async_resolve(
-      options.host, std::to_string(options.port),
-      [this, id, st = stream](boost::system::error_code ec, tcp::resolver::results_type results) {
-        if (id != connection || stopping) return;
-        if (ec) return fail("resolve " + options.host + ": " + ec.message());
-        asio::async_connect(
-            st->socket(), results,
-            [this, id, st](boost::system::error_code ec2, const tcp::endpoint& server) {
-              if (id != connection || stopping) return;
-              if (ec2) return fail("connect: " + ec2.message());
-              serverAddress = server.address();
-              onConnected(id);
-            });
-      });
+  if (tls) {
+    if (Status s = tls->prepare(*stream->tlsStream(), to.host); !s) return fail(s.error().message);
+  }
+  resolver.async_resolve(to.host, std::to_string(to.port),
+                         [this, id, st = stream, host = to.host](
+                             boost::system::error_code ec, tcp::resolver::results_type results) {
+                           if (id != connection || stopping) return;
+                           if (ec) return fail("resolve " + host + ": " + ec.message());
+                           asio::async_connect(st->socket(), results,
+                                               [this, id, st](boost::system::error_code ec2,
+                                                              const tcp::endpoint& server) {
+                                                 if (id != connection || stopping) return;
+                                                 if (ec2) return fail("connect: " + ec2.message());
+                                                 serverAddress = server.address();
+                                                 onConnected(id);
+                                               });
+                         });
 }
 
 void NetClient::Impl::onConnected(std::uint64_t id) {
@@ -201,15 +215,20 @@ void NetClient::Impl::fail(const std::string& why) {
   if (rejected) backoff = options.backoffMax;
   {
     std::lock_guard lock(mutex);
-    if (stats.lastError != why || wasConnected) {
-      logConnection(LogLevel::Warn,
-                    "server " + options.host + ":" + std::to_string(options.port) + ": " + why);
-    }
+    if (stats.lastError != why || wasConnected)
+      logConnection(LogLevel::Warn, "server " + stats.endpoint + ": " + why);
     stats.lastError = why;
     stats.connected = false;
     stats.synced = false;
   }
   if (stopping) return;
+  // The next endpoint serving the field, if there are several: a relay that died is left at
+  // once (after the short first backoff), and one that refuses is not asked again first.
+  if (!options.alternates.empty()) {
+    endpointIndex = (endpointIndex + 1) % (options.alternates.size() + 1);
+    std::lock_guard lock(mutex);
+    ++stats.endpointSwitches;
+  }
   const double wait = backoff;
   backoff = std::min(options.backoffMax, std::max(options.backoffInitial, backoff * 2));
   retryTimer.expires_after(toDuration(wait));
@@ -294,8 +313,7 @@ void NetClient::Impl::onLayout(double now) {
   stats.bricksHeld = 0;
   stats.bricksTotal = session.bricksTotal();
   stats.lastError.clear();
-  logConnection(LogLevel::Info, "connected to " + options.host + ":" +
-                                    std::to_string(options.port) + ", session " +
+  logConnection(LogLevel::Info, "connected to " + stats.endpoint + ", session " +
                                     std::to_string(session.sessionId()) + ", " +
                                     std::to_string(session.bricksTotal()) + " bricks" +
                                     (options.tcpOnly ? " (TCP only)" : ""));

@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "field_mirror.h"
 #include "protocol/client_session.h"
@@ -21,9 +22,17 @@
 
 namespace pc::client {
 
+struct NetEndpoint {
+  std::string host;
+  std::uint16_t port = 0;
+};
+
 struct NetClientOptions {
   std::string host = "127.0.0.1";
   std::uint16_t port = 7450;
+  // Further endpoints serving the same field (relays): a connection that is lost or fails
+  // moves on to the next one, in order, wrapping around; the mirror is kept throughout.
+  std::vector<NetEndpoint> alternates;
   std::string token;
   std::string name = ClientSessionOptions{}.name;
   // TLS 1.3 to the server, verified by a pinned certificate fingerprint ("sha256:<hex>") or
@@ -53,6 +62,8 @@ struct NetClientStats {
   bool connected = false;  // a session is established (Welcome and SessionInfo received)
   bool synced = false;     // this session's receiver holds every brick
   std::uint64_t connectAttempts = 0, sessions = 0, rejects = 0;
+  std::uint64_t endpointSwitches = 0;  // moves to another endpoint (NetClientOptions::alternates)
+  std::string endpoint;                // host:port of the current or latest attempt
   std::uint64_t tcpBytes = 0, udpBytes = 0;  // received
   std::uint64_t udpDatagrams = 0, tcpDatagrams = 0, badDatagrams = 0;
   std::uint64_t unsealedRefused = 0;  // UDP datagrams that did not open with the session's key

@@ -79,7 +79,9 @@ struct LoadGenerator::Impl {
   void measureLayout(const SessionInfoMsg& info);
 
   LoadOptions options;
-  tcp::endpoint endpoint;
+  // options.host:port, then options.alternates, resolved once, with the host names TLS checks.
+  std::vector<tcp::endpoint> endpoints;
+  std::vector<std::string> hosts;
   std::shared_ptr<net::TlsClient> tls;  // shared by every client's connections
   std::unique_ptr<SharedBrickDecoder> decoder;
   std::vector<std::unique_ptr<Worker>> workers;
@@ -215,6 +217,7 @@ class Client {
   const LoadOptions& o_;
   Worker& worker_;
   int index_;
+  std::size_t endpoint_ = 0;  // into gen_.endpoints: the next is tried after a failed session
   ClientSession session_;
   // One stream per session; handlers hold it, so a closed stream outlives them.
   std::shared_ptr<net::SessionStream> stream_;
@@ -297,7 +300,7 @@ void Client::connect(double now) {
   std::uint16_t udpPort = 0;
   if (!o_.tcpOnly) {
     boost::system::error_code ec;
-    udp_.open(gen_.endpoint.protocol() == tcp::v4() ? udp::v4() : udp::v6(), ec);
+    udp_.open(gen_.endpoints[endpoint_].protocol() == tcp::v4() ? udp::v4() : udp::v6(), ec);
     if (!ec) udp_.bind(udp::endpoint(udp_.local_endpoint(ec).protocol(), 0), ec);
     if (!ec) udpPort = udp_.local_endpoint(ec).port();
     if (ec) return endSession(now, "UDP socket: " + ec.message());
@@ -307,7 +310,7 @@ void Client::connect(double now) {
                 ? std::make_shared<net::SessionStream>(tcp::socket(worker_.io), gen_.tls->context())
                 : std::make_shared<net::SessionStream>(tcp::socket(worker_.io));
   if (gen_.tls) {
-    if (Status s = gen_.tls->prepare(*stream_->tlsStream(), o_.host); !s)
+    if (Status s = gen_.tls->prepare(*stream_->tlsStream(), gen_.hosts[endpoint_]); !s)
       return endSession(now, s.error().message);
   }
   auto onHandshake = [this, id, udpPort, st = stream_](boost::system::error_code ec) {
@@ -322,14 +325,14 @@ void Client::connect(double now) {
     send(session_.connected(t, udpPort));
     readStream();
   };
-  stream_->socket().async_connect(
-      gen_.endpoint, [this, id, st = stream_, onHandshake](boost::system::error_code ec) {
-        if (id != connection_ || worker_.stopping) return;
-        if (ec) return endSession(nowSeconds(), "connect: " + ec.message());
-        boost::system::error_code ignored;
-        st->socket().set_option(tcp::no_delay(true), ignored);
-        st->asyncHandshake(net::ssl::stream_base::client, onHandshake);
-      });
+  stream_->socket().async_connect(gen_.endpoints[endpoint_], [this, id, st = stream_, onHandshake](
+                                                                 boost::system::error_code ec) {
+    if (id != connection_ || worker_.stopping) return;
+    if (ec) return endSession(nowSeconds(), "connect: " + ec.message());
+    boost::system::error_code ignored;
+    st->socket().set_option(tcp::no_delay(true), ignored);
+    st->asyncHandshake(net::ssl::stream_base::client, onHandshake);
+  });
 }
 
 // Ends the current session: voluntarily (churn, shutdown) with an empty `error`.
@@ -360,6 +363,11 @@ void Client::endSession(double now, const std::string& error) {
   if (state_ == State::Done) return;
   state_ = worker_.stopping ? State::Done : State::Idle;
   nextConnectAt_ = now + (error.empty() ? o_.rejoinDelay : kErrorRetryDelay);
+  // A session that failed moves on to the next endpoint at once (a relay that died).
+  if (!error.empty() && gen_.endpoints.size() > 1) {
+    endpoint_ = (endpoint_ + 1) % gen_.endpoints.size();
+    nextConnectAt_ = now + o_.rejoinDelay;
+  }
 }
 
 void Client::shutdown() {
@@ -389,27 +397,27 @@ void Client::readStream() {
 
 void Client::receiveUdp() {
   const std::uint64_t id = connection_;
-  udp_.async_receive_from(asio::buffer(udpBuffer_), udpFrom_,
-                          [this, id](boost::system::error_code ec, std::size_t n) {
-                            if (id != connection_ || worker_.stopping) return;
-                            // Errors on a UDP socket are per datagram (an ICMP error, a truncated
-                            // read): keep going.
-                            if (!ec && n <= kMaxDatagramBytes + kSealOverheadBytes) {
-                              const double now = nowSeconds();
-                              const std::span bytes(udpBuffer_.data(), n);
-                              const DatagramSource source{
-                                  udpFrom_.address() == gen_.endpoint.address(), udpFrom_.port()};
-                              if (linkRate_ > 0 && source.serverAddress) {
-                                enterLink(bytes, now);
-                                deliverLink(now);
-                              } else {
-                                window_.bytesDown += n;
-                                (void)session_.onDatagram(bytes, now, source);
-                                afterInput(now);
-                              }
-                            }
-                            if (id == connection_) receiveUdp();
-                          });
+  udp_.async_receive_from(
+      asio::buffer(udpBuffer_), udpFrom_, [this, id](boost::system::error_code ec, std::size_t n) {
+        if (id != connection_ || worker_.stopping) return;
+        // Errors on a UDP socket are per datagram (an ICMP error, a truncated
+        // read): keep going.
+        if (!ec && n <= kMaxDatagramBytes + kSealOverheadBytes) {
+          const double now = nowSeconds();
+          const std::span bytes(udpBuffer_.data(), n);
+          const DatagramSource source{udpFrom_.address() == gen_.endpoints[endpoint_].address(),
+                                      udpFrom_.port()};
+          if (linkRate_ > 0 && source.serverAddress) {
+            enterLink(bytes, now);
+            deliverLink(now);
+          } else {
+            window_.bytesDown += n;
+            (void)session_.onDatagram(bytes, now, source);
+            afterInput(now);
+          }
+        }
+        if (id == connection_) receiveUdp();
+      });
 }
 
 void Client::afterInput(double now) {
@@ -749,9 +757,14 @@ Result<std::unique_ptr<LoadGenerator>> LoadGenerator::create(LoadOptions options
   asio::io_context io;
   tcp::resolver resolver(io);
   boost::system::error_code ec;
-  auto results = resolver.resolve(g.options.host, std::to_string(g.options.port), ec);
-  if (ec || results.empty()) return Error{"resolve " + g.options.host + ": " + ec.message()};
-  g.endpoint = *results.begin();
+  std::vector<std::pair<std::string, std::uint16_t>> all{{g.options.host, g.options.port}};
+  all.insert(all.end(), g.options.alternates.begin(), g.options.alternates.end());
+  for (const auto& [host, port] : all) {
+    auto results = resolver.resolve(host, std::to_string(port), ec);
+    if (ec || results.empty()) return Error{"resolve " + host + ": " + ec.message()};
+    g.endpoints.push_back(*results.begin());
+    g.hosts.push_back(host);
+  }
   if (g.options.tls) {
     net::TlsClientSettings settings;
     settings.pinnedFingerprint = g.options.serverFingerprint;

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/result.h"
@@ -36,6 +37,9 @@ Result<std::vector<LinkClass>> parseRateMix(const std::string& text);
 struct LoadOptions {
   std::string host = "127.0.0.1";  // an IPv4/IPv6 address or a host name (resolved once)
   std::uint16_t port = 7450;
+  // More endpoints of the same field (relays): a client whose session fails connects to the
+  // next one, in order, wrapping around.
+  std::vector<std::pair<std::string, std::uint16_t>> alternates;
   std::string token;
   // One token per client instead (client i presents clientTokens[i % size]), as real
   // viewers each hold their own.

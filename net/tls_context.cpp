@@ -45,7 +45,9 @@ Result<TlsServer> makeTlsServer(const TlsServerSettings& settings) {
   if (settings.devSelfSigned) {
     if (!settings.certificateFile.empty() || !settings.keyFile.empty())
       return Error{"a development certificate and certificate files exclude each other"};
-    auto dev = makeDevCertificate();
+    Result<DevCertificate> dev = settings.devCertificate
+                                     ? Result<DevCertificate>(*settings.devCertificate)
+                                     : makeDevCertificate();
     if (!dev) return dev.error();
     boost::system::error_code ec;
     server.context->use_certificate(boost::asio::buffer(dev->certificatePem), ssl::context::pem,

@@ -20,6 +20,8 @@ namespace pc::net {
 
 namespace ssl = boost::asio::ssl;
 
+struct DevCertificate;  // net/tls_certificate.h
+
 struct TlsServerSettings {
   std::string certificateFile;  // PEM: the server's certificate, then any intermediates
   std::string keyFile;          // PEM: its private key
@@ -28,6 +30,9 @@ struct TlsServerSettings {
   // devCertificateOut, as a CA file).
   bool devSelfSigned = false;
   std::string devCertificateOut;  // where to write the development certificate (optional)
+  // The development certificate to use instead of a fresh one: a process that makes its
+  // server again (a relay following a restarted field server) keeps its fingerprint.
+  std::shared_ptr<const DevCertificate> devCertificate;
 };
 
 struct TlsServer {

@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <vector>
 
 #include "common/field.h"
@@ -39,13 +40,20 @@ class FieldHub {
     SceneStateMsg stamped = state;
     stamped.fieldVersion = field.version;
     stamped.publishTime = steadySeconds();
+    commit(std::move(prepared).value(), stamped, now);
+    return Status::success();
+  }
+
+  // A relay's publish: bricks quantized elsewhere (the field server's, decoded from NATS) and
+  // the scene state they go with, stamped already. Versions only ever grow: the caller passes
+  // bricks newer than the ones held.
+  void commit(PreparedBricks prepared, const SceneStateMsg& stamped, double now) {
     auto frame = std::make_shared<const std::vector<std::uint8_t>>(encodeMessage(stamped));
     std::lock_guard lock(mutex_);
     sceneFrame_ = std::move(frame);
-    animationTime_ = state.animationTime;
+    animationTime_ = stamped.animationTime;
     ++sceneSerial_;
-    publisher_.commit(std::move(prepared).value(), now);
-    return Status::success();
+    publisher_.commit(std::move(prepared), now);
   }
 
   // Viewer positions by session, for the probe scheduler. A session holds one viewer (its
@@ -61,6 +69,14 @@ class FieldHub {
     std::lock_guard lock(mutex_);
     viewers_.erase(session);
   }
+  // Viewers of another process's clients (a relay's, through NATS), replacing what `source`
+  // sent before; they count as this process's own until `expiresAt` (steadySeconds()), so a
+  // relay that dies stops steering the scheduler. Weights as setViewer's.
+  void setRemoteViewers(const std::string& source, std::vector<glm::vec3> positions,
+                        std::vector<float> weights, double expiresAt) {
+    std::lock_guard lock(mutex_);
+    remote_[source] = Remote{std::move(positions), std::move(weights), expiresAt};
+  }
   // The same with each viewer's weight, for the scheduler (ProbeScheduler::plan).
   void weightedViewers(std::vector<glm::vec3>& positions, std::vector<float>& weights) const {
     std::lock_guard lock(mutex_);
@@ -71,13 +87,20 @@ class FieldHub {
       positions.push_back(v.position);
       weights.push_back(float(v.weight));
     }
+    const double now = steadySeconds();
+    for (const auto& [source, r] : remote_) {
+      if (r.expiresAt < now) continue;
+      for (std::size_t i = 0; i < r.positions.size() && i < r.weights.size(); ++i) {
+        if (!(r.weights[i] > 0)) continue;
+        positions.push_back(r.positions[i]);
+        weights.push_back(r.weights[i]);
+      }
+    }
   }
   std::vector<glm::vec3> viewers() const {
-    std::lock_guard lock(mutex_);
     std::vector<glm::vec3> out;
-    for (const auto& [id, v] : viewers_) {
-      if (v.weight > 0) out.push_back(v.position);
-    }
+    std::vector<float> weights;
+    weightedViewers(out, weights);
     return out;
   }
 
@@ -101,6 +124,12 @@ class FieldHub {
     int weight;
   };
   std::map<std::uint32_t, Viewer> viewers_;
+  struct Remote {
+    std::vector<glm::vec3> positions;
+    std::vector<float> weights;
+    double expiresAt = 0;
+  };
+  std::map<std::string, Remote> remote_;
 };
 
 }  // namespace pc

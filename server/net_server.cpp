@@ -492,6 +492,7 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
     settings.keyFile = s.options.tls.keyFile;
     settings.devSelfSigned = s.options.tls.devSelfSigned;
     settings.devCertificateOut = s.options.tls.devCertificateOut;
+    settings.devCertificate = s.options.tls.devCertificate;
     auto tls = net::makeTlsServer(settings);
     if (!tls) return Error{"TLS: " + tls.error().message};
     s.tls = std::move(tls->context);

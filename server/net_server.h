@@ -22,6 +22,10 @@
 #include "net_metrics.h"
 #include "protocol/stream_sender.h"
 
+namespace pc::net {
+struct DevCertificate;  // net/tls_certificate.h
+}
+
 namespace pc {
 
 // Why a connection ended: the label of probecast_disconnects_total and the `cause` field of
@@ -62,6 +66,8 @@ struct ServerTlsOptions {
   std::string certificateFile, keyFile;  // PEM
   bool devSelfSigned = false;            // a certificate made at start (tests, development)
   std::string devCertificateOut;         // where to write it as PEM, for clients' --ca-file
+  // That certificate, made by the caller; null: one made by create().
+  std::shared_ptr<const net::DevCertificate> devCertificate;
 };
 
 struct NetServerOptions {

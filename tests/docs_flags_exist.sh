@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Every command-line flag that README.md and docs/*.md give a tool exists: the tool's --help
-# (or its subcommand's) lists it. A flag belongs to a tool where the docs say so without doubt:
+# Every command-line flag that README.md, docs/*.md and deploy/'s scripts give a tool exists:
+# the tool's --help (or its subcommand's) lists it. A flag belongs to a tool where the docs say
+# so without doubt:
 #   - a command: a code span (`...`, across line breaks too), a line of a fenced code block
 #     with its continuation lines (after a trailing \, or indented), or an indented code line,
 #     whose first word is probecast-NAME (or build/bin/probecast-NAME): every --flag in it is
@@ -103,7 +104,16 @@ subcommands() {
 }
 
 cd "$src" || exit 1
-mentions README.md docs/*.md >"$work/mentions"
+# deploy/'s scripts name the tools as commands (shell functions probecast-NAME): read as code
+# blocks, with "$bin/" dropped, every flag given to a tool there is checked too.
+deploy_docs=()
+for f in deploy/*; do
+  [[ -f $f && $f != *.md ]] || continue
+  mkdir -p "$work/deploy"
+  { echo '```'; sed -E 's#"?\$\{?bin\}?/(probecast-[a-z]+)"?#\1#g' "$f"; echo '```'; } >"$work/$f.md"
+  deploy_docs+=("$work/$f.md")
+done
+mentions README.md docs/*.md "${deploy_docs[@]}" >"$work/mentions"
 checked=0
 failed=0
 while read -r where tool mode word flag; do
@@ -145,4 +155,4 @@ if ((checked == 0)); then
   exit 1
 fi
 if ((failed)); then exit 1; fi
-echo "ok: the $checked tool flags README.md and docs/*.md name are in the tools' --help"
+echo "ok: the $checked tool flags README.md, docs/*.md and deploy/ name are in the tools' --help"

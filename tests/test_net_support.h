@@ -106,6 +106,7 @@ class TestServer {
   const std::string& fingerprint() const { return server_->tlsFingerprint(); }
   NetServer& net() { return *server_; }
   const FieldHub& hub() const { return *hub_; }
+  FieldHub& hub() { return *hub_; }
   bool frozen() const { return loop_->stats().frozen; }
   const FieldLoop& loop() const { return *loop_; }
   // Only once frozen() (the field thread no longer writes it).

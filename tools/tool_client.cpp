@@ -1,9 +1,11 @@
 // probecast-client: renders a scene lit directly and by the probe field it holds (the baked
 // fallback file here; the server's stream later), headless to PNG/EXR files or in a window.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "client/client_app.h"
 #include "client/net_app.h"
@@ -75,8 +77,10 @@ int main(int argc, char** argv) {
   app.add_option("--test-resize", resize, "windowed: resize the window to WxH after 2 frames");
   // Network mode: the field comes from a server (the baked file stays the fallback).
   pc::client::NetRunConfig net;
-  auto* connect =
-      pc::addConnectOption(app, net.net.host, net.net.port, "stream the field from this server");
+  std::string connect;
+  app.add_option("--connect", connect,
+                 "stream the field from a server at HOST:PORT; several (relays of one field), "
+                 "comma-separated, are tried in turn when one fails");
   std::string tokenFile;
   app.add_option("--token-file", tokenFile,
                  "--connect: connect token file (else $PROBECAST_TOKEN_FILE or $PROBECAST_TOKEN)");
@@ -128,7 +132,23 @@ int main(int argc, char** argv) {
   }
   c.overlay = !noOverlay;
   c.writeExr = !noExr;
-  if (connect->count() > 0) {
+  if (!connect.empty()) {
+    // HOST:PORT, or several (relays of one field) separated by commas.
+    std::vector<pc::client::NetEndpoint> endpoints;
+    for (std::size_t start = 0; start <= connect.size();) {
+      const std::size_t comma = std::min(connect.find(',', start), connect.size());
+      const std::string one = connect.substr(start, comma - start);
+      start = comma + 1;
+      const auto colon = one.rfind(':');
+      int port = 0;
+      if (colon == std::string::npos || colon == 0 ||
+          std::sscanf(one.c_str() + colon + 1, "%d", &port) != 1 || port <= 0 || port > 65535)
+        return pc::logError("--connect: expected HOST:PORT[,HOST:PORT...], got '" + one + "'"), 1;
+      endpoints.push_back({one.substr(0, colon), std::uint16_t(port)});
+    }
+    net.net.host = endpoints.front().host;
+    net.net.port = endpoints.front().port;
+    net.net.alternates.assign(endpoints.begin() + 1, endpoints.end());
     auto token = pc::connectToken(tokenFile);
     if (!token) return pc::logError(token.error().message), 1;
     net.net.token = *token;

@@ -24,15 +24,21 @@
 #include "common/log.h"
 #include "common/volume_placement.h"
 #include "protocol/baked_file.h"
-#include "protocol/brick_precision.h"
 #include "protocol/stream_tuning.h"
+#include "relay/field_export.h"
 #include "server/bake.h"
 #include "server/net_field_loop.h"
 #include "server/net_server.h"
 #include "server/vulkan_tracer.h"
 #include "tools/command_line.h"
+#include "tools/serve_options.h"
 
 namespace {
+
+using pc::addLimitOptions;
+using pc::addReportOptions;
+using pc::addStreamOptions;
+using pc::Signals;
 
 // The statistics: one line for the server, then one per client (a log line never spans lines).
 std::vector<std::string> statsLines(const pc::NetServerStats& now, const pc::NetServerStats& before,
@@ -58,20 +64,6 @@ std::vector<std::string> statsLines(const pc::NetServerStats& now, const pc::Net
   return lines;
 }
 
-// A bearer token from a file: its first line, without surrounding white space.
-pc::Result<std::string> readTokenFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return pc::Error{"cannot read " + path};
-  std::string token;
-  std::getline(in, token);
-  const auto space = [](unsigned char c) { return std::isspace(c) != 0; };
-  while (!token.empty() && space(token.back())) token.pop_back();
-  const auto first = std::find_if_not(token.begin(), token.end(), space);
-  token.erase(token.begin(), first);
-  if (token.empty()) return pc::Error{path + " holds no token"};
-  return token;
-}
-
 // The command line's settings, and what follows from them once parsed.
 // The name connect tokens give a scene: "builtin", the folder of a file called scene.* (the
 // layout of scene collections: <name>/scene.gltf), else the file's stem.
@@ -83,24 +75,18 @@ std::string sceneNameOf(const std::string& scenePath) {
   return path.stem().string();
 }
 
-struct ServerSetup {
+struct ServerSetup : pc::ServeSetup {
   std::string scenePath = "builtin", sidecar, probes, backend = "auto", dumpField;
   pc::SceneLoadOptions sceneLoad;
-  pc::NetServerOptions net;
   pc::FieldLoopOptions loop;
   pc::TracerOptions tracerOptions;
-  pc::StreamTuning tuning;
-  pc::PublisherOptions publisherOptions;  // from `tuning`
   std::size_t gpuShadowMiB = 0;
   bool noFallback = false;
   int gpuFailSubmission = 0;
   int rays = 256, warmup = 32;
-  double duration = 0, statsInterval = 2.0, rateLimit = 0;
-  int metricsPort = 0;
-  std::vector<std::string> tokenKeyFiles;
-  std::string sceneName;
-  std::string metricsTokenFile;
-  std::string logFormat = "text", logLevel = "info";
+  // Field distribution to relays (relay/): off while nats.urls is empty.
+  pc::relay::NatsOptions nats{.urls = ""};
+  pc::relay::BucketOptions bucket;
 };
 
 void addTracerOptions(CLI::App& app, ServerSetup& s) {
@@ -147,128 +133,15 @@ void addFieldOptions(CLI::App& app, ServerSetup& s) {
                  "at the freeze, write the exact field here (.probes)");
 }
 
-void addStreamOptions(CLI::App& app, ServerSetup& s) {
-  app.add_option("--bind", s.net.bindAddress, "address to listen on");
-  app.add_option("--port", s.net.port, "TCP port (0: any free one)");
-  app.add_option("--token-key", s.tokenKeyFiles,
-                 "verify key file of a connect token issuer (probecast-token keygen); "
-                 "repeat it while keys rotate (else $PROBECAST_TOKEN_KEY_FILE)");
-  app.add_option("--revoked", s.net.revocationFile,
-                 "revocation list: token ids refused (read again when it changes)");
-  app.add_option("--scene-name", s.sceneName,
-                 "the scene name connect tokens must name (default: 'builtin', or the scene "
-                 "file's folder name when the file is called scene.*, else its stem)");
-  app.add_flag("--tcp-only", s.net.tcpOnly, "send datagrams over TCP to every client");
-  app.add_option("--tls-cert", s.net.tls.certificateFile,
-                 "TLS certificate chain (PEM) of the session port");
-  app.add_option("--tls-key", s.net.tls.keyFile, "its private key (PEM)");
-  app.add_flag("--dev-self-signed", s.net.tls.devSelfSigned,
-               "make a self-signed certificate at start (development, tests); its fingerprint "
-               "is printed for clients to pin");
-  app.add_option("--dev-cert-out", s.net.tls.devCertificateOut,
-                 "write the --dev-self-signed certificate here (PEM), for clients' --ca-file");
-  app.add_flag("--no-tls{false}", s.net.tls.enabled,
-               "plain TCP and unsealed datagrams (measuring TLS's cost, a trusted loopback); "
-               "clients must say --no-tls too");
-  app.add_option("--rate-limit", s.rateLimit, "bytes per second per client (0: default)");
-  app.add_option("--stream-threshold", s.tuning.threshold,
-                 "perceptual threshold T of the stream: changes of the gamma-encoded irradiance "
-                 "below T are held back (0: every version exactly; docs/BENCHMARKS.md has the "
-                 "bandwidth and PSNR for each T)")
-      ->check(CLI::Range(0.0, 0.5));
-  app.add_option("--max-precision", s.net.sender.maxPrecision,
-                 "coarsest precision level a short link is sent (0: the codec's own always; "
-                 "PROTOCOL.md, Precision levels)")
-      ->check(CLI::Range(0, pc::kMaxPrecision));
-}
-
-// How long the process runs and what it reports.
-void addReportOptions(CLI::App& app, ServerSetup& s) {
-  app.add_option("--duration", s.duration, "exit after this many seconds (0: run until a signal)");
-  app.add_option("--stats-interval", s.statsInterval, "seconds between statistics lines");
-  app.add_option("--metrics-port", s.metricsPort,
-                 "serve Prometheus metrics at http://BIND:PORT/metrics (0: off)")
-      ->check(CLI::Range(0, 65535));
-  app.add_option("--metrics-bind", s.net.metricsBindAddress,
-                 "address the metrics endpoint listens on (default: 127.0.0.1)");
-  app.add_option("--metrics-token-file", s.metricsTokenFile,
-                 "file holding a bearer token every scrape must present (else 401)");
-  app.add_option("--log-format", s.logFormat, "log lines: text, or json (one object per line)");
-  app.add_option("--log-level", s.logLevel, "least severe level logged: debug, info, warn, error");
-}
-
-// What clients may do before they are turned away.
-void addLimitOptions(CLI::App& app, ServerSetup& s) {
-  pc::NetServerOptions& net = s.net;
-  app.add_option("--max-clients", net.maxClients, "clients past the handshake; more get a Reject");
-  app.add_option("--max-pending", net.maxPendingConnections,
-                 "connections awaiting their Hello; more are closed when accepted");
-  app.add_option("--max-message-bytes", net.maxMessageBytes,
-                 "largest message a client may send (0: derived from the field's brick count)");
-  app.add_option("--max-messages-per-second", net.maxMessagesPerSecond,
-                 "messages a client may send per second before it is disconnected as a flood");
-  app.add_option("--max-write-queue", net.maxWriteQueueBytes,
-                 "bytes queued to a client before it counts as not reading");
-  app.add_option("--max-pending-per-address", net.maxPendingPerAddress,
-                 "connections awaiting their Hello from one address (IPv6: /64) (0: no cap)");
-  app.add_option("--max-sessions-per-address", net.maxSessionsPerAddress,
-                 "sessions from one address (IPv6: /64) (0: no cap)");
-  app.add_option("--handshakes-per-second-per-address", net.handshakesPerSecondPerAddress,
-                 "connections one address may open per second, burst of two seconds' worth "
-                 "(0: no cap)");
-  app.add_option("--max-sessions-per-client", net.maxSessionsPerClient,
-                 "sessions one client name may hold; more get a Reject (0: no cap)");
-}
-
 // What the options imply beyond their values (logging, the token, the stream's tuning), after
 // checks CLI11 cannot make; false (with the error logged) where they do not hold.
 bool applyOptions(ServerSetup& s) {
-  const auto format = pc::parseLogFormat(s.logFormat);
-  const auto level = pc::parseLogLevel(s.logLevel);
-  if (!format) {
-    pc::logError("--log-format: expected text or json, got '" + s.logFormat + "'");
-    return false;
-  }
-  if (!level) {
-    pc::logError("--log-level: expected debug, info, warn or error, got '" + s.logLevel + "'");
-    return false;
-  }
-  pc::setLogFormat(*format);
-  pc::setLogLevel(*level);
-  if (s.metricsPort != 0) s.net.metricsPort = std::uint16_t(s.metricsPort);
-  if (!s.metricsTokenFile.empty()) {
-    auto token = readTokenFile(s.metricsTokenFile);
-    if (!token) {
-      pc::logError("--metrics-token-file: " + token.error().message);
-      return false;
-    }
-    s.net.metricsToken = std::move(token).value();
-  }
-
-  if (s.tokenKeyFiles.empty()) {
-    if (const char* env = std::getenv("PROBECAST_TOKEN_KEY_FILE")) s.tokenKeyFiles.push_back(env);
-  }
-  if (s.tokenKeyFiles.empty()) {
-    pc::logError(
-        "no token verify key: pass --token-key FILE or set PROBECAST_TOKEN_KEY_FILE "
-        "(probecast-token keygen makes one)");
-    return false;
-  }
-  for (const std::string& file : s.tokenKeyFiles) {
-    auto key = pc::loadVerifyKey(file);
-    if (!key) {
-      pc::logError("--token-key: " + key.error().message);
-      return false;
-    }
-    s.net.tokenKeys.push_back(*key);
-  }
+  if (!pc::applyServeOptions(s)) return false;
   s.net.sceneName = !s.sceneName.empty() ? s.sceneName : sceneNameOf(s.scenePath);
   if (s.loop.rate <= 0 || s.loop.rate > 240) {
     pc::logError("--rate: expected 0 < rate <= 240");
     return false;
   }
-  if (s.rateLimit > 0) s.net.sender.bytesPerSecond = s.rateLimit;
-  pc::applyStreamTuning(s.tuning, s.publisherOptions, s.net.sender);
   s.loop.dumpField = s.dumpField;
   return true;
 }
@@ -281,32 +154,16 @@ std::optional<int> parseOptions(int argc, char** argv, ServerSetup& s) {
   addStreamOptions(app, s);
   addReportOptions(app, s);
   addLimitOptions(app, s);
+  pc::addNatsOptions(app, s.nats, s.bucket.name);
+  app.add_option("--nats-replicas", s.bucket.replicas,
+                 "copies of the bucket across a JetStream cluster's nodes, where it is created")
+      ->check(CLI::Range(1, 5));
+  app.add_flag("--nats-memory", s.bucket.memoryStorage,
+               "keep the bucket in the NATS servers' memory, not on disk, where it is created");
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   if (!applyOptions(s)) return 1;
   return std::nullopt;
 }
-
-// SIGINT and SIGTERM go to the thread that waits for them (main), never to the worker
-// threads: blocked before any thread starts (which inherit the mask), taken by sigtimedwait.
-class Signals {
- public:
-  Signals() {
-    sigemptyset(&set_);
-    sigaddset(&set_, SIGINT);
-    sigaddset(&set_, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &set_, nullptr);
-  }
-  // The signal that arrived within `wait` (none: 0).
-  int wait(timespec wait) const {
-    const int sig = sigtimedwait(&set_, nullptr, &wait);
-    return sig == SIGINT || sig == SIGTERM ? sig : 0;
-  }
-  int pending() const { return wait(timespec{0, 0}); }
-  static const char* name(int sig) { return sig == SIGINT ? "SIGINT" : "SIGTERM"; }
-
- private:
-  sigset_t set_;
-};
 
 // The tracer the options ask for; where it runs on a GPU, the loop's fallback (Embree) takes
 // over the updates if the GPU fails (FieldLoopOptions::fallback).
@@ -428,28 +285,32 @@ int serve(const pc::Scene& scene, pc::Tracer& tracer, pc::Field& field, const Se
   // The first publish happens before any client can connect, so every Welcome carries a field.
   (void)hub.publish(field, pc::sceneStateMessage(pc::evaluateScene(scene, s.loop.startTime)),
                     pc::steadySeconds());
+  // Relays follow the field through NATS: the exporter puts every brick version into the
+  // bucket once, from the first publish on.
+  std::unique_ptr<pc::relay::FieldExporter> exporter;
+  if (!s.nats.urls.empty()) {
+    pc::relay::ExportOptions exportOptions;
+    exportOptions.nats = s.nats;
+    if (exportOptions.nats.name.empty()) exportOptions.nats.name = "probecast-server";
+    exportOptions.bucket = s.bucket;
+    exportOptions.sceneName = s.net.sceneName;
+    auto created = pc::relay::FieldExporter::create(hub, exportOptions);
+    if (!created) return pc::logError("--nats: " + created.error().message), 1;
+    exporter = std::move(created).value();
+    exporter->start();
+    pc::logInfo("field export to NATS " + s.nats.urls + ", bucket " + s.bucket.name);
+  }
   (*server)->start();
   pc::logInfo("listening on " + s.net.bindAddress + ":" + std::to_string((*server)->port()) +
               " (TCP), datagrams from UDP port " + std::to_string((*server)->udpPort()));
-  if ((*server)->metricsPort() != 0) {
-    const std::string bind =
-        s.net.metricsBindAddress.empty() ? "127.0.0.1" : s.net.metricsBindAddress;
-    pc::logInfo("metrics at http://" + bind + ":" + std::to_string((*server)->metricsPort()) +
-                "/metrics");
-  }
-  // Lines a script can wait for before starting clients: the certificate to pin, then ready.
-  if (!(*server)->tlsFingerprint().empty()) {
-    pc::logInfo("TLS certificate " + (*server)->tlsFingerprint());
-    std::printf("tls-fingerprint %s\n", (*server)->tlsFingerprint().c_str());
-  } else {
-    pc::logWarn("TLS is off (--no-tls): sessions and datagrams travel in clear");
-  }
-  std::printf("ready port %u\n", unsigned((*server)->port()));
-  std::fflush(stdout);
+  pc::announceServing(s.net, (*server)->port(), (*server)->metricsPort(),
+                      (*server)->tlsFingerprint());
 
   pc::FieldLoop fieldLoop(scene, tracer, field, hub, s.loop);
-  (*server)->setExtraMetrics(
-      [&fieldLoop](pc::MetricsText& m) { pc::appendFieldLoopMetrics(m, fieldLoop.stats()); });
+  (*server)->setExtraMetrics([&fieldLoop, &exporter](pc::MetricsText& m) {
+    pc::appendFieldLoopMetrics(m, fieldLoop.stats());
+    if (exporter) pc::relay::appendExportMetrics(m, exporter->stats());
+  });
   std::atomic<bool> stop{false};
   std::thread fieldThread([&] {
     pthread_setname_np(pthread_self(), "pc-field");
@@ -458,6 +319,7 @@ int serve(const pc::Scene& scene, pc::Tracer& tracer, pc::Field& field, const Se
   waitForTheEnd(**server, fieldLoop, s, signals);
   stop = true;
   fieldThread.join();
+  if (exporter) exporter->stop();
   (*server)->stop();
   const pc::NetServerStats stats = (*server)->stats();
   std::printf("server: %llu clients served, %llu rejected, %.1f kB sent\n",

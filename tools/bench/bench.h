@@ -38,5 +38,6 @@ Benchmark addFaults(CLI::App& app);
 Benchmark addStream(CLI::App& app);
 Benchmark addLoad(CLI::App& app);
 Benchmark addContact(CLI::App& app);
+Benchmark addScale(CLI::App& app);
 
 }  // namespace pc::bench
