@@ -56,7 +56,7 @@ expect 1 "escape.obj: material library '../outside.mtl' leads to .*outside the s
 expect 1 "nope.gltf: file not found" \
   "$bin/probecast-reference" --scene "$work/scene/nope.gltf" --out "$work/ref"
 # A server address without a port: a usage error before anything connects.
-expect 1 "--connect: expected HOST:PORT, got 'localhost'" \
+expect 1 "--connect: expected HOST:PORT.*, got 'localhost'" \
   "$bin/probecast-client" --scene builtin --connect localhost --out "$work/out"
 expect 1 "--connect: expected HOST:PORT, got 'localhost'" \
   "$bin/probecast-loadgen" --connect localhost --clients 1

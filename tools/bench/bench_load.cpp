@@ -13,10 +13,12 @@
 // includes the field thread, whose CPU varies with what the shared cores give it. The server
 // and the clients share this machine's cores; --field-nice lowers the priority of the server's
 // tracing threads (everything but pc-net) so that serving comes first.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "bench.h"
@@ -33,7 +35,7 @@ struct LoadSetup {
   double seconds = 30;
   double warmup = 3;
   double ramp = -1;  // < 0: 5 ms per client, at least 1 s
-  int threads = 1;
+  int threads = 0;   // 0: a quarter of the machine's cores, at least 1
   bool tcpOnly = false;
   bool tls = true;
   bool tlsCost = false;
@@ -68,7 +70,11 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_option("--seconds", s.seconds, "measured window per run, s");
   cmd->add_option("--warmup", s.warmup, "s after every client is synced, before the window");
   cmd->add_option("--ramp", s.ramp, "s over which clients join (default 5 ms per client, >= 1 s)");
-  cmd->add_option("--threads", s.threads, "the load generator's network threads");
+  cmd->add_option("--threads", s.threads,
+                  "the load generator's network threads (0: a quarter of the cores, at least "
+                  "one: a thousand clients' datagrams are more than one thread reads in time, and "
+                  "its late arrival times read as queueing delay)")
+      ->check(CLI::Range(0, 256));
   cmd->add_flag("--tcp-only", s.tcpOnly, "datagrams over TCP");
   cmd->add_flag("--no-tls{false}", s.tls,
                 "plain sessions and unsealed datagrams (to measure what TLS costs)");
@@ -134,7 +140,8 @@ Benchmark addLoad(CLI::App& app) {
                           "--stats-interval", "0"};
           if (s.tcpOnly) o.serverArgs.push_back("--tcp-only");
           o.load.clients = n;
-          o.load.threads = s.threads;
+          o.load.threads =
+              s.threads > 0 ? s.threads : std::max(1, int(std::thread::hardware_concurrency()) / 4);
           o.load.tcpOnly = s.tcpOnly;
           o.load.tls = tls;
           o.load.rampSeconds = s.ramp >= 0 ? s.ramp : std::max(1.0, 0.005 * n);
