@@ -360,7 +360,11 @@ TEST(ProtocolStream, PublisherMemoryStaysWithinTheFieldsBound) {
   Field f = test::makeSyntheticLayout();
   std::mt19937 rng(11);
   test::evolveField(f, rng, 1.0f, 0.0f);
-  const PublisherOptions o;  // defaults: the 4 newest versions and 2 more that were sent
+  // The 4 newest versions and 2 more that were sent (the defaults keep 16 sent ones: the same
+  // arithmetic, with bounds four times these).
+  PublisherOptions o;
+  o.historyVersions = 4;
+  o.sentVersions = 2;
   FieldPublisher publisher(f, o);
   std::size_t bricks = 0;
   for (int k = 0; k < publisher.cascadeCount(); ++k) bricks += std::size_t(publisher.brickCount(k));
@@ -427,6 +431,35 @@ TEST(ProtocolStream, PublisherMemoryStaysWithinTheFieldsBound) {
       publisher.cache().entries(), publisher.cacheBoundBytes(),
       (unsigned long long)publisher.encodes(), rounds - warmup, growth);
   EXPECT_LT(growth, 2e6);
+}
+
+}  // namespace
+
+namespace {
+
+// Clients that acknowledge versions a second apart at 10 updates/s hold bases about ten
+// versions back, every one of which was sent to someone: the defaults keep them, so the next
+// update of each is a residual rather than a self-contained brick.
+TEST(ProtocolStream, DefaultsKeepBasesTenSentVersionsBack) {
+  Field f = test::makeSyntheticLayout();
+  std::mt19937 rng(12);
+  test::evolveField(f, rng, 1.0f, 0.0f);
+  FieldPublisher publisher(f);
+  ASSERT_TRUE(publisher.publish(f, 0.0).ok());
+  const std::uint64_t first = publisher.current(0, 0).version;
+  ASSERT_TRUE(publisher.encoded(0, 0, first, 0));  // sent to a client, which holds it
+  for (int round = 1; round <= 12; ++round) {
+    test::evolveField(f, rng, 1.0f, 0.1f * float(round));
+    ASSERT_TRUE(publisher.publish(f, 0.1 * round).ok());
+    // Every version goes to some other client.
+    ASSERT_TRUE(publisher.encoded(0, 0, publisher.current(0, 0).version, 0));
+  }
+  const std::uint64_t now = publisher.current(0, 0).version;
+  ASSERT_GE(now, first + 12);
+  EXPECT_TRUE(publisher.find(0, 0, first)) << "the base 12 sent versions back left the history";
+  auto residual = publisher.encoded(0, 0, now, first);
+  ASSERT_TRUE(residual);
+  EXPECT_EQ(residual->header.baseVersion, first);
 }
 
 }  // namespace
