@@ -8,18 +8,18 @@ namespace {
 
 using namespace brick_layout;
 
-// Rounds each code in [begin, end) to the nearest multiple of 2^bits, never above maxCode.
+// `c` rounded to the nearest multiple of 2^bits, never above the largest multiple within
+// maxCode; zero stays zero (irradiance: no light).
+std::uint16_t roundCode(std::uint16_t c, int bits, std::uint32_t maxCode) {
+  if (bits <= 0 || c == 0) return c;
+  const std::uint32_t rounded = ((std::uint32_t(c) + (1u << (bits - 1))) >> bits) << bits;
+  return std::uint16_t(std::min(rounded, (maxCode >> bits) << bits));
+}
+
+// Rounds each code in [begin, end) to `bits` dropped bits.
 void roundCodes(QuantizedBrick& q, std::size_t begin, std::size_t end, int bits,
                 std::uint32_t maxCode) {
-  if (bits <= 0) return;
-  const std::uint32_t half = 1u << (bits - 1);
-  const std::uint32_t top = (maxCode >> bits) << bits;  // the largest multiple in range
-  for (std::size_t i = begin; i < end; ++i) {
-    std::uint16_t& c = q.codes[i];
-    if (c == 0) continue;  // zero stays exact (irradiance: no light)
-    const std::uint32_t rounded = ((std::uint32_t(c) + half) >> bits) << bits;
-    c = std::uint16_t(std::min(rounded, top));
-  }
+  for (std::size_t i = begin; i < end; ++i) q.codes[i] = roundCode(q.codes[i], bits, maxCode);
 }
 
 }  // namespace
@@ -43,10 +43,7 @@ QuantizedBrick coarsenBrick(const QuantizedBrick& q, int precision) {
   // again leaves as it is); its largest code has every bit set.
   for (std::size_t i = kIrradiance; i < kDepth; ++i) {
     std::uint16_t& c = out.codes[i];
-    const int bits = droppedIrradianceBits(precision, c);
-    if (bits == 0) continue;
-    const std::uint32_t rounded = ((std::uint32_t(c) + (1u << (bits - 1))) >> bits) << bits;
-    c = std::uint16_t(std::min(rounded, (0xFFFu >> bits) << bits));
+    c = roundCode(c, droppedIrradianceBits(precision, c), 0xFFF);
   }
   roundCodes(out, kDepth, kOcclusion, droppedDepthBits(precision), 0xFFFF);
   roundCodes(out, kOcclusion, kOffset, droppedOcclusionBits(precision), 0xFF);

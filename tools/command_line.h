@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <tuple>
+#include <utility>
 
 #include "common/scene.h"
 #include "protocol/stream_limits.h"
@@ -65,23 +67,30 @@ inline void addSceneLoadOptions(CLI::App& app, SceneLoadOptions& o) {
                  "triangles the scene's meshes hold, and draw over all instances, at most");
 }
 
-// --connect HOST:PORT, the server a tool connects to (probecast-client, probecast-loadgen): sets
-// `host` and `port` where given. A value without a port in 1..65535 is a usage error.
+// One HOST:PORT: the host and a port in 1..65535, or nullopt.
+inline std::optional<std::pair<std::string, std::uint16_t>> parseEndpoint(const std::string& text) {
+  const std::size_t colon = text.rfind(':');
+  int value = 0;
+  std::size_t used = 0;
+  try {
+    if (colon != std::string::npos) value = std::stoi(text.substr(colon + 1), &used);
+  } catch (const std::exception&) {
+  }
+  if (colon == std::string::npos || colon == 0 || used == 0 || colon + 1 + used != text.size() ||
+      value <= 0 || value > 65535)
+    return std::nullopt;
+  return std::pair{text.substr(0, colon), static_cast<std::uint16_t>(value)};
+}
+
+// --connect HOST:PORT, the server a tool connects to (probecast-loadgen): sets `host` and
+// `port` where given. A value without a port in 1..65535 is a usage error.
 inline CLI::Option* addConnectOption(CLI::App& app, std::string& host, std::uint16_t& port,
                                      const std::string& description) {
   auto parse = [&host, &port](const std::string& text) {
-    const std::size_t colon = text.rfind(':');
-    int value = 0;
-    std::size_t used = 0;
-    try {
-      if (colon != std::string::npos) value = std::stoi(text.substr(colon + 1), &used);
-    } catch (const std::exception&) {
-    }
-    if (colon == std::string::npos || colon == 0 || used == 0 || colon + 1 + used != text.size() ||
-        value <= 0 || value > 65535)
+    auto endpoint = parseEndpoint(text);
+    if (!endpoint)
       throw CLI::ValidationError("--connect", "expected HOST:PORT, got '" + text + "'");
-    host = text.substr(0, colon);
-    port = static_cast<std::uint16_t>(value);
+    std::tie(host, port) = *endpoint;
   };
   return app.add_option_function<std::string>("--connect", parse, description)
       ->type_name("HOST:PORT");

@@ -139,12 +139,10 @@ int main(int argc, char** argv) {
       const std::size_t comma = std::min(connect.find(',', start), connect.size());
       const std::string one = connect.substr(start, comma - start);
       start = comma + 1;
-      const auto colon = one.rfind(':');
-      int port = 0;
-      if (colon == std::string::npos || colon == 0 ||
-          std::sscanf(one.c_str() + colon + 1, "%d", &port) != 1 || port <= 0 || port > 65535)
+      const auto endpoint = pc::parseEndpoint(one);
+      if (!endpoint)
         return pc::logError("--connect: expected HOST:PORT[,HOST:PORT...], got '" + one + "'"), 1;
-      endpoints.push_back({one.substr(0, colon), std::uint16_t(port)});
+      endpoints.push_back({endpoint->first, endpoint->second});
     }
     net.net.host = endpoints.front().host;
     net.net.port = endpoints.front().port;
