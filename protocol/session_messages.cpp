@@ -562,6 +562,8 @@ Result<Field> mirrorField(const SessionInfoMsg& info) {
     f.desc.cascades[k] = c;
   }
   f.desc.hysteresis = info.hysteresis;
+  // The session does not carry the cascades' own hysteresis: clients never blend.
+  for (int k = 0; k < f.desc.cascadeCount; ++k) f.desc.cascades[k].hysteresis = info.hysteresis;
   f.desc.distanceExponent = info.distanceExponent;
   f.desc.occlusionDistance = info.occlusionDistance;
   f.sceneHash = info.sceneHash;
