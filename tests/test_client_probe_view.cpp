@@ -50,7 +50,12 @@ struct ProbeViewRig {
   std::unique_ptr<Renderer> renderer;
   Camera camera;
 
-  explicit ProbeViewRig(vk::Context& c) : ctx(c) {
+  // `offset`: every probe moved by this share of its spacing along +x and +y (relocation).
+  explicit ProbeViewRig(vk::Context& c, float offset = 0.0f) : ctx(c) {
+    for (int k = 0; k < field.cascadeCount(); ++k)
+      for (int slot = 0; slot < gpu::pcSlotCount(field.cascade(k)); ++slot)
+        if (offset != 0.0f)
+          field.probe(k, slot).offset = glm::vec3(offset, offset, 0.0f) * field.cascade(k).spacing;
     mirror.reset(field, 0.0);
     camera = sceneCamera(scene, 0).value();
     RendererOptions ro;
@@ -144,6 +149,22 @@ TEST(ClientProbeView, BricksFlashWhenTheirVersionChanges) {
               meanValue(flashing), meanValue(after));
   EXPECT_GT(meanValue(flashing), meanValue(before) + 2.0);
   EXPECT_LT(meanAbsDifference(before, after), 0.5) << "the flash did not end";
+  EXPECT_EQ(ctx->validationErrorCount(), 0u);
+}
+
+TEST(ClientProbeView, RelocationLinesLeadFromGridPointsToProbes) {
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  ProbeViewRig rig(*ctx, 0.3f);
+  ASSERT_TRUE(rig.renderer);
+  ProbeViewSettings view = viewOf(ProbeViewMode::State);
+  const Image8 lines = rig.frame(view);
+  view.offsets = false;
+  const Image8 none = rig.frame(view);
+  ASSERT_TRUE(writePng(testOutputDir("probe_view") / "lines.png", lines).ok());
+  const double drawn = meanAbsDifference(lines, none);
+  std::printf("mean |lines - no lines| %.2f\n", drawn);
+  EXPECT_GT(drawn, 0.5) << "no relocation lines drawn";
   EXPECT_EQ(ctx->validationErrorCount(), 0u);
 }
 
