@@ -51,7 +51,9 @@ struct ProbeViewRig {
   Camera camera;
 
   // `offset`: every probe moved by this share of its spacing along +x and +y (relocation).
-  explicit ProbeViewRig(vk::Context& c, float offset = 0.0f) : ctx(c) {
+  explicit ProbeViewRig(vk::Context& c, float offset = 0.0f,
+                        Rasterizer rasterizer = Rasterizer::Auto)
+      : ctx(c) {
     for (int k = 0; k < field.cascadeCount(); ++k)
       for (int slot = 0; slot < gpu::pcSlotCount(field.cascade(k)); ++slot)
         if (offset != 0.0f)
@@ -61,6 +63,7 @@ struct ProbeViewRig {
     RendererOptions ro;
     ro.width = kWidth;
     ro.height = kHeight;
+    ro.rasterizer = rasterizer;
     auto r = Renderer::create(ctx, scene, mirror, ro);
     EXPECT_TRUE(r.ok()) << (r ? "" : r.error().message);
     if (r) renderer = std::move(r).value();
@@ -165,6 +168,23 @@ TEST(ClientProbeView, RelocationLinesLeadFromGridPointsToProbes) {
   const double drawn = meanAbsDifference(lines, none);
   std::printf("mean |lines - no lines| %.2f\n", drawn);
   EXPECT_GT(drawn, 0.5) << "no relocation lines drawn";
+  EXPECT_EQ(ctx->validationErrorCount(), 0u);
+}
+
+// The view reads the scene's depth from either rasterizer's visibility samples.
+TEST(ClientProbeView, BothRasterizersHideTheSameProbes) {
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  Image8 images[2];
+  const Rasterizer rasterizers[2] = {Rasterizer::FixedFunction, Rasterizer::Compute};
+  for (int i = 0; i < 2; ++i) {
+    ProbeViewRig rig(*ctx, 0.0f, rasterizers[i]);
+    ASSERT_TRUE(rig.renderer);
+    images[i] = rig.frame(viewOf(ProbeViewMode::State));
+  }
+  const double db = psnr8(images[0], images[1]);
+  std::printf("fixed-function vs compute rasterizer, state view: %.2f dB\n", db);
+  EXPECT_GE(db, 35.0);
   EXPECT_EQ(ctx->validationErrorCount(), 0u);
 }
 
