@@ -56,7 +56,7 @@ struct Encoder {
       net::Int3 counts = toWire(c.counts), scroll = toWire(c.scroll);
       cascades.push_back(net::CreateCascadeInfo(fbb, &origin, c.spacing, &counts, c.firstProbe,
                                                 &scroll, c.atlasTileRow, c.normalBias, c.viewBias,
-                                                c.maxRayDistance, c.blendMargin));
+                                                c.maxRayDistance, c.blendMargin, c.hysteresis));
     }
     auto cascadesOff = fbb.CreateVector(cascades);
     std::vector<net::Codec> codecs;
@@ -198,6 +198,7 @@ Result<SessionMessage> decodeSessionInfo(const net::SessionInfo& w) {
       d.viewBias = c->view_bias();
       d.maxRayDistance = c->max_ray_distance();
       d.blendMargin = c->blend_margin();
+      d.hysteresis = c->hysteresis() < 0.0f ? m.hysteresis : c->hysteresis();
       m.cascades.push_back(d);
     }
   }
@@ -562,8 +563,6 @@ Result<Field> mirrorField(const SessionInfoMsg& info) {
     f.desc.cascades[k] = c;
   }
   f.desc.hysteresis = info.hysteresis;
-  // The session does not carry the cascades' own hysteresis: clients never blend.
-  for (int k = 0; k < f.desc.cascadeCount; ++k) f.desc.cascades[k].hysteresis = info.hysteresis;
   f.desc.distanceExponent = info.distanceExponent;
   f.desc.occlusionDistance = info.occlusionDistance;
   f.sceneHash = info.sceneHash;
