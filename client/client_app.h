@@ -38,6 +38,8 @@ struct ClientConfig {
   ShadowSettings shadows;
   int sampleFlags = 0;
   float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;  // RendererOptions::aoRadius
+  // The probe debug view the run starts with (windowed: keys P, M, C and L change it).
+  ProbeViewSettings probeView;
   std::string readyFile;  // windowed: written after half the frames (tests take a screenshot)
   std::optional<glm::ivec2> testResize;  // windowed: resize the window to this after 2 frames
   bool writeExr = true;

@@ -121,6 +121,16 @@ std::uint64_t FieldMirror::brickVersion(BrickId id) const {
   return bricks_[id.cascade][id.brick].version;
 }
 
+std::vector<std::vector<std::uint64_t>> FieldMirror::brickVersions() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::vector<std::uint64_t>> out(bricks_.size());
+  for (std::size_t k = 0; k < bricks_.size(); ++k) {
+    out[k].reserve(bricks_[k].size());
+    for (const BrickState& b : bricks_[k]) out[k].push_back(b.version);
+  }
+  return out;
+}
+
 void FieldMirror::markAllPending() {
   std::lock_guard lock(mutex_);
   pending_.clear();

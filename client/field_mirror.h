@@ -41,6 +41,8 @@ class FieldMirror {
   bool present() const;
   FieldAge age(double now) const;
   std::uint64_t brickVersion(BrickId id) const;
+  // Every brick's version, [cascade][brick], read under one lock (the probe view's flashes).
+  std::vector<std::vector<std::uint64_t>> brickVersions() const;
 
   // Makes every brick pending again: a new GPU copy of the field needs all of them.
   void markAllPending();

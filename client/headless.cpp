@@ -52,6 +52,7 @@ int runHeadless(const ClientConfig& config) {
   int status = 0;
   for (int frame = 0; frame < std::max(1, config.frames); ++frame) {
     FrameInput input;
+    input.probeView = config.probeView;
     input.time = config.startTime + frame * std::max(0.0, config.dt);
     if (config.stereo) {
       input.cameras[0] = offsetCamera(*camera, -0.5f * config.ipd);

@@ -86,6 +86,7 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
   double lastTime = config.startTime;
   auto frameInput = [&](double time) {
     FrameInput input;
+    input.probeView = config.probeView;
     input.time = time;
     if (config.stereo) {
       input.cameras[0] = offsetCamera(*camera, -0.5f * config.ipd);

@@ -42,6 +42,12 @@ constexpr VkAccessFlags2 kDepthAccess =
 constexpr VkPipelineStageFlags2 kColorStage = VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT;
 constexpr VkAccessFlags2 kColorWrite = VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT;
 
+// Seconds on the clock that paces fades and flashes.
+double frameClock(const FrameInput& input) {
+  if (input.clock) return *input.clock;
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
 void setViewport(VkCommandBuffer cmd, std::uint32_t width, std::uint32_t height) {
   const VkViewport vp{0.0f, 0.0f, float(width), float(height), 0.0f, 1.0f};
   const VkRect2D scissor{{0, 0}, {width, height}};
@@ -156,11 +162,31 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   f.rasterTriangleCapacity = rasterTriangleCapacity_;
   f.rasterJobCapacity = rasterJobCapacity_;
   f.aoRadius = options_.aoRadius;
+  f.probeView = probeViewParams(slot, input);
   slot.frame.write(&f, sizeof f);
   if (!input.overlay.empty()) {
     const gpu::OverlayText text = makeOverlayText(input.overlay);
     slot.overlay.write(&text, sizeof text);
   }
+}
+
+gpu::ProbeViewParams Renderer::probeViewParams(Slot& slot, const FrameInput& input) {
+  const ProbeViewSettings& view = input.probeView;
+  gpu::ProbeViewParams p{};
+  p.mode = view.mode == ProbeViewMode::State        ? gpu::PC_PROBE_VIEW_STATE
+           : view.mode == ProbeViewMode::Irradiance ? gpu::PC_PROBE_VIEW_IRRADIANCE
+                                                    : gpu::PC_PROBE_VIEW_OFF;
+  p.cascade = view.cascade;
+  p.offsets = view.offsets ? 1 : 0;
+  if (!view.on() || !field_->present()) return p;
+  const std::vector<float>& flash = brickFlash_.update(*mirror_, frameClock(input));
+  // A mirror whose layout differs from the renderer's (the window rebuilds it) flashes nothing.
+  if (flash.size() == brickCount_ && !flash.empty()) {
+    slot.brickFlash.write(flash.data(), flash.size() * sizeof(float));
+    p.flash = 1;
+    p.brickBase = brickFlash_.brickBase();
+  }
+  return p;
 }
 
 void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
@@ -183,6 +209,7 @@ void Renderer::recordFrame(VkCommandBuffer cmd, const FrameInput& input,
   timer.end(cmd);
   timer.begin(cmd, "probe");
   recordLighting(cmd, slot);
+  if (input.probeView.on() && field_->present()) recordProbeView(cmd);
   timer.end(cmd);
   timer.begin(cmd, "tonemap");
   recordTonemap(cmd, target);
@@ -212,12 +239,8 @@ void Renderer::drawScene(VkCommandBuffer cmd, const Slot& slot,
 }
 
 void Renderer::recordFieldUploads(VkCommandBuffer cmd, const FrameInput& input) {
-  const double clock =
-      input.clock
-          ? *input.clock
-          : std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-                .count();
-  const FieldUploadStats uploads = field_->recordUploads(cmd, current_, *mirror_, clock);
+  const FieldUploadStats uploads =
+      field_->recordUploads(cmd, current_, *mirror_, frameClock(input));
   stats_.bricksUploaded = uploads.bricks;
   stats_.bricksFading = uploads.fading;
 }
@@ -379,6 +402,17 @@ void Renderer::recordLighting(VkCommandBuffer cmd, const Slot& slot) {
   }
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, indirectPipeline_.get());
   vkCmdDispatch(cmd, gx, gy, views);
+}
+
+// The probe debug view over the lit frame: after the lighting pass's writes, in the same
+// descriptor set (bound for compute by recordLighting).
+void Renderer::recordProbeView(VkCommandBuffer cmd) {
+  const std::uint32_t w = std::uint32_t(options_.width), h = std::uint32_t(options_.height);
+  const VkPipelineStageFlags2 compute = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+  vk::memoryBarrier(cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, compute,
+                    VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, probeViewPipeline_.get());
+  vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, std::uint32_t(options_.views));
 }
 
 // Tone mapping and the overlay into `target`, left in its final layout.

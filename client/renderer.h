@@ -28,6 +28,7 @@
 #include "field_mirror.h"
 #include "gpu_scene.h"
 #include "light_pack.h"
+#include "probe_view.h"
 #include "renderer_shadow_cache.h"
 #include "shaders/interop/screen_ao.h"
 
@@ -84,6 +85,8 @@ struct FrameInput {
   std::vector<std::string> overlay;  // text lines; empty: no overlay
   // Seconds on the clock that paces field fades; unset: a steady clock (wall time).
   std::optional<double> clock;
+  // The probe debug view over the lit frame (client_probe_view.comp); off by default.
+  ProbeViewSettings probeView;
 };
 
 // Where tone mapping writes: an 8-bit UNORM color image with one layer per view (side by
@@ -182,6 +185,8 @@ class Renderer {
   Status writeDescriptors();
   Result<VkPipeline> tonemapPipeline(VkFormat format);
   void updateFrameData(Slot& slot, const FrameInput& input);
+  // The probe view's uniforms; writes the slot's brick flashes when the view is on.
+  gpu::ProbeViewParams probeViewParams(Slot& slot, const FrameInput& input);
   // recordFrame's passes, in order.
   void recordFieldUploads(VkCommandBuffer cmd, const FrameInput& input);
   void recordShadowMaps(VkCommandBuffer cmd, const Slot& slot);
@@ -189,6 +194,7 @@ class Renderer {
   void recordVisibility(VkCommandBuffer cmd, Slot& slot);
   void recordFixedFunctionRaster(VkCommandBuffer cmd, const Slot& slot);
   void recordLighting(VkCommandBuffer cmd, const Slot& slot);
+  void recordProbeView(VkCommandBuffer cmd);
   void recordTonemap(VkCommandBuffer cmd, const OutputTarget& target);
   void drawScene(VkCommandBuffer cmd, const Slot& slot, std::initializer_list<glm::mat4> views);
   void collectTimings(Slot& slot);
@@ -227,7 +233,7 @@ class Renderer {
   vk::UniqueDescriptorPool descriptorPool_;
   vk::UniquePipeline scenePipeline_, prepassPipeline_, largeShadowPipeline_, smallShadowPipeline_,
       indirectPipeline_, aoSurfacesPipeline_, rasterPipeline_, rasterArgsPipeline_,
-      rasterTilesPipeline_;
+      rasterTilesPipeline_, probeViewPipeline_;
   // Compute rasterizer: per-sample depth and id, its work lists and counters (minimal buffers
   // when it is off, so that every descriptor stays valid).
   vk::Buffer visSamples_, rasterTriangles_, rasterJobs_, rasterCounters_;
@@ -245,6 +251,8 @@ class Renderer {
   FrameStats stats_;
   ShadowCache shadowCache_;
   std::vector<LocalBounds> drawBounds_;  // per draw, object space
+  BrickFlash brickFlash_;                // the probe view's flashes of changed bricks
+  std::size_t brickCount_ = 0;           // bricks of all cascades (the flash buffers' size)
   vk::Buffer readback_;
 };
 

@@ -27,6 +27,7 @@ struct Renderer::Slot {
   VkCommandBuffer cmd = VK_NULL_HANDLE;
   vk::UniqueFence fence;
   vk::Buffer frame, draws, lights, matrices, overlay;
+  vk::Buffer brickFlash;   // float per brick (the probe view)
   vk::Buffer rasterStats;  // the compute rasterizer's counters, copied back at the frame's end
   VkDescriptorSet set = VK_NULL_HANDLE;
   std::optional<vk::GpuTimer> timer;

@@ -259,7 +259,11 @@ Status Renderer::createSceneBuffers() {
 }
 
 Status Renderer::createField() {
-  auto field = FieldGpu::create(*ctx_, mirror_->desc(), kFrameSlots, options_.bricksPerFrame,
+  const std::optional<gpu::FieldDesc> desc = mirror_->desc();
+  brickCount_ = 0;
+  for (int k = 0; desc && k < desc->cascadeCount; ++k)
+    brickCount_ += std::size_t(gpu::pcBrickCount(desc->cascades[k]));
+  auto field = FieldGpu::create(*ctx_, desc, kFrameSlots, options_.bricksPerFrame,
                                 options_.fieldFadeSeconds);
   if (!field) return field.error();
   field_.emplace(std::move(field).value());
@@ -372,7 +376,8 @@ Status Renderer::createFrameSlot() {
         buffer(drawCount * sizeof(gpu::DrawData), storage, slot->draws),
         buffer(std::max(1, lightCount_) * sizeof(gpu::GpuLight), storage, slot->lights),
         buffer(std::max(1, matrixCount_) * sizeof(glm::mat4), storage, slot->matrices),
-        buffer(sizeof(gpu::OverlayText), storage, slot->overlay)}) {
+        buffer(sizeof(gpu::OverlayText), storage, slot->overlay),
+        buffer(std::max<std::size_t>(1, brickCount_) * sizeof(float), storage, slot->brickFlash)}) {
     if (!st) return st.error();
   }
   auto stats = vk::Buffer::create(ctx, sizeof(gpu::RasterCounters),
@@ -392,7 +397,7 @@ Status Renderer::createDescriptorSets() {
   const std::uint32_t textures = std::uint32_t(gpuScene_->textureCount());
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2 * kFrameSlots},
-      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 12 * kFrameSlots},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 13 * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, (8 + textures) * kFrameSlots},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1 * kFrameSlots}};
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
@@ -504,7 +509,8 @@ Status Renderer::createPipelines() {
       {gpu::PC_CLIENT_BIND_AO_SURFACES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
       {gpu::PC_CLIENT_BIND_HDR_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
       {gpu::PC_CLIENT_BIND_HDR_TEXTURE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1},
-      {gpu::PC_CLIENT_BIND_OVERLAY, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
+      {gpu::PC_CLIENT_BIND_OVERLAY, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1},
+      {gpu::PC_CLIENT_BIND_BRICK_FLASH, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
   std::vector<VkDescriptorSetLayoutBinding> list;
   for (const B& b : bindings) {
     VkDescriptorSetLayoutBinding lb{};
@@ -538,6 +544,8 @@ Status Renderer::createPipelines() {
   if (!indirect) return indirect.error();
   auto aoSurfaces = load("client_ao_surfaces.comp.spv");
   if (!aoSurfaces) return aoSurfaces.error();
+  auto probeView = load("client_probe_view.comp.spv");
+  if (!probeView) return probeView.error();
 
   // Some drawn material is a cut-out (Material::isCutOut): the rasterizers and shadow maps
   // test coverage (client_surface.glsl), and the fixed-function path drops its pre-pass.
@@ -613,6 +621,8 @@ Status Renderer::createPipelines() {
   if (!s) return s;
   s = computePipeline(aoSurfaces->get(), &spec, aoSurfacesPipeline_);
   if (!s) return s;
+  s = computePipeline(probeView->get(), &spec, probeViewPipeline_);
+  if (!s) return s;
   if (computeRaster()) {
     auto raster = load("client_raster.comp.spv");
     if (!raster) return raster.error();
@@ -687,7 +697,8 @@ Status Renderer::writeDescriptors() {
     const VkDescriptorBufferInfo frame = slot->frame.descriptor(), draws = slot->draws.descriptor(),
                                  lights = slot->lights.descriptor(),
                                  matrices = slot->matrices.descriptor(),
-                                 overlay = slot->overlay.descriptor();
+                                 overlay = slot->overlay.descriptor(),
+                                 brickFlash = slot->brickFlash.descriptor();
     std::vector<VkWriteDescriptorSet> writes;
     auto buffer = [&](int binding, VkDescriptorType type, const VkDescriptorBufferInfo* info) {
       VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -718,6 +729,7 @@ Status Renderer::writeDescriptors() {
     buffer(gpu::PC_CLIENT_BIND_SHADOW_MATRICES, ssbo, &matrices);
     buffer(gpu::PC_CLIENT_BIND_PROBES, ssbo, &probes);
     buffer(gpu::PC_CLIENT_BIND_OVERLAY, ssbo, &overlay);
+    buffer(gpu::PC_CLIENT_BIND_BRICK_FLASH, ssbo, &brickFlash);
     buffer(gpu::PC_CLIENT_BIND_VERTICES, ssbo, &vertices);
     buffer(gpu::PC_CLIENT_BIND_INDICES, ssbo, &indices);
     buffer(gpu::PC_CLIENT_BIND_VIS_SAMPLES, ssbo, &visSamples);

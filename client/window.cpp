@@ -8,6 +8,8 @@
 
 #include <cstdio>
 #include <fstream>
+#include <map>
+#include <utility>
 
 #include "camera.h"
 #include "client_app.h"
@@ -41,6 +43,37 @@ struct Surface {
 char* lineBuffer() {
   static char buffer[128];
   return buffer;
+}
+
+// Keys that act once per press, not on every frame they are held.
+class KeyPresses {
+ public:
+  bool pressed(GLFWwindow* window, int key) {
+    const bool down = glfwGetKey(window, key) == GLFW_PRESS;
+    const bool was = std::exchange(down_[key], down);
+    return down && !was;
+  }
+
+ private:
+  std::map<int, bool> down_;
+};
+
+// The probe view's keys: P shows or hides it, M switches between irradiance and state
+// colours (showing it), C cycles the cascade shown (all, 0, 1, ...), L the relocation lines.
+void probeViewKeys(GLFWwindow* window, KeyPresses& keys, int cascadeCount, ProbeViewSettings& view,
+                   ProbeViewMode& lastMode) {
+  if (keys.pressed(window, GLFW_KEY_P)) {
+    if (view.on()) lastMode = view.mode;
+    view.mode = view.on() ? ProbeViewMode::Off : lastMode;
+  }
+  if (keys.pressed(window, GLFW_KEY_M)) {
+    view.mode =
+        view.mode == ProbeViewMode::State ? ProbeViewMode::Irradiance : ProbeViewMode::State;
+    lastMode = view.mode;
+  }
+  if (keys.pressed(window, GLFW_KEY_C))
+    view.cascade = nextProbeViewCascade(view.cascade, cascadeCount);
+  if (keys.pressed(window, GLFW_KEY_L)) view.offsets = !view.offsets;
 }
 
 }  // namespace
@@ -140,6 +173,9 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
     const double start = secondsNow();
 
     FlyCamera fly(*camera);
+    KeyPresses keys;
+    ProbeViewSettings probeView = config.probeView;
+    ProbeViewMode lastProbeMode = probeView.on() ? probeView.mode : ProbeViewMode::Irradiance;
     const float speed = 0.25f * std::max(glm::length(scene->boundsMax - scene->boundsMin), 1e-3f);
     double lastTime = secondsNow(), animationTime = config.startTime;
     double lastX = 0, lastY = 0;
@@ -192,6 +228,8 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
       fly.move(step * (key(GLFW_KEY_W) - key(GLFW_KEY_S)),
                step * (key(GLFW_KEY_D) - key(GLFW_KEY_A)),
                step * (key(GLFW_KEY_E) - key(GLFW_KEY_Q)));
+      const std::optional<gpu::FieldDesc> layout = mirror.desc();
+      probeViewKeys(glfw.window, keys, layout ? layout->cascadeCount : 0, probeView, lastProbeMode);
       if (config.testResize && frame == 2) {
         glfwSetWindowSize(glfw.window, config.testResize->x, config.testResize->y);
       }
@@ -257,6 +295,7 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
 
       FrameInput input;
       input.time = animationTime;
+      input.probeView = probeView;
       if (config.stereo) {
         input.cameras[0] = offsetCamera(fly.camera(), -0.5f * config.ipd);
         input.cameras[1] = offsetCamera(fly.camera(), 0.5f * config.ipd);
@@ -286,6 +325,8 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
                         (*renderer)->lastStats().bricksFading);
           input.overlay.push_back(lineBuffer());
         }
+        input.overlay.push_back(probeView.on() ? probeViewStatus(probeView)
+                                               : "P PROBES  M COLOUR  C CASCADE  L LINES");
       }
       const OutputTarget target{swapchain.image(imageIndex), swapchain.view(imageIndex),
                                 swapchain.format(), VK_IMAGE_LAYOUT_PRESENT_SRC_KHR};

@@ -87,12 +87,15 @@ Field Field::create(const std::vector<ProbeVolume>& volumes, const FieldSettings
     c.firstProbe = slots;
     c.scroll = ivec3(0);
     c.atlasTileRow = rows;
-    c.normalBias = settings.normalBias * v.spacing;
-    c.viewBias = settings.viewBias * v.spacing;
+    // A volume's own settings (its sidecar entry) stand in for the field's.
+    const VolumeSettings& own = v.settings;
+    c.hysteresis = own.hysteresis.value_or(settings.hysteresis);
+    c.normalBias = own.normalBias.value_or(settings.normalBias) * v.spacing;
+    c.viewBias = own.viewBias.value_or(settings.viewBias) * v.spacing;
     // A probe's depth only matters out to the far corner of the cages it belongs to.
-    c.maxRayDistance = settings.maxRayDistance > 0.0f ? settings.maxRayDistance
-                                                      : 1.5f * std::sqrt(3.0f) * v.spacing;
-    c.blendMargin = settings.blendMargin * v.spacing;
+    const float maxRay = own.maxRayDistance.value_or(settings.maxRayDistance);
+    c.maxRayDistance = maxRay > 0.0f ? maxRay : 1.5f * std::sqrt(3.0f) * v.spacing;
+    c.blendMargin = own.blendMargin.value_or(settings.blendMargin) * v.spacing;
     int n = pcSlotCount(c);
     slots += n;
     rows += pcAtlasTileRows(n);

@@ -10,6 +10,7 @@
 #include <glm/glm.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -103,11 +104,23 @@ struct Sky {
   glm::vec3 ambientIrradiance() const;
 };
 
+// A volume's own update settings (the sidecar's per-volume keys, docs/SCENES.md); each one
+// unset takes the field's (FieldSettings, common/field.h). Units as there: biases and blend
+// margin in fractions of the volume's spacing, the ray distance in world units.
+struct VolumeSettings {
+  std::optional<float> hysteresis;      // [0, 1)
+  std::optional<float> normalBias;      // [0, 1]
+  std::optional<float> viewBias;        // [0, 1]
+  std::optional<float> maxRayDistance;  // > 0
+  std::optional<float> blendMargin;     // [0, 4]
+};
+
 // One cascade of probes. Cascades are ordered finest first.
 struct ProbeVolume {
   glm::vec3 origin{0.0f};  // world position of probe (0,0,0)
   float spacing = 1.0f;
   glm::ivec3 counts{8};
+  VolumeSettings settings;
 };
 
 // One animated property of a glTF node over time (a glTF animation channel with its sampler).

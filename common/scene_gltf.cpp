@@ -1,7 +1,8 @@
 // glTF 2.0 (.gltf, .glb) through tinygltf: triangle primitives (one pc::Mesh each), the node
 // hierarchy, base colour and emission (with their textures), KHR_lights_punctual,
-// perspective cameras and node animations (translation, rotation, scale). Every index the file
-// holds is checked before it is followed.
+// perspective cameras and node animations (translation, rotation, scale); what else a file
+// holds is named in warnings (scene_gltf_unused.h). Every index the file holds is checked
+// before it is followed.
 #include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
 #include <tiny_gltf.h>
 
@@ -19,6 +20,7 @@
 #include <string>
 #include <tuple>
 
+#include "common/scene_gltf_unused.h"
 #include "common/scene_loaders.h"
 
 namespace pc::scene_detail {
@@ -959,6 +961,8 @@ Result<Scene> loadGltf(const std::filesystem::path& path, const SceneLoadOptions
   } catch (const GltfError& e) {
     return Error{file + ": " + e.message};
   }
+  for (std::string& w : unusedGltfFeatures(model, kSupportedExtensions))
+    scene.warnings.push_back(file + ": " + std::move(w));
   return scene;
 }
 

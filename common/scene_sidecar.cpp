@@ -226,9 +226,47 @@ Camera parseCamera(const json& j, const std::string& ptr) {
   return c;
 }
 
-ProbeVolume parseVolume(const json& j, const std::string& ptr) {
-  object(j, ptr, {"origin", "spacing", "counts", "min", "max"});
+// A volume's own update settings (VolumeSettings): each key optional, range-checked, and an
+// error that names the volume (its index in `volumes`) and the key.
+VolumeSettings parseVolumeSettings(const json& j, const std::string& ptr, std::size_t index) {
+  VolumeSettings s;
+  const std::string volume = "volume " + std::to_string(index) + ": ";
+  auto inRange = [&](const char* key, float lo, float hi, bool hiOpen) -> std::optional<float> {
+    if (!j.contains(key)) return std::nullopt;
+    const float v = number(j[key], ptr + "/" + key);
+    if (v < lo || v > hi || (hiOpen && v == hi)) {
+      std::ostringstream range;
+      range << "[" << lo << ", " << hi << (hiOpen ? ")" : "]");
+      fail(ptr + "/" + key,
+           volume + key + " must be in " + range.str() + ", got " + std::to_string(v));
+    }
+    return v;
+  };
+  s.hysteresis = inRange("hysteresis", 0.0f, 1.0f, true);
+  s.normalBias = inRange("normal_bias", 0.0f, 1.0f, false);
+  s.viewBias = inRange("view_bias", 0.0f, 1.0f, false);
+  s.blendMargin = inRange("blend_margin", 0.0f, 4.0f, false);
+  if (j.contains("max_ray_distance")) {
+    const float v = number(j["max_ray_distance"], ptr + "/max_ray_distance");
+    if (!(v > 0.0f))
+      fail(ptr + "/max_ray_distance",
+           volume + "max_ray_distance must be positive (world units), got " + std::to_string(v));
+    s.maxRayDistance = v;
+  }
+  // Every cascade is traced in one pass with one set of ray directions (both tracers).
+  if (j.contains("rays_per_probe"))
+    fail(ptr + "/rays_per_probe", volume +
+                                      "rays_per_probe is the field's, not a volume's: give "
+                                      "--rays to probecast-bake or probecast-server");
+  return s;
+}
+
+ProbeVolume parseVolume(const json& j, const std::string& ptr, std::size_t index) {
+  object(j, ptr,
+         {"origin", "spacing", "counts", "min", "max", "hysteresis", "normal_bias", "view_bias",
+          "max_ray_distance", "blend_margin", "rays_per_probe"});
   ProbeVolume v;
+  v.settings = parseVolumeSettings(j, ptr, index);
   if (!j.contains("spacing")) fail(ptr, "volume has no 'spacing'");
   v.spacing = positive(j["spacing"], ptr + "/spacing");
   if (j.contains("origin")) {
@@ -381,7 +419,7 @@ void applyJson(Scene& scene, const json& root) {
     const json& vols = array(root["volumes"], "/volumes");
     scene.volumes.clear();
     for (std::size_t i = 0; i < vols.size(); ++i)
-      scene.volumes.push_back(parseVolume(vols[i], at("/volumes", i)));
+      scene.volumes.push_back(parseVolume(vols[i], at("/volumes", i), i));
     if (vols.size() > std::size_t(gpu::PC_MAX_CASCADES))
       fail("/volumes", std::to_string(vols.size()) + " volumes; a field has at most " +
                            std::to_string(gpu::PC_MAX_CASCADES) + " cascades");

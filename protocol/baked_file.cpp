@@ -432,7 +432,7 @@ Result<std::vector<std::uint8_t>> encodeBakedField(const Field& f,
     wire::Int3 scroll(c.scroll.x, c.scroll.y, c.scroll.z);
     cascades.push_back(wire::CreateCascade(fbb, &origin, c.spacing, &counts, c.firstProbe, &scroll,
                                            c.atlasTileRow, c.normalBias, c.viewBias,
-                                           c.maxRayDistance, c.blendMargin, bricks));
+                                           c.maxRayDistance, c.blendMargin, bricks, c.hysteresis));
   }
   auto cascadesOff = fbb.CreateVector(cascades);
 
@@ -614,6 +614,10 @@ Result<Field> decodeBakedField(std::span<const std::uint8_t> bytes, std::uint64_
     c.viewBias = wc->view_bias();
     c.maxRayDistance = wc->max_ray_distance();
     c.blendMargin = wc->blend_margin();
+    c.hysteresis = wc->hysteresis() < 0.0f ? f.settings.hysteresis : wc->hysteresis();
+    if (!(c.hysteresis >= 0.0f && c.hysteresis < 1.0f))
+      return fail("cascade " + std::to_string(k) + ": hysteresis " + std::to_string(c.hysteresis) +
+                  " outside [0, 1)");
     // The layout check comes before any allocation sized by these counts.
     if (Status s = checkCascade(c, int(k), t); !s) return fail(s.error().message);
     const auto* bricks = wc->brick_versions();

@@ -56,7 +56,7 @@ struct Encoder {
       net::Int3 counts = toWire(c.counts), scroll = toWire(c.scroll);
       cascades.push_back(net::CreateCascadeInfo(fbb, &origin, c.spacing, &counts, c.firstProbe,
                                                 &scroll, c.atlasTileRow, c.normalBias, c.viewBias,
-                                                c.maxRayDistance, c.blendMargin));
+                                                c.maxRayDistance, c.blendMargin, c.hysteresis));
     }
     auto cascadesOff = fbb.CreateVector(cascades);
     std::vector<net::Codec> codecs;
@@ -200,6 +200,7 @@ Result<SessionMessage> decodeSessionInfo(const net::SessionInfo& w) {
       d.viewBias = c->view_bias();
       d.maxRayDistance = c->max_ray_distance();
       d.blendMargin = c->blend_margin();
+      d.hysteresis = c->hysteresis() < 0.0f ? m.hysteresis : c->hysteresis();
       m.cascades.push_back(d);
     }
   }

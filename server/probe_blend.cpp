@@ -126,9 +126,8 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
   const bool hasHistory = record.updates > 0 && !moved;
   // Running mean for the first updates, exponential (hysteresis) after: converges in few
   // updates from nothing, yet keeps the temporal filtering of DDGI.
-  const float alpha = hasHistory ? std::min(field.settings.hysteresis,
-                                            float(record.updates) / float(record.updates + 1))
-                                 : 0.0f;
+  const float alpha =
+      hasHistory ? std::min(c.hysteresis, float(record.updates) / float(record.updates + 1)) : 0.0f;
   record.updates = hasHistory ? record.updates + 1 : 1;
 
   float maxChange = (oldState != record.state || moved) ? inf : 0.0f;

@@ -366,7 +366,6 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
   p.emissiveCount = int(emissive.size() / sizeof(GpuEmissiveTriangle));
   p.emissiveSamples = options.emissiveSamples;
   p.seed = request.rotationSeed;
-  p.hysteresis = field.settings.hysteresis;
   p.changeThreshold = request.changeThreshold;
   p.brickTotal = brickTotal;
   p.shadowSlots = shadowSlots();

@@ -208,7 +208,7 @@ void classifyProbe(Group g, int k, int tid) {
     r.state = asleep ? PC_PROBE_SLEEPING : PC_PROBE_ACTIVE;
     bool hasHistory = r.updates > 0u && !moved;
     float runningMean = float(r.updates) / float(r.updates + 1u);
-    sAlpha[k] = hasHistory ? min(params.hysteresis, runningMean) : 0.0f;
+    sAlpha[k] = hasHistory ? min(c.hysteresis, runningMean) : 0.0f;
     r.updates = hasHistory ? r.updates + 1u : 1u;
     sMaxChange[k] = (oldState != r.state || moved) ? kInfinityBits : 0u;
   }

@@ -185,17 +185,19 @@ Image8 columns(const Image8& image, int x0, int width) {
 }
 
 // A screenshot of the window against the headless image of the same view; stereo windows
-// show both eyes side by side, each half the window's width.
-void screenshotMatchesHeadless(bool stereo) {
+// show both eyes side by side, each half the window's width. `extra`: flags both runs take.
+void screenshotMatchesHeadless(bool stereo, const std::vector<std::string>& extra = {},
+                               const std::string& name = "") {
   if (!onPath("Xvfb") || !onPath("xwd")) GTEST_SKIP() << "needs Xvfb and xwd (xvfb, x11-apps)";
   Xvfb x;
   ASSERT_TRUE(x.start()) << "Xvfb did not start";
-  const fs::path dir = workDir(stereo ? "screenshot-stereo" : "screenshot");
+  const fs::path dir = workDir(!name.empty() ? name : stereo ? "screenshot-stereo" : "screenshot");
   const std::string probes = builtinProbes().string();
   const int eyeWidth = 160;
   std::vector<std::string> common = {"--scene",  "builtin", "--probes", probes,
                                      "--height", "120",     "--dt",     "0"};
   if (stereo) common.push_back("--stereo");
+  common.insert(common.end(), extra.begin(), extra.end());
   std::vector<std::string> windowed = {
       kClient,        "--window",
       "--frames",     "16",
@@ -241,6 +243,13 @@ void screenshotMatchesHeadless(bool stereo) {
 TEST(ClientWindow, ScreenshotMatchesHeadlessImage) { screenshotMatchesHeadless(false); }
 
 TEST(ClientWindow, StereoScreenshotShowsBothEyesSideBySide) { screenshotMatchesHeadless(true); }
+
+// The probe view's flags reach the window as they reach headless runs (the view itself is
+// checked against a golden image in test_client_probe_view).
+TEST(ClientWindow, ProbeViewScreenshotMatchesHeadlessImage) {
+  screenshotMatchesHeadless(false, {"--probe-view", "state", "--probe-cascade", "1"},
+                            "screenshot-probe-view");
+}
 
 TEST(ClientWindow, ResizeDuringTheRunKeepsValidationQuiet) {
   if (!onPath("Xvfb")) GTEST_SKIP() << "needs Xvfb (xvfb)";

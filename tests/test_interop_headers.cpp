@@ -13,6 +13,7 @@
 #include "shaders/interop/pc_interop.h"
 #include "shaders/interop/probe_math.h"
 #include "shaders/interop/probe_update.h"
+#include "shaders/interop/probe_view.h"
 #include "shaders/interop/screen_ao.h"
 #include "shaders/interop/shadow_roulette.h"
 #include "shaders/interop/tonemap.h"

@@ -73,6 +73,14 @@ int main(int argc, char** argv) {
   app.add_option("--ao-radius", c.aoRadius,
                  "ambient occlusion of the indirect light (GTAO): radius in probe spacings, 0 off")
       ->check(pc::kFinite & CLI::NonNegativeNumber);
+  std::string probeView = "off";
+  app.add_option("--probe-view", probeView,
+                 "probe debug view: off, irradiance (spheres lit by their probes) or state");
+  app.add_option("--probe-cascade", c.probeView.cascade,
+                 "probe view: the only cascade drawn (-1: all)")
+      ->check(CLI::Range(-1, pc::gpu::PC_MAX_CASCADES - 1));
+  bool noProbeLines = false;
+  app.add_flag("--no-probe-lines", noProbeLines, "probe view: no relocation lines");
   app.add_option("--ready-file", c.readyFile, "windowed: written after half the frames");
   app.add_option("--test-resize", resize, "windowed: resize the window to WxH after 2 frames");
   // Network mode: the field comes from a server (the baked file stays the fallback).
@@ -104,6 +112,12 @@ int main(int argc, char** argv) {
   app.add_option("--summary", net.summary, "--connect: write a JSON summary here");
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   c.textureMipmaps = !noMipmaps;
+  if (auto m = pc::client::parseProbeViewMode(probeView)) {
+    c.probeView.mode = *m;
+  } else {
+    return pc::logError("--probe-view: expected off, irradiance or state"), 1;
+  }
+  c.probeView.offsets = !noProbeLines;
   if (auto r = pc::client::parseRasterizer(raster)) {
     c.rasterizer = *r;
   } else {

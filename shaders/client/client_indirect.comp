@@ -20,40 +20,8 @@ layout(constant_id = 1) const int TEXTURE_COUNT = 1;
 layout(constant_id = 2) const bool VIS_BUFFER = false;
 #include "client_surface.glsl"
 
-layout(set = 0, binding = PC_CLIENT_BIND_FIELD_DESC) uniform FieldBlock { FieldDesc field; };
-layout(set = 0, binding = PC_CLIENT_BIND_PROBES, std430) readonly buffer ProbeBlock { vec4 probes[]; };
-layout(set = 0, binding = PC_CLIENT_BIND_IRRADIANCE) uniform sampler2D irradianceAtlas;
-layout(set = 0, binding = PC_CLIENT_BIND_DEPTH) uniform sampler2D depthAtlas;
-layout(set = 0, binding = PC_CLIENT_BIND_OCCLUSION) uniform sampler2D occlusionAtlas;
-layout(set = 0, binding = PC_CLIENT_BIND_G_VISIBILITY) uniform usampler2DMSArray gVisibility;
-// Per sample: depth bits in the high word, the id in the low word (client_raster.glsl).
-layout(set = 0, binding = PC_CLIENT_BIND_VIS_SAMPLES, std430) readonly buffer VisBlock { uvec2 visSamples[]; };
-layout(set = 0, binding = PC_CLIENT_BIND_HDR_IMAGE, rgba32f) uniform writeonly image2DArray hdrImage;
-
-// Fetch hooks of shaders/interop/probe_sampling.h: bilinear reads of a bordered tile, done by
-// the texture unit exactly as the CPU's bilinear() does on its copy of the atlas.
-#define PC_FIELD_PARAM
-#define PC_FIELD_ARG
-vec2 atlasCoord(int cascade, int slot, vec3 dir, int texels, vec2 atlasSize) {
-  ivec2 origin = pcAtlasTileOrigin(field.cascades[cascade], slot, texels + 2);
-  return (vec2(origin) + pcTileCoord(dir, texels)) / atlasSize;
-}
-vec3 pcFetchIrradiance(int cascade, int slot, vec3 dir) {
-  vec2 size = vec2(textureSize(irradianceAtlas, 0));
-  return textureLod(irradianceAtlas, atlasCoord(cascade, slot, dir, PC_IRRADIANCE_TEXELS, size), 0.0).rgb;
-}
-vec2 pcFetchDepth(int cascade, int slot, vec3 dir) {
-  vec2 size = vec2(textureSize(depthAtlas, 0));
-  return textureLod(depthAtlas, atlasCoord(cascade, slot, dir, PC_DEPTH_TEXELS, size), 0.0).rg;
-}
-float pcFetchOcclusion(int cascade, int slot, vec3 dir) {
-  vec2 size = vec2(textureSize(occlusionAtlas, 0));
-  return textureLod(occlusionAtlas, atlasCoord(cascade, slot, dir, PC_OCCLUSION_TEXELS, size), 0.0).r;
-}
-vec4 pcFetchProbe(int cascade, int slot) {
-  return probes[field.cascades[cascade].firstProbe + slot];
-}
-#include "../interop/probe_sampling.h"
+#include "client_field_fetch.glsl"
+#include "client_visibility.glsl"
 
 // Hooks of shaders/interop/screen_ao_horizons.h: the surface buffer and the view's rays.
 #define PC_AO_PARAM int view,
@@ -109,13 +77,7 @@ void main() {
   vec3 shaded[SAMPLES];
   vec3 sum = vec3(0.0);
   for (int s = 0; s < SAMPLES; ++s) {
-    uint visibility;
-    if (VIS_BUFFER) {
-      uint pixel = (uint(id.z) * uint(size.y) + uint(id.y)) * uint(size.x) + uint(id.x);
-      visibility = visSamples[pixel * uint(SAMPLES) + uint(s)].x;
-    } else {
-      visibility = texelFetch(gVisibility, id, s).r;
-    }
+    uint visibility = visibilityAt(id, s);
     ids[s] = visibility;
     int same = -1;
     for (int u = 0; u < s; ++u) {

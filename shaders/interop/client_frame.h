@@ -7,6 +7,7 @@
 
 #include "light_model.h"
 #include "pc_interop.h"
+#include "probe_view.h"
 
 PC_BEGIN
 
@@ -42,7 +43,9 @@ PC_CONST int PC_CLIENT_BIND_RASTER_COUNTERS = 20;  // buffer RasterCounters
 // Ambient occlusion of the indirect light (screen_ao.h), written by client_ao_surfaces.comp:
 PC_CONST int PC_CLIENT_BIND_AO_SURFACES =
     21;  // buffer vec4[2] per pixel and view: (position - eye, 1 or 0: sky), (normal, 0)
-PC_CONST int PC_CLIENT_BINDING_COUNT = 22;
+// The probe debug view (probe_view.h): per brick of every cascade, how much it flashes.
+PC_CONST int PC_CLIENT_BIND_BRICK_FLASH = 22;  // buffer float[] (ProbeViewParams::brickBase)
+PC_CONST int PC_CLIENT_BINDING_COUNT = 23;
 
 PC_CONST int PC_MAX_VIEWS = 2;
 
@@ -79,6 +82,8 @@ struct FrameUniforms {
   int pad1;
   int pad2;
   // -- 416
+  ProbeViewParams probeView;
+  // -- 448
 };
 
 // One draw: an instance of a mesh with its material. Indexed by gl_InstanceIndex (each draw
@@ -160,7 +165,7 @@ struct RasterCounters {
 // Overlay text: `lines` x `columns` character codes (ASCII), one per uint, drawn with the
 // 5x7 font in `glyphs` (7 rows of 5 bits per glyph, glyphs for codes 32..127).
 PC_CONST int PC_OVERLAY_COLUMNS = 48;
-PC_CONST int PC_OVERLAY_MAX_LINES = 4;
+PC_CONST int PC_OVERLAY_MAX_LINES = 6;
 PC_CONST int PC_FONT_FIRST = 32;
 PC_CONST int PC_FONT_GLYPHS = 96;
 PC_CONST int PC_FONT_ROWS = 7;
@@ -175,7 +180,7 @@ PC_END
 
 #ifdef __cplusplus
 static_assert(sizeof(pc::gpu::ClientView) == 144);
-static_assert(sizeof(pc::gpu::FrameUniforms) == 416);
+static_assert(sizeof(pc::gpu::FrameUniforms) == 448);
 static_assert(sizeof(pc::gpu::DrawData) == 192);
 static_assert(sizeof(pc::gpu::FieldWrite) == 16);
 static_assert(sizeof(pc::gpu::RasterTriangle) == 48);

@@ -48,12 +48,17 @@ struct CascadeDesc {
   float maxRayDistance;  // depth moments are clamped to this
   float blendMargin;     // world units over which a point fades to the next coarser cascade
   // -- 64
+  float hysteresis;  // the blend's weight of history (FieldSettings, or the volume's own)
+  float pad0;
+  float pad1;
+  float pad2;
+  // -- 80
 };
 
 struct FieldDesc {
   int cascadeCount;
-  int probeCount;  // all cascades
-  float hysteresis;
+  int probeCount;    // all cascades
+  float hysteresis;  // FieldSettings::hysteresis; each cascade blends with its own
   float distanceExponent;
   // -- 16
   float occlusionDistance;  // d_max of the occlusion tile
@@ -67,8 +72,8 @@ struct FieldDesc {
 PC_END
 
 #ifdef __cplusplus
-static_assert(sizeof(pc::gpu::CascadeDesc) == 64);
-static_assert(sizeof(pc::gpu::FieldDesc) == 32 + 64 * pc::gpu::PC_MAX_CASCADES);
+static_assert(sizeof(pc::gpu::CascadeDesc) == 80);
+static_assert(sizeof(pc::gpu::FieldDesc) == 32 + 80 * pc::gpu::PC_MAX_CASCADES);
 // probe_sampling.h decodes e^(gamma/2) as e*e*sqrt(e): valid for gamma 5 only.
 static_assert(pc::gpu::PC_IRRADIANCE_GAMMA == 5.0f);
 #endif

@@ -302,7 +302,7 @@ struct UpdateParams {
   int emissiveSamples;
   uint seed;
   // -- 64
-  float hysteresis;
+  float pad0;  // (each cascade's hysteresis is in its CascadeDesc)
   float changeThreshold;
   int brickTotal;   // bricks over all cascades
   int shadowSlots;  // pcShadowSlots

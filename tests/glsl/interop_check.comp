@@ -19,6 +19,7 @@ vec4 pcFetchProbe(int cascade, int slot) { return vec4(0.0f); }
 #include "../../shaders/interop/probe_sampling.h"
 #include "../../shaders/interop/probe_update.h"
 #include "../../shaders/interop/tonemap.h"
+#include "../../shaders/interop/probe_view.h"
 #define PC_AO_PARAM
 #define PC_AO_ARG
 vec4 pcAoSurface(ivec2 p) { return textureLod(depthAtlas, vec2(p) * 0.01f, 0.0f); }
