@@ -9,6 +9,7 @@
 #include "common/scene_loaders.h"
 #include "cpu/path_tracer.h"
 #include "normal_map_scene.h"
+#include "shaders/interop/normal_map.h"
 
 namespace pc::test {
 namespace {
@@ -137,6 +138,21 @@ TEST(NormalMapLoad, BadNormalTextureIndexIsAnErrorNamingIt) {
   EXPECT_NE(message.find("material 'bumpy'"), std::string::npos) << message;
   EXPECT_NE(message.find("normalTexture index 3 out of range (1 textures)"), std::string::npos)
       << message;
+}
+
+TEST(NormalMapMath, PerturbsInTheTangentFrame) {
+  const glm::vec3 n(0.0f, 0.0f, 1.0f);
+  // The tangent need be neither unit nor perpendicular: it is made so against N.
+  const glm::vec3 t(2.0f, 0.0f, 0.5f);
+  const auto near = [](glm::vec3 a, glm::vec3 b) { return glm::length(a - b) < 1e-6f; };
+  EXPECT_TRUE(near(gpu::pcPerturbNormal(n, t, 1.0f, {1, 0, 0}), {1, 0, 0}));
+  EXPECT_TRUE(near(gpu::pcPerturbNormal(n, t, 1.0f, {0, 1, 0}), {0, 1, 0}));  // cross(N, T)
+  EXPECT_TRUE(near(gpu::pcPerturbNormal(n, t, -1.0f, {0, 1, 0}), {0, -1, 0}));
+  EXPECT_TRUE(near(gpu::pcPerturbNormal(n, t, 1.0f, {0, 0, 3}), n));
+  // No frame (a tangent along the normal): the normal itself.
+  EXPECT_TRUE(near(gpu::pcPerturbNormal(n, n, 1.0f, {1, 0, 0}), n));
+  // The texel's decoding: x 2 - 1, x and y scaled.
+  EXPECT_TRUE(near(gpu::pcNormalMapDirection({1.0f, 0.5f, 0.75f}, 0.5f), {0.5f, 0.0f, 0.5f}));
 }
 
 // The reference's mean radiance over the quad (it fills the image), direct light only.
