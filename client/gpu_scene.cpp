@@ -23,13 +23,17 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene, bo
   g.indices_ = std::move(ib).value();
 
   // Full mip chains (texture_mips.h) unless asked for level 0 alone; 1x1 stand-ins have one.
-  auto addTexture = [&](int width, int height, std::span<const std::uint8_t> rgba) -> Status {
-    const MipChain chain = mipmaps ? buildSrgbMipChain(width, height, rgba) : MipChain{};
+  // Colour textures are sRGB; data textures (normal maps) are linear and read as UNORM, as the
+  // CPU's Texture::sample reads them.
+  auto addTexture = [&](int width, int height, std::span<const std::uint8_t> rgba,
+                        bool linear) -> Status {
+    const MipChain chain = mipmaps ? buildMipChain(width, height, rgba, linear) : MipChain{};
     const std::span<const std::uint8_t> texels = mipmaps
                                                      ? std::span<const std::uint8_t>(chain.rgba)
                                                      : rgba.first(std::size_t(width) * height * 4);
     vk::ImageDesc d;
-    d.format = VK_FORMAT_R8G8B8A8_SRGB;  // decoded to linear by the sampler, as the CPU's LUT
+    // SRGB: decoded to linear by the sampler, as the CPU's LUT.
+    d.format = linear ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_R8G8B8A8_SRGB;
     d.width = std::uint32_t(width);
     d.height = std::uint32_t(height);
     d.mipLevels = mipmaps ? std::uint32_t(chain.levels) : 1u;
@@ -44,11 +48,12 @@ Result<GpuScene> GpuScene::create(const vk::Context& ctx, const Scene& scene, bo
   for (const Texture& t : scene.textures) {
     const bool valid =
         t.width > 0 && t.height > 0 && t.rgba.size() >= std::size_t(t.width) * t.height * 4;
-    Status s = valid ? addTexture(t.width, t.height, t.rgba) : addTexture(1, 1, white);
+    Status s =
+        valid ? addTexture(t.width, t.height, t.rgba, t.linear) : addTexture(1, 1, white, t.linear);
     if (!s) return s.error();
   }
   if (g.textures_.empty()) {
-    Status s = addTexture(1, 1, white);
+    Status s = addTexture(1, 1, white, false);
     if (!s) return s.error();
   }
 

@@ -14,9 +14,11 @@ PackedScene packScene(const Scene& scene) {
     range.vertexOffset = std::int32_t(p.vertices.size());
     const bool hasNormals = mesh.normals.size() == mesh.positions.size();
     const bool hasUvs = mesh.uvs.size() == mesh.positions.size();
+    const bool hasTangents = mesh.tangents.size() == mesh.positions.size();
     for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
       p.vertices.push_back({mesh.positions[v], hasNormals ? mesh.normals[v] : glm::vec3(0.0f),
-                            hasUvs ? mesh.uvs[v] : glm::vec2(0.0f)});
+                            hasUvs ? mesh.uvs[v] : glm::vec2(0.0f),
+                            hasTangents ? mesh.tangents[v] : glm::vec4(0.0f)});
     }
     // Triangles with an index out of range are dropped, as the CPU renders drop them.
     for (std::size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
@@ -51,6 +53,7 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
     d.normalMatrix = glm::transpose(glm::inverse(d.model));
     const int mat = scene.meshes[inst.mesh].material;
     d.textures = glm::ivec4(-1, -1, 0, -1);
+    d.normalTexture = -1;
     const MeshRange& range = packed.meshes[std::size_t(inst.mesh)];
     d.geometry = glm::ivec4(std::int32_t(range.firstIndex), range.vertexOffset,
                             std::int32_t(packed.triangleBases[k]),
@@ -63,6 +66,13 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
       const int textures = int(scene.textures.size());
       d.textures.x = m.baseColorTexture < textures ? m.baseColorTexture : -1;
       d.textures.y = m.emissiveTexture < textures ? m.emissiveTexture : -1;
+      // Meshes without tangents (no coordinates to make them from) keep their vertex normals.
+      const Mesh& mesh = scene.meshes[std::size_t(inst.mesh)];
+      if (m.normalTexture >= 0 && m.normalTexture < textures &&
+          mesh.tangents.size() == mesh.positions.size()) {
+        d.normalTexture = m.normalTexture;
+        d.normalScale = m.normalScale;
+      }
       if (m.isCutOut()) {  // client_surface.glsl reads these three
         d.baseColor.w = m.baseAlpha;
         d.emissive.w = m.alphaCutoff;

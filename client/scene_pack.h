@@ -12,12 +12,14 @@
 
 namespace pc::client {
 
+// The lighting pass reads these records from a float buffer (client_geometry.glsl, vertexAt).
 struct Vertex {
   glm::vec3 position;
   glm::vec3 normal;
   glm::vec2 uv;
+  glm::vec4 tangent;  // Mesh::tangents (xyz, handedness w); zero where the mesh has none
 };
-static_assert(sizeof(Vertex) == 32);
+static_assert(sizeof(Vertex) == gpu::PC_CLIENT_VERTEX_FLOATS * sizeof(float));
 
 struct MeshRange {
   std::uint32_t firstIndex = 0, indexCount = 0;

@@ -14,6 +14,10 @@ std::uint8_t encodeSrgb(float linear) {
   return std::uint8_t(std::lround(s * 255.0f));
 }
 
+std::uint8_t encodeLinear(float v) {
+  return std::uint8_t(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
+}
+
 // The source rows (or columns) that destination row `d` of a level of `dst` rows averages:
 // 2d and 2d+1, plus 2d+2 for the last row when the source has an odd count.
 struct Span {
@@ -33,7 +37,7 @@ int mipLevelCount(int width, int height) {
   return levels;
 }
 
-MipChain buildSrgbMipChain(int width, int height, std::span<const std::uint8_t> rgba) {
+MipChain buildMipChain(int width, int height, std::span<const std::uint8_t> rgba, bool linear) {
   MipChain chain;
   chain.levels = mipLevelCount(width, height);
   chain.rgba.assign(rgba.begin(), rgba.begin() + std::size_t(width) * height * 4);
@@ -52,14 +56,15 @@ MipChain buildSrgbMipChain(int width, int height, std::span<const std::uint8_t> 
         for (int sy = rows.first; sy < rows.first + rows.count; ++sy) {
           for (int sx = cols.first; sx < cols.first + cols.count; ++sx) {
             const std::uint8_t* p = &chain.rgba[srcOffset + (std::size_t(sy) * w + sx) * 4];
-            for (int c = 0; c < 3; ++c) sum[c] += decode[p[c]];
+            for (int c = 0; c < 3; ++c) sum[c] += linear ? float(p[c]) / 255.0f : decode[p[c]];
             sum[3] += float(p[3]) / 255.0f;
           }
         }
         const float inv = 1.0f / float(rows.count * cols.count);
         std::uint8_t* q = &chain.rgba[dstOffset + (std::size_t(y) * dw + x) * 4];
-        for (int c = 0; c < 3; ++c) q[c] = encodeSrgb(sum[c] * inv);
-        q[3] = std::uint8_t(std::lround(std::clamp(sum[3] * inv, 0.0f, 1.0f) * 255.0f));
+        for (int c = 0; c < 3; ++c)
+          q[c] = linear ? encodeLinear(sum[c] * inv) : encodeSrgb(sum[c] * inv);
+        q[3] = encodeLinear(sum[3] * inv);
       }
     }
     srcOffset = dstOffset;

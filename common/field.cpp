@@ -143,9 +143,9 @@ glm::vec4 sampleField(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V,
   return r;
 }
 
-glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
-                               glm::vec3 ambient) {
-  return pcSampleFieldOrAmbient(field, field.desc, P, N, V, flags, ambient);
+glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 Ns,
+                               glm::vec3 V, int flags, glm::vec3 ambient) {
+  return pcSampleFieldOrAmbient(field, field.desc, P, N, Ns, V, flags, ambient);
 }
 
 glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir) {

@@ -81,9 +81,11 @@ class Field {
 glm::vec4 sampleField(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
                       float* coverage = nullptr);
 // sampleField with a renderer's last fallback: `ambient` stands in where no probe near P holds
-// data (pcSampleFieldOrAmbient), as in the client's lighting pass.
-glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V, int flags,
-                               glm::vec3 ambient);
+// data (pcSampleFieldOrAmbient), as in the client's lighting pass. N, the surface's own normal,
+// places the sample and weighs the probes; Ns, the shading normal (normal-mapped, else N), is
+// the direction whose irradiance is looked up.
+glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 Ns,
+                               glm::vec3 V, int flags, glm::vec3 ambient);
 
 // Bilinear fetches used by sampleField, exposed for tests and the bake checks.
 glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir);  // decoded

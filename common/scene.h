@@ -27,8 +27,11 @@ enum class TextureWrap : std::uint8_t { Repeat, ClampToEdge, MirroredRepeat };
 struct Texture {
   std::string name;
   int width = 0, height = 0;
-  std::vector<std::uint8_t> rgba;  // 8-bit sRGB, row 0 at the top
+  std::vector<std::uint8_t> rgba;  // 8-bit sRGB (linear when `linear`), row 0 at the top
   TextureWrap wrapU = TextureWrap::Repeat, wrapV = TextureWrap::Repeat;
+  // Data rather than colour (normal maps): the codes are linear values / 255, never decoded
+  // from sRGB (the client uploads such a texture as UNORM, the others as SRGB).
+  bool linear = false;
   // Bilinear with the texture's wrap modes, as a Vulkan sampler with linear filtering reads
   // level 0; returns linear RGB (alpha linear).
   glm::vec4 sample(glm::vec2 uv) const;
@@ -49,6 +52,12 @@ struct Material {
   float baseAlpha = 1.0f;
   int alphaTexture = -1;  // index into Scene::textures, -1: baseAlpha alone
   int alphaChannel = 3;   // 0-3: which channel of alphaTexture (glTF: 3; OBJ map_d: 0)
+  // Tangent-space normal map (glTF normalTexture): a linear texture whose RGB holds the
+  // normal's tangent, bitangent and normal components as (c + 1) / 2; x and y are scaled by
+  // normalScale. Applied where the mesh has tangents and texture coordinates
+  // (shadingNormal); -1: none.
+  int normalTexture = -1;
+  float normalScale = 1.0f;
   bool isEmissive() const { return emissive.x > 0 || emissive.y > 0 || emissive.z > 0; }
   bool isCutOut() const { return alphaCutoff > 0.0f; }
 };
@@ -58,10 +67,14 @@ bool coveredAt(const Material& material, const std::vector<Texture>& textures, g
 
 struct Mesh {
   std::string name;
-  std::vector<glm::vec3> positions;    // object space
-  std::vector<glm::vec3> normals;      // one per position, unit length (generated when missing)
-  std::vector<glm::vec2> uvs;          // one per position, or empty; (0,0) is the image's top left
-                                       // (glTF convention; OBJ v is flipped on load)
+  std::vector<glm::vec3> positions;  // object space
+  std::vector<glm::vec3> normals;    // one per position, unit length (generated when missing)
+  std::vector<glm::vec2> uvs;        // one per position, or empty; (0,0) is the image's top left
+                                     // (glTF convention; OBJ v is flipped on load)
+  // One per position, or empty: xyz the unit tangent (along increasing u), w = +1 or -1 the
+  // handedness, the bitangent being w x cross(normal, tangent) (glTF TANGENT). Read from the
+  // file or generated on load for meshes whose material has a normal map (generateTangents).
+  std::vector<glm::vec4> tangents;
   std::vector<std::uint32_t> indices;  // triangles
   int material = 0;
   std::size_t triangleCount() const { return indices.size() / 3; }

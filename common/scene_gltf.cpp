@@ -1,8 +1,8 @@
 // glTF 2.0 (.gltf, .glb) through tinygltf: triangle primitives (one pc::Mesh each), the node
-// hierarchy, base colour and emission (with their textures), KHR_lights_punctual,
-// perspective cameras and node animations (translation, rotation, scale); what else a file
-// holds is named in warnings (scene_gltf_unused.h). Every index the file holds is checked
-// before it is followed.
+// hierarchy, base colour and emission (with their textures), normal maps with their tangents,
+// KHR_lights_punctual, perspective cameras and node animations (translation, rotation, scale);
+// what else a file holds is named in warnings (scene_gltf_unused.h). Every index the file holds
+// is checked before it is followed.
 #include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
 #include <tiny_gltf.h>
 
@@ -522,8 +522,8 @@ class GltfReader {
   // Where a material's textures take their coordinates from: a TEXCOORD set and, with
   // KHR_texture_transform, an affine map (scale, then rotation about the origin, then offset,
   // as the extension specifies). Meshes keep one set of coordinates, so the map is applied on
-  // load: the base colour texture's (else the emissive texture's); when the two differ, the
-  // emissive texture follows the base colour's, with a warning.
+  // load: the base colour texture's, else the emissive texture's, else the normal texture's;
+  // a texture whose coordinates differ follows the first one's, with a warning.
   struct UvSource {
     int set = 0;
     glm::vec2 offset{0.0f}, scale{1.0f};
@@ -536,11 +536,11 @@ class GltfReader {
     }
   };
 
-  static UvSource uvSourceOf(const tinygltf::TextureInfo& info) {
+  static UvSource uvSourceOf(int texCoord, const tinygltf::ExtensionMap& extensions) {
     UvSource uv;
-    uv.set = std::max(info.texCoord, 0);
-    auto ext = info.extensions.find("KHR_texture_transform");
-    if (ext == info.extensions.end() || !ext->second.IsObject()) return uv;
+    uv.set = std::max(texCoord, 0);
+    auto ext = extensions.find("KHR_texture_transform");
+    if (ext == extensions.end() || !ext->second.IsObject()) return uv;
     const tinygltf::Value& t = ext->second;
     auto vec2 = [&](const char* key, glm::vec2& out) {
       if (!t.Has(key) || !t.Get(key).IsArray() || t.Get(key).ArrayLen() != 2) return;
@@ -561,15 +561,34 @@ class GltfReader {
     const tinygltf::Material& gm = m_.materials[gltfMaterial];
     const tinygltf::TextureInfo& base = gm.pbrMetallicRoughness.baseColorTexture;
     const tinygltf::TextureInfo& emissive = gm.emissiveTexture;
-    if (base.index < 0) return emissive.index < 0 ? UvSource{} : uvSourceOf(emissive);
-    const UvSource uv = uvSourceOf(base);
-    if (emissive.index >= 0 && !(uvSourceOf(emissive) == uv) &&
-        uvWarned_.insert(gltfMaterial).second)
-      scene_.warnings.push_back("material '" + gm.name +
-                                "': its emissive texture's coordinates (set or "
-                                "KHR_texture_transform) differ from its base colour texture's; "
-                                "the base colour's are used for both");
-    return uv;
+    const tinygltf::NormalTextureInfo& normal = gm.normalTexture;
+    struct Use {
+      const char* what;
+      int index;
+      UvSource uv;
+    };
+    const Use uses[] = {
+        {"base colour", base.index, uvSourceOf(base.texCoord, base.extensions)},
+        {"emissive", emissive.index, uvSourceOf(emissive.texCoord, emissive.extensions)},
+        {"normal", normal.index, uvSourceOf(normal.texCoord, normal.extensions)}};
+    const Use* first = nullptr;
+    for (const Use& use : uses) {
+      if (use.index < 0) continue;
+      if (!first) {
+        first = &use;
+      } else if (!(use.uv == first->uv)) {
+        warnOnce("material '" + gm.name + "': its " + use.what +
+                 " texture's coordinates (set or KHR_texture_transform) differ from its " +
+                 first->what + " texture's; the " + first->what + "'s are used for both");
+      }
+    }
+    return first ? first->uv : UvSource{};
+  }
+
+  // Whether glTF material `gltfMaterial` has a normal map (its meshes keep their tangents).
+  bool hasNormalMap(int gltfMaterial) const {
+    return gltfMaterial >= 0 && std::size_t(gltfMaterial) < m_.materials.size() &&
+           m_.materials[std::size_t(gltfMaterial)].normalTexture.index >= 0;
   }
 
   // False for primitives that hold no triangles (points, lines).
@@ -610,6 +629,17 @@ class GltfReader {
       if (v.size() == 2 * n) {
         mesh.uvs.resize(n);
         for (std::size_t i = 0; i < n; ++i) mesh.uvs[i] = uv.apply({v[2 * i], v[2 * i + 1]});
+      }
+    }
+    // Tangents only matter under a normal map; without one they would only cost memory.
+    // Unusable ones (zero, not finite) are generated again on load (generateTangents).
+    if (auto it = prim.attributes.find("TANGENT");
+        it != prim.attributes.end() && hasNormalMap(prim.material)) {
+      std::vector<float> v = readFloats(it->second, 4, "TANGENT");
+      if (v.size() == 4 * n) {
+        mesh.tangents.resize(n);
+        for (std::size_t i = 0; i < n; ++i)
+          mesh.tangents[i] = {v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3]};
       }
     }
     std::vector<std::uint32_t> idx;
@@ -672,6 +702,18 @@ class GltfReader {
       mat.emissive *= float(strength->second.Get("emissiveStrength").GetNumberAsDouble());
     // An emissive texture without a factor means nothing in glTF (factor defaults to 0).
     if (mat.isEmissive()) mat.emissiveTexture = textureFor(gm.emissiveTexture.index);
+    // The normal map holds directions, not colours: read as linear data. Its scale stretches
+    // the map's x and y (glTF).
+    if (const tinygltf::NormalTextureInfo& normal = gm.normalTexture; normal.index != -1) {
+      if (normal.index < 0 || std::size_t(normal.index) >= m_.textures.size())
+        throw GltfError{"material '" + mat.name + "': normalTexture index " +
+                        std::to_string(normal.index) + " out of range (" +
+                        std::to_string(m_.textures.size()) + " textures)"};
+      if (!std::isfinite(normal.scale))
+        throw GltfError{"material '" + mat.name + "': normalTexture scale is not finite"};
+      mat.normalTexture = textureFor(normal.index, true);
+      mat.normalScale = float(normal.scale);
+    }
     // MASK: a cut-out at alphaCutoff. BLEND (partial transparency) is not modelled; it is
     // drawn as a cut-out at 0.5 (every tracer and renderer alike), which keeps mostly
     // transparent surfaces such as glass from blocking light, and said once per material.
@@ -694,8 +736,8 @@ class GltfReader {
   }
 
   // Scene texture index for glTF texture `index`, or -1 (with a warning) if its image is
-  // missing or could not be decoded.
-  int textureFor(int index) {
+  // missing or could not be decoded. `linear`: the texels are data (normal maps), not sRGB.
+  int textureFor(int index, bool linear = false) {
     if (index < 0) return -1;
     check(index, m_.textures.size(), "texture");
     int source = m_.textures[index].source;
@@ -709,7 +751,7 @@ class GltfReader {
       wrapU = wrapMode(m_.samplers[sampler].wrapS);
       wrapV = wrapMode(m_.samplers[sampler].wrapT);
     }
-    const auto key = std::make_tuple(source, wrapU, wrapV);
+    const auto key = std::make_tuple(source, wrapU, wrapV, linear);
     auto it = imageCache_.find(key);
     if (it != imageCache_.end()) return it->second;
     const tinygltf::Image& img = m_.images[source];
@@ -727,6 +769,7 @@ class GltfReader {
       tex.height = img.height;
       tex.wrapU = wrapU;
       tex.wrapV = wrapV;
+      tex.linear = linear;
       tex.rgba.resize(texels * 4);
       for (std::size_t t = 0; t < texels; ++t) {
         std::uint8_t c[4] = {0, 0, 0, 255};
@@ -768,8 +811,8 @@ class GltfReader {
   std::uint64_t nodeVisits_ = 0, storedTriangles_ = 0, drawnTriangles_ = 0;
   std::map<int, std::vector<int>> meshCache_;
   std::map<int, int> materialCache_;
-  std::map<std::tuple<int, TextureWrap, TextureWrap>, int> imageCache_;  // image and wrap modes
-  std::set<int> uvWarned_;  // materials whose texture coordinates' conflict was reported
+  // Image, wrap modes and whether linear.
+  std::map<std::tuple<int, TextureWrap, TextureWrap, bool>, int> imageCache_;
   int defaultMaterial_ = -1;
   std::vector<int> path_;                       // the nodes from a root to the one visited
   std::map<int, std::vector<int>> nodeTracks_;  // node -> its tracks in tracks_

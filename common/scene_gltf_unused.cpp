@@ -35,7 +35,6 @@ void collectMaterialFeatures(const tinygltf::Model& model, const std::set<std::s
       users["metallic/roughness factors"].push_back(name);
     if (pbr.metallicRoughnessTexture.index >= 0)
       users["metallic/roughness texture"].push_back(name);
-    if (m.normalTexture.index >= 0) users["normal map"].push_back(name);
     if (m.occlusionTexture.index >= 0) users["occlusion texture"].push_back(name);
     for (const auto& [ext, value] : m.extensions)
       if (!honoured.count(ext)) users["material extension " + ext].push_back(name);

@@ -33,6 +33,8 @@ Status validateMesh(const Mesh& mesh) {
     return Error{where + "normal count differs from vertex count"};
   if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
     return Error{where + "uv count differs from vertex count"};
+  if (!mesh.tangents.empty() && mesh.tangents.size() != mesh.positions.size())
+    return Error{where + "tangent count differs from vertex count"};
   return Status::success();
 }
 
@@ -128,6 +130,7 @@ void generateNormals(Mesh& mesh) {
 
   std::vector<glm::vec3> positions, normals;
   std::vector<glm::vec2> uvs;
+  std::vector<glm::vec4> tangents;
   std::vector<std::uint32_t> indices(mesh.indices.size());
   // Per original vertex, the split copies made so far: (normal, new index).
   std::vector<std::vector<std::pair<glm::vec3, std::uint32_t>>> copies(nv);
@@ -166,6 +169,7 @@ void generateNormals(Mesh& mesh) {
       positions.push_back(mesh.positions[v]);
       normals.push_back(n);
       if (!mesh.uvs.empty()) uvs.push_back(mesh.uvs[v]);
+      if (!mesh.tangents.empty()) tangents.push_back(mesh.tangents[v]);
       copies[v].emplace_back(n, out);
     }
     indices[k] = out;
@@ -173,6 +177,7 @@ void generateNormals(Mesh& mesh) {
   mesh.positions = std::move(positions);
   mesh.normals = std::move(normals);
   mesh.uvs = std::move(uvs);
+  mesh.tangents = std::move(tangents);
   mesh.indices = std::move(indices);
 }
 
@@ -283,6 +288,19 @@ std::uint64_t hashScene(const Scene& scene) {
       h.i32(m.alphaTexture);
       h.i32(m.alphaChannel);
     }
+    // Likewise only normal maps add theirs (and their meshes' tangents, below).
+    if (m.normalTexture >= 0) {
+      h.i32(m.normalTexture);
+      h.f32(m.normalScale);
+    }
+  }
+  for (const Mesh& m : scene.meshes) {
+    if (m.tangents.empty()) continue;
+    h.u64(m.tangents.size());
+    for (const glm::vec4& t : m.tangents) {
+      h.vec(glm::vec3(t));
+      h.f32(t.w);
+    }
   }
   h.u64(scene.textures.size());
   for (const Texture& t : scene.textures) {
@@ -295,6 +313,7 @@ std::uint64_t hashScene(const Scene& scene) {
       h.i32(int(t.wrapU));
       h.i32(int(t.wrapV));
     }
+    if (t.linear) h.i32(1);
   }
   h.u64(scene.instances.size());
   for (const Instance& inst : scene.instances) {
@@ -387,6 +406,18 @@ Result<Scene> loadScene(const std::filesystem::path& path, const std::filesystem
   for (Mesh& mesh : scene.meshes) {
     if (Status s = validateMesh(mesh); !s) return Error{file + ": " + s.error().message};
     if (!normalsUsable(mesh)) generateNormals(mesh);
+    // Tangents serve the normal map alone; a mesh that has one and lacks usable tangents gets
+    // them generated, and one where that fails (no texture coordinates to read the map with,
+    // or only degenerate ones) is drawn without its map, said once here.
+    const bool normalMapped = mesh.material >= 0 &&
+                              std::size_t(mesh.material) < scene.materials.size() &&
+                              scene.materials[std::size_t(mesh.material)].normalTexture >= 0;
+    if (!normalMapped) {
+      mesh.tangents.clear();
+    } else if (mesh.uvs.size() != mesh.positions.size() || !tangentsUsable(mesh)) {
+      if (Status s = generateTangents(mesh); !s)
+        scene.warnings.push_back(file + ": " + s.error().message);
+    }
   }
   if (scene.triangleCount() == 0) return Error{file + ": no triangles"};
 

@@ -70,6 +70,19 @@ Status applySidecar(Scene& scene, const std::filesystem::path& sidecar);
 // sharper edges are split. Replaces positions/uvs/indices with the split ones.
 void generateNormals(Mesh& mesh);
 
+// Whether the mesh's tangents (Mesh::tangents) are one per vertex, finite and not zero; makes
+// those it keeps unit length with a handedness of exactly +1 or -1.
+bool tangentsUsable(Mesh& mesh);
+
+// Tangents from the texture coordinates, for a normal map (scene_tangents.cpp): per triangle
+// the directions of increasing u and of decreasing v (the map's +y, glTF's convention),
+// weighted by the corner's angle and summed per vertex, then made perpendicular to the
+// vertex normal, with the handedness the two directions give; one pass over the triangles.
+// Vertices whose triangles all have degenerate coordinates get a tangent perpendicular to
+// their normal. An error naming the mesh, tangents left empty, where the mesh has no
+// coordinates or every triangle's are degenerate: its normal map cannot be applied.
+Status generateTangents(Mesh& mesh);
+
 // Index ranges, finite positions, attribute sizes. The message names the mesh.
 Status validateMesh(const Mesh& mesh);
 

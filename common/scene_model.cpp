@@ -83,6 +83,7 @@ glm::vec4 Texture::sample(glm::vec2 uv) const {
   const auto& lut = srgbDecodeTable();
   auto texel = [&](int px, int py) {
     const std::uint8_t* p = &rgba[(std::size_t(py) * width + px) * 4];
+    if (linear) return glm::vec4(p[0], p[1], p[2], p[3]) / 255.0f;
     return glm::vec4(lut[p[0]], lut[p[1]], lut[p[2]], float(p[3]) / 255.0f);
   };
   glm::vec4 top = glm::mix(texel(x0, y0), texel(x1, y0), tx);

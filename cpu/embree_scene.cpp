@@ -5,6 +5,7 @@
 #include <string>
 
 #include "../common/log.h"
+#include "../shaders/interop/normal_map.h"
 #include "../shaders/interop/probe_math.h"
 
 namespace pc {
@@ -106,6 +107,7 @@ Result<std::unique_ptr<EmbreeScene>> EmbreeScene::create(const Scene& scene) {
   self->geometries_.assign(count, nullptr);
   self->cutOuts_.assign(count, CutOut{});  // never resized again: filters point into it
   self->worldNormals_.resize(count);
+  self->worldTangents_.resize(count);
   self->transforms_.resize(count);
   for (std::size_t i = 0; i < count; ++i) {
     const Instance& inst = scene.instances[i];
@@ -186,6 +188,16 @@ void EmbreeScene::transformInstance(std::size_t i, const glm::mat4& transform) {
     const float len = glm::length(n);
     normals[v] = len > 0.0f ? n / len : glm::vec3(0.0f);
   }
+  // Tangents lie in the surface, so they follow the transform itself; a mirroring transform
+  // flips the frame's handedness.
+  std::vector<glm::vec4>& tangents = worldTangents_[i];
+  const bool mapped = mesh.material >= 0 && std::size_t(mesh.material) < scene_->materials.size() &&
+                      scene_->materials[mesh.material].normalTexture >= 0;
+  tangents.resize(mapped ? mesh.tangents.size() : 0);
+  const float mirror = glm::determinant(glm::mat3(transform)) < 0.0f ? -1.0f : 1.0f;
+  for (std::size_t v = 0; v < tangents.size(); ++v)
+    tangents[v] =
+        glm::vec4(glm::mat3(transform) * glm::vec3(mesh.tangents[v]), mesh.tangents[v].w * mirror);
   transforms_[i] = transform;
 }
 
@@ -270,7 +282,9 @@ SurfacePoint EmbreeScene::surface(const Hit& hit, glm::vec3 origin, glm::vec3 di
     if (len > 0.0f) ns = n / len;
   }
   // Keep the shading normal on the side the ray arrived from, like the geometric one.
-  sp.normal = glm::dot(ns, sp.geometricNormal) < 0.0f ? -ns : ns;
+  const float side = glm::dot(ns, sp.geometricNormal) < 0.0f ? -1.0f : 1.0f;
+  sp.vertexNormal = side * ns;
+  sp.normal = sp.vertexNormal;
 
   glm::vec2 uv(0.0f);
   if (mesh.uvs.size() == mesh.positions.size()) {
@@ -287,6 +301,15 @@ SurfacePoint EmbreeScene::surface(const Hit& hit, glm::vec3 origin, glm::vec3 di
     sp.albedo = mat.baseColor * texture(mat.baseColorTexture);
     // Emitters are one-sided: their back does not glow.
     if (mat.isEmissive() && !sp.backface) sp.emission = mat.emissive * texture(mat.emissiveTexture);
+    // The map perturbs the unflipped normal in the mesh's own frame; the result is then turned
+    // as the vertex normal was, so the back of a two-sided surface sees the mirrored relief.
+    const std::vector<glm::vec4>& tangents = worldTangents_[hit.instance];
+    if (mat.normalTexture >= 0 && std::size_t(mat.normalTexture) < scene_->textures.size() &&
+        tangents.size() == mesh.positions.size() && mesh.uvs.size() == mesh.positions.size()) {
+      const glm::vec4 t = w * tangents[i0] + u * tangents[i1] + v * tangents[i2];
+      const glm::vec3 m = gpu::pcNormalMapDirection(texture(mat.normalTexture), mat.normalScale);
+      sp.normal = side * gpu::pcPerturbNormal(ns, glm::vec3(t), t.w, m);
+    }
   }
   return sp;
 }

@@ -26,7 +26,14 @@ struct Hit {
 // What shading needs at a hit.
 struct SurfacePoint {
   glm::vec3 position{0.0f};
-  glm::vec3 normal{0.0f};           // shading normal, flipped to face the incoming ray
+  // Shading normal: the interpolated vertex normal perturbed by the material's normal map
+  // (shaders/interop/normal_map.h), flipped to the incoming ray's side as vertexNormal is.
+  // Lights and bounces see the surface through it.
+  glm::vec3 normal{0.0f};
+  // The interpolated vertex normal alone, flipped to face the incoming ray: what offsets and
+  // biases follow (the probe sampler's normal bias, screen-space occlusion) and what probe
+  // rays shade with, as the GPU tracer has no normal maps.
+  glm::vec3 vertexNormal{0.0f};
   glm::vec3 geometricNormal{0.0f};  // unit, flipped to face the incoming ray
   bool backface = false;            // the ray hit the back of the triangle's winding
   float extent = 0.0f;              // largest world coordinate of the triangle's corners
@@ -66,7 +73,7 @@ class EmbreeScene {
 
  private:
   EmbreeScene() = default;
-  // Writes instance i's world-space vertices and normals for `transform`.
+  // Writes instance i's world-space vertices, normals and tangents for `transform`.
   void transformInstance(std::size_t i, const glm::mat4& transform);
 
   const Scene* scene_ = nullptr;
@@ -75,6 +82,9 @@ class EmbreeScene {
   std::vector<RTCGeometry> geometries_;               // per instance
   std::vector<CutOut> cutOuts_;                       // per instance (unused when opaque)
   std::vector<std::vector<glm::vec3>> worldNormals_;  // per instance, per vertex
+  // Per instance, per vertex of a normal-mapped mesh (else empty): the tangent in world space
+  // and its handedness times the sign of the transform's determinant.
+  std::vector<std::vector<glm::vec4>> worldTangents_;
   std::vector<glm::mat4> transforms_;
   bool dynamic_ = false;  // any animated instance
 };

@@ -34,10 +34,10 @@ IndirectCoverage measureIndirectCoverage(const EmbreeScene& scene, const Field& 
             if (std::max(sp.albedo.x, std::max(sp.albedo.y, sp.albedo.z)) <= 0.0f) continue;
             ++c.surfacePixels;
             float coverage = 0.0f;
-            sampleField(field, sp.position, sp.normal, -dir, flags, &coverage);
+            sampleField(field, sp.position, sp.vertexNormal, -dir, flags, &coverage);
             if (coverage <= 0.0f) ++c.uncoveredPixels;
-            const glm::vec4 e =
-                sampleFieldOrAmbient(field, sp.position, sp.normal, -dir, flags, ambient);
+            const glm::vec4 e = sampleFieldOrAmbient(field, sp.position, sp.vertexNormal, sp.normal,
+                                                     -dir, flags, ambient);
             if (!(std::max(e.x, std::max(e.y, e.z)) > 0.0f)) ++c.blackPixels;  // NaN counts
           }
         }

@@ -50,6 +50,8 @@ struct Tracer {
       // 256 float steps of the point's own coordinates, as before, grows with the distance
       // from the world's origin: 3000 units out it lit the built-in room as from 0.06 above
       // its surfaces, 7.7% brighter than at the origin.
+      // Light cosines and the bounce see the shading normal (normal-mapped where the material
+      // has a map); the offsets keep the geometric one.
       const glm::vec3 P = gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
       const glm::vec3 E =
           directIrradiance(scene, lights, emissive, sp.position, P, sp.normal, rng, direct);

@@ -59,10 +59,12 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
           const glm::vec3 E =
               directIrradiance(scene, lights, emissive, sp.position, P, sp.normal, rng, direct);
           // The field's sampler applies its own normal and view biases, so it gets the
-          // surface point itself; V points from the surface back toward the camera. Where no
-          // probe near the point holds data, the ambient term stands in, as in the client.
-          const glm::vec4 sampled = sampleFieldOrAmbient(field, sp.position, sp.normal, -dir,
-                                                         options.sampleFlags, ambient);
+          // surface point itself; V points from the surface back toward the camera. Its biases
+          // and probe visibility follow the vertex normal, its irradiance lookup the shading
+          // normal (probe_sampling.h). Where no probe near the point holds data, the ambient
+          // term stands in, as in the client.
+          const glm::vec4 sampled = sampleFieldOrAmbient(
+              field, sp.position, sp.vertexNormal, sp.normal, -dir, options.sampleFlags, ambient);
           glm::vec3 indirect(sampled.x, sampled.y, sampled.z);
           const float visibility = ao.empty() ? 1.0f : ao[std::size_t(y) * width + x];
           if (visibility < 1.0f) indirect *= gpu::pcAoMultiBounce(visibility, sp.albedo);

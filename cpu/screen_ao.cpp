@@ -51,7 +51,7 @@ ViewSurfaces traceViewSurfaces(const EmbreeScene& scene, const PinholeCamera& ca
         // From the ray and its length, not sp.position - eye: no cancellation far from the
         // world's origin (the client stores the same).
         s.position[i] = glm::vec4(dir * hit.t, 1.0f);
-        s.normal[i] = sp.normal;
+        s.normal[i] = sp.vertexNormal;  // the surface's shape, as the client's AO reads it
         s.albedo[i] = sp.albedo;
       }
     }

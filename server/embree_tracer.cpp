@@ -152,13 +152,15 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
         RayRng rng(std::uint32_t(request.rotationSeed), rayIndex);
         const glm::vec3 shadowOrigin =
             gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
+        // The vertex normal, not the normal-mapped one: the GPU tracer reads no normal maps,
+        // and both backends must trace the same field.
         glm::vec3 irradiance = directIrradiance(*embree_, lights_, emissive_, sp.position,
-                                                shadowOrigin, sp.normal, rng, lightOptions);
+                                                shadowOrigin, sp.vertexNormal, rng, lightOptions);
         glm::vec3 emitted = emissive_.sampled(sp.material) ? glm::vec3(0.0f) : sp.emission;
         glm::vec3 reflectance = sp.albedo * (1.0f / gpu::PC_PI);
         out[i] = {emitted + reflectance * irradiance, hit.t};
         if (indirect && (reflectance.x > 0 || reflectance.y > 0 || reflectance.z > 0)) {
-          deferred[p * rayCount + i] = {sp.position, sp.normal, reflectance,
+          deferred[p * rayCount + i] = {sp.position, sp.vertexNormal, reflectance,
                                         spatialKey(field, sp.position)};
         }
       }

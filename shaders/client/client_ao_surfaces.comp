@@ -39,5 +39,6 @@ void main() {
   // From the ray and its length, not the position minus the eye: nothing cancels far from
   // the world's origin (the CPU stores the same).
   aoSurfaces[2u * pixel] = vec4(ray * f.distance, 1.0);
-  aoSurfaces[2u * pixel + 1u] = vec4(f.normal, 0.0);
+  // The surface's own shape, not its normal map (the CPU's AO reads the same).
+  aoSurfaces[2u * pixel + 1u] = vec4(f.vertexNormal, 0.0);
 }

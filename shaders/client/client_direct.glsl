@@ -60,8 +60,10 @@ float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
 }
 
 // Every light at P, each shadowed by its map; the light itself is the shared light model
-// (shaders/interop/light_model.h), as the tracers evaluate it.
-vec3 directIrradiance(vec3 P, vec3 N) {
+// (shaders/interop/light_model.h), as the tracers evaluate it. N: the shading normal (the
+// light's cosine); Nbias: the vertex normal, along which the receiver moves off its surface
+// for the shadow lookup (a normal-mapped normal would move it off the real surface).
+vec3 directIrradiance(vec3 P, vec3 N, vec3 Nbias) {
   vec3 E = vec3(0.0);
   for (int i = 0; i < frame.lightCount; ++i) {
     GpuLight l = lights[i];
@@ -72,9 +74,9 @@ vec3 directIrradiance(vec3 P, vec3 N) {
     // Two calls, so that the sun's lookup is compiled apart from the perspective maps' (it
     // needs neither the distance nor a cube face): 2% of the pass on an H200.
     if (l.type == PC_LIGHT_DIRECTIONAL) {
-      E += l.power * (scale * shadowVisibility(l, P, N, 0.0));
+      E += l.power * (scale * shadowVisibility(l, P, Nbias, 0.0));
     } else {
-      E += l.power * (scale * shadowVisibility(l, P, N, d));
+      E += l.power * (scale * shadowVisibility(l, P, Nbias, d));
     }
   }
   return E;

@@ -22,14 +22,16 @@ struct VertexRecord {
   vec3 position;
   vec3 normal;
   vec2 uv;
+  vec4 tangent;  // xyz, handedness w; zero where the mesh has none
 };
 
 VertexRecord vertexAt(uint v) {
-  uint b = 8u * v;
+  uint b = uint(PC_CLIENT_VERTEX_FLOATS) * v;
   VertexRecord r;
   r.position = vec3(vertexData[b], vertexData[b + 1u], vertexData[b + 2u]);
   r.normal = vec3(vertexData[b + 3u], vertexData[b + 4u], vertexData[b + 5u]);
   r.uv = vec2(vertexData[b + 6u], vertexData[b + 7u]);
+  r.tangent = vec4(vertexData[b + 8u], vertexData[b + 9u], vertexData[b + 10u], vertexData[b + 11u]);
   return r;
 }
 

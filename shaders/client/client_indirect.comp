@@ -52,10 +52,15 @@ vec3 skyRadiance(vec3 dir) {
   return mix(frame.skyHorizon.rgb, frame.skyGround.rgb, -y);
 }
 
-vec3 fieldIrradiance(vec3 P, vec3 N, vec3 V) {
+// N: the vertex normal, which places the sample and weighs the probes; Ns: the shading
+// (normal-mapped) normal, whose irradiance is looked up. The sampler's normal bias and
+// backface and visibility weights describe where the surface itself lies: moved along a
+// perturbed normal, the biased point could sink into the surface or reach probes that do not
+// see it, and light would leak (probe_sampling.h).
+vec3 fieldIrradiance(vec3 P, vec3 N, vec3 Ns, vec3 V) {
   if (frame.fieldPresent == 0) return frame.ambient.rgb;
   // Where no probe near P holds data, the plain ambient term stands in (the shared rule).
-  return pcSampleFieldOrAmbient(field, P, N, V, frame.sampleFlags, frame.ambient.rgb).rgb;
+  return pcSampleFieldOrAmbient(field, P, N, Ns, V, frame.sampleFlags, frame.ambient.rgb).rgb;
 }
 
 void main() {
@@ -93,10 +98,11 @@ void main() {
     } else {
       Surface f = surfaceOf(visibility, eye, ray, rayDx, rayDy);
       vec3 V = -ray;
-      vec3 indirect = fieldIrradiance(f.position, f.normal, V);
+      vec3 indirect = fieldIrradiance(f.position, f.vertexNormal, f.normal, V);
       if (occlusion < 1.0) indirect *= pcAoMultiBounce(occlusion, f.albedo);
       shaded[s] = f.emission + f.albedo * (1.0 / PC_PI) *
-                                   (directIrradiance(f.position, f.normal) + indirect);
+                                   (directIrradiance(f.position, f.normal, f.vertexNormal) +
+                                    indirect);
     }
     sum += shaded[s];
   }

@@ -11,12 +11,14 @@
 
 #extension GL_EXT_nonuniform_qualifier : require
 #include "client_geometry.glsl"
+#include "../interop/normal_map.h"
 
 layout(set = 0, binding = PC_CLIENT_BIND_TEXTURES) uniform sampler2D textures[TEXTURE_COUNT];
 
 struct Surface {
   vec3 position;
-  vec3 normal;  // shading normal, on the viewer's side
+  vec3 normal;        // shading normal (normal-mapped), on the viewer's side
+  vec3 vertexNormal;  // the interpolated vertex normal alone, on the viewer's side
   vec3 albedo;
   vec3 emission;
   float distance;  // along the ray from the eye
@@ -27,6 +29,11 @@ struct Surface {
 vec3 textureRgb(int index, vec2 uv, vec2 dx, vec2 dy) {
   if (index < 0 || index >= TEXTURE_COUNT) return vec3(1.0);
   return textureGrad(textures[nonuniformEXT(index)], uv, dx, dy).rgb;
+}
+
+// Whether draw `d` has a normal map its mesh's tangents can apply (scene_pack.cpp).
+bool drawHasNormalMap(DrawData d) {
+  return d.normalTexture >= 0 && d.normalTexture < TEXTURE_COUNT;
 }
 
 // Ray against the plane of the triangle p0 + b1 e1 + b2 e2 (Moller-Trumbore without the inside
@@ -91,13 +98,16 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   vec3 ns = normalMatrix * (b0 * v0.normal + b1 * v1.normal + b2 * v2.normal);
   float len = length(ns);
   ns = len > 0.0 ? ns / len : ng;
-  s.normal = dot(ns, ng) < 0.0 ? -ns : ns;
+  float side = dot(ns, ng) < 0.0 ? -1.0 : 1.0;
+  s.vertexNormal = side * ns;
+  s.normal = s.vertexNormal;
 
   vec2 uv = b0 * v0.uv + b1 * v1.uv + b2 * v2.uv;
+  bool normalMapped = drawHasNormalMap(d);
   // The neighbouring pixels' rays on the same plane: uv there minus uv here (only where a
   // texture is read; untextured surfaces skip the two extra plane intersections).
   vec2 dx = vec2(0.0), dy = vec2(0.0);
-  if (d.textures.x >= 0 || d.textures.y >= 0) {
+  if (d.textures.x >= 0 || d.textures.y >= 0 || normalMapped) {
     vec2 du1 = v1.uv - v0.uv, du2 = v2.uv - v0.uv;
     vec2 bx = planeHit(rayDx, e1, e2, tv, qv).xy - hit.xy;
     vec2 by = planeHit(rayDy, e1, e2, tv, qv).xy - hit.xy;
@@ -106,6 +116,14 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   }
   s.albedo = d.baseColor.rgb * textureRgb(d.textures.x, uv, dx, dy);
   s.emission = front ? d.emissive.rgb * textureRgb(d.textures.y, uv, dx, dy) : vec3(0.0);
+  // As the CPU renders do (cpu/embree_scene.cpp): the map perturbs the unflipped normal in the
+  // mesh's frame, tangents following the model matrix (they lie in the surface) and their
+  // handedness the sign of its determinant; the result is turned as the vertex normal was.
+  if (normalMapped) {
+    vec4 t = b0 * v0.tangent + b1 * v1.tangent + b2 * v2.tangent;
+    vec3 m = pcNormalMapDirection(textureRgb(d.normalTexture, uv, dx, dy), d.normalScale);
+    s.normal = side * pcPerturbNormal(ns, mat3(d.model) * t.xyz, t.w * float(d.geometry.w), m);
+  }
   return s;
 }
 

@@ -26,7 +26,7 @@ PC_CONST int PC_CLIENT_BIND_SHADOW_MAPS =
 PC_CONST int PC_CLIENT_BIND_TEXTURES = 10;  // sampler2D[textureCount]
 PC_CONST int PC_CLIENT_BIND_G_VISIBILITY =
     11;  // usampler2DMSArray: draw's triangleBase + primitive + 1, 0: sky
-PC_CONST int PC_CLIENT_BIND_VERTICES = 12;   // buffer float[]: the packed Vertex records (8 floats)
+PC_CONST int PC_CLIENT_BIND_VERTICES = 12;   // buffer float[]: the packed Vertex records
 PC_CONST int PC_CLIENT_BIND_INDICES = 13;    // buffer uint[]: the packed index buffer
 PC_CONST int PC_CLIENT_BIND_HDR_IMAGE = 14;  // image2DArray rgba32f: the final linear frame
 PC_CONST int PC_CLIENT_BIND_HDR_TEXTURE =
@@ -48,6 +48,9 @@ PC_CONST int PC_CLIENT_BIND_BRICK_FLASH = 22;  // buffer float[] (ProbeViewParam
 PC_CONST int PC_CLIENT_BINDING_COUNT = 23;
 
 PC_CONST int PC_MAX_VIEWS = 2;
+
+// Floats per packed vertex (client/scene_pack.h, Vertex): position, normal, uv, tangent.
+PC_CONST int PC_CLIENT_VERTEX_FLOATS = 12;
 
 struct ClientView {
   mat4 viewProj;  // world -> clip (Vulkan: y down, reversed depth 1 at near, 0 at infinity)
@@ -102,6 +105,11 @@ struct DrawData {
   // w: +1 or -1, the sign of the model's determinant (a mirroring transform keeps the mesh's
   // own front faces, as the CPU renders do)
   ivec4 geometry;
+  // -- 192
+  int normalTexture;  // tangent-space normal map (-1: none, or the mesh has no tangents)
+  float normalScale;  // its x and y scale (Material::normalScale)
+  int pad0;
+  int pad1;
 };
 
 // Shadow map rendering's push constants (client_shadow.vert): the layer's view-projection from
@@ -181,7 +189,7 @@ PC_END
 #ifdef __cplusplus
 static_assert(sizeof(pc::gpu::ClientView) == 144);
 static_assert(sizeof(pc::gpu::FrameUniforms) == 448);
-static_assert(sizeof(pc::gpu::DrawData) == 192);
+static_assert(sizeof(pc::gpu::DrawData) == 208);
 static_assert(sizeof(pc::gpu::FieldWrite) == 16);
 static_assert(sizeof(pc::gpu::RasterTriangle) == 48);
 static_assert(sizeof(pc::gpu::RasterCounters) == 32);

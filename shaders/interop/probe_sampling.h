@@ -1,6 +1,12 @@
 // Shading from a probe field: the 8-probe cage of each cascade, weighted by trilinear
 // position, wrap-shaded backface term and Chebyshev visibility on the depth moments, with
 // normal and view bias, blended from the finest cascade to coarser ones near cascade edges.
+// Two normals: N, the surface's own (vertex) normal, places the sample (normal bias) and weighs
+// the probes (backface term, visibility), as those are about where the surface lies and which
+// probes see it; Ns, the shading normal (N perturbed by a normal map, else N itself), is the
+// direction whose irradiance and occlusion are looked up. A perturbed normal would move the
+// biased point off the real surface, into walls or toward probes that do not see it.
+//
 // A point whose cages hold no probe with data falls back, in this order, to a coarser cascade,
 // to the nearest probes with data that see it, then to the renderer's ambient term: the rule
 // every renderer follows, so no surface goes black for want of probes.
@@ -58,19 +64,19 @@ PC_FN float pcProbeVisibilityWeight(PC_FIELD_PARAM int cascade, int slot, vec3 p
   return weight;
 }
 
-// Adds one probe's gamma-encoded irradiance `encoded` (and its occlusion toward N) with
+// Adds one probe's gamma-encoded irradiance `encoded` (and its occlusion toward Ns) with
 // `weight`. Interpolation happens in a perceptual space (square root of irradiance) like RTXGI:
 // the atlas holds irradiance^(1/gamma), so raise to gamma/2 here; pcResolveProbeSum squares the
 // weighted mean. e^(gamma/2) with gamma = 5 as two multiplies and a square root (pow is slow on
 // CPUs).
-PC_FN void pcAccumulateProbe(PC_FIELD_PARAM int cascade, int slot, vec3 encoded, vec3 N,
+PC_FN void pcAccumulateProbe(PC_FIELD_PARAM int cascade, int slot, vec3 encoded, vec3 Ns,
                              float weight, int flags, PC_INOUT(vec4) sum,
                              PC_INOUT(float) weightSum) {
   vec3 e = max(encoded, vec3(0.0f));
   vec3 perceptual = e * e * sqrt(e);
   float occlusion = 0.0f;
   if ((flags & PC_SAMPLE_NO_OCCLUSION) == 0) {
-    occlusion = pcFetchOcclusion(PC_FIELD_ARG cascade, slot, N);
+    occlusion = pcFetchOcclusion(PC_FIELD_ARG cascade, slot, Ns);
   }
   sum += weight * vec4(perceptual.x, perceptual.y, perceptual.z, occlusion);
   weightSum += weight;
@@ -84,8 +90,8 @@ PC_FN vec4 pcResolveProbeSum(vec4 sum, float weightSum) {
 
 // Irradiance (rgb, W/m^2) and sky occlusion (a) from one cascade; `weightSum` returns the sum
 // of cage weights (0 when no probe of the cage holds data).
-PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N, vec3 V,
-                           int flags, PC_INOUT(float) weightSum) {
+PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N,
+                           vec3 Ns, vec3 V, int flags, PC_INOUT(float) weightSum) {
   vec3 biasedP = P + N * c.normalBias + V * c.viewBias;
   vec3 grid = (biasedP - c.origin) / c.spacing;
   ivec3 base = clamp(ivec3(floor(grid)), ivec3(0), max(c.counts - ivec3(2), ivec3(0)));
@@ -100,7 +106,7 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
     vec4 probe = pcFetchProbe(PC_FIELD_ARG cascade, slot);
     // Fetched before the probe's state is known: it depends on the slot alone, so on a GPU its
     // loads go out with the probe record's instead of a round trip after it.
-    vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, N);
+    vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, Ns);
     if (!pcProbeHasData(int(probe.w))) continue;
     vec3 probeP = pcProbeGridPosition(c, logical) + vec3(probe.x, probe.y, probe.z);
 
@@ -109,7 +115,7 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
     if ((flags & PC_SAMPLE_NO_VISIBILITY) == 0) {
       weight *= pcProbeVisibilityWeight(PC_FIELD_ARG cascade, slot, probeP, P, biasedP, N);
     }
-    pcAccumulateProbe(PC_FIELD_ARG cascade, slot, encoded, N, weight, flags, sum, weightSum);
+    pcAccumulateProbe(PC_FIELD_ARG cascade, slot, encoded, Ns, weight, flags, sum, weightSum);
   }
   return pcResolveProbeSum(sum, weightSum);
 }
@@ -119,7 +125,7 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
 // around the cage, each weighted by a tent two cells wide around the biased point and by the
 // same visibility as the cage's, so that the nearest probes that see the point light it.
 PC_FN vec4 pcSampleCascadeWide(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N,
-                               vec3 V, int flags, PC_INOUT(float) weightSum) {
+                               vec3 Ns, vec3 V, int flags, PC_INOUT(float) weightSum) {
   vec3 biasedP = P + N * c.normalBias + V * c.viewBias;
   vec3 grid = (biasedP - c.origin) / c.spacing;
   ivec3 base = clamp(ivec3(floor(grid)), ivec3(0), max(c.counts - ivec3(2), ivec3(0)));
@@ -141,8 +147,8 @@ PC_FN vec4 pcSampleCascadeWide(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade,
     if ((flags & PC_SAMPLE_NO_VISIBILITY) == 0) {
       weight *= pcProbeVisibilityWeight(PC_FIELD_ARG cascade, slot, probeP, P, biasedP, N);
     }
-    vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, N);
-    pcAccumulateProbe(PC_FIELD_ARG cascade, slot, encoded, N, weight, flags, sum, weightSum);
+    vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, Ns);
+    pcAccumulateProbe(PC_FIELD_ARG cascade, slot, encoded, Ns, weight, flags, sum, weightSum);
   }
   return pcResolveProbeSum(sum, weightSum);
 }
@@ -163,16 +169,16 @@ PC_FN float pcCascadeCoverage(PC_IN(CascadeDesc) c, vec3 P) {
 // cascade takes whatever the finer ones leave, even outside its extent (clamped cage). Where no
 // cage holds data, the wider block of the finest cascade that has any (pcSampleCascadeWide)
 // fills the rest, unless PC_SAMPLE_NO_FALLBACK. `coverage` returns how much of the result came
-// from probes that hold data (0..1).
-PC_FN vec4 pcSampleField(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 V, int flags,
-                         PC_INOUT(float) coverage) {
+// from probes that hold data (0..1). N places and weighs, Ns looks up (see the top).
+PC_FN vec4 pcSampleFieldShaded(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 Ns, vec3 V,
+                               int flags, PC_INOUT(float) coverage) {
   vec4 result = vec4(0.0f);
   float remaining = 1.0f;
   for (int k = 0; k < f.cascadeCount; ++k) {
     float w = k == f.cascadeCount - 1 ? 1.0f : pcCascadeCoverage(f.cascades[k], P);
     if (w <= 0.0f) continue;
     float weightSum = 0.0f;
-    vec4 s = pcSampleCascade(PC_FIELD_ARG f.cascades[k], k, P, N, V, flags, weightSum);
+    vec4 s = pcSampleCascade(PC_FIELD_ARG f.cascades[k], k, P, N, Ns, V, flags, weightSum);
     if (weightSum <= 0.0f) continue;
     result += remaining * w * s;
     remaining *= 1.0f - w;
@@ -182,7 +188,7 @@ PC_FN vec4 pcSampleField(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3
     for (int k = 0; k < f.cascadeCount; ++k) {
       if (k < f.cascadeCount - 1 && pcCascadeCoverage(f.cascades[k], P) <= 0.0f) continue;
       float weightSum = 0.0f;
-      vec4 s = pcSampleCascadeWide(PC_FIELD_ARG f.cascades[k], k, P, N, V, flags, weightSum);
+      vec4 s = pcSampleCascadeWide(PC_FIELD_ARG f.cascades[k], k, P, N, Ns, V, flags, weightSum);
       if (weightSum <= 0.0f) continue;
       result += remaining * s;
       remaining = 0.0f;
@@ -193,14 +199,20 @@ PC_FN vec4 pcSampleField(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3
   return coverage > 0.0f ? result / coverage : vec4(0.0f);
 }
 
+// The same where the shading normal is the surface's own (probe rays, unmapped surfaces).
+PC_FN vec4 pcSampleField(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 V, int flags,
+                         PC_INOUT(float) coverage) {
+  return pcSampleFieldShaded(PC_FIELD_ARG f, P, N, N, V, flags, coverage);
+}
+
 // What a renderer shades with: the field, and where no probe near P holds data (an empty or
 // partial field, a point walled in by probes inside geometry), the renderer's ambient term for
 // the rest (occlusion 1), so that no surface goes without indirect light. PC_SAMPLE_NO_FALLBACK
-// leaves the rest black.
-PC_FN vec4 pcSampleFieldOrAmbient(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 V,
-                                  int flags, vec3 ambient) {
+// leaves the rest black. N places and weighs, Ns looks up (see the top).
+PC_FN vec4 pcSampleFieldOrAmbient(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 Ns,
+                                  vec3 V, int flags, vec3 ambient) {
   float coverage = 0.0f;
-  vec4 s = pcSampleField(PC_FIELD_ARG f, P, N, V, flags, coverage);
+  vec4 s = pcSampleFieldShaded(PC_FIELD_ARG f, P, N, Ns, V, flags, coverage);
   if ((flags & PC_SAMPLE_NO_FALLBACK) != 0) return s;
   vec3 irradiance = mix(ambient, vec3(s.x, s.y, s.z), coverage);
   return vec4(irradiance.x, irradiance.y, irradiance.z, mix(1.0f, s.w, coverage));

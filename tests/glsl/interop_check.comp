@@ -5,6 +5,7 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "../../shaders/interop/field_desc.h"
+#include "../../shaders/interop/normal_map.h"
 layout(std430, binding = 0) buffer Out { vec4 result[]; };
 layout(std140, binding = 1) uniform Desc { FieldDesc field; };
 layout(binding = 2) uniform sampler2D irradianceAtlas;
@@ -36,6 +37,7 @@ void main() {
   vec4 s = pcSampleField(field, vec3(1.0f), pcOctDecode(uv), vec3(0.0f, 1.0f, 0.0f), PC_SAMPLE_DEFAULT, coverage);
   ivec2 b = pcBorderSource(0, 3, 8);
   float ao = pcScreenAo(ivec2(i, 0), d, d, pcAoRadius(field, d, PC_AO_DEFAULT_RADIUS));
-  result[i] = vec4(pcTonemap(vec3(s), 1.0f) * pcAoMultiBounce(ao, d),
+  vec3 n = pcPerturbNormal(d, vec3(1.0f, 0.0f, 0.0f), 1.0f, pcNormalMapDirection(vec3(s), 1.0f));
+  result[i] = vec4(pcTonemap(vec3(s), 1.0f) * pcAoMultiBounce(ao, n),
                    coverage + float(b.x) + pcIrradianceWeight(d, d));
 }
