@@ -95,7 +95,32 @@ struct LoadGenerator::Impl {
   std::vector<std::string> errorSamples;
   double decodedFieldMb = 0, brickCodesMb = 0;
   bool layoutMeasured = false;
+
+  // The series (options.seriesPath): a thread that writes a row every second.
+  void writeSeries();
+  std::unique_ptr<SeriesWriter> series;
+  std::thread seriesThread;
+  std::mutex seriesMutex;
+  std::condition_variable seriesWake;
+  bool seriesStop = false;
+  double startedAt = 0, intervalStart = 0;
 };
+
+void LoadGenerator::Impl::writeSeries() {
+  for (int second = 1;; ++second) {
+    {
+      std::unique_lock lock(seriesMutex);
+      const auto due = std::chrono::steady_clock::time_point(
+          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+              std::chrono::duration<double>(startedAt + second)));
+      if (seriesWake.wait_until(lock, due, [this] { return seriesStop; })) return;
+    }
+    // The row's figures come from the workers' threads (takeInterval waits for them).
+    LoadGenerator::Impl& g = *this;
+    const LoadInterval interval = LoadGenerator(g).takeIntervalOf();
+    (void)interval;
+  }
+}
 
 void LoadGenerator::Impl::measureLayout(const SessionInfoMsg& info) {
   std::lock_guard lock(mutex);
@@ -172,6 +197,9 @@ class Client {
   void beginWindow(double now);
   ClientReport report(double now, std::vector<float>& latency, std::vector<float>& staleness,
                       std::uint64_t& unmatched);
+  // Adds what this client saw since the last call to `sums`, and starts the next interval.
+  void takeInterval(LoadInterval& sums, std::vector<float>& latency, std::vector<float>& staleness,
+                    std::vector<float>& ages, std::vector<float>& psnr);
 
  private:
   // Session: the session's layout arrived (ClientSession streaming).
@@ -189,6 +217,27 @@ class Client {
     std::uint64_t reports = 0, linkDrops = 0, linkDatagrams = 0;
     std::string lastError;
   };
+  // What the series' current second collects (LoadGenerator::takeInterval), window or not.
+  struct Interval {
+    std::uint64_t bytesDown = 0, errors = 0, reports = 0;
+    std::vector<float> latencyMs, stalenessMs, oldestChange;
+    double heldSquares = 0;
+  };
+  void addBytesDown(std::size_t n) {
+    window_.bytesDown += n;
+    interval_.bytesDown += n;
+  }
+  void addError(const std::string& message) {
+    ++window_.errors;
+    ++interval_.errors;
+    window_.lastError = message;
+    gen_.noteError(message);
+  }
+  void addLatency(double appliedAt, double published) {
+    const float ms = float(std::max(0.0, appliedAt - published) * 1e3);
+    if (inWindow(appliedAt)) window_.latencyMs.push_back(ms);
+    interval_.latencyMs.push_back(ms);
+  }
 
   void connect(double now);
   void endSession(double now, const std::string& error);
@@ -246,6 +295,7 @@ class Client {
   bool writing_ = false;
 
   Window window_;
+  Interval interval_;
   int linkClass_ = -1;
   double linkRate_ = 0;                             // bytes/s; 0: no emulated link
   double linkFree_ = 0;                             // when the link finishes sending what it holds
@@ -355,11 +405,7 @@ void Client::endSession(double now, const std::string& error) {
   pending_.clear();
   linkQueue_.clear();
   linkFree_ = 0;
-  if (!error.empty()) {
-    ++window_.errors;
-    window_.lastError = error;
-    gen_.noteError(error);
-  }
+  if (!error.empty()) addError(error);
   if (state_ == State::Done) return;
   state_ = worker_.stopping ? State::Done : State::Idle;
   nextConnectAt_ = now + (error.empty() ? o_.rejoinDelay : kErrorRetryDelay);
@@ -387,7 +433,7 @@ void Client::readStream() {
       const bool closed = ec == asio::error::eof || ec == net::ssl::error::stream_truncated;
       return endSession(now, closed ? "connection closed by the server" : "read: " + ec.message());
     }
-    window_.bytesDown += n;
+    addBytesDown(n);
     Status status = session_.onStreamBytes(std::span(readBuffer_.data(), n), now);
     afterInput(now);
     if (!status) return endSession(now, status.error().message);
@@ -411,7 +457,7 @@ void Client::receiveUdp() {
             enterLink(bytes, now);
             deliverLink(now);
           } else {
-            window_.bytesDown += n;
+            addBytesDown(n);
             (void)session_.onDatagram(bytes, now, source);
             afterInput(now);
           }
@@ -460,7 +506,7 @@ void Client::deliverLink(double now) {
     auto [at, bytes] = std::move(linkQueue_.front());
     linkQueue_.pop_front();
     if (state_ != State::Connecting && state_ != State::Session) continue;
-    window_.bytesDown += bytes.size();
+    addBytesDown(bytes.size());
     (void)session_.onDatagram(bytes, at);
     afterInput(at);
   }
@@ -468,7 +514,11 @@ void Client::deliverLink(double now) {
 
 void Client::onReport(double now) {
   const auto& r = session_.report();
-  if (!r || !inWindow(now) || !synced_) return;
+  if (!r || !synced_) return;
+  ++interval_.reports;
+  interval_.heldSquares += std::pow(10.0, -double(r->heldPsnrDb) / 10.0);
+  interval_.oldestChange.push_back(r->oldestChangeSeconds);
+  if (!inWindow(now)) return;
   ++window_.reports;
   window_.heldSquares += std::pow(10.0, -double(r->heldPsnrDb) / 10.0);
   window_.oldestChange.push_back(r->oldestChangeSeconds);
@@ -522,8 +572,7 @@ std::optional<double> Client::publishTime(std::uint64_t version) const {
 
 void Client::recordLatency(std::uint64_t version, double appliedAt) {
   if (auto published = publishTime(version)) {
-    if (inWindow(appliedAt))
-      window_.latencyMs.push_back(float(std::max(0.0, appliedAt - *published) * 1e3));
+    addLatency(appliedAt, *published);
   } else if (pending_.size() < 4096) {
     pending_.emplace_back(version, appliedAt);
   }
@@ -532,8 +581,7 @@ void Client::recordLatency(std::uint64_t version, double appliedAt) {
 void Client::resolvePending(double now) {
   std::erase_if(pending_, [&](const std::pair<std::uint64_t, double>& p) {
     if (auto published = publishTime(p.first)) {
-      if (inWindow(p.second))
-        window_.latencyMs.push_back(float(std::max(0.0, p.second - *published) * 1e3));
+      addLatency(p.second, *published);
       return true;
     }
     if (now - p.second > kPendingSeconds) {
@@ -550,11 +598,7 @@ void Client::onDatagram(const Status& status, double now) {
   if (inWindow(now)) window_.maxGap = std::max(window_.maxGap, now - lastDatagramAt_);
   lastDatagramAt_ = now;
   ++window_.datagrams;
-  if (!status) {
-    ++window_.errors;
-    window_.lastError = status.error().message;
-    gen_.noteError(status.error().message);
-  }
+  if (!status) addError(status.error().message);
   const StreamReceiver& receiver = *session_.receiver();
   const std::uint64_t applied = receiver.stats().applied;
   if (applied == lastApplied_) return;
@@ -577,7 +621,7 @@ void Client::onDatagram(const Status& status, double now) {
 // version newer than every brick it holds (0 when it holds the newest). Sampled once synced.
 void Client::sampleStaleness(double now) {
   lastStaleSampleAt_ = now;
-  if (!synced_ || !inWindow(now)) return;
+  if (!synced_) return;
   auto it = std::upper_bound(versions_.begin(), versions_.end(), maxHeld_,
                              [](std::uint64_t v, const auto& e) { return v < e.first; });
   double staleness = 0;
@@ -585,6 +629,8 @@ void Client::sampleStaleness(double now) {
     const double offset = o_.sameClock ? 0.0 : clockOffset_.value_or(0.0);
     staleness = std::max(0.0, now - (it->second + offset));
   }
+  interval_.stalenessMs.push_back(float(staleness * 1e3));
+  if (!inWindow(now)) return;
   window_.stalenessMs.push_back(float(staleness * 1e3));
   window_.maxStaleness = std::max(window_.maxStaleness, staleness);
 }
@@ -696,6 +742,23 @@ ClientReport Client::report(double now, std::vector<float>& latency, std::vector
   staleness.insert(staleness.end(), window_.stalenessMs.begin(), window_.stalenessMs.end());
   unmatched += window_.unmatched;
   return r;
+}
+
+void Client::takeInterval(LoadInterval& sums, std::vector<float>& latency,
+                          std::vector<float>& staleness, std::vector<float>& ages,
+                          std::vector<float>& psnr) {
+  sums.bytesDown += interval_.bytesDown;
+  sums.errors += interval_.errors;
+  sums.inSession += state_ == State::Session;
+  sums.synced += synced_;
+  latency.insert(latency.end(), interval_.latencyMs.begin(), interval_.latencyMs.end());
+  staleness.insert(staleness.end(), interval_.stalenessMs.begin(), interval_.stalenessMs.end());
+  ages.insert(ages.end(), interval_.oldestChange.begin(), interval_.oldestChange.end());
+  if (interval_.reports > 0) {
+    const double mse = interval_.heldSquares / double(interval_.reports);
+    psnr.push_back(float(mse > 0 ? -10.0 * std::log10(mse) : 99.0));  // the server's cap: equal fields
+  }
+  interval_ = Interval{};
 }
 
 void LoadGenerator::Impl::scheduleTick(Worker& w) {

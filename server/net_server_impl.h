@@ -66,6 +66,7 @@ struct NetServer::Impl {
     Session* session;  // kept alive by the poll's list of sessions
     udp::endpoint to;
     Bytes bytes;
+    double queuedAt;  // steadySeconds() when the session queued it
   };
   std::vector<UdpOut> udpBatch;
 
