@@ -57,6 +57,7 @@ ClientSessionOptions sessionOptions(const NetClientOptions& o) {
   s.silenceTimeout = o.silenceTimeout;
   s.poseInterval = o.poseInterval;
   s.maxMirrorBytes = o.maxMirrorBytes;
+  s.uplinkDatagrams = !o.tcpOnly;
   s.receiver = o.receiver;
   return s;
 }
@@ -87,6 +88,8 @@ struct NetClient::Impl {
   void schedulePoll();
   void poll();
   void send(Bytes frame);
+  // Acks and repair requests as datagrams to the server's UDP port (ClientSession decides).
+  void sendUplink();
   void writeNext();
   // Writes a line about the connection unless the budget for such lines is spent.
   void logConnection(LogLevel level, const std::string& line);
@@ -188,7 +191,7 @@ void NetClient::Impl::onHandshake(std::uint64_t) {
   if (stream->tls()) {
     auto secret = stream->datagramSecret();
     if (!secret) return fail(secret.error().message);
-    session.setDatagramKey(deriveDatagramKeys(*secret).serverToClient);
+    session.setDatagramKeys(deriveDatagramKeys(*secret));
   }
   tcpOpen = true;
   const std::uint16_t udpPort = options.tcpOnly            ? 0
@@ -349,6 +352,7 @@ void NetClient::Impl::poll() {
   if (!frames) return fail(frames.error().message);
   for (Bytes& f : *frames) send(std::move(f));
   if (!tcpOpen || !session.streaming()) return;  // send() may have failed the connection
+  sendUplink();
 
   // Hand changed bricks to the mirror: the frame loop uploads them on its own schedule.
   const StreamReceiver& receiver = *session.receiver();
@@ -378,6 +382,21 @@ void NetClient::Impl::send(Bytes f) {
   queuedBytes += f.size();
   writes.push_back(std::move(f));
   if (!writing) writeNext();
+}
+
+void NetClient::Impl::sendUplink() {
+  const std::uint16_t port = options.udpServerPort ? options.udpServerPort : session.uplinkPort();
+  std::uint64_t sent = 0;
+  for (const Bytes& d : session.takeUplinkDatagrams()) {
+    // Non-blocking: a datagram the socket cannot take now is lost, as on the way; the next
+    // ack repeats what it said.
+    boost::system::error_code ec;
+    udpSocket.send_to(asio::buffer(d), udp::endpoint(serverAddress, port), 0, ec);
+    sent += !ec;
+  }
+  if (sent == 0) return;
+  std::lock_guard lock(mutex);
+  stats.uplinkDatagrams += sent;
 }
 
 void NetClient::Impl::writeNext() {
@@ -410,6 +429,7 @@ void NetClient::start() {
   if (!ec) s.udpSocket.bind(udp::endpoint(udp::v4(), 0), ec);
   // Room for a burst of datagrams while this thread is busy applying bricks.
   if (!ec) s.udpSocket.set_option(asio::socket_base::receive_buffer_size(4 << 20), ec);
+  if (!ec) s.udpSocket.non_blocking(true, ec);
   if (ec) {
     logWarn("UDP socket: " + ec.message() + "; asking for datagrams over TCP");
     s.options.tcpOnly = true;

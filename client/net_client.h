@@ -44,8 +44,11 @@ struct NetClientOptions {
   bool tcpOnly = false;                // ask for datagrams over TCP
   std::uint16_t udpAdvertisePort = 0;  // port the server should send datagrams to (a relay in
                                        // front of this client); 0: this client's own port
-  double backoffInitial = 0.05;        // s before the first reconnect attempt
-  double backoffMax = 0.4;             // s: the cap keeps a returning server found within it
+  // Port to send acks and repair requests to as datagrams, at the server's address, instead of
+  // the one the server names (a relay in front of the server's UDP port); 0: the server's.
+  std::uint16_t udpServerPort = 0;
+  double backoffInitial = 0.05;  // s before the first reconnect attempt
+  double backoffMax = 0.4;       // s: the cap keeps a returning server found within it
   // The session's (ClientSessionOptions), with its defaults:
   double connectTimeout = ClientSessionOptions{}.connectTimeout;  // s: resolve, connect, handshake
   double silenceTimeout = ClientSessionOptions{}.silenceTimeout;  // s without bytes: server gone
@@ -67,6 +70,8 @@ struct NetClientStats {
   std::uint64_t tcpBytes = 0, udpBytes = 0;  // received
   std::uint64_t udpDatagrams = 0, tcpDatagrams = 0, badDatagrams = 0;
   std::uint64_t unsealedRefused = 0;  // UDP datagrams that did not open with the session's key
+  // Acks and repair requests sent as datagrams (PROTOCOL.md "Acks over UDP").
+  std::uint64_t uplinkDatagrams = 0;
   // UDP datagrams from another source than the server (ClientSessionStats), dropped unread.
   std::uint64_t foreignDatagrams = 0;
   // Log lines about the connection left out: a server that rejects or drops this client over

@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -108,17 +110,51 @@ struct ProbeVolume {
   glm::ivec3 counts{8};
 };
 
-// A light moving along a looping polyline, or an instance rotating about an axis. A path is
-// closed (the last point leads back to the first) and every segment takes period / points.size()
-// seconds; an instance on a path is translated by path(t) - points[0].
+// One animated property of a glTF node over time (a glTF animation channel with its sampler).
+// Times are seconds, increasing; values hold xyz (w unused) for translation and scale and xyzw
+// for rotation, one per key, or three per key (in-tangent, value, out-tangent) for cubic
+// splines. The track loops with the period of the glTF animation it came from.
+struct KeyframeTrack {
+  enum class Property : std::uint8_t { Translation, Rotation, Scale } property;
+  enum class Interpolation : std::uint8_t { Step, Linear, CubicSpline } interpolation;
+  std::vector<float> times;
+  std::vector<glm::vec4> values;
+  float period = 0.0f;  // the animation's length: the latest key of all its channels
+};
+
+// A node on the way from a glTF root to an animated instance or light: its rest transform and
+// the tracks (indices into Animation::tracks) that move it. A node given as a matrix is never
+// animated (glTF forbids it), so it keeps the matrix.
+struct KeyframedNode {
+  glm::vec3 translation{0.0f};
+  glm::quat rotation{1.0f, 0.0f, 0.0f, 0.0f};
+  glm::vec3 scale{1.0f};
+  bool hasMatrix = false;
+  glm::mat4 matrix{1.0f};
+  std::vector<int> tracks;
+};
+
+// A light moving along a looping polyline, or an instance rotating about an axis, or a glTF
+// keyframed node chain. A path is closed (the last point leads back to the first) and every
+// segment takes period / points.size() seconds; an instance on a path is translated by
+// path(t) - points[0]. A keyframed instance's transform is base * the product of its chain's
+// local transforms at t (root first), replacing its rest transform; a keyframed light sits at
+// that transform's origin and shines along its -Z.
 struct Animation {
-  enum class Kind { Path, Rotate } kind = Kind::Path;
+  enum class Kind { Path, Rotate, Keyframes } kind = Kind::Path;
   std::vector<glm::vec3> points;     // Path: positions visited in order
   float period = 4.0f;               // Path: seconds per loop
   glm::vec3 axis{0.0f, 1.0f, 0.0f};  // Rotate
   glm::vec3 pivot{0.0f};             // Rotate: world-space point the axis goes through
   float radiansPerSecond = 0.5f;     // Rotate
+  // Keyframes: every track of the file, shared by all the animations made from it.
+  std::shared_ptr<const std::vector<KeyframeTrack>> tracks;
+  std::vector<KeyframedNode> chain;  // Keyframes: root first
+  glm::mat4 base{1.0f};              // Keyframes: the scene conversion applied after the chain
 };
+
+// The object-to-world transform a keyframed animation gives at time t.
+glm::mat4 keyframedTransform(const Animation& a, double time);
 
 struct Instance {
   std::string name;  // glTF node name, or the mesh name

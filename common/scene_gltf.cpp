@@ -1,6 +1,7 @@
 // glTF 2.0 (.gltf, .glb) through tinygltf: triangle primitives (one pc::Mesh each), the node
-// hierarchy, base colour and emission (with their textures), KHR_lights_punctual and
-// perspective cameras. Every index the file holds is checked before it is followed.
+// hierarchy, base colour and emission (with their textures), KHR_lights_punctual,
+// perspective cameras and node animations (translation, rotation, scale). Every index the file
+// holds is checked before it is followed.
 #include <stb_image.h>  // declarations only; the implementation is in scene_model.cpp
 #include <tiny_gltf.h>
 
@@ -13,6 +14,7 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <limits>
 #include <map>
+#include <memory>
 #include <set>
 #include <string>
 #include <tuple>
@@ -56,6 +58,7 @@ class GltfReader {
       for (std::size_t i = 0; i < m_.nodes.size(); ++i)
         if (!isChild[i]) roots.push_back(int(i));
     }
+    readAnimations();
     for (int r : roots) visit(r, glm::mat4(1.0f), 0);
   }
 
@@ -100,6 +103,12 @@ class GltfReader {
     const tinygltf::Node& node = m_.nodes[nodeIndex];
     glm::mat4 world = parent * localMatrix(node);
     std::string nodeName = node.name.empty() ? "node" + std::to_string(nodeIndex) : node.name;
+    path_.push_back(nodeIndex);
+    int animation = -2;  // made when the first instance or light of this visit needs it
+    const auto animationHere = [&] {
+      if (animation == -2) animation = chainAnimation();
+      return animation;
+    };
 
     if (node.mesh >= 0) {
       check(node.mesh, m_.meshes.size(), "mesh");
@@ -114,6 +123,7 @@ class GltfReader {
         inst.name = nodeName;
         inst.mesh = meshIndex;
         inst.transform = world;
+        inst.animation = animationHere();
         scene_.instances.push_back(inst);
       }
     }
@@ -123,8 +133,117 @@ class GltfReader {
       const tinygltf::Value& li = ext->second.Get("light");
       if (!li.IsNumber()) throw GltfError{"node '" + nodeName + "': light index is not a number"};
       addLight(int(li.GetNumberAsDouble()), world, nodeName);
+      scene_.lights.back().animation = animationHere();
     }
     for (int child : node.children) visit(child, world, depth + 1);
+    path_.pop_back();
+  }
+
+  // glTF animations: every channel that moves a node's translation, rotation or scale becomes
+  // a track; all of the file's animations play at once from time 0, each looping on its own
+  // length.
+  void readAnimations() {
+    auto tracks = std::make_shared<std::vector<KeyframeTrack>>();
+    for (std::size_t ai = 0; ai < m_.animations.size(); ++ai) {
+      const tinygltf::Animation& anim = m_.animations[ai];
+      const std::string name =
+          "animation '" + (anim.name.empty() ? std::to_string(ai) : anim.name) + "'";
+      const std::size_t first = tracks->size();
+      float period = 0.0f;
+      for (const tinygltf::AnimationChannel& ch : anim.channels) {
+        check(ch.sampler, anim.samplers.size(), "animation sampler");
+        if (ch.target_node < 0) continue;  // glTF allows channels that target nothing
+        check(ch.target_node, m_.nodes.size(), "node");
+        KeyframeTrack k;
+        if (ch.target_path == "translation") {
+          k.property = KeyframeTrack::Property::Translation;
+        } else if (ch.target_path == "rotation") {
+          k.property = KeyframeTrack::Property::Rotation;
+        } else if (ch.target_path == "scale") {
+          k.property = KeyframeTrack::Property::Scale;
+        } else {
+          warnOnce(name + ": '" + ch.target_path + "' channels are not read (morph targets)");
+          continue;
+        }
+        if (m_.nodes[std::size_t(ch.target_node)].matrix.size() == 16) {
+          warnOnce(name + ": a channel moves node " + std::to_string(ch.target_node) +
+                   ", which has a matrix (glTF forbids animating it); the channel is ignored");
+          continue;
+        }
+        const tinygltf::AnimationSampler& sampler = anim.samplers[std::size_t(ch.sampler)];
+        if (sampler.interpolation == "STEP") {
+          k.interpolation = KeyframeTrack::Interpolation::Step;
+        } else if (sampler.interpolation == "CUBICSPLINE") {
+          k.interpolation = KeyframeTrack::Interpolation::CubicSpline;
+        } else if (sampler.interpolation.empty() || sampler.interpolation == "LINEAR") {
+          k.interpolation = KeyframeTrack::Interpolation::Linear;
+        } else {
+          throw GltfError{name + ": unknown interpolation '" + sampler.interpolation + "'"};
+        }
+        k.times = readFloats(sampler.input, 1, "animation input");
+        for (std::size_t i = 0; i < k.times.size(); ++i)
+          if (!std::isfinite(k.times[i]) || k.times[i] < 0.0f ||
+              (i > 0 && !(k.times[i] > k.times[i - 1])))
+            throw GltfError{name + ": key times must be finite, >= 0 and increasing (key " +
+                            std::to_string(i) + " is " + std::to_string(k.times[i]) + ")"};
+        const int comps = k.property == KeyframeTrack::Property::Rotation ? 4 : 3;
+        const std::vector<float> v = readFloats(sampler.output, comps, "animation output");
+        const std::size_t perKey =
+            k.interpolation == KeyframeTrack::Interpolation::CubicSpline ? 3 : 1;
+        if (k.times.empty() || v.size() != k.times.size() * perKey * std::size_t(comps))
+          throw GltfError{name + ": a sampler has " + std::to_string(k.times.size()) +
+                          " key times and " + std::to_string(v.size() / std::size_t(comps)) +
+                          " values (expected " + std::to_string(perKey) + " per key)"};
+        for (std::size_t i = 0; i < v.size(); i += std::size_t(comps)) {
+          glm::vec4 value(v[i], v[i + 1], v[i + 2], comps == 4 ? v[i + 3] : 0.0f);
+          if (!std::isfinite(value.x) || !std::isfinite(value.y) || !std::isfinite(value.z) ||
+              !std::isfinite(value.w))
+            throw GltfError{name + ": a key value is not finite"};
+          k.values.push_back(value);
+        }
+        period = std::max(period, k.times.back());
+        nodeTracks_[ch.target_node].push_back(int(tracks->size()));
+        tracks->push_back(std::move(k));
+      }
+      for (std::size_t i = first; i < tracks->size(); ++i) (*tracks)[i].period = period;
+    }
+    if (!m_.skins.empty())
+      scene_.warnings.push_back("the file's " + std::to_string(m_.skins.size()) +
+                                " skin(s) are not read: skinned meshes stay in their bind pose");
+    tracks_ = std::move(tracks);
+  }
+
+  // The animation that moves what the node being visited holds, when any node on the way
+  // from its root is animated (the chain of path_), else -1.
+  int chainAnimation() {
+    bool moves = false;
+    for (int n : path_) moves = moves || nodeTracks_.count(n) > 0;
+    if (!moves) return -1;
+    Animation a;
+    a.kind = Animation::Kind::Keyframes;
+    a.tracks = tracks_;
+    for (int n : path_) {
+      const tinygltf::Node& node = m_.nodes[std::size_t(n)];
+      KeyframedNode k;
+      if (node.matrix.size() == 16) {
+        k.hasMatrix = true;
+        k.matrix = localMatrix(node);
+      }
+      if (node.translation.size() == 3)
+        k.translation = glm::vec3(node.translation[0], node.translation[1], node.translation[2]);
+      if (node.rotation.size() == 4)
+        k.rotation = glm::normalize(glm::quat(float(node.rotation[3]), float(node.rotation[0]),
+                                              float(node.rotation[1]), float(node.rotation[2])));
+      if (node.scale.size() == 3) k.scale = glm::vec3(node.scale[0], node.scale[1], node.scale[2]);
+      if (auto it = nodeTracks_.find(n); it != nodeTracks_.end()) k.tracks = it->second;
+      a.chain.push_back(std::move(k));
+    }
+    scene_.animations.push_back(std::move(a));
+    return int(scene_.animations.size()) - 1;
+  }
+
+  void warnOnce(const std::string& message) {
+    if (warned_.insert(message).second) scene_.warnings.push_back(message);
   }
 
   void addCamera(int index, const glm::mat4& world, const std::string& nodeName) {
@@ -650,6 +769,10 @@ class GltfReader {
   std::map<std::tuple<int, TextureWrap, TextureWrap>, int> imageCache_;  // image and wrap modes
   std::set<int> uvWarned_;  // materials whose texture coordinates' conflict was reported
   int defaultMaterial_ = -1;
+  std::vector<int> path_;                       // the nodes from a root to the one visited
+  std::map<int, std::vector<int>> nodeTracks_;  // node -> its tracks in tracks_
+  std::shared_ptr<const std::vector<KeyframeTrack>> tracks_;
+  std::set<std::string> warned_;
 };
 
 std::string trimmed(std::string s) {

@@ -325,6 +325,30 @@ std::uint64_t hashScene(const Scene& scene) {
     h.vec(a.axis);
     h.vec(a.pivot);
     h.f32(a.radiansPerSecond);
+    h.u64(a.chain.size());
+    for (const KeyframedNode& n : a.chain) {
+      h.vec(n.translation);
+      h.vec(glm::vec3(n.rotation.x, n.rotation.y, n.rotation.z));
+      h.f32(n.rotation.w);
+      h.vec(n.scale);
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) h.f32(n.hasMatrix ? n.matrix[c][r] : 0.0f);
+      h.u64(n.tracks.size());
+      for (int t : n.tracks) {
+        const KeyframeTrack& k = (*a.tracks)[std::size_t(t)];
+        h.i32(int(k.property));
+        h.i32(int(k.interpolation));
+        h.f32(k.period);
+        h.u64(k.times.size());
+        for (float time : k.times) h.f32(time);
+        for (const glm::vec4& v : k.values) {
+          h.vec(glm::vec3(v));
+          h.f32(v.w);
+        }
+      }
+    }
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r) h.f32(a.base[c][r]);
   }
   h.vec(scene.sky.zenith);
   h.vec(scene.sky.horizon);

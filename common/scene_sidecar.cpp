@@ -139,6 +139,9 @@ struct Conversion {
 void applyConversion(Scene& scene, const Conversion& c) {
   glm::mat4 m = c.matrix();
   for (Instance& inst : scene.instances) inst.transform = m * inst.transform;
+  // The file's keyframed nodes move in the file's frame: the conversion follows them.
+  for (Animation& a : scene.animations)
+    if (a.kind == Animation::Kind::Keyframes) a.base = m * a.base;
   for (Light& l : scene.lights) {
     l.position = c.point(l.position);
     l.direction = glm::normalize(c.dir(l.direction));
@@ -398,6 +401,8 @@ void applyJson(Scene& scene, const json& root) {
     }
   }
 
+  // The sidecar's animations follow those the scene file brought (glTF keyframes).
+  const int firstAnimation = int(scene.animations.size());
   std::vector<std::string> animationNames;
   if (root.contains("animations")) {
     const json& anims = array(root["animations"], "/animations");
@@ -435,7 +440,7 @@ void applyJson(Scene& scene, const json& root) {
     for (std::size_t i = 0; i < animationNames.size(); ++i)
       if (animationNames[i] == p.name) found = int(i);
     if (found < 0) fail(p.pointer, "no animation named '" + p.name + "'");
-    scene.lights[p.light].animation = found;
+    scene.lights[p.light].animation = firstAnimation + found;
   }
 }
 

@@ -48,6 +48,10 @@ SceneState evaluateScene(const Scene& scene, double time) {
     if (!a) continue;
     if (a->kind == Animation::Kind::Path) {
       l.position = pathPosition(*a, time);
+    } else if (a->kind == Animation::Kind::Keyframes) {
+      const glm::mat4 m = keyframedTransform(*a, time);
+      l.position = glm::vec3(m[3]);
+      l.direction = glm::normalize(glm::vec3(m * glm::vec4(0.0f, 0.0f, -1.0f, 0.0f)));
     } else {
       glm::mat4 r = rotation(*a, time);
       l.position = glm::vec3(r * glm::vec4(l.position, 1.0f));
@@ -62,6 +66,8 @@ SceneState evaluateScene(const Scene& scene, double time) {
         glm::vec3 offset =
             pathPosition(*a, time) - (a->points.empty() ? glm::vec3(0.0f) : a->points[0]);
         m = glm::translate(glm::mat4(1.0f), offset) * m;
+      } else if (a->kind == Animation::Kind::Keyframes) {
+        m = keyframedTransform(*a, time);
       } else {
         m = rotation(*a, time) * m;
       }

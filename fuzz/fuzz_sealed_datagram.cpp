@@ -8,6 +8,10 @@
 // Checked: what opens is exactly the plain datagram sealed; no counter opens twice; the window
 // never moves but forward and never on a refusal; a refusal's cause is counted, and every call
 // is counted once; a forgery (another key) never opens.
+// The same bytes also go to the server's openers of acks sent as datagrams
+// (protocol/uplink_datagram.h): the sealed one, which must open exactly what the opener above
+// opens when that is one whole session message frame, and the plain one (op bit 4 rewrites
+// the magic to PCSP first), which must open only whole frames, each counter once.
 #include <sodium.h>
 
 #include <algorithm>
@@ -20,6 +24,8 @@
 
 #include "fuzz_support.h"
 #include "protocol/datagram_seal.h"
+#include "protocol/net_framing.h"
+#include "protocol/uplink_datagram.h"
 
 namespace {
 
@@ -46,6 +52,34 @@ std::uint64_t totalCalls(const OpenerStats& s) {
   return n;
 }
 
+bool wholeFrame(std::span<const std::uint8_t> bytes) {
+  if (bytes.size() < kFramePrefixBytes) return false;
+  auto size = frameSize(bytes.first(kFramePrefixBytes), kMaxUplinkFrameBytes);
+  return size && *size == bytes.size();
+}
+
+std::uint64_t counterOf(std::span<const std::uint8_t> datagram) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v |= std::uint64_t(datagram[8 + i]) << (8 * i);
+  return v;
+}
+
+// The plain uplink opener on `bytes` with the magic made PCSP (op bit 4): what opens is one
+// whole frame inside the datagram, and no counter opens twice.
+void checkPlainUplink(UplinkOpener& plain, std::set<std::uint64_t>& accepted, Bytes bytes,
+                      bool rewriteMagic) {
+  if (rewriteMagic && bytes.size() >= 4) bytes[3] = 'P';
+  UplinkDrop cause = UplinkDrop(255);
+  auto frame = plain.open(bytes, cause);
+  if (!frame) {
+    if (std::size_t(cause) >= kUplinkDropCount) std::abort();
+    return;
+  }
+  if (bytes.size() < kUplinkHeaderBytes || bytes[3] != 'P') std::abort();
+  if (frame->data() != bytes.data() + kUplinkHeaderBytes || !wholeFrame(*frame)) std::abort();
+  if (!accepted.insert(counterOf(bytes)).second) std::abort();
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -53,6 +87,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   DatagramKey otherKey = key;
   otherKey[0] ^= 1;
   DatagramOpener opener(key, fuzz::kSealSession);
+  UplinkOpener uplink(key, fuzz::kSealSession);
+  DatagramOpener uplinkMirror(key, fuzz::kSealSession);  // fed what `uplink` is fed
+  UplinkOpener plainUplink(std::nullopt, fuzz::kSealSession);
+  std::set<std::uint64_t> plainAccepted;
   std::set<std::uint64_t> accepted;
   std::uint64_t calls = 0;
   Bytes callerBuffer;
@@ -78,6 +116,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       sealed.assign(bytes.begin(), bytes.end());
     }
 
+    checkPlainUplink(plainUplink, plainAccepted, sealed, op & 16);
+    if (sealed.size() <= kMaxUplinkDatagramBytes) {
+      // The sealed uplink opener opens what a DatagramOpener fed the same bytes opens, where
+      // that is one whole frame.
+      UplinkDrop uplinkCause = UplinkDrop(255);
+      auto frame = uplink.open(sealed, uplinkCause);
+      auto mirrored = uplinkMirror.open(sealed);
+      if (frame && (!mirrored ||
+                    !std::equal(frame->begin(), frame->end(), mirrored->begin(), mirrored->end())))
+        std::abort();
+      if (!frame && mirrored && wholeFrame(*mirrored)) std::abort();
+      if (!frame && std::size_t(uplinkCause) >= kUplinkDropCount) std::abort();
+    }
     const std::uint64_t highestBefore = opener.highestCounter();
     OpenRefusal cause = OpenRefusal(255);
     Result<std::span<const std::uint8_t>> opened = [&] {

@@ -149,6 +149,7 @@ ClientSessionOptions sessionOptions(const LoadGenerator::Impl& gen, int index) {
   s.silenceTimeout = o.silenceTimeout;
   s.poseInterval = o.poseInterval;
   s.maxMirrorBytes = o.maxMirrorBytes;
+  s.uplinkDatagrams = !o.tcpOnly;
   s.receiver.keepField = o.keepField;
   s.receiver.decoder = o.shareDecoding ? gen.decoder.get() : nullptr;
   return s;
@@ -253,6 +254,8 @@ class Client {
   void enterLink(std::span<const std::uint8_t> bytes, double now);
   void deliverLink(double now);
   void send(Bytes frame);
+  // Acks and repair requests as datagrams to the server's UDP port (ClientSession decides).
+  void sendUplink();
   void writeNext();
   void simulateViewer(double now);
   void sampleStaleness(double now);
@@ -319,6 +322,7 @@ void Client::tick(double now) {
   if (!frames) return endSession(now, frames.error().message);
   for (Bytes& f : *frames) send(std::move(f));
   if (state_ != State::Session) return;  // a send may have failed
+  sendUplink();
   const ReceiverStats& rs = session_.receiver()->stats();
   window_.repairs += rs.repairBricks - lastRepairs_;
   window_.gapReports += rs.gapReports - lastGapReports_;
@@ -353,6 +357,7 @@ void Client::connect(double now) {
     udp_.open(gen_.endpoints[endpoint_].protocol() == tcp::v4() ? udp::v4() : udp::v6(), ec);
     if (!ec) udp_.bind(udp::endpoint(udp_.local_endpoint(ec).protocol(), 0), ec);
     if (!ec) udpPort = udp_.local_endpoint(ec).port();
+    if (!ec) udp_.non_blocking(true, ec);
     if (ec) return endSession(now, "UDP socket: " + ec.message());
     receiveUdp();
   }
@@ -370,7 +375,7 @@ void Client::connect(double now) {
     if (st->tls()) {
       auto secret = st->datagramSecret();
       if (!secret) return endSession(t, secret.error().message);
-      session_.setDatagramKey(deriveDatagramKeys(*secret).serverToClient);
+      session_.setDatagramKeys(deriveDatagramKeys(*secret));
     }
     send(session_.connected(t, udpPort));
     readStream();
@@ -655,6 +660,17 @@ void Client::send(Bytes f) {
   window_.bytesUp += f.size();
   writes_.push_back(std::move(f));
   if (!writing_) writeNext();
+}
+
+void Client::sendUplink() {
+  const udp::endpoint to(gen_.endpoints[endpoint_].address(), session_.uplinkPort());
+  for (const Bytes& d : session_.takeUplinkDatagrams()) {
+    // Non-blocking: a datagram the socket cannot take now is lost, as on the way; the next
+    // ack repeats what it said.
+    boost::system::error_code ec;
+    udp_.send_to(asio::buffer(d), to, 0, ec);
+    if (!ec) window_.bytesUp += d.size();
+  }
 }
 
 void Client::writeNext() {

@@ -8,6 +8,12 @@
 
 namespace pc {
 
+namespace {
+// Datagrams poll() made that the caller has not taken: beyond this the oldest go (an ack's
+// news is repeated by the next ones anyway).
+constexpr std::size_t kMaxQueuedUplinkDatagrams = 256;
+}  // namespace
+
 std::uint64_t mirrorMemoryBytes(const SessionInfoMsg& info) {
   using namespace gpu;
   constexpr std::uint64_t kTileFloats =
@@ -80,6 +86,10 @@ void ClientSession::close() {
   earlySealed_.clear();
   datagramKey_.reset();
   opener_.reset();
+  uplinkKey_.reset();
+  spokenVersion_ = 0;
+  uplink_.reset();
+  uplinkOut_.clear();
   events_.clear();
   held_.clear();
   changed_.clear();
@@ -159,13 +169,14 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
     Status version = checkServerVersion(welcome->protocolVersion);
     if (!version) return fail(version.error().message);
     sessionId_ = welcome->sessionId;
+    spokenVersion_ = welcome->protocolVersion;
     phase_ = SessionPhase::AwaitingLayout;
     events_.push_back(SessionEvent{SessionEvent::Kind::Welcomed, {}, {}});
     if (datagramKey_) {
       opener_.emplace(*datagramKey_, sessionId_);
-      std::deque<std::vector<std::uint8_t>> early = std::move(earlySealed_);
+      auto early = std::move(earlySealed_);
       earlySealed_.clear();
-      for (const auto& d : early) (void)openDatagram(d, now, 0);
+      for (const auto& [d, port] : early) (void)openDatagram(d, now, port);
     }
     return Status::success();
   }
@@ -221,9 +232,9 @@ Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
   phase_ = SessionPhase::Streaming;
   ++stats_.sessions;
   events_.push_back(SessionEvent{SessionEvent::Kind::Layout, {}, {}});
-  std::deque<std::vector<std::uint8_t>> early = std::move(early_);
+  auto early = std::move(early_);
   early_.clear();
-  for (const auto& d : early) (void)handleDatagram(d, now);
+  for (const auto& [d, port] : early) (void)handleDatagram(d, now, port);
   return Status::success();
 }
 
@@ -241,7 +252,8 @@ Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now
     if (!opener_) {
       // Before the Welcome names the session: kept sealed until it does.
       if (earlySealed_.size() < kMaxEarlyDatagrams) {
-        earlySealed_.emplace_back(bytes.begin(), bytes.end());
+        earlySealed_.emplace_back(std::vector<std::uint8_t>(bytes.begin(), bytes.end()),
+                                  source.port);
       } else {
         ++stats_.droppedEarlyDatagrams;
       }
@@ -249,11 +261,8 @@ Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now
     }
     return openDatagram(bytes, now, source.port);
   }
-  Status status = handleDatagram(bytes, now);
-  if (status && phase_ == SessionPhase::Streaming) {
-    lastHeard_ = now;
-    if (serverUdpPort_ == 0) serverUdpPort_ = source.port;
-  }
+  Status status = handleDatagram(bytes, now, source.port);
+  if (status && phase_ == SessionPhase::Streaming) lastHeard_ = now;
   return status;
 }
 
@@ -273,11 +282,12 @@ Status ClientSession::openDatagram(std::span<const std::uint8_t> sealed, double 
   return handleDatagram(*plain, now);
 }
 
-Status ClientSession::handleDatagram(std::span<const std::uint8_t> bytes, double now) {
+Status ClientSession::handleDatagram(std::span<const std::uint8_t> bytes, double now,
+                                     std::uint16_t port) {
   if (phase_ == SessionPhase::AwaitingWelcome || phase_ == SessionPhase::AwaitingLayout) {
     // Before SessionInfo: kept for when the receiver exists.
     if (early_.size() < kMaxEarlyDatagrams) {
-      early_.emplace_back(bytes.begin(), bytes.end());
+      early_.emplace_back(std::vector<std::uint8_t>(bytes.begin(), bytes.end()), port);
     } else {
       ++stats_.droppedEarlyDatagrams;
     }
@@ -286,6 +296,8 @@ Status ClientSession::handleDatagram(std::span<const std::uint8_t> bytes, double
   if (phase_ != SessionPhase::Streaming) return Status::success();
   Status status = receiver_->onDatagram(bytes, now);
   if (!status) ++stats_.badDatagrams;
+  // An unsealed datagram names the server's port once the receiver took it.
+  if (status && port != 0 && serverUdpPort_ == 0) serverUdpPort_ = port;
   collectChanges(now);
   events_.push_back(SessionEvent{SessionEvent::Kind::Datagram, {}, status});
   return status;
@@ -329,12 +341,45 @@ Result<std::vector<std::vector<std::uint8_t>>> ClientSession::poll(double now) {
     return fail("server silent for " + std::to_string(options_.silenceTimeout) + " s");
   if (phase_ != SessionPhase::Streaming) return out;
   out = receiver_->poll(now);
+  if (!uplink_) startUplink();
+  if (uplink_) {
+    // Acks and repair requests (all the receiver sends) as datagrams, where they fit one.
+    std::erase_if(out, [&](const std::vector<std::uint8_t>& frame) {
+      if (frame.size() > kMaxUplinkFrameBytes) {
+        ++stats_.uplinkTooLarge;
+        return false;
+      }
+      auto datagram = uplink_->wrap(frame);
+      if (!datagram) return false;  // the counter is used up: the stream carries it
+      if (uplinkOut_.size() >= kMaxQueuedUplinkDatagrams) uplinkOut_.erase(uplinkOut_.begin());
+      uplinkOut_.push_back(std::move(datagram).value());
+      ++stats_.uplinkDatagrams;
+      return true;
+    });
+  }
   if (viewer_ && poseDue(now)) {
     ViewerPoseMsg pose = *viewer_;
     pose.time = clock_.at(now).value_or(0.0);
     out.push_back(encodeMessage(pose));
     lastPoseAt_ = now;
   }
+  return out;
+}
+
+void ClientSession::startUplink() {
+  // The server named a port (a version 6 server, a session with UDP), and an authentic
+  // datagram came over UDP: the path works, at least towards this client.
+  if (!options_.uplinkDatagrams || phase_ != SessionPhase::Streaming ||
+      spokenVersion_ < kUplinkDatagramsVersion || info_.uplinkPort == 0 || serverUdpPort_ == 0 ||
+      datagramKey_.has_value() != uplinkKey_.has_value())
+    return;
+  uplink_.emplace(uplinkKey_, sessionId_);
+  receiver_->setAckRepeats(kUplinkAckRepeats);
+}
+
+std::vector<std::vector<std::uint8_t>> ClientSession::takeUplinkDatagrams() {
+  std::vector<std::vector<std::uint8_t>> out;
+  out.swap(uplinkOut_);
   return out;
 }
 

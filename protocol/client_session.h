@@ -33,6 +33,7 @@
 #include "protocol/datagram_seal.h"
 #include "protocol/session_messages.h"
 #include "protocol/stream_receiver.h"
+#include "protocol/uplink_datagram.h"
 
 namespace pc {
 
@@ -48,6 +49,9 @@ inline constexpr std::size_t kMaxClientQueuedBytes = 1u << 20;
 // as the Hello is in, while Welcome and SessionInfo are still on their way over TCP) are kept
 // for the session's receiver, this many at most.
 inline constexpr std::size_t kMaxEarlyDatagrams = 64;
+// Acks sent as datagrams repeat what the acks before them said (ReceiverOptions::ackRepeats):
+// two, so that a third of them lost still leaves 1 in 27 of an ack's news to the full ack.
+inline constexpr int kUplinkAckRepeats = 2;
 // A Reject's reason is quoted in the error up to this many bytes: a server could send 4 MiB.
 inline constexpr std::size_t kMaxQuotedReasonBytes = 200;
 
@@ -68,6 +72,11 @@ struct ClientSessionOptions {
   // The most a SessionInfo may make this client allocate (mirrorMemoryBytes); a larger layout
   // ends the session with an error naming both sizes. The shared scenes need under 200 MiB.
   std::uint64_t maxMirrorBytes = std::uint64_t(1) << 30;
+  // Acks and repair requests as datagrams to the server's uplink port (protocol version 6)
+  // once the session's datagrams arrive over UDP: the caller then sends what
+  // takeUplinkDatagrams() returns to uplinkPort() at the server's address. False: always over
+  // the session stream (callers without a UDP socket).
+  bool uplinkDatagrams = false;
   ReceiverOptions receiver;
 };
 
@@ -109,6 +118,9 @@ struct ClientSessionStats {
   // UDP datagrams that failed to open with the session's key (forged, corrupted, replayed,
   // or for another session): dropped, and never taken as a sign of the server's life.
   std::uint64_t unsealedRefused = 0;
+  // Acks and repair requests handed out as datagrams (takeUplinkDatagrams), and those that
+  // went over the stream instead for their size (over kMaxUplinkFrameBytes).
+  std::uint64_t uplinkDatagrams = 0, uplinkTooLarge = 0;
 };
 
 // The server's animation clock as a client sees it: the latest scene state's time, run on at
@@ -131,10 +143,14 @@ class ClientSession {
   // The caller starts opening a connection; the connect timeout runs from here. Ends whatever
   // session there was.
   void connecting(double now);
-  // The key that opens this connection's UDP datagrams (from its TLS session,
-  // deriveDatagramKeys), set after connecting() and before connected(). Without one (a
-  // connection without TLS) datagrams are taken unsealed.
-  void setDatagramKey(const DatagramKey& key) { datagramKey_ = key; }
+  // The keys of this connection's datagrams (from its TLS session, deriveDatagramKeys), set
+  // after connecting() and before connected(): the server->client key opens what arrives, the
+  // client->server key seals acks sent as datagrams. Without them (a connection without TLS)
+  // datagrams are taken and sent unsealed.
+  void setDatagramKeys(const DatagramKeys& keys) {
+    datagramKey_ = keys.serverToClient;
+    uplinkKey_ = keys.clientToServer;
+  }
   // The connection is open: the Hello frame, to send before anything else. udpPort 0 asks for
   // datagrams over the TCP stream.
   std::vector<std::uint8_t> connected(double now, std::uint16_t udpPort);
@@ -153,9 +169,14 @@ class ClientSession {
   // them. Kept here rather than handed over, so that a datagram's event allocates nothing.
   const std::vector<SessionEvent>& events() const { return events_; }
 
-  // Frames to send now (acks, repair requests, the viewer pose), or an Error when a timeout
-  // ended the session.
+  // Frames to send now over the session stream (acks, repair requests, the viewer pose), or
+  // an Error when a timeout ended the session. Acks and repair requests that travel as
+  // datagrams (ClientSessionOptions::uplinkDatagrams) wait in takeUplinkDatagrams() instead.
   Result<std::vector<std::vector<std::uint8_t>>> poll(double now);
+  // Datagrams for the server's uplink port that poll() made, each once.
+  std::vector<std::vector<std::uint8_t>> takeUplinkDatagrams();
+  // The server's UDP port for them (0: the session sends none).
+  std::uint16_t uplinkPort() const { return uplink_ ? info_.uplinkPort : 0; }
 
   // The viewer sent to the server every poseInterval while streaming; its time is the clock's.
   void setViewer(glm::vec3 position, glm::quat orientation);
@@ -192,11 +213,15 @@ class ClientSession {
   Status onFrame(std::span<const std::uint8_t> frame, double now);
   Status onMessage(SessionMessage& message, double now);
   Status onSessionInfo(const SessionInfoMsg& info, double now);
-  Status handleDatagram(std::span<const std::uint8_t> bytes, double now);
+  // `port`: the UDP source port of a datagram the session has not taken yet (0: over TCP, or
+  // not known), pinned as the server's once the datagram is accepted.
+  Status handleDatagram(std::span<const std::uint8_t> bytes, double now, std::uint16_t port = 0);
   // `port`: the datagram's source port, pinned once one opens (0: not known).
   Status openDatagram(std::span<const std::uint8_t> sealed, double now, std::uint16_t port);
   void collectChanges(double now);
   bool connectedPhase() const;
+  // Starts sending acks as datagrams once the session may (see uplinkDatagrams).
+  void startUplink();
 
   ClientSessionOptions options_;
   SessionPhase phase_ = SessionPhase::Idle;
@@ -208,12 +233,18 @@ class ClientSession {
   std::optional<StreamReceiver> receiver_;
   std::vector<std::uint8_t> frame_;  // the TCP frame being read, prefix first
   std::size_t frameBytes_ = 0;       // its whole size, once the prefix is in
-  std::deque<std::vector<std::uint8_t>> early_;
+  std::deque<std::pair<std::vector<std::uint8_t>, std::uint16_t>> early_;  // with source port
   // Sealed datagrams: the key of this connection, its opener once the Welcome names the
   // session, and sealed datagrams that came before the Welcome.
   std::optional<DatagramKey> datagramKey_;
   std::optional<DatagramOpener> opener_;
-  std::deque<std::vector<std::uint8_t>> earlySealed_;
+  std::deque<std::pair<std::vector<std::uint8_t>, std::uint16_t>> earlySealed_;  // with port
+  // Acks as datagrams: the client->server key, the version the Welcome named, and once the
+  // session's UDP path works, the writer and what it made since takeUplinkDatagrams.
+  std::optional<DatagramKey> uplinkKey_;
+  std::uint32_t spokenVersion_ = 0;
+  std::optional<UplinkWriter> uplink_;
+  std::vector<std::vector<std::uint8_t>> uplinkOut_;
   std::vector<SessionEvent> events_;
   // Per brick: held at any version this session; changed since takeChangedBricks.
   std::vector<std::vector<bool>> held_, changed_;

@@ -124,7 +124,6 @@ DatagramOpener::DatagramOpener(const DatagramKey& key, std::uint32_t sessionId)
 DatagramOpener::DatagramOpener(DatagramOpener&& other) noexcept
     : key_(other.key_),
       sessionId_(other.sessionId_),
-      highest_(other.highest_),
       window_(other.window_),
       plain_(std::move(other.plain_)),
       stats_(other.stats_),
@@ -137,7 +136,6 @@ DatagramOpener& DatagramOpener::operator=(DatagramOpener&& other) noexcept {
   if (this != &other) {
     key_ = other.key_;
     sessionId_ = other.sessionId_;
-    highest_ = other.highest_;
     window_ = other.window_;
     plain_ = std::move(other.plain_);
     stats_ = other.stats_;
@@ -150,11 +148,34 @@ DatagramOpener& DatagramOpener::operator=(DatagramOpener&& other) noexcept {
 
 DatagramOpener::~DatagramOpener() { sodium_memzero(key_.data(), key_.size()); }
 
-bool DatagramOpener::accepted(std::uint64_t counter) const {
+bool ReplayWindow::accepted(std::uint64_t counter) const {
   if (counter == 0 || counter > highest_ || counter + kReplayWindowCounters <= highest_)
     return false;
   const std::uint64_t bit = counter % kReplayWindowCounters;
-  return (window_[bit / 64] >> (bit % 64)) & 1;
+  return (bits_[bit / 64] >> (bit % 64)) & 1;
+}
+
+ReplayWindow::Verdict ReplayWindow::check(std::uint64_t counter) const {
+  if (counter + kReplayWindowCounters <= highest_) return Verdict::TooOld;
+  return accepted(counter) ? Verdict::Replayed : Verdict::Fresh;
+}
+
+void ReplayWindow::accept(std::uint64_t counter) {
+  if (counter > highest_) {
+    // Counters passed over become free slots of the window (they may still arrive).
+    const std::uint64_t advance = counter - highest_;
+    if (advance >= kReplayWindowCounters) {
+      bits_.fill(0);
+    } else {
+      for (std::uint64_t c = highest_ + 1; c <= counter; ++c) {
+        const std::uint64_t bit = c % kReplayWindowCounters;
+        bits_[bit / 64] &= ~(std::uint64_t(1) << (bit % 64));
+      }
+    }
+    highest_ = counter;
+  }
+  const std::uint64_t bit = counter % kReplayWindowCounters;
+  bits_[bit / 64] |= std::uint64_t(1) << (bit % 64);
 }
 
 Result<std::span<const std::uint8_t>> DatagramOpener::open(std::span<const std::uint8_t> sealed,
@@ -198,28 +219,17 @@ Result<std::span<const std::uint8_t>> DatagramOpener::open(std::span<const std::
           kSealHeaderBytes, nonce.data(), key_.data()) != 0)
     return refuse(OpenRefusal::Forged,
                   "authentication failed (counter " + std::to_string(counter) + ")");
-  if (counter + kReplayWindowCounters <= highest_)
-    return refuse(OpenRefusal::TooOld, "counter " + std::to_string(counter) +
-                                           " is behind the window (highest " +
-                                           std::to_string(highest_) + ")");
-  if (accepted(counter))
-    return refuse(OpenRefusal::Replayed, "counter " + std::to_string(counter) + " seen before");
-
-  if (counter > highest_) {
-    // Counters passed over become free slots of the window (they may still arrive).
-    const std::uint64_t advance = counter - highest_;
-    if (advance >= kReplayWindowCounters) {
-      window_.fill(0);
-    } else {
-      for (std::uint64_t c = highest_ + 1; c <= counter; ++c) {
-        const std::uint64_t bit = c % kReplayWindowCounters;
-        window_[bit / 64] &= ~(std::uint64_t(1) << (bit % 64));
-      }
-    }
-    highest_ = counter;
+  switch (window_.check(counter)) {
+    case ReplayWindow::Verdict::TooOld:
+      return refuse(OpenRefusal::TooOld, "counter " + std::to_string(counter) +
+                                             " is behind the window (highest " +
+                                             std::to_string(window_.highest()) + ")");
+    case ReplayWindow::Verdict::Replayed:
+      return refuse(OpenRefusal::Replayed, "counter " + std::to_string(counter) + " seen before");
+    case ReplayWindow::Verdict::Fresh:
+      break;
   }
-  const std::uint64_t bit = counter % kReplayWindowCounters;
-  window_[bit / 64] |= std::uint64_t(1) << (bit % 64);
+  window_.accept(counter);
   ++stats_.opened;
   return std::span<const std::uint8_t>(plainOut.data(), plainBytes);
 }

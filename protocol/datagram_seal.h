@@ -83,6 +83,26 @@ class DatagramSealer {
   std::uint64_t next_ = 1;
 };
 
+// Which counters of one direction of a session were accepted: the highest, H, and a bitmap of
+// the counters H-1023..H (bit c mod 1024 for counter c). A counter above H moves H up,
+// clearing the bits of the counters it passes over (they may still arrive); a counter in the
+// window that was not accepted yet is fresh; one behind the window never is.
+class ReplayWindow {
+ public:
+  enum class Verdict : std::uint8_t { Fresh, Replayed, TooOld };
+  Verdict check(std::uint64_t counter) const;
+  // Records `counter`, which check() found fresh, as accepted.
+  void accept(std::uint64_t counter);
+  // The highest counter accepted (0 before the first).
+  std::uint64_t highest() const { return highest_; }
+  // Whether `counter` was accepted (inside the window; false for counters behind it).
+  bool accepted(std::uint64_t counter) const;
+
+ private:
+  std::uint64_t highest_ = 0;
+  std::array<std::uint64_t, kReplayWindowCounters / 64> bits_{};
+};
+
 // Why an opener refused a datagram (its stats count each); openRefusalName gives the metric
 // label.
 enum class OpenRefusal : std::uint8_t {
@@ -128,16 +148,14 @@ class DatagramOpener {
   std::uint32_t sessionId() const { return sessionId_; }
   const OpenerStats& stats() const { return stats_; }
   // The highest counter accepted (0 before the first).
-  std::uint64_t highestCounter() const { return highest_; }
+  std::uint64_t highestCounter() const { return window_.highest(); }
   // Whether `counter` was accepted (inside the window; false for counters behind it).
-  bool accepted(std::uint64_t counter) const;
+  bool accepted(std::uint64_t counter) const { return window_.accepted(counter); }
 
  private:
   DatagramKey key_{};
   std::uint32_t sessionId_ = 0;
-  std::uint64_t highest_ = 0;
-  // Bit (c mod 1024) says whether counter c, highest_ - 1023 <= c <= highest_, was accepted.
-  std::array<std::uint64_t, kReplayWindowCounters / 64> window_{};
+  ReplayWindow window_;
   std::vector<std::uint8_t> plain_;
   OpenerStats stats_;
   bool live_ = true;

@@ -77,6 +77,7 @@ struct Encoder {
     b.add_cascades(cascadesOff);
     b.add_codecs(fb::Offset<fb::Vector<net::Codec>>(codecsOff.o));
     b.add_max_datagram_bytes(m.maxDatagramBytes);
+    b.add_uplink_port(m.uplinkPort);
     return b.Finish().Union();
   }
   fb::Offset<void> operator()(const SceneStateMsg& m) {
@@ -181,6 +182,7 @@ Result<SessionMessage> decodeSessionInfo(const net::SessionInfo& w) {
   m.distanceExponent = w.distance_exponent();
   m.occlusionDistance = w.occlusion_distance();
   m.maxDatagramBytes = w.max_datagram_bytes();
+  m.uplinkPort = w.uplink_port();
   if (w.cascades() && w.cascades()->size() > std::size_t(PC_MAX_CASCADES)) {
     return fail("session info: " + std::to_string(w.cascades()->size()) + " cascades, at most " +
                 std::to_string(PC_MAX_CASCADES) + " supported");

@@ -56,6 +56,9 @@ struct SessionInfoMsg {
   std::vector<gpu::CascadeDesc> cascades;
   std::vector<std::uint8_t> codecs{kCodecQuantZstd};
   std::uint32_t maxDatagramBytes = kMaxDatagramBytes;
+  // The server's UDP port for this session's acks and repair requests (protocol version 6,
+  // uplink_datagram.h); 0: they go over the session stream.
+  std::uint16_t uplinkPort = 0;
 };
 
 struct LightStateMsg {

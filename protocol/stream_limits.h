@@ -19,12 +19,18 @@ namespace pc {
 // Version 5: brick updates may carry coarser precision levels (brick_precision.h), and acks
 // and repair requests say which level each brick is held at; a version 4 client is sent the
 // codec's own precision only.
-inline constexpr std::uint32_t kProtocolVersion = 5;
+// Version 6: a client sends its acks and repair requests as datagrams to the UDP port the
+// SessionInfo names (uplink_datagram.h), sealed with the session's client->server key, and
+// repeats in each ack the changes and arrivals of the two before it; a version 4 or 5 client
+// acks over the stream as before, and its SessionInfo names no port.
+inline constexpr std::uint32_t kProtocolVersion = 6;
 inline constexpr std::uint32_t kMinProtocolVersion = 4;
 // The first version whose clients report arrivals and take StreamReport.
 inline constexpr std::uint32_t kCongestionControlVersion = 3;
 // The first version whose clients take coarser precision levels.
 inline constexpr std::uint32_t kPrecisionLevelsVersion = 5;
+// The first version whose clients send acks and repair requests as datagrams.
+inline constexpr std::uint32_t kUplinkDatagramsVersion = 6;
 
 // UDP datagrams never exceed this (fits the IPv6 minimum MTU of 1280 with headers).
 inline constexpr std::size_t kMaxDatagramBytes = 1200;

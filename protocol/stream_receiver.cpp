@@ -6,6 +6,12 @@
 
 namespace pc {
 
+namespace {
+// Arrivals one ack sent as a datagram carries at most: 8 bytes each on the wire, 768 of the
+// 1200 bytes a datagram's frame may have, the rest for the ranges and gaps of a few bricks.
+constexpr std::size_t kMaxArrivalsPerDatagramAck = 96;
+}  // namespace
+
 Result<StreamReceiver> StreamReceiver::create(const SessionInfoMsg& info, std::uint32_t sessionId,
                                               ReceiverOptions options) {
   auto field = mirrorField(info);
@@ -164,7 +170,7 @@ Status StreamReceiver::apply(const CompletedUpdate& u, double now) {
   b.version = u.update.version;
   b.precision = u.update.precision;
   b.appliedAt = now;
-  b.ackDirty = true;
+  b.acksLeft = std::uint8_t(1 + std::min(options_.ackRepeats, 15));
   b.changed = true;
   b.wantRepair = false;
   field_.brickVersions[u.update.cascade][u.update.brick] = b.version;
@@ -181,7 +187,7 @@ std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
   const bool full = now - lastFullAckAt_ >= options_.fullAckInterval;
   bool dirty = false;
   for (const auto& cascade : bricks_) {
-    for (const BrickState& b : cascade) dirty |= b.ackDirty;
+    for (const BrickState& b : cascade) dirty |= b.acksLeft > 0;
   }
   // Partial updates that later datagrams overtook: their missing fragments, for the sender to
   // send again (selective repair), in an ack of their own timing.
@@ -191,7 +197,21 @@ std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
       ((dirty || !arrivals_.empty()) && now - lastAckAt_ >= options_.ackInterval)) {
     AckMsg ack;
     ack.full = full;
-    ack.arrivals.swap(arrivals_);
+    // The arrivals the last acks reported, then the new ones: the sender takes each once.
+    std::size_t repeated = 0;
+    for (const auto& earlier : reportedArrivals_) repeated += earlier.size();
+    std::size_t skip = repeated > kMaxRepeatedArrivals ? repeated - kMaxRepeatedArrivals : 0;
+    for (const auto& earlier : reportedArrivals_) {
+      const std::size_t drop = std::min(skip, earlier.size());
+      skip -= drop;
+      ack.arrivals.insert(ack.arrivals.end(), earlier.begin() + std::ptrdiff_t(drop),
+                          earlier.end());
+    }
+    ack.arrivals.insert(ack.arrivals.end(), arrivals_.begin(), arrivals_.end());
+    if (options_.ackRepeats > 0) reportedArrivals_.push_back(std::move(arrivals_));
+    while (reportedArrivals_.size() > std::size_t(options_.ackRepeats))
+      reportedArrivals_.pop_front();
+    arrivals_.clear();
     ack.fieldVersion = serverVersion_;
     for (FragmentGap& g : gaps) {
       const UpdateHeader& u = g.update;
@@ -202,8 +222,8 @@ std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
     for (int k = 0; k < int(bricks_.size()); ++k) {
       for (std::uint32_t i = 0; i < bricks_[k].size(); ++i) {
         BrickState& b = bricks_[k][i];
-        const bool listed = full ? b.version != 0 : b.ackDirty;
-        b.ackDirty = false;
+        const bool listed = full ? b.version != 0 : b.acksLeft > 0;
+        if (b.acksLeft > 0) --b.acksLeft;
         if (!listed) continue;
         // Runs of consecutive bricks at one version: an update bumps all its bricks to the
         // same version, so runs are long.
@@ -215,6 +235,19 @@ std::vector<std::vector<std::uint8_t>> StreamReceiver::poll(double now) {
           ack.ranges.push_back(AckRange{k, i, 1, b.version});
         }
         if (b.precision != 0) ack.precisions.push_back(BrickPrecisionMsg{k, i, b.precision});
+      }
+    }
+    if (options_.ackRepeats > 0) {
+      // Acks that travel as datagrams (ackRepeats > 0): arrivals past what one datagram holds
+      // with room for the rest go first, oldest first, in acks of their own, so that a burst
+      // of datagrams read at once does not push the ack onto the session stream.
+      while (ack.arrivals.size() > kMaxArrivalsPerDatagramAck) {
+        AckMsg part;
+        part.fieldVersion = serverVersion_;
+        const auto end = ack.arrivals.begin() + std::ptrdiff_t(kMaxArrivalsPerDatagramAck);
+        part.arrivals.assign(ack.arrivals.begin(), end);
+        ack.arrivals.erase(ack.arrivals.begin(), end);
+        out.push_back(encodeMessage(part));
       }
     }
     out.push_back(encodeMessage(ack));

@@ -11,6 +11,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <span>
 #include <string>
@@ -48,6 +49,12 @@ struct ReceiverOptions {
   // an ack goes out every ack interval while datagrams arrive. False for a version 2 server's
   // acks (it ignores them) only to save their bytes.
   bool reportArrivals = true;
+  // Each ack lists again the bricks that changed, and the arrivals it reported, in this many
+  // acks before it (the arrivals: the newest kMaxRepeatedArrivals of them). Over the session
+  // stream nothing is lost (0); acks sent as datagrams may be, and then the next one carries
+  // what the lost one said: a lost ack costs a delay, and the sender never reads the arrivals
+  // it reported as lost datagrams (ClientSession sets it to kUplinkAckRepeats).
+  int ackRepeats = 0;
   ReassemblyOptions reassembly;
   // False: only each brick's codes (the residual bases) are kept, not the decoded field: the
   // atlases are released and field() holds the layout, probe records and brick versions only.
@@ -80,6 +87,9 @@ struct ReceiverStats {
 // (240 a second), while a forged version of 2^63 (which would hold a brick against every real
 // update) is refused.
 inline constexpr std::uint64_t kFieldVersionSlack = 1024;
+// At most this many arrivals of earlier acks are repeated in an ack (ReceiverOptions::
+// ackRepeats): 512 bytes, so that an ack stays within one datagram at a few Mbit/s.
+inline constexpr std::size_t kMaxRepeatedArrivals = 64;
 
 class StreamReceiver {
  public:
@@ -93,6 +103,8 @@ class StreamReceiver {
 
   // Session message frames to send to the server now (Ack, RepairRequest).
   std::vector<std::vector<std::uint8_t>> poll(double now);
+  // ReceiverOptions::ackRepeats from now on (acks that start to travel as datagrams).
+  void setAckRepeats(int repeats) { options_.ackRepeats = std::max(0, repeats); }
 
   const Field& field() const { return field_; }
   std::uint64_t brickVersion(int cascade, int brick) const {
@@ -129,7 +141,7 @@ class StreamReceiver {
     std::shared_ptr<const QuantizedBrick> previous;
     double repairAt = -1e30;
     bool wantRepair = false;
-    bool ackDirty = false;
+    std::uint8_t acksLeft = 0;  // acks that still list this brick's change
     bool changed = false;
   };
   StreamReceiver(Field field, std::uint32_t sessionId, ReceiverOptions options);
@@ -143,6 +155,8 @@ class StreamReceiver {
   Reassembler reassembler_;
   std::uint32_t newestSequence_ = 0;          // of the datagrams received (wrapping)
   std::vector<DatagramArrivalMsg> arrivals_;  // since the last ack, kMaxAckArrivals at most
+  // The arrivals of the last ackRepeats acks, oldest first, repeated in the next.
+  std::deque<std::vector<DatagramArrivalMsg>> reportedArrivals_;
   std::uint64_t serverVersion_ = 0;
   std::uint64_t announcedVersion_ = 0;  // over the session only: datagrams never raise it
   double lastAckAt_ = -1e30, lastFullAckAt_ = -1e30;

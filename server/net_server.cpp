@@ -12,6 +12,7 @@
 #include <mutex>
 #include <random>
 #include <thread>
+#include <tuple>
 
 #include "common/log.h"
 #include "net_address_limits.h"
@@ -271,6 +272,59 @@ void NetServer::Impl::flushUdp() {
   udpBatch.clear();
 }
 
+void NetServer::Impl::receiveUdp() {
+  udpSocket.async_wait(udp::socket::wait_read, [this](boost::system::error_code ec) {
+    if (ec || stopped) return;
+    drainUdp();
+    receiveUdp();
+  });
+}
+
+void NetServer::Impl::drainUdp() {
+  // recvmmsg: one system call per batch of datagrams. A few batches per turn of the event
+  // loop at most, so that a flood of datagrams cannot hold up the sessions' streams and polls
+  // (the rest wait in the socket's buffer, or are lost there, as UDP may be).
+  constexpr int kBatchesPerTurn = 8;
+  std::array<mmsghdr, kUplinkBatch> messages;
+  std::array<iovec, kUplinkBatch> vectors;
+  const int fd = udpSocket.native_handle();
+  for (int turn = 0; turn < kBatchesPerTurn && !stopped; ++turn) {
+    for (std::size_t i = 0; i < kUplinkBatch; ++i) {
+      vectors[i] = iovec{uplinkBuffers[i].data(), uplinkBuffers[i].size()};
+      messages[i] = mmsghdr{};
+      messages[i].msg_hdr.msg_name = uplinkFrom[i].data();
+      messages[i].msg_hdr.msg_namelen = socklen_t(uplinkFrom[i].capacity());
+      messages[i].msg_hdr.msg_iov = &vectors[i];
+      messages[i].msg_hdr.msg_iovlen = 1;
+    }
+    const int n = ::recvmmsg(fd, messages.data(), unsigned(kUplinkBatch), MSG_DONTWAIT, nullptr);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return;  // would block (or an error the next wait reports)
+    const double now = steadySeconds();
+    for (int i = 0; i < n; ++i) {
+      uplinkFrom[i].resize(messages[i].msg_hdr.msg_namelen);
+      const bool truncated = (messages[i].msg_hdr.msg_flags & MSG_TRUNC) != 0;
+      onUplink(std::span<const std::uint8_t>(uplinkBuffers[i].data(), messages[i].msg_len),
+               truncated, uplinkFrom[i], now);
+    }
+    if (std::size_t(n) < kUplinkBatch) return;
+  }
+}
+
+void NetServer::Impl::onUplink(std::span<const std::uint8_t> bytes, bool truncated,
+                               const udp::endpoint& from, double now) {
+  // Before authentication a datagram costs a header check, a lookup and a counter.
+  ++totals.uplinkDatagrams;
+  if (truncated || bytes.size() > kMaxUplinkDatagramBytes) return dropUplink(UplinkDrop::Oversized);
+  const std::optional<UplinkHeader> header = peekUplink(bytes);
+  if (!header) return dropUplink(UplinkDrop::Malformed);
+  const auto it = sessions.find(header->sessionId);
+  if (it == sessions.end()) return dropUplink(UplinkDrop::UnknownSession);
+  // The session may close while handling it: held until it returns.
+  const std::shared_ptr<Session> session = it->second;
+  if (const std::optional<UplinkDrop> drop = session->onUplink(bytes, from, now)) dropUplink(*drop);
+}
+
 void NetServer::Impl::remove(std::uint32_t id, DisconnectCause cause) {
   auto it = sessions.find(id);
   if (it == sessions.end()) return;
@@ -282,6 +336,10 @@ void NetServer::Impl::remove(std::uint32_t id, DisconnectCause cause) {
   totals.udpDropped += info.udpDropped;
   totals.resends += info.resends;
   totals.repairedFragments += info.repairedFragments;
+  totals.acksTcp += info.acksTcp;
+  totals.acksUdp += info.acksUdp;
+  totals.repairsTcp += info.repairsTcp;
+  totals.repairsUdp += info.repairsUdp;
   totals.tcpQueueFullPolls += it->second->tcpQueueFullPolls();
   ++totals.disconnected;
   ++totals.disconnects[std::size_t(cause)];
@@ -308,6 +366,10 @@ void NetServer::Impl::publishStats(double pollSeconds) {
     s.udpDropped += c.udpDropped;
     s.resends += c.resends;
     s.repairedFragments += c.repairedFragments;
+    s.acksTcp += c.acksTcp;
+    s.acksUdp += c.acksUdp;
+    s.repairsTcp += c.repairsTcp;
+    s.repairsUdp += c.repairsUdp;
     s.tcpQueueFullPolls += session->tcpQueueFullPolls();
     if (session->welcomed()) s.clients.push_back(c);
   }
@@ -426,6 +488,23 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
   m.counter("probecast_udp_send_drops_total",
             "Datagrams dropped because the UDP socket's send buffer was full.",
             double(s.udpDropped));
+  for (const auto& [transport, acks, repairs] :
+       {std::tuple{"tcp", s.acksTcp, s.repairsTcp}, std::tuple{"udp", s.acksUdp, s.repairsUdp}}) {
+    m.counter("probecast_acks_received_total", "Acks taken from clients, by transport.",
+              double(acks), {{"transport", transport}});
+    m.counter("probecast_repair_requests_received_total",
+              "Repair requests taken from clients, by transport.", double(repairs),
+              {{"transport", transport}});
+  }
+  m.counter("probecast_uplink_datagrams_total",
+            "Datagrams received on the UDP port (client acks and repair requests, and anything "
+            "else sent there).",
+            double(s.uplinkDatagrams));
+  for (std::size_t c = 0; c < kUplinkDropCount; ++c) {
+    m.counter("probecast_uplink_dropped_total",
+              "Datagrams on the UDP port dropped unanswered, by cause.", double(s.uplinkDrops[c]),
+              {{"cause", std::string(uplinkDropName(UplinkDrop(c)))}});
+  }
   m.counter("probecast_tcp_queue_full_polls_total",
             "Sender polls skipped because a TCP-only client's write queue was full.",
             double(s.tcpQueueFullPolls));
@@ -512,13 +591,16 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
                  std::to_string(s.options.port) + ": " + ec.message()};
   }
   s.tcpPort = s.acceptor.local_endpoint().port();
-  // Datagrams leave from any free port: clients receive them wherever they come from (the
-  // session id and CRC in each say whether to trust it).
+  // Datagrams leave from any free port, and clients' acks come to it (SessionInfo names it):
+  // clients receive datagrams wherever they come from (the seal says whether to trust one).
   s.udpSocket.open(udp::v4(), ec);
   if (!ec) s.udpSocket.bind(udp::endpoint(address, 0), ec);
   if (ec) return Error{"cannot open the UDP socket: " + ec.message()};
   s.udpSocket.non_blocking(true, ec);
   s.udpSocket.set_option(asio::socket_base::send_buffer_size(4 << 20), ec);
+  // Room for every client's acks of a few polls while the thread is busy (about 50 a second
+  // per client, each under 100 bytes of payload).
+  s.udpSocket.set_option(asio::socket_base::receive_buffer_size(1 << 20), ec);
   s.udpPortNumber = s.udpSocket.local_endpoint().port();
   // Session ids start at a random point, so a restarted server never reuses its old ids and
   // a client's stale datagrams from before the restart are refused.
@@ -589,6 +671,7 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
 void NetServer::start() {
   Impl& s = *impl_;
   s.acceptNext();
+  s.receiveUdp();
   s.schedulePoll();
   s.thread = std::thread([&s] {
     // Named, so a profiler or the load benchmark can tell this thread's CPU time from the

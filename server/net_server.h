@@ -23,6 +23,7 @@
 #include "net_hub.h"
 #include "net_metrics.h"
 #include "protocol/stream_sender.h"
+#include "protocol/uplink_datagram.h"
 
 namespace pc::net {
 struct DevCertificate;  // net/tls_certificate.h
@@ -151,6 +152,9 @@ struct NetClientInfo {
   // Loss recovery by the sender: whole updates sent again, and fragments sent again on the
   // client's report of what a partial update lacks (PROTOCOL.md, "Fragment gaps").
   std::uint64_t resends = 0, repairedFragments = 0;
+  // Acks and repair requests taken, by the way they came: the session stream, or datagrams
+  // to the UDP port (protocol version 6, PROTOCOL.md "Acks over UDP").
+  std::uint64_t acksTcp = 0, acksUdp = 0, repairsTcp = 0, repairsUdp = 0;
   // The latest StreamReport (send rate, quality level, held field); zeros for clients of
   // protocol version 2 and before the first one.
   StreamReportMsg report;
@@ -175,6 +179,10 @@ struct NetServerStats {
   std::uint64_t bytesSent = 0, bytesReceived = 0, messagesReceived = 0;
   std::uint64_t datagrams = 0, udpDropped = 0;
   std::uint64_t resends = 0, repairedFragments = 0;  // NetClientInfo's, summed
+  std::uint64_t acksTcp = 0, acksUdp = 0, repairsTcp = 0, repairsUdp = 0;  // likewise
+  // Datagrams to the UDP port that were dropped unanswered, by UplinkDrop.
+  std::array<std::uint64_t, kUplinkDropCount> uplinkDrops{};
+  std::uint64_t uplinkDatagrams = 0;  // received on the UDP port, dropped or not
   // Sender polls skipped because a TCP-only client's write queue was full (the client gets
   // the newest state later instead of a backlog).
   std::uint64_t tcpQueueFullPolls = 0;

@@ -5,10 +5,12 @@
 // clang-format off
 #include <utility>  // first: Boost.Asio 1.74 uses std::exchange without including it
 // clang-format on
+#include <array>
 #include <boost/asio.hpp>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <thread>
 #include <vector>
 
@@ -43,6 +45,13 @@ struct NetServer::Impl {
   void remove(std::uint32_t id, DisconnectCause cause);
   void publishStats(double pollSeconds = 0);
   void flushUdp();
+  // Client datagrams (acks and repair requests, PROTOCOL.md "Acks over UDP"): the socket is
+  // read whenever it has some, in batches, on this thread.
+  void receiveUdp();
+  void drainUdp();
+  void onUplink(std::span<const std::uint8_t> bytes, bool truncated, const udp::endpoint& from,
+                double now);
+  void dropUplink(UplinkDrop cause) { ++totals.uplinkDrops[std::size_t(cause)]; }
   std::string renderMetrics() const;
 
   FieldHub& hub;
@@ -69,6 +78,11 @@ struct NetServer::Impl {
     double queuedAt;  // steadySeconds() when the session queued it
   };
   std::vector<UdpOut> udpBatch;
+  // recvmmsg's buffers: one byte more than the largest uplink datagram, so that a larger one
+  // shows as truncated.
+  static constexpr std::size_t kUplinkBatch = 32;
+  std::array<std::array<std::uint8_t, kMaxUplinkDatagramBytes + 1>, kUplinkBatch> uplinkBuffers{};
+  std::array<udp::endpoint, kUplinkBatch> uplinkFrom{};
 
   std::map<std::uint32_t, std::shared_ptr<Session>> sessions;
   std::size_t established = 0;                         // sessions past the handshake

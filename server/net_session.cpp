@@ -53,6 +53,7 @@ Session::Session(NetServer::Impl& server, net::SessionStream stream, std::uint32
   auto remote = stream_.socket().remote_endpoint(ec);
   peer_ =
       ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
+  if (!ec) peerAddress_ = remote.address();
   acceptedAt_ = lastHeard_ = steadySeconds();
   stream_.socket().set_option(tcp::no_delay(true), ec);
   // Flood limits; before the Hello the prefix check allows one small frame anyway.
@@ -189,6 +190,10 @@ NetClientInfo Session::info(double now) const {
   c.pendingBricks = pendingBricks_;
   c.resends = resends_;
   c.repairedFragments = repairedFragments_;
+  c.acksTcp = acksTcp_;
+  c.acksUdp = acksUdp_;
+  c.repairsTcp = repairsTcp_;
+  c.repairsUdp = repairsUdp_;
   c.report = lastReport_;
   return c;
 }
@@ -208,7 +213,9 @@ void Session::onHandshake(boost::system::error_code ec) {
   if (stream_.tls()) {
     auto secret = stream_.datagramSecret();
     if (!secret) return close(DisconnectCause::TlsHandshake, secret.error().message);
-    sealer_.emplace(deriveDatagramKeys(*secret).serverToClient, id_);
+    const DatagramKeys keys = deriveDatagramKeys(*secret);
+    sealer_.emplace(keys.serverToClient, id_);
+    uplinkKey_ = keys.clientToServer;
   }
   readMore();
 }
@@ -263,21 +270,55 @@ bool Session::acceptPrefix() {
     refuse(DisconnectCause::Malformed, "bad frame: " + size.error().message);
     return false;
   }
-  const double now = steadySeconds();
+  if (!withinFloodLimits(*size, steadySeconds())) return false;
+  frameBytes_ = *size;
+  frame_.reserve(*size);
+  return true;
+}
+
+bool Session::withinFloodLimits(std::size_t bytes, double now) {
   if (!messageBucket_.take(1, now)) {
     refuse(DisconnectCause::Flood, "more than " +
                                        std::to_string(server_.options.maxMessagesPerSecond) +
                                        " messages per second");
     return false;
   }
-  if (!byteBucket_.take(double(*size), now)) {
+  if (!byteBucket_.take(double(bytes), now)) {
     refuse(DisconnectCause::Flood,
            "more than " + std::to_string(server_.maxReceiveBytesPerSecond) + " bytes per second");
     return false;
   }
-  frameBytes_ = *size;
-  frame_.reserve(*size);
   return true;
+}
+
+std::optional<UplinkDrop> Session::onUplink(std::span<const std::uint8_t> bytes,
+                                            const udp::endpoint& from, double now) {
+  if (closed_ || !uplink_) return UplinkDrop::UnknownSession;
+  // The sealed form is the session's wherever it comes from (a client behind a NAT may change
+  // ports); nothing authenticates the plain form but the address it comes from. Either way
+  // datagrams still go only where the Hello said.
+  if (!uplink_->sealed() && from.address() != peerAddress_) return UplinkDrop::WrongSender;
+  UplinkDrop cause = UplinkDrop::Malformed;
+  auto frame = uplink_->open(bytes, cause);
+  if (!frame) return cause;
+  // The client's own from here: held to the same rules as on the stream.
+  bytesReceived_ += frame->size();
+  ++messagesReceived_;
+  lastHeard_ = now;
+  if (!withinFloodLimits(frame->size(), now)) return std::nullopt;
+  auto message = decodeMessage(*frame);
+  if (!message) {
+    refuse(DisconnectCause::Malformed, "datagram: " + message.error().message);
+    return std::nullopt;
+  }
+  if (!std::holds_alternative<AckMsg>(*message) &&
+      !std::holds_alternative<RepairRequestMsg>(*message)) {
+    refuse(DisconnectCause::Protocol, std::string(sessionMessageName(*message)) +
+                                          " as a datagram: only acks and repair requests");
+    return std::nullopt;
+  }
+  (void)handle(*message, true);
+  return std::nullopt;
 }
 
 bool Session::onFrame() {
@@ -302,7 +343,7 @@ bool Session::onFrame() {
   return handle(*message) && !closed_;
 }
 
-bool Session::handle(const SessionMessage& message) {
+bool Session::handle(const SessionMessage& message, bool overUdp) {
   if (!sender_) {
     const HelloMsg* hello = std::get_if<HelloMsg>(&message);
     if (!hello) {
@@ -338,6 +379,8 @@ bool Session::handle(const SessionMessage& message) {
     refuse(DisconnectCause::Invalid, status.error().message);
     return false;
   }
+  if (std::holds_alternative<AckMsg>(message)) ++(overUdp ? acksUdp_ : acksTcp_);
+  if (std::holds_alternative<RepairRequestMsg>(message)) ++(overUdp ? repairsUdp_ : repairsTcp_);
   return true;
 }
 
@@ -427,6 +470,12 @@ bool Session::onHello(const HelloMsg& hello) {
     if (hello.protocolVersion < kPrecisionLevelsVersion) senderOptions.maxPrecision = 0;
     sender_ = std::make_unique<StreamSender>(server_.hub.publisher(), id_, senderOptions,
                                              &server_.changeCache);
+    // Acks as datagrams from clients that send them, on sessions with a UDP path: the client
+    // learns the port from the SessionInfo.
+    if (useUdp && hello.protocolVersion >= kUplinkDatagramsVersion) {
+      uplink_.emplace(uplinkKey_, id_);
+      info.uplinkPort = server_.udpPortNumber;
+    }
     scene = server_.hub.sceneFrame();
     sceneSerialSent_ = server_.hub.sceneSerial();
     joinedAtVersion_ = server_.hub.publisher().fieldVersion();

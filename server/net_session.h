@@ -12,6 +12,7 @@
 #include "protocol/datagram_seal.h"
 #include "protocol/net_framing.h"
 #include "protocol/session_messages.h"
+#include "protocol/uplink_datagram.h"
 
 namespace pc {
 
@@ -75,6 +76,12 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void checkTimeouts(double now);
 
+  // A datagram to the server's UDP port that names this session: an ack or repair request
+  // (PROTOCOL.md "Acks over UDP"). Handled as from the stream once it opened; otherwise the
+  // cause it was dropped for, and nothing changed.
+  std::optional<UplinkDrop> onUplink(std::span<const std::uint8_t> bytes, const udp::endpoint& from,
+                                     double now);
+
   NetClientInfo info(double now) const;
   std::uint64_t tcpQueueFullPolls() const { return tcpQueueFullPolls_; }
 
@@ -85,10 +92,13 @@ class Session : public std::enable_shared_from_this<Session> {
   // False when the session ended (the frame was refused, or handling it closed the session).
   bool acceptPrefix();
   bool onFrame();
+  // Takes one message of `bytes` from the flood limits; false when the session was refused.
+  bool withinFloodLimits(std::size_t bytes, double now);
 
   // False when the session ended. A client changes nothing but its own pose and acks: the
   // session is the connection, so nothing it sends can name another session.
-  bool handle(const SessionMessage& message);
+  // `overUdp`: it came as a datagram (counted apart).
+  bool handle(const SessionMessage& message, bool overUdp = false);
 
   // What an ack or repair request may make the sender do is bounded by the field: a valid ack
   // lists each brick at most once, a repair request need not name one twice. Beyond that it is
@@ -111,6 +121,13 @@ class Session : public std::enable_shared_from_this<Session> {
   std::uint32_t id_;
   // Seals this session's UDP datagrams with the key from its TLS session; none without TLS.
   std::optional<DatagramSealer> sealer_;
+  // Opens this session's acks sent as datagrams (protocol version 6 clients with UDP), with
+  // the client->server key from its TLS session (none without TLS: the plain form, taken only
+  // from peerAddress_).
+  std::optional<DatagramKey> uplinkKey_;
+  std::optional<UplinkOpener> uplink_;
+  asio::ip::address peerAddress_;
+  std::uint64_t acksTcp_ = 0, acksUdp_ = 0, repairsTcp_ = 0, repairsUdp_ = 0;
   std::string peer_, name_;
   TokenClaims claims_;  // the connect token's, once the Hello is accepted
   std::string addressKey_, clientKey_;

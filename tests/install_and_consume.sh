@@ -54,8 +54,8 @@ mkdir -p run/rtxgi-cornell
 printf 'v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 3 2\nf 1 4 3\n' >run/rtxgi-cornell/room.obj
 cd run || exit 1
 bake=(--scene rtxgi-cornell/room.obj --updates 1 --rays 16)
-run bake_tree.log "$build/bin/probecast-bake" "${bake[@]}" --out tree.probes
-run bake_installed.log "$prefix/bin/probecast-bake" "${bake[@]}" --out field.probes
+run bake_tree.log "$build/bin/probecast-bake" "${bake[@]}" --output tree.probes
+run bake_installed.log "$prefix/bin/probecast-bake" "${bake[@]}" --output field.probes
 has bake_installed.log "sidecar $prefix/share/probecast/sidecars/rtxgi-cornell.json"
 tree=$(probes_baked bake_tree.log)
 installed=$(probes_baked bake_installed.log)
@@ -67,7 +67,7 @@ installed=$(probes_baked bake_installed.log)
 mkdir -p "$work/moved"
 cp "$prefix/bin/probecast-bake" "$work/moved/"
 rc=0
-"$work/moved/probecast-bake" "${bake[@]}" --out lost.probes >bake_lost.log 2>&1 || rc=$?
+"$work/moved/probecast-bake" "${bake[@]}" --output lost.probes >bake_lost.log 2>&1 || rc=$?
 [[ $rc == 1 && ! -e lost.probes ]] || fail "the bake without its sidecar exited $rc"
 has bake_lost.log "its sidecar rtxgi-cornell.json (one of probecast's own) is in none of"
 # $PROBECAST_DATA then finds the data.
@@ -78,7 +78,7 @@ has bake_moved.log "sidecar $work/moved/data/sidecars/rtxgi-cornell.json"
 
 # The SPIR-V, from the install: the GPU tracer's and the client renderer's.
 rc=0
-"$prefix/bin/probecast-bake" --backend vulkan --updates 1 --rays 16 --out vulkan.probes \
+"$prefix/bin/probecast-bake" --backend vulkan --updates 1 --rays 16 --output vulkan.probes \
   >bake_vulkan.log 2>&1 || rc=$?
 if grep -q "no Vulkan" bake_vulkan.log; then
   echo "install_and_consume: no Vulkan device: the installed shaders are not loaded"
@@ -108,7 +108,7 @@ done
 # The installed server, with a token issuer of this run.
 tok=$prefix/bin/probecast-token
 run keygen.log "$tok" keygen --signing-key issuer.key --verify-key issuer.pub
-run issue.log "$tok" issue --signing-key issuer.key --client consumer --ttl 1h --out consumer.token
+run issue.log "$tok" issue --signing-key issuer.key --client consumer --ttl 1h --output consumer.token
 "$prefix/bin/probecast-server" --scene rtxgi-cornell/room.obj --probes field.probes --rays 16 --rate 2 \
   --bind 127.0.0.1 --port 0 --token-key issuer.pub --dev-self-signed --duration 120 \
   >server.out 2>server.log &

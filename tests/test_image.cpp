@@ -321,6 +321,15 @@ TEST_F(ImageTest, ImgdiffTool) {
   RunResult json = run(A + " " + B + " --json");
   EXPECT_EQ(json.status, 0) << json.output;
   EXPECT_NE(json.output.find("\"psnr_8bit_db\""), std::string::npos) << json.output;
+  EXPECT_EQ(json.output.find("FIGURE"), std::string::npos) << json.output;
+
+  // --json FILE, as the other tools take it: the JSON in the file, the table on stdout.
+  RunResult jsonFile = run(A + " " + B + " --json " + path("r.json").string());
+  EXPECT_EQ(jsonFile.status, 0) << jsonFile.output;
+  EXPECT_NE(jsonFile.output.find("FIGURE psnr_8bit"), std::string::npos) << jsonFile.output;
+  std::ifstream written(path("r.json"));
+  const std::string text{std::istreambuf_iterator<char>(written), {}};
+  EXPECT_NE(text.find("\"psnr_8bit_db\""), std::string::npos) << text;
 
   RunResult mismatch = run(A + " " + path("small.exr").string());
   EXPECT_NE(mismatch.status, 0);

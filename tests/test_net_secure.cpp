@@ -22,16 +22,6 @@ using asio::ip::tcp;
 using asio::ip::udp;
 using Bytes = std::vector<std::uint8_t>;
 
-client::NetClientOptions clientOptions(const TestServer& server, const std::string& name) {
-  client::NetClientOptions o;
-  o.host = "127.0.0.1";
-  o.port = server.port();
-  o.serverFingerprint = server.fingerprint();
-  o.token = issueTestToken(name);
-  o.name = name;
-  return o;
-}
-
 // A TCP proxy that forwards every connection to `target` and keeps a copy of every byte it
 // carries, both ways: what an observer on the path sees.
 class CapturingTcpProxy {
@@ -125,7 +115,7 @@ TEST(NetSecure, NoFieldPayloadTravelsInClear) {
   UdpRelay relay;
   relay.capture(true);
   client::FieldMirror mirror;
-  client::NetClientOptions o = clientOptions(server, "secure-viewer");
+  client::NetClientOptions o = secureClientOptions(server, "secure-viewer");
   o.port = proxy.port();
   o.udpAdvertisePort = relay.port();
   client::NetClient client(mirror, o);
@@ -172,7 +162,7 @@ TEST(NetSecure, ForgedAndReplayedDatagramsAreDroppedAndTheVictimIsUnchanged) {
   UdpRelay relay;          // on the victim's path, for the replay
   relay.capture(true);
   client::FieldMirror mirror;
-  client::NetClientOptions o = clientOptions(server, "victim");
+  client::NetClientOptions o = secureClientOptions(server, "victim");
   o.udpAdvertisePort = relay.port();
   client::NetClient victim(mirror, o);
   victim.start();
@@ -251,7 +241,7 @@ TEST(NetSecure, ForgedAndReplayedDatagramsAreDroppedAndTheVictimIsUnchanged) {
 TEST(NetSecure, StrangersGetNoMoreBytesThanTheySent) {
   TestServer server(-1.0);
   client::FieldMirror mirror;
-  client::NetClient good(mirror, clientOptions(server, "good"));
+  client::NetClient good(mirror, secureClientOptions(server, "good"));
   good.start();
   ASSERT_TRUE(waitFor([&] { return good.stats().synced; }, 20.0));
   asio::io_context io;
@@ -353,7 +343,7 @@ TEST(NetSecure, WrongExpiredRevokedTamperedOrMisplacedTokensAreRejected) {
   options.handshakesPerSecondPerAddress = 0;  // one address tries many tokens in a row
   TestServer server(-1.0, options);
   client::FieldMirror mirror;
-  client::NetClient client(mirror, clientOptions(server, "watcher"));
+  client::NetClient client(mirror, secureClientOptions(server, "watcher"));
   client.start();
   ASSERT_TRUE(waitFor([&] { return client.stats().synced; }, 20.0));
 
@@ -393,7 +383,7 @@ TEST(NetSecure, WrongExpiredRevokedTamperedOrMisplacedTokensAreRejected) {
 TEST(NetSecure, ClientRefusesAServerWhoseCertificateIsNotThePinned) {
   TestServer server(-1.0);
   client::FieldMirror mirror;
-  client::NetClientOptions o = clientOptions(server, "careful");
+  client::NetClientOptions o = secureClientOptions(server, "careful");
   // Another server's fingerprint: the handshake fails, the token is never sent.
   o.serverFingerprint = "sha256:" + std::string(64, 'a');
   client::NetClient client(mirror, o);

@@ -137,6 +137,18 @@ inline int mirrorDifference(const client::FieldMirror& mirror, const Field& serv
   return differing;
 }
 
+// A client of `server` with TLS as in production: its certificate pinned, a token of its own.
+inline client::NetClientOptions secureClientOptions(const TestServer& server,
+                                                    const std::string& name) {
+  client::NetClientOptions o;
+  o.host = "127.0.0.1";
+  o.port = server.port();
+  o.serverFingerprint = server.fingerprint();
+  o.token = issueTestToken(name);
+  o.name = name;
+  return o;
+}
+
 // A UDP relay that passes datagrams through a FaultLink (loss, bursts, duplication,
 // reordering, corruption, delay), from whoever sends to it on to the target port (datagrams
 // are dropped until one is set).

@@ -37,7 +37,7 @@ run 0 "$tool" keygen --signing-key other.key --verify-key other.pub
 run 0 "$tool" keygen --signing-key other.key --verify-key other.pub --force
 
 run 0 "$tool" issue --signing-key signing.key --client alice --scene sponza --role editor \
-  --weight 3 --ttl 2h --out alice.token
+  --weight 3 --ttl 2h --output alice.token
 [[ $(stat -c %a alice.token) == 600 ]] || fail "alice.token has mode $(stat -c %a alice.token)"
 grep -qE '^pct1\.[A-Za-z0-9_-]+\.[A-Za-z0-9_-]{86}$' alice.token || fail "alice.token: $(cat alice.token)"
 

@@ -50,7 +50,9 @@ int main(int argc, char** argv) {
   app.add_option("--rays", rays, "rays per probe per update")
       ->check(CLI::Range(pc::kMinRaysPerProbe, pc::kMaxRaysPerProbe));
   app.add_option("--time", time, "animation time of the baked state (seconds)")->check(pc::kFinite);
-  app.add_option("-o,--out", out, "output .probes file");
+  // Files are -o/--output and folders --out in every tool; --out named this file before.
+  app.add_option("-o,--output", out, "output .probes file");
+  app.add_option("--out", out, "deprecated: -o/--output FILE")->group("Deprecated");
   app.add_flag("--half", half, "store irradiance and occlusion as float16");
   app.add_flag("--auto-volumes", autoVolumes,
                "place the cascades from the geometry even where the sidecar names volumes");

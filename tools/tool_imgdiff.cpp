@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -73,13 +74,19 @@ int main(int argc, char** argv) {
       "Prints a table and FIGURE lines, or JSON with --json (null PSNR = identical)."};
   std::string pathA, pathB, diffPath;
   float exposure = 1.0f;
-  bool json = false;
+  std::string jsonPath;
   app.add_option("A", pathA, "test image")->required();
   app.add_option("B", pathB, "reference image")->required();
   app.add_option("--exposure", exposure, "exposure applied to linear inputs before tone mapping")
       ->check(CLI::PositiveNumber);
   app.add_option("--diff", diffPath, "write a false-colour difference PNG here");
-  app.add_flag("--json", json, "print the results as one JSON object instead of the table");
+  // --json FILE as every tool takes it; bare --json (or --json -) prints the JSON instead of
+  // the table, as this tool did before it took a file.
+  CLI::Option* json =
+      app.add_option("--json", jsonPath,
+                     "write the results as one JSON object here (bare or '-': print it instead "
+                     "of the table)")
+          ->expected(0, 1);
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
 
   auto a = load(pathA, exposure);
@@ -102,7 +109,7 @@ int main(int argc, char** argv) {
     if (!s) return fail(s.error().message);
   }
 
-  if (json) {
+  if (json->count() > 0) {
     nlohmann::json out = {{"a", pathA},
                           {"b", pathB},
                           {"width", a->display.width},
@@ -112,8 +119,13 @@ int main(int argc, char** argv) {
                           {"ssim", ssim}};
     if (linear) out["psnr_linear_db"] = jsonNumber(psnrLin);
     if (!diffPath.empty()) out["diff"] = diffPath;
-    std::printf("%s\n", out.dump(2).c_str());
-    return 0;
+    if (jsonPath.empty() || jsonPath == "-") {
+      std::printf("%s\n", out.dump(2).c_str());
+      return 0;
+    }
+    std::ofstream file(jsonPath);
+    file << out.dump(2) << "\n";
+    if (!file.flush()) return fail("cannot write " + jsonPath);
   }
 
   std::printf("A (test)       %s\n", pathA.c_str());

@@ -4,7 +4,7 @@
 // other users could read them (ps, /proc, shell history).
 //
 //   probecast-token keygen --signing-key signing.key --verify-key verify.key
-//   probecast-token issue --signing-key signing.key --client alice --ttl 8h --out alice.token
+//   probecast-token issue --signing-key signing.key --client alice --ttl 8h --output alice.token
 //   probecast-token inspect alice.token --verify-key verify.key --scene sponza
 //   probecast-token revoke --list revoked.txt alice.token
 //
@@ -270,7 +270,10 @@ int main(int argc, char** argv) {
   issueCmd->add_option("--weight", i.weight, "share of the server relative to other clients")
       ->check(CLI::Range(1u, kMaxTokenWeight));
   issueCmd->add_option("--ttl", i.ttl, "time to live: seconds, or with s, m, h or d")->check(kTtl);
-  issueCmd->add_option("--out", i.out, "write the token to this file (mode 0600), not stdout");
+  // Files are -o/--output and folders --out in every tool; --out named this file before.
+  issueCmd->add_option("-o,--output", i.out,
+                       "write the token to this file (mode 0600), not stdout");
+  issueCmd->add_option("--out", i.out, "deprecated: -o/--output FILE")->group("Deprecated");
 
   InspectArgs n;
   CLI::App* inspectCmd =

@@ -52,7 +52,7 @@ link 3 10
 # A token issuer for this run; the server makes its own certificate, the clients pin it.
 "$build/bin/probecast-token" keygen --signing-key "$work/issuer.key" --verify-key "$work/issuer.pub"
 "$build/bin/probecast-token" issue --signing-key "$work/issuer.key" --client links \
-  --out "$work/links.token"
+  --output "$work/links.token"
 S "$server" --scene builtin --bind 0.0.0.0 --port 7471 --token-key "$work/issuer.pub" \
   --dev-self-signed --rays 16 --rate 10 \
   --warmup 2 --max-clients 16 --stats-interval 0 --metrics-port 0 >"$work/server.log" 2>&1 &
