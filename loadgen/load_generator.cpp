@@ -6,15 +6,18 @@
 #include <boost/asio.hpp>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <deque>
 #include <fstream>
 #include <functional>
 #include <future>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <random>
 #include <thread>
 
+#include "common/series_csv.h"
 #include "net/session_stream.h"
 #include "protocol/client_session.h"
 #include "shared_decoder.h"
@@ -77,6 +80,7 @@ struct LoadGenerator::Impl {
   void onEveryWorker(const std::function<void(Worker&)>& fn);
   // What keeping a decoded field would cost, once per run (it allocates one).
   void measureLayout(const SessionInfoMsg& info);
+  LoadInterval takeInterval();
 
   LoadOptions options;
   // options.host:port, then options.alternates, resolved once, with the host names TLS checks.
@@ -116,9 +120,11 @@ void LoadGenerator::Impl::writeSeries() {
       if (seriesWake.wait_until(lock, due, [this] { return seriesStop; })) return;
     }
     // The row's figures come from the workers' threads (takeInterval waits for them).
-    LoadGenerator::Impl& g = *this;
-    const LoadInterval interval = LoadGenerator(g).takeIntervalOf();
-    (void)interval;
+    const LoadInterval interval = takeInterval();
+    if (Status written = series->write(interval.seriesRow(double(second))); !written) {
+      noteError(written.error().message);
+      return;
+    }
   }
 }
 
@@ -220,7 +226,8 @@ class Client {
   };
   // What the series' current second collects (LoadGenerator::takeInterval), window or not.
   struct Interval {
-    std::uint64_t bytesDown = 0, errors = 0, reports = 0;
+    std::uint64_t bytesDown = 0, errors = 0, reports = 0, gapReports = 0;
+    double maxGap = 0;  // s between datagrams of a session, the longest in the interval
     std::vector<float> latencyMs, stalenessMs, oldestChange;
     double heldSquares = 0;
   };
@@ -326,6 +333,7 @@ void Client::tick(double now) {
   const ReceiverStats& rs = session_.receiver()->stats();
   window_.repairs += rs.repairBricks - lastRepairs_;
   window_.gapReports += rs.gapReports - lastGapReports_;
+  interval_.gapReports += rs.gapReports - lastGapReports_;
   window_.stale += rs.stale - lastStale_;
   lastRepairs_ = rs.repairBricks;
   lastGapReports_ = rs.gapReports;
@@ -601,6 +609,7 @@ void Client::resolvePending(double now) {
 // its error, and the bricks it changed, whose latency is measured from here.
 void Client::onDatagram(const Status& status, double now) {
   if (inWindow(now)) window_.maxGap = std::max(window_.maxGap, now - lastDatagramAt_);
+  interval_.maxGap = std::max(interval_.maxGap, now - lastDatagramAt_);
   lastDatagramAt_ = now;
   ++window_.datagrams;
   if (!status) addError(status.error().message);
@@ -765,6 +774,11 @@ void Client::takeInterval(LoadInterval& sums, std::vector<float>& latency,
                           std::vector<float>& psnr) {
   sums.bytesDown += interval_.bytesDown;
   sums.errors += interval_.errors;
+  sums.gapReports += interval_.gapReports;
+  // A session still waiting for its next datagram: the wait so far counts as a gap.
+  double gap = interval_.maxGap;
+  if (state_ == State::Session) gap = std::max(gap, nowSeconds() - lastDatagramAt_);
+  sums.maxGapSeconds = std::max(sums.maxGapSeconds, gap);
   sums.inSession += state_ == State::Session;
   sums.synced += synced_;
   latency.insert(latency.end(), interval_.latencyMs.begin(), interval_.latencyMs.end());
@@ -772,7 +786,8 @@ void Client::takeInterval(LoadInterval& sums, std::vector<float>& latency,
   ages.insert(ages.end(), interval_.oldestChange.begin(), interval_.oldestChange.end());
   if (interval_.reports > 0) {
     const double mse = interval_.heldSquares / double(interval_.reports);
-    psnr.push_back(float(mse > 0 ? -10.0 * std::log10(mse) : 99.0));  // the server's cap: equal fields
+    psnr.push_back(
+        float(mse > 0 ? -10.0 * std::log10(mse) : 99.0));  // the server's cap: equal fields
   }
   interval_ = Interval{};
 }
@@ -821,6 +836,60 @@ Percentiles percentiles(std::vector<float>& samples) {
   return p;
 }
 
+LoadInterval LoadGenerator::Impl::takeInterval() {
+  const double now = nowSeconds();
+  LoadInterval r;
+  r.seconds = std::max(1e-9, now - intervalStart);
+  intervalStart = now;
+  std::vector<float> latency, staleness, ages, psnr;
+  std::mutex merge;
+  onEveryWorker([&](Worker& w) {
+    LoadInterval sums;
+    std::vector<float> lat, stale, age, held;
+    for (auto& c : w.clients) c->takeInterval(sums, lat, stale, age, held);
+    std::lock_guard lock(merge);
+    r.inSession += sums.inSession;
+    r.synced += sums.synced;
+    r.bytesDown += sums.bytesDown;
+    r.errors += sums.errors;
+    r.gapReports += sums.gapReports;
+    r.maxGapSeconds = std::max(r.maxGapSeconds, sums.maxGapSeconds);
+    latency.insert(latency.end(), lat.begin(), lat.end());
+    staleness.insert(staleness.end(), stale.begin(), stale.end());
+    ages.insert(ages.end(), age.begin(), age.end());
+    psnr.insert(psnr.end(), held.begin(), held.end());
+  });
+  r.latencyMs = percentiles(latency);
+  r.stalenessMs = percentiles(staleness);
+  r.changeAgeS = percentiles(ages);
+  r.reports = !psnr.empty();
+  if (r.reports) {
+    std::sort(psnr.begin(), psnr.end());
+    r.heldPsnrP5 = psnr[std::size_t(0.05 * double(psnr.size() - 1))];
+  }
+  return r;
+}
+
+std::vector<double> LoadInterval::seriesRow(double time) const {
+  const double none = std::numeric_limits<double>::quiet_NaN();
+  const double kbit = double(bytesDown) * 8 / 1e3 / seconds;
+  const auto p = [none](const Percentiles& q, double v) { return q.count > 0 ? v : none; };
+  return {time,
+          double(inSession),
+          double(synced),
+          kbit,
+          inSession > 0 ? kbit / inSession : none,
+          p(latencyMs, latencyMs.p50),
+          p(latencyMs, latencyMs.p95),
+          p(latencyMs, latencyMs.p99),
+          p(stalenessMs, stalenessMs.p95),
+          p(changeAgeS, changeAgeS.p95),
+          inSession > 0 ? maxGapSeconds * 1e3 : none,
+          double(gapReports),
+          reports ? heldPsnrP5 : none,
+          double(errors)};
+}
+
 LoadGenerator::LoadGenerator(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 LoadGenerator::~LoadGenerator() { stop(); }
@@ -853,6 +922,11 @@ Result<std::unique_ptr<LoadGenerator>> LoadGenerator::create(LoadOptions options
     g.tls = *tls;
   }
   if (g.options.shareDecoding) g.decoder = std::make_unique<SharedBrickDecoder>();
+  if (!g.options.seriesPath.empty()) {
+    auto series = SeriesWriter::create(g.options.seriesPath, kSeriesColumns);
+    if (!series) return series.error();
+    g.series = std::move(series).value();
+  }
   for (int t = 0; t < g.options.threads; ++t) g.workers.push_back(std::make_unique<Worker>());
   return std::unique_ptr<LoadGenerator>(new LoadGenerator(std::move(impl)));
 }
@@ -861,7 +935,7 @@ void LoadGenerator::start() {
   Impl& g = *impl_;
   if (g.running) return;
   const double now = nowSeconds();
-  g.windowStart = now;
+  g.windowStart = g.startedAt = g.intervalStart = now;
   for (int i = 0; i < g.options.clients; ++i) {
     Worker& w = *g.workers[std::size_t(i) % g.workers.size()];
     const double at = now + g.options.rampSeconds * double(i) / double(g.options.clients);
@@ -873,11 +947,20 @@ void LoadGenerator::start() {
     w->thread = std::thread([&w = *w] { w.io.run(); });
   }
   g.running = true;
+  if (g.series) g.seriesThread = std::thread([&g] { g.writeSeries(); });
 }
 
 void LoadGenerator::stop() {
   Impl& g = *impl_;
   if (!g.running) return;
+  if (g.seriesThread.joinable()) {
+    {
+      std::lock_guard lock(g.seriesMutex);
+      g.seriesStop = true;
+    }
+    g.seriesWake.notify_all();
+    g.seriesThread.join();
+  }
   for (auto& w : g.workers) {
     asio::post(w->io, [&w = *w] {
       for (auto& c : w.clients) c->shutdown();
@@ -997,6 +1080,8 @@ LoadReport LoadGenerator::report() {
   r.errorSamples = g.errorSamples;
   return r;
 }
+
+LoadInterval LoadGenerator::takeInterval() { return impl_->takeInterval(); }
 
 LoadSnapshot LoadGenerator::snapshot() const {
   const Impl& g = *impl_;

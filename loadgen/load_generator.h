@@ -15,7 +15,6 @@
 #pragma once
 
 #include <cstdint>
-#include <string>
 #include <memory>
 #include <string>
 #include <utility>
@@ -95,7 +94,6 @@ struct LoadOptions {
   std::string seriesPath;
 };
 
-
 // Counters for progress lines, readable while the clients run.
 struct LoadSnapshot {
   int clients = 0;
@@ -174,18 +172,31 @@ struct LoadReport {
 // The series' columns: seconds since start(); clients in a session and synced; kbit/s
 // received by all clients and by the mean client in a session; update latency percentiles
 // (publish -> apply, ms); staleness p95 (ms); the server's reports: oldest change not held,
-// p95 (s), and the held field's PSNR, 5th percentile over clients (dB); errors in the second.
-// A figure without samples in a second is left empty.
-inline const std::vector<std::string> kSeriesColumns = {
-    "time_s",         "clients",        "synced",         "kbit_s_total",
-    "kbit_s_per_client", "latency_p50_ms", "latency_p95_ms", "latency_p99_ms",
-    "staleness_p95_ms",  "change_age_p95_s", "held_psnr_p5_db", "errors"};
+// p95 (s); gaps: the longest wait for a datagram of any client in a session (ms) and the
+// partial updates whose missing fragments were asked for; the held field's PSNR, 5th
+// percentile over clients (dB); errors in the second. A figure without samples in a second
+// is left empty.
+inline const std::vector<std::string> kSeriesColumns = {"time_s",
+                                                        "clients",
+                                                        "synced",
+                                                        "kbit_s_total",
+                                                        "kbit_s_per_client",
+                                                        "latency_p50_ms",
+                                                        "latency_p95_ms",
+                                                        "latency_p99_ms",
+                                                        "staleness_p95_ms",
+                                                        "change_age_p95_s",
+                                                        "gap_max_ms",
+                                                        "gap_reports",
+                                                        "held_psnr_p5_db",
+                                                        "errors"};
 
 // What all clients saw over one interval (LoadGenerator::takeInterval).
 struct LoadInterval {
   double seconds = 0;
   int inSession = 0, synced = 0;
-  std::uint64_t bytesDown = 0, errors = 0;
+  std::uint64_t bytesDown = 0, errors = 0, gapReports = 0;
+  double maxGapSeconds = 0;
   Percentiles latencyMs, stalenessMs, changeAgeS;
   double heldPsnrP5 = 0;  // 0 without reports
   bool reports = false;
