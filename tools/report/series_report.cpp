@@ -51,7 +51,13 @@ std::string escapeHtml(const std::string& s) {
 std::string number(double v) {
   if (!std::isfinite(v)) return "";
   char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
+  // Four significant digits, never an exponent for the sizes series hold (kbit/s in the tens
+  // of thousands).
+  if (std::abs(v) >= 1e3 && std::abs(v) < 1e12) {
+    std::snprintf(buf, sizeof buf, "%.0f", v);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.4g", v);
+  }
   return buf;
 }
 
