@@ -7,9 +7,6 @@ namespace pc::client {
 
 namespace {
 
-// Announced versions kept while the mirror catches up: a minute at the server's highest rate.
-constexpr std::size_t kMaxAnnounced = 16384;
-
 // The q-quantile (nearest rank) of `v` (reordered); NaN when empty.
 double quantile(std::vector<float>& v, double q) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
@@ -29,47 +26,29 @@ Result<std::unique_ptr<ClientSeries>> ClientSeries::create(const std::string& pa
   return s;
 }
 
-// The latency of a version: from the frame that first saw it announced to the first that saw
-// the mirror hold it. A mirror that went back (a new session's layout) starts over.
-void ClientSeries::trackVersions(double now, const NetClientStats& stats, const FieldAge& age) {
-  if (stats.serverFieldVersion < newestAnnounced_) {
-    announced_.clear();
-    newestAnnounced_ = 0;
-  }
-  if (stats.serverFieldVersion > newestAnnounced_) {
-    newestAnnounced_ = stats.serverFieldVersion;
-    announced_.emplace_back(newestAnnounced_, now);
-    if (announced_.size() > kMaxAnnounced) announced_.pop_front();
-  }
-  while (!announced_.empty() && age.present && announced_.front().first <= age.version) {
-    const float ms = float((now - announced_.front().second) * 1e3);
-    latencyMs_.push_back(ms);
-    allLatencyMs_.push_back(ms);
-    announced_.pop_front();
-  }
-}
-
-Status ClientSeries::frame(double now, const NetClientStats& stats, const FieldAge& age) {
+Status ClientSeries::frame(double now, const NetClientStats& stats, const FieldAge& age,
+                           std::span<const float> latencyMs) {
   ++frames_;
   const double frameMs = (now - lastFrame_) * 1e3;
   lastFrame_ = now;
   frameSum_ += frameMs;
   frameMax_ = std::max(frameMax_, frameMs);
   allFrameMs_.push_back(float(frameMs));
-  if (stats.connected) {
-    trackVersions(now, stats, age);
-    if (age.present) {
-      staleSum_ += age.newestSeconds;
-      staleMax_ = std::max(staleMax_, age.newestSeconds);
-      ++staleFrames_;
-      const double lag = stats.serverFieldVersion > age.version
-                             ? double(stats.serverFieldVersion - age.version)
-                             : 0.0;
-      lagMax_ = std::max(lagMax_, lag);
-      lagSum_ += lag;
-      lagMaxAll_ = std::max(lagMaxAll_, lag);
-      ++lagFrames_;
-    }
+  latencyMs_.insert(latencyMs_.end(), latencyMs.begin(), latencyMs.end());
+  allLatencyMs_.insert(allLatencyMs_.end(), latencyMs.begin(), latencyMs.end());
+  if (stats.connected && age.present) {
+    staleSum_ += age.newestSeconds;
+    staleMax_ = std::max(staleMax_, age.newestSeconds);
+    ++staleFrames_;
+  }
+  if (stats.connected && stats.heldFieldVersion > 0) {
+    const double lag = stats.serverFieldVersion > stats.heldFieldVersion
+                           ? double(stats.serverFieldVersion - stats.heldFieldVersion)
+                           : 0.0;
+    lagMax_ = std::max(lagMax_, lag);
+    lagSum_ += lag;
+    lagMaxAll_ = std::max(lagMaxAll_, lag);
+    ++lagFrames_;
   }
   const double seconds = now - rowStart_;
   if (!writer_ || seconds < 1.0) return Status::success();

@@ -5,10 +5,9 @@
 #pragma once
 
 #include <cstdint>
-#include <deque>
 #include <memory>
+#include <span>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "common/series_csv.h"
@@ -20,10 +19,11 @@ namespace pc::client {
 // time_s: seconds since the run began; connected, synced: 0 or 1 at the row's end;
 // bytes_received: TCP and UDP since the run began; kbit_s: received over the row's interval;
 // bricks_applied: in the interval; bricks_held, bricks_total: this session's;
-// latency_p50_ms, latency_p95_ms: from the server's announcing a field version (its
-// SceneState) to the mirror holding it, seen at frame resolution; staleness_mean_ms,
-// staleness_max_ms: the age of the newest brick the mirror holds; version_lag_max: the
-// server's field version less the mirror's, the most in the interval; frame_ms_mean,
+// latency_p50_ms, latency_p95_ms: from the server publishing a field version to its bricks
+// arriving (update_latency.h); staleness_mean_ms, staleness_max_ms: the age of the newest
+// brick the mirror holds; version_lag_max: the server's newest field version less the newest
+// one the client holds a brick of, the most in the interval (for a field that changes every
+// update: how many updates the client is behind); frame_ms_mean,
 // frame_ms_max: time between frames; fps; server_field_version; bad_datagrams: in the
 // interval. Figures without samples in the interval (no frame while connected) are empty.
 inline const std::vector<std::string> kClientSeriesColumns = {"time_s",
@@ -57,20 +57,17 @@ class ClientSeries {
  public:
   // `path` empty: no file, only the totals.
   static Result<std::unique_ptr<ClientSeries>> create(const std::string& path, double start);
-  // One frame: its stats and the mirror's age. A row is written once a second has passed
-  // since the last (a frame slower than a second gives one row per frame).
-  Status frame(double now, const NetClientStats& stats, const FieldAge& age);
+  // One frame: its stats, the mirror's age and the update latencies (ms) measured since the
+  // previous frame (NetClient::takeLatencySamples). A row is written once a second has
+  // passed since the last (a frame slower than a second gives one row per frame).
+  Status frame(double now, const NetClientStats& stats, const FieldAge& age,
+               std::span<const float> latencyMs);
   ClientSeriesTotals totals() const;
 
  private:
   explicit ClientSeries(double start) : start_(start), rowStart_(start), lastFrame_(start) {}
-  void trackVersions(double now, const NetClientStats& stats, const FieldAge& age);
-
   std::unique_ptr<SeriesWriter> writer_;
   double start_, rowStart_, lastFrame_;
-  // Field versions the server announced and the mirror does not hold yet, with when.
-  std::deque<std::pair<std::uint64_t, double>> announced_;
-  std::uint64_t newestAnnounced_ = 0;
   // The row's samples, and the run's.
   std::uint64_t bytesBefore_ = 0, appliedBefore_ = 0, badBefore_ = 0;
   int frames_ = 0, staleFrames_ = 0;

@@ -189,7 +189,7 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
       stalenessMax = std::max(stalenessMax, age.newestSeconds);
       ++stalenessFrames;
     }
-    if (Status row = (*series)->frame(secondsNow(), s, age); !row)
+    if (Status row = (*series)->frame(secondsNow(), s, age, client.takeLatencySamples()); !row)
       return logError("--series: " + row.error().message), 1;
     if (now - lastSummaryAt >= 0.25) {
       // A live summary: tests and scripts watch the client's progress through it.

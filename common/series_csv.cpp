@@ -44,7 +44,8 @@ Status SeriesWriter::write(std::span<const double> values) {
     if (i) line.push_back(',');
     if (std::isfinite(values[i])) {
       char buf[32];
-      std::snprintf(buf, sizeof buf, "%.6g", values[i]);
+      // Ten significant digits: counters (bytes received) stay exact into the gigabytes.
+      std::snprintf(buf, sizeof buf, "%.10g", values[i]);
       line += buf;
     }
   }
