@@ -15,6 +15,7 @@ struct NetRunConfig {
   double maxFps = 0;         // frames per second at most (0: as fast as the renderer goes)
   int saveEvery = 1;         // write every Nth frame (0: only the last)
   std::string summary;       // JSON summary written here at exit
+  std::string series;        // per-second CSV series (client_series.h); empty: none
   double startupWait = 3.0;  // s the first frame may wait for a layout when no baked field is given
 };
 

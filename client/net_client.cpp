@@ -8,10 +8,12 @@
 #include <deque>
 #include <mutex>
 #include <thread>
+#include <utility>
 
 #include "common/log.h"
 #include "net/session_stream.h"
 #include "protocol/client_session.h"
+#include "update_latency.h"
 
 namespace pc::client {
 
@@ -132,12 +134,14 @@ struct NetClient::Impl {
   std::size_t queuedBytes = 0;
   bool writing = false;
   std::uint64_t mirrorVersion = kFirstMirrorVersion;
+  UpdateLatency latency;
 
   // Shared with the frame thread.
   mutable std::mutex mutex;
   NetClientStats stats;
   std::optional<ViewerPoseMsg> viewer;
-  AnimationClock clock;  // the session's, copied as scene states arrive
+  AnimationClock clock;               // the session's, copied as scene states arrive
+  std::vector<float> latencySamples;  // UpdateLatency's, until takeLatencySamples
   std::uint64_t layoutGeneration = 0;
 };
 
@@ -281,6 +285,8 @@ void NetClient::Impl::afterInput(double now) {
   bool clockChanged = false;
   for (const SessionEvent& e : session.events()) {
     if (e.kind == SessionEvent::Kind::Layout) onLayout(now);
+    if (e.kind == SessionEvent::Kind::SceneState)
+      latency.published(e.scene.fieldVersion, e.scene.publishTime, now);
     clockChanged |= e.kind == SessionEvent::Kind::SceneState;
   }
   const ClientSessionStats& s = session.stats();
@@ -309,7 +315,9 @@ void NetClient::Impl::onLayout(double now) {
     ++layoutGeneration;
   }
   backoff = options.backoffInitial;
+  latency.startSession(session.receiver()->serverFieldVersion());
   std::lock_guard lock(mutex);
+  stats.heldFieldVersion = 0;
   stats.sessions = session.stats().sessions;
   stats.connected = true;
   stats.synced = false;
@@ -356,12 +364,19 @@ void NetClient::Impl::poll() {
 
   // Hand changed bricks to the mirror: the frame loop uploads them on its own schedule.
   const StreamReceiver& receiver = *session.receiver();
-  std::uint64_t applied = 0;
+  std::uint64_t applied = 0, held = 0;
   for (auto [k, b] : session.takeChangedBricks()) {
     if (mirror.applyBrick(receiver.field(), BrickId{k, b}, ++mirrorVersion, now)) ++applied;
+    const std::uint64_t version = receiver.brickVersion(k, b);
+    latency.arrived(version, now);
+    held = std::max(held, version);
   }
+  std::vector<float> samples = latency.take();
 
   std::lock_guard lock(mutex);
+  if (latencySamples.size() < (1u << 20))
+    latencySamples.insert(latencySamples.end(), samples.begin(), samples.end());
+  stats.heldFieldVersion = std::max(stats.heldFieldVersion, held);
   stats.bricksApplied += applied;
   stats.bricksHeld = session.bricksHeld();
   stats.serverFieldVersion = receiver.serverFieldVersion();
@@ -487,6 +502,11 @@ void NetClient::setViewer(glm::vec3 position, glm::quat orientation) {
 NetClientStats NetClient::stats() const {
   std::lock_guard lock(impl_->mutex);
   return impl_->stats;
+}
+
+std::vector<float> NetClient::takeLatencySamples() {
+  std::lock_guard lock(impl_->mutex);
+  return std::exchange(impl_->latencySamples, {});
 }
 
 std::uint16_t NetClient::udpPort() const { return impl_->udpPortNumber; }

@@ -80,6 +80,8 @@ struct NetClientStats {
   std::uint64_t bricksApplied = 0;  // handed to the mirror
   std::uint64_t layoutResets = 0;   // mirror reset to the server's layout
   std::uint64_t serverFieldVersion = 0;
+  // The newest field version of a brick this session handed to the mirror (0: none yet).
+  std::uint64_t heldFieldVersion = 0;
   int bricksHeld = 0, bricksTotal = 0;  // this session
   double lastResyncSeconds = -1;        // connect -> every brick held, for the latest session
   double lastSyncedAt = -1;             // steady seconds when the latest session became synced
@@ -103,6 +105,9 @@ class NetClient {
   // The viewer for the server's scheduler and sender priorities (sent every poseInterval).
   void setViewer(glm::vec3 position, glm::quat orientation);
   NetClientStats stats() const;
+  // Update latencies (ms) measured since the last call: a field version's publish to its
+  // bricks' arrival (update_latency.h).
+  std::vector<float> takeLatencySamples();
   // Changes whenever the mirror was reset to a new layout: a renderer made for the old one
   // must be rebuilt.
   std::uint64_t layoutGeneration() const;

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "camera.h"
+#include "client_series.h"
 #include "client_setup.h"
 #include "common/image.h"
 #include "common/log.h"
@@ -79,6 +80,8 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
   std::filesystem::create_directories(config.outDir, ec);
 
   const double start = secondsNow();
+  auto series = ClientSeries::create(run.series, start);
+  if (!series) return logError("--series: " + series.error().message), 1;
   int frame = 0, framesDisconnected = 0, rebuilds = 0;
   double stalenessSum = 0, stalenessMax = 0;
   int stalenessFrames = 0;
@@ -127,6 +130,16 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
     j["renderer_rebuilds"] = rebuilds;
     j["staleness_mean_seconds"] = stalenessFrames ? stalenessSum / stalenessFrames : 0.0;
     j["staleness_max_seconds"] = stalenessMax;
+    const ClientSeriesTotals t = (*series)->totals();
+    j["latency_samples"] = t.latencySamples;
+    j["latency_p50_ms"] = t.latencyP50Ms;
+    j["latency_p95_ms"] = t.latencyP95Ms;
+    j["latency_max_ms"] = t.latencyMaxMs;
+    j["version_lag_mean"] = t.versionLagMean;
+    j["version_lag_max"] = t.versionLagMax;
+    j["frame_ms_mean"] = t.frameMsMean;
+    j["frame_ms_p95"] = t.frameMsP95;
+    j["frame_ms_max"] = t.frameMsMax;
     j["final"] = final;
     j["last_frame_time"] = lastFrameTime;
     j["last_frame_prefix"] = config.prefix + "_last";
@@ -177,6 +190,8 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
       stalenessMax = std::max(stalenessMax, age.newestSeconds);
       ++stalenessFrames;
     }
+    if (Status row = (*series)->frame(secondsNow(), s, age, client.takeLatencySamples()); !row)
+      return logError("--series: " + row.error().message), 1;
     if (now - lastSummaryAt >= 0.25) {
       // A live summary: tests and scripts watch the client's progress through it.
       lastSummaryAt = now;

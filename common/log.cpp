@@ -191,7 +191,7 @@ std::optional<LogFormat> parseLogFormat(std::string_view name) {
 }
 
 std::string formatLogLine(LogFormat format, std::string_view time, LogLevel level,
-                          std::string_view message, std::initializer_list<LogField> fields) {
+                          std::string_view message, std::span<const LogField> fields) {
   std::string line;
   line.reserve(64 + message.size());
   if (format == LogFormat::Json) {
@@ -305,9 +305,26 @@ bool LogBudget::take(double now) {
   return false;
 }
 
-void log(LogLevel level, std::string_view message) { logEvent(level, message, {}); }
+void log(LogLevel level, std::string_view message) {
+  logEvent(level, message, std::span<const LogField>());
+}
 
 void logEvent(LogLevel level, std::string_view message, std::initializer_list<LogField> fields) {
+  logEvent(level, message, std::span<const LogField>(fields.begin(), fields.size()));
+}
+
+LogFormat logFormat() { return gFormat.load(std::memory_order_relaxed); }
+
+void logRecord(LogLevel level, std::string_view message, std::span<const LogField> fields,
+               std::string_view textLine) {
+  if (logFormat() == LogFormat::Json) {
+    logEvent(level, message, fields);
+  } else {
+    log(level, textLine);
+  }
+}
+
+void logEvent(LogLevel level, std::string_view message, std::span<const LogField> fields) {
   if (level < gLevel.load(std::memory_order_relaxed)) return;
   const LogFormat format = gFormat.load(std::memory_order_relaxed);
   std::string line = formatLogLine(format, timestamp(format), level, message, fields);

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <initializer_list>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -37,6 +38,12 @@ struct LogField {
 
 void log(LogLevel level, std::string_view message);
 void logEvent(LogLevel level, std::string_view message, std::initializer_list<LogField> fields);
+void logEvent(LogLevel level, std::string_view message, std::span<const LogField> fields);
+// A record for machines and a line for people (periodic statistics): in JSON logs one object
+// with `message` and the named fields, in text logs `textLine` alone, as it always read.
+void logRecord(LogLevel level, std::string_view message, std::span<const LogField> fields,
+               std::string_view textLine);
+LogFormat logFormat();
 inline void logInfo(std::string_view m) { log(LogLevel::Info, m); }
 inline void logWarn(std::string_view m) { log(LogLevel::Warn, m); }
 inline void logError(std::string_view m) { log(LogLevel::Error, m); }
@@ -72,7 +79,12 @@ class LogBudget {
 
 // The line log/logEvent write (without the newline), for tests: `timestamp` is passed in.
 std::string formatLogLine(LogFormat format, std::string_view timestamp, LogLevel level,
-                          std::string_view message, std::initializer_list<LogField> fields);
+                          std::string_view message, std::span<const LogField> fields);
+inline std::string formatLogLine(LogFormat format, std::string_view timestamp, LogLevel level,
+                                 std::string_view message, std::initializer_list<LogField> fields) {
+  return formatLogLine(format, timestamp, level, message,
+                       std::span<const LogField>(fields.begin(), fields.size()));
+}
 
 class Progress {
  public:

@@ -6,15 +6,18 @@
 #include <boost/asio.hpp>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <deque>
 #include <fstream>
 #include <functional>
 #include <future>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <random>
 #include <thread>
 
+#include "common/series_csv.h"
 #include "net/session_stream.h"
 #include "protocol/client_session.h"
 #include "shared_decoder.h"
@@ -77,6 +80,7 @@ struct LoadGenerator::Impl {
   void onEveryWorker(const std::function<void(Worker&)>& fn);
   // What keeping a decoded field would cost, once per run (it allocates one).
   void measureLayout(const SessionInfoMsg& info);
+  LoadInterval takeInterval();
 
   LoadOptions options;
   // options.host:port, then options.alternates, resolved once, with the host names TLS checks.
@@ -95,7 +99,34 @@ struct LoadGenerator::Impl {
   std::vector<std::string> errorSamples;
   double decodedFieldMb = 0, brickCodesMb = 0;
   bool layoutMeasured = false;
+
+  // The series (options.seriesPath): a thread that writes a row every second.
+  void writeSeries();
+  std::unique_ptr<SeriesWriter> series;
+  std::thread seriesThread;
+  std::mutex seriesMutex;
+  std::condition_variable seriesWake;
+  bool seriesStop = false;
+  double startedAt = 0, intervalStart = 0;
 };
+
+void LoadGenerator::Impl::writeSeries() {
+  for (int second = 1;; ++second) {
+    {
+      std::unique_lock lock(seriesMutex);
+      const auto due = std::chrono::steady_clock::time_point(
+          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+              std::chrono::duration<double>(startedAt + second)));
+      if (seriesWake.wait_until(lock, due, [this] { return seriesStop; })) return;
+    }
+    // The row's figures come from the workers' threads (takeInterval waits for them).
+    const LoadInterval interval = takeInterval();
+    if (Status written = series->write(interval.seriesRow(double(second))); !written) {
+      noteError(written.error().message);
+      return;
+    }
+  }
+}
 
 void LoadGenerator::Impl::measureLayout(const SessionInfoMsg& info) {
   std::lock_guard lock(mutex);
@@ -173,6 +204,9 @@ class Client {
   void beginWindow(double now);
   ClientReport report(double now, std::vector<float>& latency, std::vector<float>& staleness,
                       std::uint64_t& unmatched);
+  // Adds what this client saw since the last call to `sums`, and starts the next interval.
+  void takeInterval(LoadInterval& sums, std::vector<float>& latency, std::vector<float>& staleness,
+                    std::vector<float>& ages, std::vector<float>& psnr);
 
  private:
   // Session: the session's layout arrived (ClientSession streaming).
@@ -190,6 +224,28 @@ class Client {
     std::uint64_t reports = 0, linkDrops = 0, linkDatagrams = 0;
     std::string lastError;
   };
+  // What the series' current second collects (LoadGenerator::takeInterval), window or not.
+  struct Interval {
+    std::uint64_t bytesDown = 0, errors = 0, reports = 0, gapReports = 0;
+    double maxGap = 0;  // s between datagrams of a session, the longest in the interval
+    std::vector<float> latencyMs, stalenessMs, oldestChange;
+    double heldSquares = 0;
+  };
+  void addBytesDown(std::size_t n) {
+    window_.bytesDown += n;
+    interval_.bytesDown += n;
+  }
+  void addError(const std::string& message) {
+    ++window_.errors;
+    ++interval_.errors;
+    window_.lastError = message;
+    gen_.noteError(message);
+  }
+  void addLatency(double appliedAt, double published) {
+    const float ms = float(std::max(0.0, appliedAt - published) * 1e3);
+    if (inWindow(appliedAt)) window_.latencyMs.push_back(ms);
+    interval_.latencyMs.push_back(ms);
+  }
 
   void connect(double now);
   void endSession(double now, const std::string& error);
@@ -249,6 +305,7 @@ class Client {
   bool writing_ = false;
 
   Window window_;
+  Interval interval_;
   int linkClass_ = -1;
   double linkRate_ = 0;                             // bytes/s; 0: no emulated link
   double linkFree_ = 0;                             // when the link finishes sending what it holds
@@ -276,6 +333,7 @@ void Client::tick(double now) {
   const ReceiverStats& rs = session_.receiver()->stats();
   window_.repairs += rs.repairBricks - lastRepairs_;
   window_.gapReports += rs.gapReports - lastGapReports_;
+  interval_.gapReports += rs.gapReports - lastGapReports_;
   window_.stale += rs.stale - lastStale_;
   lastRepairs_ = rs.repairBricks;
   lastGapReports_ = rs.gapReports;
@@ -360,11 +418,7 @@ void Client::endSession(double now, const std::string& error) {
   pending_.clear();
   linkQueue_.clear();
   linkFree_ = 0;
-  if (!error.empty()) {
-    ++window_.errors;
-    window_.lastError = error;
-    gen_.noteError(error);
-  }
+  if (!error.empty()) addError(error);
   if (state_ == State::Done) return;
   state_ = worker_.stopping ? State::Done : State::Idle;
   nextConnectAt_ = now + (error.empty() ? o_.rejoinDelay : kErrorRetryDelay);
@@ -392,7 +446,7 @@ void Client::readStream() {
       const bool closed = ec == asio::error::eof || ec == net::ssl::error::stream_truncated;
       return endSession(now, closed ? "connection closed by the server" : "read: " + ec.message());
     }
-    window_.bytesDown += n;
+    addBytesDown(n);
     Status status = session_.onStreamBytes(std::span(readBuffer_.data(), n), now);
     afterInput(now);
     if (!status) return endSession(now, status.error().message);
@@ -416,7 +470,7 @@ void Client::receiveUdp() {
             enterLink(bytes, now);
             deliverLink(now);
           } else {
-            window_.bytesDown += n;
+            addBytesDown(n);
             (void)session_.onDatagram(bytes, now, source);
             afterInput(now);
           }
@@ -465,7 +519,7 @@ void Client::deliverLink(double now) {
     auto [at, bytes] = std::move(linkQueue_.front());
     linkQueue_.pop_front();
     if (state_ != State::Connecting && state_ != State::Session) continue;
-    window_.bytesDown += bytes.size();
+    addBytesDown(bytes.size());
     (void)session_.onDatagram(bytes, at);
     afterInput(at);
   }
@@ -473,7 +527,11 @@ void Client::deliverLink(double now) {
 
 void Client::onReport(double now) {
   const auto& r = session_.report();
-  if (!r || !inWindow(now) || !synced_) return;
+  if (!r || !synced_) return;
+  ++interval_.reports;
+  interval_.heldSquares += std::pow(10.0, -double(r->heldPsnrDb) / 10.0);
+  interval_.oldestChange.push_back(r->oldestChangeSeconds);
+  if (!inWindow(now)) return;
   ++window_.reports;
   window_.heldSquares += std::pow(10.0, -double(r->heldPsnrDb) / 10.0);
   window_.oldestChange.push_back(r->oldestChangeSeconds);
@@ -527,8 +585,7 @@ std::optional<double> Client::publishTime(std::uint64_t version) const {
 
 void Client::recordLatency(std::uint64_t version, double appliedAt) {
   if (auto published = publishTime(version)) {
-    if (inWindow(appliedAt))
-      window_.latencyMs.push_back(float(std::max(0.0, appliedAt - *published) * 1e3));
+    addLatency(appliedAt, *published);
   } else if (pending_.size() < 4096) {
     pending_.emplace_back(version, appliedAt);
   }
@@ -537,8 +594,7 @@ void Client::recordLatency(std::uint64_t version, double appliedAt) {
 void Client::resolvePending(double now) {
   std::erase_if(pending_, [&](const std::pair<std::uint64_t, double>& p) {
     if (auto published = publishTime(p.first)) {
-      if (inWindow(p.second))
-        window_.latencyMs.push_back(float(std::max(0.0, p.second - *published) * 1e3));
+      addLatency(p.second, *published);
       return true;
     }
     if (now - p.second > kPendingSeconds) {
@@ -553,13 +609,10 @@ void Client::resolvePending(double now) {
 // its error, and the bricks it changed, whose latency is measured from here.
 void Client::onDatagram(const Status& status, double now) {
   if (inWindow(now)) window_.maxGap = std::max(window_.maxGap, now - lastDatagramAt_);
+  interval_.maxGap = std::max(interval_.maxGap, now - lastDatagramAt_);
   lastDatagramAt_ = now;
   ++window_.datagrams;
-  if (!status) {
-    ++window_.errors;
-    window_.lastError = status.error().message;
-    gen_.noteError(status.error().message);
-  }
+  if (!status) addError(status.error().message);
   const StreamReceiver& receiver = *session_.receiver();
   const std::uint64_t applied = receiver.stats().applied;
   if (applied == lastApplied_) return;
@@ -582,7 +635,7 @@ void Client::onDatagram(const Status& status, double now) {
 // version newer than every brick it holds (0 when it holds the newest). Sampled once synced.
 void Client::sampleStaleness(double now) {
   lastStaleSampleAt_ = now;
-  if (!synced_ || !inWindow(now)) return;
+  if (!synced_) return;
   auto it = std::upper_bound(versions_.begin(), versions_.end(), maxHeld_,
                              [](std::uint64_t v, const auto& e) { return v < e.first; });
   double staleness = 0;
@@ -590,6 +643,8 @@ void Client::sampleStaleness(double now) {
     const double offset = o_.sameClock ? 0.0 : clockOffset_.value_or(0.0);
     staleness = std::max(0.0, now - (it->second + offset));
   }
+  interval_.stalenessMs.push_back(float(staleness * 1e3));
+  if (!inWindow(now)) return;
   window_.stalenessMs.push_back(float(staleness * 1e3));
   window_.maxStaleness = std::max(window_.maxStaleness, staleness);
 }
@@ -714,6 +769,29 @@ ClientReport Client::report(double now, std::vector<float>& latency, std::vector
   return r;
 }
 
+void Client::takeInterval(LoadInterval& sums, std::vector<float>& latency,
+                          std::vector<float>& staleness, std::vector<float>& ages,
+                          std::vector<float>& psnr) {
+  sums.bytesDown += interval_.bytesDown;
+  sums.errors += interval_.errors;
+  sums.gapReports += interval_.gapReports;
+  // A session still waiting for its next datagram: the wait so far counts as a gap.
+  double gap = interval_.maxGap;
+  if (state_ == State::Session) gap = std::max(gap, nowSeconds() - lastDatagramAt_);
+  sums.maxGapSeconds = std::max(sums.maxGapSeconds, gap);
+  sums.inSession += state_ == State::Session;
+  sums.synced += synced_;
+  latency.insert(latency.end(), interval_.latencyMs.begin(), interval_.latencyMs.end());
+  staleness.insert(staleness.end(), interval_.stalenessMs.begin(), interval_.stalenessMs.end());
+  ages.insert(ages.end(), interval_.oldestChange.begin(), interval_.oldestChange.end());
+  if (interval_.reports > 0) {
+    const double mse = interval_.heldSquares / double(interval_.reports);
+    psnr.push_back(
+        float(mse > 0 ? -10.0 * std::log10(mse) : 99.0));  // the server's cap: equal fields
+  }
+  interval_ = Interval{};
+}
+
 void LoadGenerator::Impl::scheduleTick(Worker& w) {
   w.timer.expires_after(std::chrono::duration_cast<asio::steady_timer::duration>(
       std::chrono::duration<double>(options.pollInterval)));
@@ -758,6 +836,60 @@ Percentiles percentiles(std::vector<float>& samples) {
   return p;
 }
 
+LoadInterval LoadGenerator::Impl::takeInterval() {
+  const double now = nowSeconds();
+  LoadInterval r;
+  r.seconds = std::max(1e-9, now - intervalStart);
+  intervalStart = now;
+  std::vector<float> latency, staleness, ages, psnr;
+  std::mutex merge;
+  onEveryWorker([&](Worker& w) {
+    LoadInterval sums;
+    std::vector<float> lat, stale, age, held;
+    for (auto& c : w.clients) c->takeInterval(sums, lat, stale, age, held);
+    std::lock_guard lock(merge);
+    r.inSession += sums.inSession;
+    r.synced += sums.synced;
+    r.bytesDown += sums.bytesDown;
+    r.errors += sums.errors;
+    r.gapReports += sums.gapReports;
+    r.maxGapSeconds = std::max(r.maxGapSeconds, sums.maxGapSeconds);
+    latency.insert(latency.end(), lat.begin(), lat.end());
+    staleness.insert(staleness.end(), stale.begin(), stale.end());
+    ages.insert(ages.end(), age.begin(), age.end());
+    psnr.insert(psnr.end(), held.begin(), held.end());
+  });
+  r.latencyMs = percentiles(latency);
+  r.stalenessMs = percentiles(staleness);
+  r.changeAgeS = percentiles(ages);
+  r.reports = !psnr.empty();
+  if (r.reports) {
+    std::sort(psnr.begin(), psnr.end());
+    r.heldPsnrP5 = psnr[std::size_t(0.05 * double(psnr.size() - 1))];
+  }
+  return r;
+}
+
+std::vector<double> LoadInterval::seriesRow(double time) const {
+  const double none = std::numeric_limits<double>::quiet_NaN();
+  const double kbit = double(bytesDown) * 8 / 1e3 / seconds;
+  const auto p = [none](const Percentiles& q, double v) { return q.count > 0 ? v : none; };
+  return {time,
+          double(inSession),
+          double(synced),
+          kbit,
+          inSession > 0 ? kbit / inSession : none,
+          p(latencyMs, latencyMs.p50),
+          p(latencyMs, latencyMs.p95),
+          p(latencyMs, latencyMs.p99),
+          p(stalenessMs, stalenessMs.p95),
+          p(changeAgeS, changeAgeS.p95),
+          inSession > 0 ? maxGapSeconds * 1e3 : none,
+          double(gapReports),
+          reports ? heldPsnrP5 : none,
+          double(errors)};
+}
+
 LoadGenerator::LoadGenerator(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 LoadGenerator::~LoadGenerator() { stop(); }
@@ -790,6 +922,11 @@ Result<std::unique_ptr<LoadGenerator>> LoadGenerator::create(LoadOptions options
     g.tls = *tls;
   }
   if (g.options.shareDecoding) g.decoder = std::make_unique<SharedBrickDecoder>();
+  if (!g.options.seriesPath.empty()) {
+    auto series = SeriesWriter::create(g.options.seriesPath, kSeriesColumns);
+    if (!series) return series.error();
+    g.series = std::move(series).value();
+  }
   for (int t = 0; t < g.options.threads; ++t) g.workers.push_back(std::make_unique<Worker>());
   return std::unique_ptr<LoadGenerator>(new LoadGenerator(std::move(impl)));
 }
@@ -798,7 +935,7 @@ void LoadGenerator::start() {
   Impl& g = *impl_;
   if (g.running) return;
   const double now = nowSeconds();
-  g.windowStart = now;
+  g.windowStart = g.startedAt = g.intervalStart = now;
   for (int i = 0; i < g.options.clients; ++i) {
     Worker& w = *g.workers[std::size_t(i) % g.workers.size()];
     const double at = now + g.options.rampSeconds * double(i) / double(g.options.clients);
@@ -810,11 +947,20 @@ void LoadGenerator::start() {
     w->thread = std::thread([&w = *w] { w.io.run(); });
   }
   g.running = true;
+  if (g.series) g.seriesThread = std::thread([&g] { g.writeSeries(); });
 }
 
 void LoadGenerator::stop() {
   Impl& g = *impl_;
   if (!g.running) return;
+  if (g.seriesThread.joinable()) {
+    {
+      std::lock_guard lock(g.seriesMutex);
+      g.seriesStop = true;
+    }
+    g.seriesWake.notify_all();
+    g.seriesThread.join();
+  }
   for (auto& w : g.workers) {
     asio::post(w->io, [&w = *w] {
       for (auto& c : w.clients) c->shutdown();
@@ -934,6 +1080,8 @@ LoadReport LoadGenerator::report() {
   r.errorSamples = g.errorSamples;
   return r;
 }
+
+LoadInterval LoadGenerator::takeInterval() { return impl_->takeInterval(); }
 
 LoadSnapshot LoadGenerator::snapshot() const {
   const Impl& g = *impl_;

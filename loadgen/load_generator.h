@@ -89,6 +89,9 @@ struct LoadOptions {
   bool keepField = false;
   bool shareDecoding = true;
   std::uint64_t seed = 1;
+  // Non-empty: one row per second of the whole run (joins included) is written here as CSV
+  // (kSeriesColumns), from start() to stop().
+  std::string seriesPath;
 };
 
 // Counters for progress lines, readable while the clients run.
@@ -166,6 +169,41 @@ struct LoadReport {
   std::vector<ClientReport> perClient;
 };
 
+// The series' columns: seconds since start(); clients in a session and synced; kbit/s
+// received by all clients and by the mean client in a session; update latency percentiles
+// (publish -> apply, ms); staleness p95 (ms); the server's reports: oldest change not held,
+// p95 (s); gaps: the longest wait for a datagram of any client in a session (ms) and the
+// partial updates whose missing fragments were asked for; the held field's PSNR, 5th
+// percentile over clients (dB); errors in the second. A figure without samples in a second
+// is left empty.
+inline const std::vector<std::string> kSeriesColumns = {"time_s",
+                                                        "clients",
+                                                        "synced",
+                                                        "kbit_s_total",
+                                                        "kbit_s_per_client",
+                                                        "latency_p50_ms",
+                                                        "latency_p95_ms",
+                                                        "latency_p99_ms",
+                                                        "staleness_p95_ms",
+                                                        "change_age_p95_s",
+                                                        "gap_max_ms",
+                                                        "gap_reports",
+                                                        "held_psnr_p5_db",
+                                                        "errors"};
+
+// What all clients saw over one interval (LoadGenerator::takeInterval).
+struct LoadInterval {
+  double seconds = 0;
+  int inSession = 0, synced = 0;
+  std::uint64_t bytesDown = 0, errors = 0, gapReports = 0;
+  double maxGapSeconds = 0;
+  Percentiles latencyMs, stalenessMs, changeAgeS;
+  double heldPsnrP5 = 0;  // 0 without reports
+  bool reports = false;
+  // The series row of kSeriesColumns, at `time` seconds.
+  std::vector<double> seriesRow(double time) const;
+};
+
 class LoadGenerator {
  public:
   static Result<std::unique_ptr<LoadGenerator>> create(LoadOptions options);
@@ -182,6 +220,8 @@ class LoadGenerator {
   // Figures of the window so far. Safe while running and after stop().
   LoadReport report();
   LoadSnapshot snapshot() const;
+  // Figures since the previous call (or start()): what one row of the series holds.
+  LoadInterval takeInterval();
 
   struct Impl;
 

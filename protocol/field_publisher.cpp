@@ -216,7 +216,10 @@ std::shared_ptr<const EncodedUpdate> FieldPublisher::encoded(int cascade, int br
   ++encodes_;
   const auto start = std::chrono::steady_clock::now();
   std::vector<std::uint8_t> payload = encodeBrick(*content, baseContent.get(), options_.zstdLevel);
-  encodeSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  encodeSeconds_ += seconds;
+  encodeTimes_.observe(seconds);
   return cache_.insert(key, kCodecQuantZstd, std::move(payload));
 }
 

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "common/field.h"
+#include "common/histogram.h"
 #include "common/result.h"
 #include "protocol/brick_codec.h"
 #include "protocol/encode_cache.h"
@@ -57,6 +58,10 @@ struct PreparedBricks {
   std::vector<Brick> bricks;
   std::uint64_t quantizedCodes = 0, heldCodes = 0;
 };
+
+// Buckets of the encode-time histogram: 10 us to 0.33 s, doubling (one brick's zstd encode
+// takes tens of microseconds to a few milliseconds).
+inline std::vector<double> encodeTimeBounds() { return exponentialBounds(1e-5, 2.0, 16); }
 
 struct BrickVersion {
   std::uint64_t version = 0;
@@ -129,6 +134,8 @@ class FieldPublisher {
   std::uint64_t encodes() const { return encodes_; }
   // Seconds spent encoding those updates (cache misses), for the server's metrics.
   double encodeSeconds() const { return encodeSeconds_; }
+  // The same encodes by duration, seconds (encodeTimeBounds), for the server's histogram.
+  const Histogram& encodeTimes() const { return encodeTimes_; }
   // Codes the dead zone held at their previous value, and codes quantized, in all.
   std::uint64_t heldCodes() const { return heldCodes_; }
   std::uint64_t quantizedCodes() const { return quantizedCodes_; }
@@ -147,6 +154,7 @@ class FieldPublisher {
   EncodeCache cache_;
   std::uint64_t encodes_ = 0;
   double encodeSeconds_ = 0;
+  Histogram encodeTimes_{encodeTimeBounds()};
   std::uint64_t heldCodes_ = 0, quantizedCodes_ = 0;
 
   void trim(std::deque<BrickVersion>& history);

@@ -461,6 +461,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     tokens_ = std::min(burst, tokens_ + rate * std::max(0.0, now - lastPoll_));
   lastPoll_ = now;
   const std::uint32_t firstSequence = sequence_;
+  firstSends_.clear();
 
   // Fragments the client reported missing go first: each completes an update the client holds
   // in part, at the cost of the fragments alone.
@@ -628,6 +629,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
       continue;  // the receiver may be holding as many partial updates as it can
     }
     tokens_ -= double(update->payload.size() + fragments * kFragmentOverheadBytes);
+    if (!c.again && t.sent != version) firstSends_.push_back(version);
     if (t.sent == version && t.sentPrecision == level) {
       ++stats_.resends;
       t.resent = true;

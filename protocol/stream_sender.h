@@ -207,6 +207,9 @@ class StreamSender {
   std::vector<std::vector<std::uint8_t>> poll(double now);
 
   const SenderStats& stats() const { return stats_; }
+  // The brick versions the last poll() sent this client for the first time (not resends nor
+  // refinements), for the server's publish-to-send latency.
+  const std::vector<std::uint64_t>& firstSends() const { return firstSends_; }
   // Bricks whose current version the client has not acknowledged.
   std::size_t pendingBricks() const;
   double resendTimeout() const;
@@ -319,6 +322,7 @@ class StreamSender {
   std::uint32_t shortPolls_ = 0, levelPolls_ = 0;
   double oldestPending_ = 0;
   SenderStats stats_;
+  std::vector<std::uint64_t> firstSends_;
 };
 
 }  // namespace pc

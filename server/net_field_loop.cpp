@@ -106,6 +106,15 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   stats_.publishSeconds += publishMs / 1e3;
 }
 
+void appendFieldLoopFields(std::vector<LogField>& out, const FieldLoopStats& s) {
+  out.insert(out.end(), {{"animation_time_s", s.animationTime},
+                         {"field_updates_total", s.updates},
+                         {"last_update_ms", s.lastUpdateMs},
+                         {"last_bricks_changed", s.lastBricksChanged},
+                         {"frozen", s.frozen ? 1 : 0},
+                         {"tracer", s.tracer.empty() ? "none" : s.tracer}});
+}
+
 void appendFieldLoopMetrics(MetricsText& m, const FieldLoopStats& s) {
   m.counter("probecast_field_ticks_total", "Field thread ticks (each publishes).", double(s.ticks));
   m.counter("probecast_field_updates_total", "Field updates traced.", double(s.updates));
@@ -127,16 +136,23 @@ void appendFieldLoopMetrics(MetricsText& m, const FieldLoopStats& s) {
   m.gauge("probecast_field_last_probes_updated", "Probes traced by the latest update.",
           double(s.lastUpdate.probesUpdated));
   // Per pass, the latest update. The CPU tracer fuses trace and shade (shade reads 0); a GPU
-  // tracer adds its timestamped passes.
+  // tracer adds its timestamped passes. The update's whole duration is a metric of its own, not
+  // a pass: sum(probecast_field_last_pass_seconds) would count it twice.
   const std::string help = "Duration of each pass of the latest field update.";
   const UpdateStats& u = s.lastUpdate;
+  m.gauge("probecast_field_last_update_seconds",
+          "Duration of the latest field update (trace, shade and blend; not publish).",
+          u.totalMs / 1e3);
   m.gauge("probecast_field_last_pass_seconds", help, u.traceMs / 1e3, {{"pass", "trace"}});
   m.gauge("probecast_field_last_pass_seconds", help, u.shadeMs / 1e3, {{"pass", "shade"}});
   m.gauge("probecast_field_last_pass_seconds", help, u.blendMs / 1e3, {{"pass", "blend"}});
-  m.gauge("probecast_field_last_pass_seconds", help, u.totalMs / 1e3, {{"pass", "total"}});
   m.gauge("probecast_field_last_pass_seconds", help, s.lastPublishMs / 1e3, {{"pass", "publish"}});
+  // The GPU's timestamps of its passes measure the same work again, on the device: a family
+  // of their own, so that each family sums to one update.
   for (const auto& [name, ms] : u.gpuPasses) {
-    m.gauge("probecast_field_last_pass_seconds", help, ms / 1e3, {{"pass", "gpu_" + name}});
+    m.gauge("probecast_field_last_gpu_pass_seconds",
+            "GPU duration of each pass of the latest field update (device timestamps).", ms / 1e3,
+            {{"pass", name}});
   }
 }
 

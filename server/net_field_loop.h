@@ -11,8 +11,10 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "common/field.h"
+#include "common/log.h"
 #include "common/scene.h"
 #include "net_hub.h"
 #include "net_metrics.h"
@@ -54,6 +56,8 @@ struct FieldLoopStats {
 
 // The field thread's metrics (probecast_field_*) for the server's /metrics endpoint.
 void appendFieldLoopMetrics(MetricsText& out, const FieldLoopStats& stats);
+// Its figures for the periodic statistics record (statisticsFields adds the network's).
+void appendFieldLoopFields(std::vector<LogField>& out, const FieldLoopStats& stats);
 
 class FieldLoop {
  public:

@@ -4,12 +4,15 @@
 // network thread while it polls the senders, so neither waits long for the other.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <glm/glm.hpp>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -54,6 +57,8 @@ class FieldHub {
     animationTime_ = stamped.animationTime;
     ++sceneSerial_;
     publisher_.commit(std::move(prepared), now);
+    publishTimes_.emplace_back(stamped.fieldVersion, stamped.publishTime);
+    if (publishTimes_.size() > kPublishTimesKept) publishTimes_.pop_front();
   }
 
   // Viewer positions by session, for the probe scheduler. A session holds one viewer (its
@@ -112,6 +117,16 @@ class FieldHub {
   std::shared_ptr<const std::vector<std::uint8_t>> sceneFrame() const { return sceneFrame_; }
   std::uint64_t sceneSerial() const { return sceneSerial_; }
   double animationTime() const { return animationTime_; }
+  // When a brick version became visible to the senders: the publish time (the one clients
+  // measure latency from, SceneStateMsg::publishTime) of the first field version at or after
+  // it; nothing once it is older than the versions kept.
+  std::optional<double> publishTimeOf(std::uint64_t version) const {
+    auto it = std::lower_bound(publishTimes_.begin(), publishTimes_.end(), version,
+                               [](const auto& p, std::uint64_t v) { return p.first < v; });
+    if (it == publishTimes_.end() || (it == publishTimes_.begin() && it->first != version))
+      return std::nullopt;
+    return it->second;
+  }
 
  private:
   mutable std::mutex mutex_;
@@ -119,6 +134,8 @@ class FieldHub {
   std::shared_ptr<const std::vector<std::uint8_t>> sceneFrame_;
   std::uint64_t sceneSerial_ = 0;
   double animationTime_ = 0;
+  static constexpr std::size_t kPublishTimesKept = 256;
+  std::deque<std::pair<std::uint64_t, double>> publishTimes_;  // (field version, publish time)
   struct Viewer {
     glm::vec3 position;
     int weight;

@@ -1,13 +1,20 @@
 #include "net_metrics.h"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <list>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 #include "common/constant_time.h"
@@ -65,16 +72,31 @@ void MetricsText::gauge(const std::string& name, const std::string& help, double
   add(name, help, "gauge", value, std::move(labels));
 }
 
-void MetricsText::add(const std::string& name, const std::string& help, const char* type,
-                      double value, Labels labels) {
+void MetricsText::histogram(const std::string& name, const std::string& help, const Histogram& h,
+                            Labels labels) {
+  Family& f = family(name, help, "histogram");
+  const auto& bounds = h.bounds();
+  for (std::size_t i = 0; i <= bounds.size(); ++i) {
+    Labels l = labels;
+    l.emplace_back("le", i < bounds.size() ? formatValue(bounds[i]) : "+Inf");
+    f.samples.emplace_back(name + "_bucket", std::move(l), double(h.cumulative(i)));
+  }
+  f.samples.emplace_back(name + "_sum", labels, h.sum());
+  f.samples.emplace_back(name + "_count", std::move(labels), double(h.count()));
+}
+
+MetricsText::Family& MetricsText::family(const std::string& name, const std::string& help,
+                                         const char* type) {
   for (Family& f : families_) {
-    if (f.name == name) {
-      f.samples.emplace_back(std::move(labels), value);
-      return;
-    }
+    if (f.name == name) return f;
   }
   families_.push_back(Family{name, help, type, {}});
-  families_.back().samples.emplace_back(std::move(labels), value);
+  return families_.back();
+}
+
+void MetricsText::add(const std::string& name, const std::string& help, const char* type,
+                      double value, Labels labels) {
+  family(name, help, type).samples.emplace_back(name, std::move(labels), value);
 }
 
 std::string MetricsText::str() const {
@@ -82,8 +104,8 @@ std::string MetricsText::str() const {
   for (const Family& f : families_) {
     out += "# HELP " + f.name + " " + f.help + "\n";
     out += "# TYPE " + f.name + " " + f.type + "\n";
-    for (const auto& [labels, value] : f.samples) {
-      out += f.name;
+    for (const auto& [sample, labels, value] : f.samples) {
+      out += sample;
       if (!labels.empty()) {
         out.push_back('{');
         for (std::size_t i = 0; i < labels.size(); ++i) {
@@ -96,6 +118,71 @@ std::string MetricsText::str() const {
     }
   }
   return out;
+}
+
+namespace {
+
+// /proc/self/stat's fields after the command name (which may hold spaces and parentheses, so
+// the fields are counted from its last ')'): [0] is field 3, the state.
+std::vector<std::string> procSelfStat() {
+  std::ifstream in("/proc/self/stat");
+  const std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t close = stat.rfind(')');
+  std::vector<std::string> fields;
+  if (close == std::string::npos) return fields;
+  std::istringstream rest(stat.substr(close + 1));
+  for (std::string f; rest >> f;) fields.push_back(f);
+  return fields;
+}
+
+// The boot time, Unix seconds (/proc/stat's btime); 0 when unknown.
+double bootTime() {
+  std::ifstream in("/proc/stat");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("btime ", 0) == 0) return std::strtod(line.c_str() + 6, nullptr);
+  }
+  return 0;
+}
+
+}  // namespace
+
+void appendProcessMetrics(MetricsText& m) {
+  const std::vector<std::string> f = procSelfStat();
+  // Fields 14, 15 (utime, stime: clock ticks), 22 (starttime: ticks after boot), 23 (vsize:
+  // bytes), 24 (rss: pages); index = field - 3.
+  const auto field = [&f](int n) {
+    return std::size_t(n - 3) < f.size() ? std::strtod(f[std::size_t(n - 3)].c_str(), nullptr)
+                                         : -1.0;
+  };
+  const double ticks = double(sysconf(_SC_CLK_TCK));
+  if (field(15) >= 0) {
+    m.counter("process_cpu_seconds_total", "User and system CPU time of the process, seconds.",
+              (field(14) + field(15)) / ticks);
+  }
+  if (field(24) >= 0) {
+    m.gauge("process_resident_memory_bytes", "Resident memory of the process, bytes.",
+            field(24) * double(sysconf(_SC_PAGESIZE)));
+  }
+  if (field(23) >= 0) {
+    m.gauge("process_virtual_memory_bytes", "Virtual memory of the process, bytes.", field(23));
+  }
+  std::error_code ec;
+  std::size_t fds = 0;
+  for (auto it = std::filesystem::directory_iterator("/proc/self/fd", ec);
+       !ec && it != std::filesystem::directory_iterator(); it.increment(ec)) {
+    ++fds;
+  }
+  if (!ec) m.gauge("process_open_fds", "Open file descriptors of the process.", double(fds));
+  rlimit limit{};
+  if (getrlimit(RLIMIT_NOFILE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
+    m.gauge("process_max_fds", "The process's limit on open file descriptors.",
+            double(limit.rlim_cur));
+  }
+  const double boot = bootTime();
+  if (boot > 0 && field(22) >= 0) {
+    m.gauge("process_start_time_seconds", "Start time of the process, Unix time in seconds.",
+            boot + field(22) / ticks);
+  }
 }
 
 class MetricsConnection;

@@ -8,9 +8,11 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
+#include "common/histogram.h"
 #include "common/result.h"
 
 namespace pc {
@@ -23,17 +25,29 @@ class MetricsText {
   // Counters only go up (names end in _total); gauges go both ways.
   void counter(const std::string& name, const std::string& help, double value, Labels labels = {});
   void gauge(const std::string& name, const std::string& help, double value, Labels labels = {});
+  // A histogram family: name_bucket{le="..."} (cumulative, ending with le="+Inf"), name_sum
+  // and name_count.
+  void histogram(const std::string& name, const std::string& help, const Histogram& h,
+                 Labels labels = {});
   std::string str() const;
 
  private:
   struct Family {
     std::string name, help, type;
-    std::vector<std::pair<Labels, double>> samples;
+    // Sample names beside the family's (name_bucket, name_sum); empty: the family's.
+    std::vector<std::tuple<std::string, Labels, double>> samples;
   };
   void add(const std::string& name, const std::string& help, const char* type, double value,
            Labels labels);
+  Family& family(const std::string& name, const std::string& help, const char* type);
   std::vector<Family> families_;
 };
+
+// The process's own figures from /proc/self, under the names Prometheus' client libraries
+// give them: process_cpu_seconds_total, process_resident_memory_bytes,
+// process_virtual_memory_bytes, process_open_fds, process_max_fds and
+// process_start_time_seconds (Unix time). Figures /proc does not give are left out.
+void appendProcessMetrics(MetricsText& out);
 
 struct MetricsHttpOptions {
   std::string bindAddress = "127.0.0.1";

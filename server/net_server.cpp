@@ -215,6 +215,7 @@ void NetServer::Impl::poll() {
         totals.currentBricksBytes = publisher.currentBytes();
         totals.changeCacheBytes = changeCache.bytes();
         totals.changeCacheEntries = changeCache.entries();
+        totals.encodeTimes = publisher.encodeTimes();
       }
       pollSeconds += steadySeconds() - sliceStart;
     }
@@ -222,6 +223,9 @@ void NetServer::Impl::poll() {
     for (std::size_t i = first; i < next; ++i)
       list[i]->send(now, std::move(datagrams[i]), scenes[i]);
     flushUdp();
+    // The slice's updates have left for their sockets (or write queues): their latency.
+    const double sent = steadySeconds();
+    for (std::size_t i = first; i < next; ++i) list[i]->observeSent(sent);
   } while (next < list.size());
   publishStats(pollSeconds);
 }
@@ -256,8 +260,12 @@ void NetServer::Impl::flushUdp() {
       udpBatch[index[0]].session->udpSent(0, false);
       sent = 1;
     } else {
-      for (int m = 0; m < sent; ++m)
-        udpBatch[index[m]].session->udpSent(udpBatch[index[m]].bytes.size(), true);
+      const double at = steadySeconds();
+      for (int m = 0; m < sent; ++m) {
+        const UdpOut& d = udpBatch[index[m]];
+        d.session->udpSent(d.bytes.size(), true);
+        totals.sendQueueDelay.observe(at - d.queuedAt);
+      }
     }
     i = index[std::size_t(sent) - 1] + 1;
   }
@@ -376,10 +384,66 @@ std::string NetServer::Impl::renderMetrics() const {
     s = snapshot;
   }
   MetricsText text;
+  appendBuildInfo(text, options.buildInfo);
   appendServerMetrics(text, s);
+  appendProcessMetrics(text);
   std::lock_guard lock(extraMutex);
   if (extraMetrics) extraMetrics(text);
   return text.str();
+}
+
+namespace {
+
+// Mean of a histogram's observations between two snapshots, in ms; 0 without any.
+double meanMsBetween(const Histogram& now, const Histogram& before) {
+  const std::uint64_t n = now.count() - std::min(now.count(), before.count());
+  return n > 0 ? (now.sum() - before.sum()) / double(n) * 1e3 : 0.0;
+}
+
+}  // namespace
+
+std::vector<LogField> statisticsFields(const NetServerStats& now, const NetServerStats& before,
+                                       double seconds) {
+  const double s = std::max(seconds, 1e-9);
+  const auto perSecond = [s](std::uint64_t a, std::uint64_t b) {
+    return double(a - std::min(a, b)) / s;
+  };
+  return {{"interval_s", seconds},
+          {"clients", now.clients.size()},
+          {"connections", now.connections},
+          {"sent_kbit_s", perSecond(now.bytesSent, before.bytesSent) * 8 / 1e3},
+          {"received_kbit_s", perSecond(now.bytesReceived, before.bytesReceived) * 8 / 1e3},
+          {"datagrams_s", perSecond(now.datagrams, before.datagrams)},
+          {"update_latency_mean_ms", meanMsBetween(now.updateLatency, before.updateLatency)},
+          {"send_queue_delay_mean_ms", meanMsBetween(now.sendQueueDelay, before.sendQueueDelay)},
+          {"encodes_s", perSecond(now.encodes, before.encodes)},
+          {"field_version", now.fieldVersion},
+          {"accepted_total", now.accepted},
+          {"sessions_total", now.sessions},
+          {"rejected_total", now.rejected},
+          {"disconnected_total", now.disconnected},
+          {"resends_total", now.resends},
+          {"udp_send_drops_total", now.udpDropped}};
+}
+
+std::vector<LogField> clientStatisticsFields(const NetClientInfo& c) {
+  return {{"session", c.sessionId},
+          {"name", escapeUntrusted(c.name, 64)},
+          {"peer", c.peer},
+          {"transport", c.udp ? "udp" : "tcp"},
+          {"connected_s", c.connectedSeconds},
+          {"sent_bytes", c.bytesSent},
+          {"datagrams", c.datagrams},
+          {"pending_bricks", c.pendingBricks},
+          {"resends", c.resends},
+          {"held_psnr_db", double(c.report.heldPsnrDb)},
+          {"send_rate_kbit_s", double(c.report.rate) * 8 / 1e3}};
+}
+
+void appendBuildInfo(MetricsText& m, const BuildInfo& info) {
+  if (info.version.empty()) return;
+  m.gauge("probecast_build_info", "What the program was built from (always 1).", 1.0,
+          {{"version", info.version}, {"revision", info.revision}, {"build_type", info.buildType}});
 }
 
 void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
@@ -472,6 +536,16 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
           double(s.changeCacheBytes));
   m.gauge("probecast_change_cache_entries", "Shared perceptual comparisons held.",
           double(s.changeCacheEntries));
+  m.histogram("probecast_update_latency_seconds",
+              "From a brick version's publish to its first datagram to a client leaving for the "
+              "socket (UDP) or the write queue (TCP), per update and client.",
+              s.updateLatency);
+  m.histogram("probecast_encode_duration_seconds", "Encode time of each brick update.",
+              s.encodeTimes);
+  m.histogram("probecast_send_queue_delay_seconds",
+              "Time a datagram or frame waited between being queued for a client and its socket "
+              "taking it (a poll's UDP batch; the TCP write queue to a completed write).",
+              s.sendQueueDelay);
 }
 
 namespace {

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "common/histogram.h"
+#include "common/log.h"
 #include "common/result.h"
 #include "net_hub.h"
 #include "net_metrics.h"
@@ -69,6 +71,11 @@ struct ServerTlsOptions {
   std::string devCertificateOut;         // where to write it as PEM, for clients' --ca-file
   // That certificate, made by the caller; null: one made by create().
   std::shared_ptr<const net::DevCertificate> devCertificate;
+};
+
+// What the running program was built from: the probecast_build_info metric's labels.
+struct BuildInfo {
+  std::string version, revision, buildType;
 };
 
 struct NetServerOptions {
@@ -129,6 +136,9 @@ struct NetServerOptions {
   std::optional<std::uint16_t> metricsPort;
   std::string metricsBindAddress;
   std::string metricsToken;
+  // Labels of probecast_build_info (the tools pass theirs: tools/build_info.h); empty: the
+  // metric is left out.
+  BuildInfo buildInfo;
 };
 
 struct NetClientInfo {
@@ -149,6 +159,11 @@ struct NetClientInfo {
   // protocol version 2 and before the first one.
   StreamReportMsg report;
 };
+
+// Histogram buckets: 1 ms to 4.1 s for latency (the sender's age bound is 1 s), 10 us to
+// 1.3 s for queueing (a loopback datagram waits microseconds, a stalled TCP client seconds).
+inline std::vector<double> updateLatencyBounds() { return exponentialBounds(0.001, 2.0, 13); }
+inline std::vector<double> sendQueueDelayBounds() { return exponentialBounds(1e-5, 2.0, 18); }
 
 struct NetServerStats {
   std::uint64_t accepted = 0;      // TCP connections accepted
@@ -183,6 +198,15 @@ struct NetServerStats {
   std::size_t encodeCacheBytes = 0, encodeCacheEntries = 0, encodeCacheBoundBytes = 0;
   std::size_t historyBytes = 0, historyBoundBytes = 0, currentBricksBytes = 0;
   std::size_t changeCacheBytes = 0, changeCacheEntries = 0;
+  // Seconds from a brick version's publish (the field version's publish time, which clients
+  // measure their latency from) to its first datagram to a client leaving for the socket
+  // (UDP) or the session's write queue (TCP); one observation per brick update and client.
+  Histogram updateLatency{updateLatencyBounds()};
+  // Seconds a datagram or session frame waited between being queued for a client and its
+  // socket taking it (the UDP batch of a poll; the TCP write queue to a completed write).
+  Histogram sendQueueDelay{sendQueueDelayBounds()};
+  // Seconds of each brick update's encode (the publisher's cache misses).
+  Histogram encodeTimes{encodeTimeBounds()};
   std::vector<NetClientInfo> clients;  // sessions past the handshake
 
   std::uint64_t disconnectsBy(DisconnectCause c) const { return disconnects[std::size_t(c)]; }
@@ -191,6 +215,14 @@ struct NetServerStats {
 
 // Appends the server's metrics (probecast_*) to `out`.
 void appendServerMetrics(MetricsText& out, const NetServerStats& stats);
+// The periodic statistics as named fields (the "statistics" record of a JSON log): the
+// interval's rates from two snapshots `seconds` apart, and the totals of `now`.
+std::vector<LogField> statisticsFields(const NetServerStats& now, const NetServerStats& before,
+                                       double seconds);
+// One client's figures (the "client statistics" record).
+std::vector<LogField> clientStatisticsFields(const NetClientInfo& client);
+// probecast_build_info{version,revision,build_type} 1, where `info` names a version.
+void appendBuildInfo(MetricsText& out, const BuildInfo& info);
 
 class NetServer {
  public:

@@ -75,6 +75,7 @@ struct NetServer::Impl {
     Session* session;  // kept alive by the poll's list of sessions
     udp::endpoint to;
     Bytes bytes;
+    double queuedAt;  // steadySeconds() when the session queued it
   };
   std::vector<UdpOut> udpBatch;
   // recvmmsg's buffers: one byte more than the largest uplink datagram, so that a larger one

@@ -100,6 +100,13 @@ void Session::pollLocked(double now, std::uint64_t sceneSerial, const SharedByte
     return;
   }
   datagrams = sender_->poll(now);
+  // Versions published before the client joined are its initial sync, not latency (as the
+  // load generator counts it).
+  for (const std::uint64_t version : sender_->firstSends()) {
+    if (version <= joinedAtVersion_) continue;
+    if (auto published = server_.hub.publishTimeOf(version))
+      sentPublishTimes_.push_back(*published);
+  }
   if (reports_ && now - lastReportAt_ >= kStreamReportInterval) {
     // What the sender sees of this client, for the client's own figures; computed here, where
     // the publisher may be read, and written by send().
@@ -130,13 +137,19 @@ void Session::send(double now, std::vector<Bytes> datagrams, const SharedBytes& 
           return close(DisconnectCause::Shutdown, "datagram keys used up: " + s.error().message);
         d = std::move(sealed);
       }
-      server_.udpBatch.push_back({this, *udpTarget_, std::move(d)});
+      server_.udpBatch.push_back({this, *udpTarget_, std::move(d), now});
       continue;
     }
     enqueue(share(datagramFrame(d)));
     ++datagrams_;
   }
   checkTimeouts(now);
+}
+
+void Session::observeSent(double now) {
+  for (const double published : sentPublishTimes_)
+    server_.totals.updateLatency.observe(std::max(0.0, now - published));
+  sentPublishTimes_.clear();
 }
 
 void Session::udpSent(std::size_t bytes, bool ok) {
@@ -465,6 +478,7 @@ bool Session::onHello(const HelloMsg& hello) {
     }
     scene = server_.hub.sceneFrame();
     sceneSerialSent_ = server_.hub.sceneSerial();
+    joinedAtVersion_ = server_.hub.publisher().fieldVersion();
   }
   ++server_.established;
   ++server_.totals.sessions;
@@ -516,7 +530,8 @@ void Session::enqueue(SharedBytes bytes) {
         "write queue over " + std::to_string(server_.options.maxWriteQueueBytes) + " bytes");
   }
   queuedBytes_ += bytes->size();
-  writes_.push_back(std::move(bytes));
+  writes_.push_back({std::move(bytes), 1});
+  frameQueuedAt_.push_back(steadySeconds());
   if (!writing_) writeNext();
 }
 
@@ -525,23 +540,27 @@ void Session::writeNext() {
   writeStartedAt_ = steadySeconds();
   // Frames queued while the last write was out leave together, up to kWriteBatchBytes: one
   // TLS record and one send for a scene state, a report and datagram frames, not one each.
-  if (writes_.size() > 1 && writes_.front()->size() < kWriteBatchBytes) {
+  if (writes_.size() > 1 && writes_.front().bytes->size() < kWriteBatchBytes) {
     std::size_t total = 0;
-    for (const SharedBytes& w : writes_) {
-      if (total + w->size() > kWriteBatchBytes) break;
-      total += w->size();
+    for (const Write& w : writes_) {
+      if (total + w.bytes->size() > kWriteBatchBytes) break;
+      total += w.bytes->size();
     }
     Bytes batch;
     batch.reserve(total);
-    while (!writes_.empty() && batch.size() + writes_.front()->size() <= kWriteBatchBytes) {
-      batch.insert(batch.end(), writes_.front()->begin(), writes_.front()->end());
+    std::size_t frames = 0;
+    while (!writes_.empty() && batch.size() + writes_.front().bytes->size() <= kWriteBatchBytes) {
+      const Bytes& next = *writes_.front().bytes;
+      batch.insert(batch.end(), next.begin(), next.end());
+      frames += writes_.front().frames;
       writes_.pop_front();
     }
-    writes_.push_front(share(std::move(batch)));  // the same bytes: queuedBytes_ holds
+    // The same bytes and frames: queuedBytes_ and frameQueuedAt_ hold.
+    writes_.push_front({share(std::move(batch)), frames});
   }
   auto self = shared_from_this();
   asio::async_write(
-      stream_, asio::buffer(*writes_.front()),
+      stream_, asio::buffer(*writes_.front().bytes),
       [self](boost::system::error_code ec, std::size_t n) { self->onWritten(ec, n); });
 }
 
@@ -549,7 +568,12 @@ void Session::onWritten(boost::system::error_code ec, std::size_t n) {
   if (closed_) return;
   if (ec) return close(DisconnectCause::ClientClosed, "write failed: " + ec.message());
   bytesSent_ += n;
-  queuedBytes_ -= writes_.front()->size();
+  queuedBytes_ -= writes_.front().bytes->size();
+  const double now = steadySeconds();
+  for (std::size_t i = 0; i < writes_.front().frames && !frameQueuedAt_.empty(); ++i) {
+    server_.totals.sendQueueDelay.observe(now - frameQueuedAt_.front());
+    frameQueuedAt_.pop_front();
+  }
   writes_.pop_front();
   if (!writes_.empty()) return writeNext();
   writing_ = false;

@@ -65,6 +65,10 @@ class Session : public std::enable_shared_from_this<Session> {
   // Called by the server's poll without the hub lock.
   void send(double now, std::vector<Bytes> datagrams, const SharedBytes& scene);
 
+  // After the poll's datagrams left (flushUdp): the publish-to-send latency of the brick
+  // versions pollLocked sent for the first time, into the server's histogram.
+  void observeSent(double now);
+
   bool closed() const { return closed_; }
   // What became of a datagram of flushUdp: a full socket buffer drops it (UDP loss, which the
   // protocol repairs).
@@ -131,8 +135,17 @@ class Session : public std::enable_shared_from_this<Session> {
   std::array<std::uint8_t, 4096> input_{};  // what one read takes from the stream
   Bytes frame_;                             // the frame being put together, prefix first
   std::size_t frameBytes_ = 0;              // its whole size once its prefix passed; 0 before
-  std::deque<SharedBytes> writes_;
+  // Queued writes, each with the frames it holds (several once batched), and when each of
+  // those frames was queued, oldest first: the send-queue delay of each frame.
+  struct Write {
+    SharedBytes bytes;
+    std::size_t frames;
+  };
+  std::deque<Write> writes_;
+  std::deque<double> frameQueuedAt_;
   std::size_t queuedBytes_ = 0;
+  std::vector<double> sentPublishTimes_;  // of the versions the last poll sent first
+  std::uint64_t joinedAtVersion_ = 0;     // the field version when the Hello was accepted
   bool writing_ = false;
   double writeStartedAt_ = 0, acceptedAt_ = 0, lastHeard_ = 0;
   std::optional<udp::endpoint> udpTarget_;

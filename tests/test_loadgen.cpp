@@ -5,11 +5,13 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <random>
 
+#include "common/series_csv.h"
 #include "loadgen/proc_stats.h"
 #include "loadgen/server_load.h"
 #include "loadgen/server_process.h"
@@ -128,6 +130,8 @@ TEST(Loadgen, HundredClientsForTenSecondsAgainstRealServer) {
   o.seconds = 10.0;
   o.joinLimit = 30.0;
   o.fieldNice = 10;
+  const std::string seriesPath = std::string(PC_BUILD_DIR) + "/test_loadgen_series.csv";
+  o.load.seriesPath = seriesPath;
   auto result =
       load::runServerLoad(o, [](const std::string& line) { std::printf("%s\n", line.c_str()); });
   ASSERT_TRUE(result.ok()) << result.error().message;
@@ -153,6 +157,28 @@ TEST(Loadgen, HundredClientsForTenSecondsAgainstRealServer) {
   // one is matched with the publish time its SceneState carried.
   EXPECT_GT(r.latencyMs.count, 0u);
   EXPECT_TRUE(result->serverExit.empty()) << result->serverExit;
+
+  // The series (--series): a row a second of the whole run, whose figures follow the run:
+  // all clients in a session by the end, data received, latency measured in some second.
+  auto series = readSeries(seriesPath);
+  ASSERT_TRUE(series.ok()) << series.error().message;
+  EXPECT_EQ(series->columns, load::kSeriesColumns);
+  ASSERT_GE(series->rows.size(), std::size_t(o.seconds));
+  const std::vector<double> time = series->values("time_s");
+  for (std::size_t i = 0; i < time.size(); ++i) EXPECT_EQ(time[i], double(i + 1));
+  const std::vector<double> clients = series->values("clients");
+  EXPECT_EQ(clients.back(), 100.0);
+  double kbitMax = 0, latencyRows = 0, errors = 0;
+  for (std::size_t i = 0; i < series->rows.size(); ++i) {
+    kbitMax = std::max(kbitMax, series->values("kbit_s_total")[i]);
+    latencyRows += std::isnan(series->values("latency_p95_ms")[i]) ? 0 : 1;
+    errors += series->values("errors")[i];
+    const double gap = series->values("gap_max_ms")[i];
+    EXPECT_TRUE(std::isnan(gap) || gap >= 0.0) << "row " << i;
+  }
+  EXPECT_GT(kbitMax, 0.0);
+  EXPECT_GT(latencyRows, 0.0);
+  EXPECT_EQ(errors, 0.0);
 }
 
 }  // namespace

@@ -3,6 +3,11 @@
 // formats (text key=value and JSON).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <ctime>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -81,7 +86,16 @@ Scrape parseMetrics(const std::string& text) {
     }
     const std::size_t space = line.rfind(' ');
     const std::string key = line.substr(0, space);
-    const std::string family = key.substr(0, key.find('{'));
+    std::string family = key.substr(0, key.find('{'));
+    // A histogram's samples (name_bucket, name_sum, name_count) belong to its family.
+    for (const char* suffix : {"_bucket", "_sum", "_count"}) {
+      const std::string stem =
+          family.substr(0, family.size() - std::min(family.size(), std::strlen(suffix)));
+      if (family == stem + suffix && s.types.count(stem) && s.types[stem] == "histogram") {
+        family = stem;
+        break;
+      }
+    }
     EXPECT_EQ(helps[family], 1) << "HELP lines for " << family;
     EXPECT_EQ(s.types.count(family), 1u) << "no TYPE before " << key;
     EXPECT_EQ(s.samples.count(key), 0u) << "duplicate sample " << key;
@@ -114,6 +128,15 @@ TEST(NetMetrics, TextFormatGroupsFamiliesAndEscapesLabels) {
             "y 0.25\n");
 }
 
+// A client of the test server, trusting its certificate.
+client::NetClientOptions clientOf(const TestServer& server) {
+  client::NetClientOptions co;
+  co.port = server.port();
+  co.serverFingerprint = server.fingerprint();
+  co.token = kToken;
+  return co;
+}
+
 TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
   NetServerOptions o;
   o.metricsPort = 0;  // any free port
@@ -139,11 +162,7 @@ TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
   std::uint64_t sentWhileConnected = 0;
   {
     client::FieldMirror mirror;
-    client::NetClientOptions co;
-    co.port = server.port();
-    co.serverFingerprint = server.fingerprint();
-    co.token = kToken;
-    client::NetClient client(mirror, co);
+    client::NetClient client(mirror, clientOf(server));
     client.start();
     ASSERT_TRUE(waitFor([&] { return client.stats().synced; }, 20.0));
     const Scrape during = scrape(port);
@@ -158,7 +177,9 @@ TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
     // The field thread's figures, once its first update (after the client synced) is done.
     ASSERT_TRUE(waitFor([&] { return scrape(port)["probecast_field_updates_total"] > 0; }, 10.0));
     const Scrape updated = scrape(port);
-    EXPECT_GT(updated["probecast_field_last_pass_seconds{pass=\"total\"}"], 0.0);
+    // The update's total is its own metric, not a pass: summing the passes counts it once.
+    EXPECT_GT(updated["probecast_field_last_update_seconds"], 0.0);
+    EXPECT_EQ(updated.samples.count("probecast_field_last_pass_seconds{pass=\"total\"}"), 0u);
     EXPECT_GT(updated["probecast_field_last_pass_seconds{pass=\"trace\"}"], 0.0);
     EXPECT_GT(updated["probecast_field_update_seconds_total"], 0.0);
     EXPECT_GT(updated["probecast_field_ticks_total"], 0.0);
@@ -194,6 +215,113 @@ TEST(NetMetrics, EndpointFollowsClientsAndCounters) {
   auto post = httpGet(port, "/metrics", "POST");
   ASSERT_TRUE(post.has_value());
   EXPECT_EQ(post->status, 405);
+}
+
+// A histogram family of a scrape: its buckets by upper bound (+Inf last), sum and count.
+struct ScrapedHistogram {
+  std::vector<std::pair<double, double>> buckets;  // (le, cumulative count), by le
+  double sum = -1, count = -1;
+};
+
+ScrapedHistogram histogramOf(const Scrape& s, const std::string& name) {
+  ScrapedHistogram h;
+  const std::string prefix = name + "_bucket{le=\"";
+  for (const auto& [key, value] : s.samples) {
+    if (key.rfind(prefix, 0) != 0) continue;
+    const std::string le = key.substr(prefix.size(), key.size() - prefix.size() - 2);
+    h.buckets.emplace_back(le == "+Inf" ? std::numeric_limits<double>::infinity() : std::stod(le),
+                           value);
+  }
+  std::sort(h.buckets.begin(), h.buckets.end());
+  h.sum = s[name + "_sum"];
+  h.count = s[name + "_count"];
+  return h;
+}
+
+// What every histogram must be: buckets cumulative (never fewer at a larger bound), the last
+// one +Inf and equal to the count.
+void expectWellFormed(const ScrapedHistogram& h, const std::string& name) {
+  ASSERT_GE(h.buckets.size(), 2u) << name;
+  EXPECT_TRUE(std::isinf(h.buckets.back().first)) << name << ": no +Inf bucket";
+  for (std::size_t i = 1; i < h.buckets.size(); ++i)
+    EXPECT_LE(h.buckets[i - 1].second, h.buckets[i].second) << name << " le=" << h.buckets[i].first;
+  EXPECT_EQ(h.buckets.back().second, h.count) << name;
+  EXPECT_GE(h.sum, 0.0) << name;
+}
+
+TEST(NetMetrics, TextFormatWritesHistogramsCumulatively) {
+  Histogram h({0.1, 1.0});
+  for (double v : {0.05, 0.5, 0.5, 7.0}) h.observe(v);
+  MetricsText m;
+  m.histogram("t_seconds", "Times.", h, {{"k", "v"}});
+  EXPECT_EQ(m.str(),
+            "# HELP t_seconds Times.\n"
+            "# TYPE t_seconds histogram\n"
+            "t_seconds_bucket{k=\"v\",le=\"0.1\"} 1\n"
+            "t_seconds_bucket{k=\"v\",le=\"1\"} 3\n"
+            "t_seconds_bucket{k=\"v\",le=\"+Inf\"} 4\n"
+            "t_seconds_sum{k=\"v\"} 8.05\n"
+            "t_seconds_count{k=\"v\"} 4\n");
+}
+
+// Latency, encode time and send-queue delay as histograms that grow while a client streams;
+// the build and the process described beside them.
+TEST(NetMetrics, HistogramsGrowWhileAClientStreams) {
+  NetServerOptions o;
+  o.metricsPort = 0;
+  o.buildInfo = BuildInfo{"9.8.7", "abc1234-dirty", "Test"};
+  TestServer server(-1.0, o);
+  const std::uint16_t port = server.net().metricsPort();
+  const char* kNames[] = {"probecast_update_latency_seconds", "probecast_encode_duration_seconds",
+                          "probecast_send_queue_delay_seconds"};
+
+  const Scrape idle = scrape(port);
+  for (const char* name : kNames) {
+    EXPECT_EQ(idle.types.at(name), "histogram") << name;
+    expectWellFormed(histogramOf(idle, name), name);
+  }
+  EXPECT_EQ(idle["probecast_build_info{version=\"9.8.7\",revision=\"abc1234-dirty\","
+                 "build_type=\"Test\"}"],
+            1.0);
+  // This process is the server: its figures are plausible for it.
+  EXPECT_GT(idle["process_resident_memory_bytes"], 1e6);
+  EXPECT_GT(idle["process_virtual_memory_bytes"], idle["process_resident_memory_bytes"]);
+  EXPECT_GT(idle["process_cpu_seconds_total"], 0.0);  // the warm-up bake ran
+  EXPECT_GE(idle["process_open_fds"], 3.0);
+  const double now = double(std::time(nullptr));
+  EXPECT_LE(idle["process_start_time_seconds"], now + 1);
+  EXPECT_GT(idle["process_start_time_seconds"], now - 24 * 3600);
+  EXPECT_EQ(idle.types.at("process_cpu_seconds_total"), "counter");
+
+  client::FieldMirror mirror;
+  client::NetClient client(mirror, clientOf(server));
+  client.start();
+  ASSERT_TRUE(waitFor([&] { return client.stats().synced; }, 20.0));
+  const Scrape first = scrape(port);
+  // The field changes 10 times a second: more updates reach the client, more latencies.
+  ASSERT_TRUE(waitFor(
+      [&] {
+        return scrape(port)["probecast_update_latency_seconds_count"] >
+               first["probecast_update_latency_seconds_count"];
+      },
+      10.0));
+  const Scrape later = scrape(port);
+  for (const char* name : kNames) {
+    const ScrapedHistogram a = histogramOf(first, name), b = histogramOf(later, name);
+    expectWellFormed(a, name);
+    expectWellFormed(b, name);
+    EXPECT_GT(b.count, 0.0) << name;
+    EXPECT_GE(b.count, a.count) << name;
+    EXPECT_GE(b.sum, a.sum) << name;
+    // Counters per bucket: no bucket ever loses observations.
+    for (std::size_t i = 0; i < a.buckets.size() && i < b.buckets.size(); ++i)
+      EXPECT_GE(b.buckets[i].second, a.buckets[i].second) << name;
+    std::printf("%s: %.0f observations, mean %.3f ms\n", name, b.count,
+                b.count > 0 ? b.sum / b.count * 1e3 : 0.0);
+  }
+  EXPECT_GT(later["probecast_send_queue_delay_seconds_count"],
+            idle["probecast_send_queue_delay_seconds_count"]);
+  EXPECT_GT(later["process_cpu_seconds_total"], idle["process_cpu_seconds_total"]);
 }
 
 // A field of one small volume, for servers that are created and never started.

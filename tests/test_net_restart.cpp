@@ -316,6 +316,59 @@ TEST(NetRestart, ServerStopsOnSigtermDuringItsWarmUp) {
   EXPECT_EQ(text.find("ready port"), std::string::npos) << text;
 }
 
+// With --log-format json the periodic statistics are one JSON object a line whose figures are
+// members of their own (numbers as numbers), not a text line inside the message: a log
+// collector reads clients, bandwidth and the field thread's figures without parsing prose.
+TEST(NetRestart, ServerStatisticsAreJsonFieldsInAJsonLog) {
+  if (!fs::exists(kBin + "probecast-server")) GTEST_SKIP() << "probecast-server is not built";
+  const fs::path dir = fs::path(PC_BUILD_DIR) / "test-net-json-statistics";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const Credentials creds(dir);
+  const fs::path log = dir / "server.log";
+  std::vector<std::string> args = {kBin + "probecast-server", "--port", std::to_string(freePort())};
+  for (const std::string& a :
+       std::initializer_list<std::string>{"--scene",          "builtin",
+                                          "--backend",        "embree",
+                                          "--rays",           "16",
+                                          "--warmup",         "1",
+                                          "--rate",           "5",
+                                          "--bind",           "127.0.0.1",
+                                          "--token-key",      creds.verifyKey,
+                                          "--tls-cert",       creds.cert,
+                                          "--tls-key",        creds.key,
+                                          "--stats-interval", "0.5",
+                                          "--log-format",     "json",
+                                          "--duration",       "4"})
+    args.push_back(a);
+  Child server(args, log);
+  ASSERT_TRUE(server.running());
+  ASSERT_TRUE(waitUntil([&] { return server.exited(); }, 120.0)) << readText(log);
+  EXPECT_EQ(server.exitCode(), 0) << readText(log);
+
+  std::istringstream lines(readText(log));
+  std::string line;
+  int records = 0;
+  while (std::getline(lines, line)) {
+    // stdout's announcements ("ready port N") are for scripts, not the log.
+    if (line.empty() || line[0] != '{') continue;
+    nlohmann::json j;
+    ASSERT_NO_THROW(j = nlohmann::json::parse(line)) << "not a JSON line: " << line;
+    if (j.value("msg", "") != "statistics") continue;
+    ++records;
+    for (const char* number : {"interval_s", "clients", "sent_kbit_s", "received_kbit_s",
+                               "update_latency_mean_ms", "field_version", "accepted_total",
+                               "animation_time_s", "field_updates_total", "last_update_ms"})
+      EXPECT_TRUE(j.contains(number) && j[number].is_number()) << number << " in " << line;
+    EXPECT_EQ(j["clients"], 0) << line;
+    EXPECT_NEAR(j["interval_s"].get<double>(), 0.5, 0.3) << line;
+    EXPECT_EQ(j.value("tracer", ""), "embree") << line;
+  }
+  EXPECT_GE(records, 3) << readText(log);
+  // The text line is the text log's alone.
+  EXPECT_EQ(readText(log).find("clients 0 |"), std::string::npos);
+}
+
 TEST(NetRestart, ServerGoesOnOnTheCpuWhenItsGpuFails) {
   if (!fs::exists(kBin + "probecast-server") || !fs::exists(kBin + "probecast-client"))
     GTEST_SKIP() << "probecast-server and probecast-client are not built";

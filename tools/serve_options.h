@@ -17,6 +17,7 @@
 #include "protocol/stream_tuning.h"
 #include "relay/nats_client.h"
 #include "server/net_server.h"
+#include "tools/build_info.h"
 #include "tools/token_input.h"
 
 namespace pc {
@@ -141,6 +142,7 @@ inline bool applyServeOptions(ServeSetup& s) {
   setLogFormat(*format);
   setLogLevel(*level);
   if (s.metricsPort != 0) s.net.metricsPort = std::uint16_t(s.metricsPort);
+  s.net.buildInfo = BuildInfo{PC_VERSION, gitRevision(), buildType()};
   if (!s.metricsTokenFile.empty()) {
     auto token = readTokenFile(s.metricsTokenFile);
     if (!token) {

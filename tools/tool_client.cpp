@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -109,7 +110,13 @@ int main(int argc, char** argv) {
   app.add_option("--max-fps", net.maxFps, "--connect: frames per second at most")
       ->check(pc::kFinite & CLI::NonNegativeNumber);
   app.add_option("--save-every", net.saveEvery, "--connect: write every Nth frame (0: last only)");
-  app.add_option("--summary", net.summary, "--connect: write a JSON summary here");
+  app.add_option("--summary", net.summary,
+                 "--connect: write a JSON summary here (and, without --series, the per-second "
+                 "series beside it: SUMMARY's name with .series.csv)");
+  app.add_option("--series", net.series,
+                 "--connect, headless: write one CSV row about every second here (bytes and "
+                 "kbit/s received, update latency, staleness, field version lag, frame time, "
+                 "fps; docs/BENCHMARKS.md)");
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   c.textureMipmaps = !noMipmaps;
   if (auto m = pc::client::parseProbeViewMode(probeView)) {
@@ -118,6 +125,8 @@ int main(int argc, char** argv) {
     return pc::logError("--probe-view: expected off, irradiance or state"), 1;
   }
   c.probeView.offsets = !noProbeLines;
+  if (net.series.empty() && !net.summary.empty())
+    net.series = std::filesystem::path(net.summary).replace_extension(".series.csv").string();
   if (auto r = pc::client::parseRasterizer(raster)) {
     c.rasterizer = *r;
   } else {

@@ -57,6 +57,9 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup, "s after the ramp before the measured window starts");
   app.add_option("--seconds", seconds, "measured window, s");
   app.add_option("--json", jsonPath, "write the report as JSON here");
+  app.add_option("--series", o.seriesPath,
+                 "write one CSV row per second of the run here (clients, kbit/s, latency "
+                 "percentiles, staleness, held-field PSNR, errors; docs/BENCHMARKS.md)");
   app.add_option("--seed", o.seed, "random seed (pose phases, session jitter)");
   std::string rateMix;
   app.add_option("--rate-mix", rateMix,

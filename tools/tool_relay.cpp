@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "common/log.h"
 #include "relay/relay.h"
@@ -73,6 +74,7 @@ int main(int argc, char** argv) {
 
   const double start = pc::steadySeconds();
   double lastStats = start;
+  pc::NetServerStats before = (*relay)->serverStats();
   while (true) {
     if (const int sig = signals.wait(timespec{0, 200'000'000})) {
       pc::logInfo(std::string("shutting down (") + pc::Signals::name(sig) + ")");
@@ -84,7 +86,14 @@ int main(int argc, char** argv) {
       break;
     }
     if (setup.statsInterval > 0 && now - lastStats >= setup.statsInterval) {
-      pc::logInfo(statsLine((*relay)->stats(), (*relay)->serverStats()));
+      const pc::relay::RelayStats r = (*relay)->stats();
+      const pc::NetServerStats n = (*relay)->serverStats();
+      std::vector<pc::LogField> fields = pc::statisticsFields(n, before, now - lastStats);
+      fields.insert(fields.end(), {{"bricks_taken_total", r.bricksApplied},
+                                   {"nats_connected", r.natsConnected ? 1 : 0},
+                                   {"nats_latency_ms", r.natsLatencyMs}});
+      pc::logRecord(pc::LogLevel::Info, "statistics", fields, statsLine(r, n));
+      before = n;
       lastStats = now;
     }
   }

@@ -64,6 +64,20 @@ std::vector<std::string> statsLines(const pc::NetServerStats& now, const pc::Net
   return lines;
 }
 
+// The statistics: in a JSON log one "statistics" record with named fields and one "client
+// statistics" record per client; in a text log the same lines as ever.
+void logStatistics(const pc::NetServerStats& now, const pc::NetServerStats& before, double seconds,
+                   const pc::FieldLoopStats& field) {
+  const std::vector<std::string> lines = statsLines(now, before, seconds, field);
+  std::vector<pc::LogField> fields = pc::statisticsFields(now, before, seconds);
+  pc::appendFieldLoopFields(fields, field);
+  pc::logRecord(pc::LogLevel::Info, "statistics", fields, lines.front());
+  for (std::size_t i = 0; i < now.clients.size(); ++i) {
+    pc::logRecord(pc::LogLevel::Info, "client statistics",
+                  pc::clientStatisticsFields(now.clients[i]), lines[i + 1]);
+  }
+}
+
 // The command line's settings, and what follows from them once parsed.
 // The name connect tokens give a scene: "builtin", the folder of a file called scene.* (the
 // layout of scene collections: <name>/scene.gltf), else the file's stem.
@@ -268,8 +282,7 @@ void waitForTheEnd(const pc::NetServer& server, const pc::FieldLoop& fieldLoop,
     }
     if (s.statsInterval > 0 && now - lastStats >= s.statsInterval) {
       pc::NetServerStats stats = server.stats();
-      for (const std::string& line : statsLines(stats, before, now - lastStats, fieldLoop.stats()))
-        pc::logInfo(line);
+      logStatistics(stats, before, now - lastStats, fieldLoop.stats());
       before = stats;
       lastStats = now;
     }

@@ -49,11 +49,23 @@ struct LoadSetup {
   std::string serverLog;  // default: load-server.log in the build folder of the server
   std::string rateMix;
   std::string json;
+  std::string series;         // default: beside --json
   double sessionSeconds = 0;  // churn
   int fieldNice = 10;
 };
 
 std::string suffix(int clients) { return ".clients_" + std::to_string(clients); }
+
+// Where a run's series goes: --series, else beside --json; with several client counts each
+// run's file names its count. Empty: no series.
+std::string seriesPath(const LoadSetup& s, int clients, bool several) {
+  std::filesystem::path path = s.series;
+  if (path.empty() && !s.json.empty())
+    path = std::filesystem::path(s.json).replace_extension(".series.csv");
+  if (path.empty() || !several) return path.string();
+  const std::string ext = path.extension().string();
+  return path.replace_extension(suffix(clients) + ext).string();
+}
 
 }  // namespace
 
@@ -98,6 +110,9 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_option("--server", s.server, "probecast-server executable");
   cmd->add_option("--server-log", s.serverLog, "the server's log");
   cmd->add_option("--json", s.json, "write the last run's loadgen report as JSON here");
+  cmd->add_option("--series", s.series,
+                  "write each run's per-second series here as CSV (several client counts: "
+                  "FILE.clients_N.csv); default with --json: beside it, <json>.series.csv");
   cmd->add_option("--rate-mix", s.rateMix,
                   "emulated client links, MBIT:SHARE,... (e.g. 0.5:0.25,1:0.5,10:0.25)");
   return {
@@ -147,6 +162,7 @@ Benchmark addLoad(CLI::App& app) {
           o.load.rampSeconds = s.ramp >= 0 ? s.ramp : std::max(1.0, 0.005 * n);
           o.load.starveSeconds = s.starveSeconds;
           o.load.sessionSeconds = s.sessionSeconds;
+          o.load.seriesPath = seriesPath(s, n, s.clients.size() > 1);
           o.warmupSeconds = s.warmup;
           o.fieldNice = s.fieldNice;
           o.seconds = s.seconds;
