@@ -13,6 +13,8 @@ constexpr double kSentRecordSeconds = 3.0;
 // Loss is judged over at least this many datagrams: at 0.5 Mbit/s the window holds a dozen,
 // and one loss among them is not 8% loss.
 constexpr std::size_t kMinLossSamples = 20;
+// The queue delay is the floor of at least this many datagrams' one-way delays.
+constexpr std::size_t kMinDelaySamples = 3;
 }  // namespace
 
 RateController::RateController(RateControlOptions options) : options_(options) {
@@ -78,11 +80,15 @@ void RateController::onArrivals(std::span<const Arrival> arrivals, double now) {
   }
   while (!baseMinima_.empty() && baseMinima_.front().first < now - options_.baseDelayWindow)
     baseMinima_.pop_front();
-  while (recentDelays_.size() > 1 &&
+  // The window keeps its newest kMinDelaySamples whatever their age: at a low rate (64 kbit/s
+  // is 6 datagrams a second) the queueDelayWindow holds fewer, and a queue delay left at its
+  // last value would keep a drained queue counted as over-use, and the rate at its floor, for
+  // good.
+  while (recentDelays_.size() > kMinDelaySamples &&
          recentDelays_.front().first < newestArrival_ - options_.queueDelayWindow)
     recentDelays_.pop_front();
   // A floor needs a few samples: under heavy loss a window may hold one delayed datagram.
-  if (recentDelays_.size() >= 3 && !baseMinima_.empty()) {
+  if (recentDelays_.size() >= kMinDelaySamples && !baseMinima_.empty()) {
     double base = std::numeric_limits<double>::infinity();
     for (const auto& m : baseMinima_) base = std::min(base, m.second);
     estimate_.baseDelay = base;

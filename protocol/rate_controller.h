@@ -36,7 +36,7 @@ struct RateControlOptions {
   // bytes/s (4 Mbit/s) before any report, growing as startupDoublingSeconds says until the
   // first over-use: a client must hold the whole field within a second of joining, and a
   // slower start would take that long to find even a few Mbit/s.
-  double startRate = 500e3;
+  double startRate = 125e3;
   double startupDoublingSeconds = 0.1;
   double minRate = 8e3;            // bytes/s (64 kbit/s): never less, whatever the reports say
   double maxRate = 1e12;           // bytes/s: the ceiling (the server's --rate-limit)

@@ -460,14 +460,71 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   else
     tokens_ = std::min(burst, tokens_ + rate * std::max(0.0, now - lastPoll_));
   lastPoll_ = now;
-  const std::uint32_t firstSequence = sequence_;
   firstSends_.clear();
 
+  // What earlier polls packed leaves first; new choices are made only once it has all left,
+  // so that they are made on the newest acks and field (and a poll whose tokens went to
+  // packed datagrams is one where bricks waited).
+  release(now, out);
+  bool waited = true, changesWaited = lastChangesWaited_;
+  if (paced_.empty() && tokens_ > 0) {
+    pack(now, waited, changesWaited);
+    lastChangesWaited_ = changesWaited;
+    release(now, out);
+  }
+  if (out.empty() && paced_.empty() && now - lastDatagramAt_ >= options_.heartbeatInterval) {
+    // Heartbeat: tells the client the newest field version and that the server is alive.
+    paced_.push_back(Paced{
+        encodeDatagram(sessionId_, sequence_, publisher_.fieldVersion(), {}), sequence_, {}, {}});
+    ++sequence_;
+    tokens_ = std::max(tokens_, 1.0);  // a heartbeat is never held back
+    release(now, out);
+  }
+  ++reportPolls_;
+  appLimitedPolls_ += !waited;
+  ++levelPolls_;
+  shortPolls_ += changesWaited;
+  adjustQuality(now);
+  return out;
+}
+
+void StreamSender::release(double now, std::vector<std::vector<std::uint8_t>>& out) {
+  while (!paced_.empty() && tokens_ > 0) {
+    Paced& p = paced_.front();
+    tokens_ -= double(p.datagram.size());
+    for (const auto& [k, b] : p.completes) {
+      if (k >= int(tracks_.size()) || b >= int(tracks_[std::size_t(k)].size())) continue;
+      Track& t = tracks_[std::size_t(k)][std::size_t(b)];
+      // Its last send was self-contained when both times were the same (see pack()).
+      if (t.selfContainedAt == t.sentAt) t.selfContainedAt = now;
+      t.sentAt = now;
+    }
+    firstSends_.insert(firstSends_.end(), p.firstSends.begin(), p.firstSends.end());
+    lastDatagramAt_ = now;
+    ++stats_.datagrams;
+    stats_.bytes += p.datagram.size();
+    if (options_.congestionControl) rate_.onSent(p.sequence, p.datagram.size(), now);
+    out.push_back(std::move(p.datagram));
+    paced_.pop_front();
+  }
+}
+
+void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
   // Fragments the client reported missing go first: each completes an update the client holds
   // in part, at the cost of the fragments alone.
-  Packer packer(sessionId_, sequence_, publisher_.fieldVersion(), out);
+  std::vector<std::vector<std::uint8_t>> packed;
+  const std::uint32_t firstSequence = sequence_;
+  Packer packer(sessionId_, sequence_, publisher_.fieldVersion(), packed);
+  // Where each update or repair ends: (datagram index, cascade, brick, first-sent version or 0).
+  struct Completion {
+    std::size_t datagram;
+    int cascade, brick;
+    std::uint64_t firstSend;
+  };
+  std::vector<Completion> completions;
+  double budget = tokens_;
   std::size_t repaired = 0;
-  for (; repaired < repairs_.size() && tokens_ > 0; ++repaired) {
+  for (; repaired < repairs_.size() && budget > 0; ++repaired) {
     const Repair& r = repairs_[repaired];
     const EncodedUpdate& u = *r.update;
     Track& t = tracks_[r.cascade][r.brick];
@@ -476,8 +533,9 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     for (std::uint16_t i : r.fragments) {
       const FragmentRef f = fragmentOf(u, i);
       packer.add(f);
-      tokens_ -= double(f.data.size() + kFragmentOverheadBytes);
+      budget -= double(f.data.size() + kFragmentOverheadBytes);
     }
+    completions.push_back(Completion{packed.size(), r.cascade, r.brick, 0});
     stats_.fragments += r.fragments.size();
     stats_.repairedFragments += r.fragments.size();
     // Sent again: in flight from now (the whole update's resend waits a timeout from here), and
@@ -597,9 +655,10 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
 
   // Encoded updates stay alive (shared_ptr) until their fragments are packed.
   std::vector<std::shared_ptr<const EncodedUpdate>> chosen;
+  std::vector<Completion> chosenBricks;
   std::size_t considered = 0;
   for (const Candidate& c : candidates) {
-    if (tokens_ <= 0) break;
+    if (budget <= 0) break;
     ++considered;
     Track& t = tracks_[c.cascade][c.brick];
     std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
@@ -628,8 +687,8 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
          lostBytes + update->payload.size() > options_.maxLostBytes)) {
       continue;  // the receiver may be holding as many partial updates as it can
     }
-    tokens_ -= double(update->payload.size() + fragments * kFragmentOverheadBytes);
-    if (!c.again && t.sent != version) firstSends_.push_back(version);
+    budget -= double(update->payload.size() + fragments * kFragmentOverheadBytes);
+    const std::uint64_t firstSend = !c.again && t.sent != version ? version : 0;
     if (t.sent == version && t.sentPrecision == level) {
       ++stats_.resends;
       t.resent = true;
@@ -648,6 +707,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
     stats_.residualUpdates += base != 0;
     count(c.reason);
     chosen.push_back(std::move(update));
+    chosenBricks.push_back(Completion{0, c.cascade, c.brick, firstSend});
     if (chosen.size() * 2 >= options_.maxDatagramsPerPoll) break;
   }
   // Bricks waited for tokens: the rate, not the field, limits what this client holds (and the
@@ -655,36 +715,30 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   // bound that waited: the perceptual thresholds hold small changes back on purpose, pacing
   // leaves some brick waiting in most polls, and refinements are sent with what room there
   // is (counting them would hold the level up by the very bricks it made coarse).
-  const bool waited = considered < candidates.size();
-  const bool changesWaited =
-      std::any_of(candidates.begin() + std::ptrdiff_t(considered), candidates.end(),
-                  [](const Candidate& c) { return c.aged; });
+  waited = considered < candidates.size();
+  changesWaited = std::any_of(candidates.begin() + std::ptrdiff_t(considered), candidates.end(),
+                              [](const Candidate& c) { return c.aged; });
 
-  for (const auto& u : chosen) {
-    const std::uint16_t n = fragmentCount(u->header.totalSize);
+  for (std::size_t u = 0; u < chosen.size(); ++u) {
+    const std::uint16_t n = fragmentCount(chosen[u]->header.totalSize);
     for (std::uint16_t i = 0; i < n; ++i) {
-      packer.add(fragmentOf(*u, i));
+      packer.add(fragmentOf(*chosen[u], i));
       ++stats_.fragments;
     }
+    completions.push_back(chosenBricks[u]);
+    completions.back().datagram = packed.size();  // the datagram being filled
   }
   packer.flush();
-  if (out.empty() && now - lastDatagramAt_ >= options_.heartbeatInterval) {
-    // Heartbeat: tells the client the newest field version and that the server is alive.
-    out.push_back(encodeDatagram(sessionId_, sequence_++, publisher_.fieldVersion(), {}));
+
+  if (packed.empty()) return;
+  for (std::size_t i = 0; i < packed.size(); ++i)
+    paced_.push_back(Paced{std::move(packed[i]), firstSequence + std::uint32_t(i), {}, {}});
+  const std::size_t first = paced_.size() - packed.size();
+  for (const Completion& c : completions) {
+    Paced& p = paced_[first + std::min(c.datagram, packed.size() - 1)];
+    p.completes.emplace_back(c.cascade, c.brick);
+    if (c.firstSend != 0) p.firstSends.push_back(c.firstSend);
   }
-  if (!out.empty()) lastDatagramAt_ = now;
-  stats_.datagrams += out.size();
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    stats_.bytes += out[i].size();
-    if (options_.congestionControl)
-      rate_.onSent(firstSequence + std::uint32_t(i), out[i].size(), now);
-  }
-  ++reportPolls_;
-  appLimitedPolls_ += !waited;
-  ++levelPolls_;
-  shortPolls_ += changesWaited;
-  adjustQuality(now);
-  return out;
 }
 
 }  // namespace pc

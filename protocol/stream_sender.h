@@ -33,6 +33,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <glm/glm.hpp>
 #include <memory>
 #include <optional>
@@ -295,6 +296,24 @@ class StreamSender {
   static bool heldAsSent(const Track& t) {
     return t.acked == t.sent && t.ackedPrecision == t.sentPrecision;
   }
+  // Datagrams packed but not sent yet. A poll packs whole updates, and an update of many
+  // fragments would enter a router's queue at once; they leave from here at the pacing rate,
+  // so that no more than the bucket (pacingBurstSeconds) leaves in one poll whatever an
+  // update's size (a drop-tail queue of 100 ms at 0.5 Mbit/s holds 5 datagrams).
+  struct Paced {
+    std::vector<std::uint8_t> datagram;
+    std::uint32_t sequence;
+    // Bricks whose update (or repair) ends in this datagram: sent when it leaves, which is
+    // when their resend timeouts and round-trip samples count from; and the versions among
+    // them sent for the first time.
+    std::vector<std::pair<int, int>> completes;
+    std::vector<std::uint64_t> firstSends;
+  };
+  // Chooses repairs and updates for the bucket's tokens and packs them into paced_; says
+  // whether bricks waited for tokens and whether changes at the age bound did.
+  void pack(double now, bool& waited, bool& changesWaited);
+  // Sends from paced_ while the bucket has tokens.
+  void release(double now, std::vector<std::vector<std::uint8_t>>& out);
   void count(Reason reason);
   double distanceInBricks(int k, int b) const;
   void adjustQuality(double now);
@@ -311,6 +330,8 @@ class StreamSender {
   double tokens_ = 0, lastPoll_ = -1, lastDatagramAt_ = -1e30;
   std::uint32_t sequence_ = 0;
   std::vector<Repair> repairs_;
+  std::deque<Paced> paced_;
+  bool lastChangesWaited_ = false;  // from the last poll that packed
   RateController rate_;
   // Polls since the last arrival report whose bucket had more than it could spend (the sender
   // had less to send than the rate allowed), of all polls then.

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <list>
@@ -135,13 +136,15 @@ std::vector<std::string> procSelfStat() {
   return fields;
 }
 
-// The boot time, Unix seconds (/proc/stat's btime); 0 when unknown.
+// The boot time, Unix seconds, by today's wall clock: now less the time since boot. /proc/stat's
+// btime is fixed at boot, and a wall clock stepped since (NTP, a resumed VM) would put the
+// process's start seconds away from the time the scraper compares it with.
 double bootTime() {
-  std::ifstream in("/proc/stat");
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("btime ", 0) == 0) return std::strtod(line.c_str() + 6, nullptr);
-  }
-  return 0;
+  timespec real{}, boot{};
+  if (clock_gettime(CLOCK_REALTIME, &real) != 0 || clock_gettime(CLOCK_BOOTTIME, &boot) != 0)
+    return 0;
+  return (double(real.tv_sec) - double(boot.tv_sec)) +
+         (double(real.tv_nsec) - double(boot.tv_nsec)) * 1e-9;
 }
 
 }  // namespace

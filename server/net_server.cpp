@@ -437,7 +437,10 @@ std::vector<LogField> clientStatisticsFields(const NetClientInfo& c) {
           {"pending_bricks", c.pendingBricks},
           {"resends", c.resends},
           {"held_psnr_db", double(c.report.heldPsnrDb)},
-          {"send_rate_kbit_s", double(c.report.rate) * 8 / 1e3}};
+          {"send_rate_kbit_s", double(c.report.rate) * 8 / 1e3},
+          {"queue_delay_ms", double(c.report.queueDelayMs)},
+          {"loss", double(c.report.loss)},
+          {"quality_level", double(c.report.qualityLevel)}};
 }
 
 void appendBuildInfo(MetricsText& m, const BuildInfo& info) {

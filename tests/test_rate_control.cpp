@@ -1,7 +1,8 @@
 // Congestion control (protocol/rate_controller.h) over in-memory bottlenecks: greedy senders
 // pace datagrams at their controller's rate into a FaultLink with a rate and a drop-tail queue,
 // and a receiver reports every arrival every 20 ms, as StreamReceiver's acks do. What a real
-// link does is measured by tests/net_links.sh over tbf; these pin the controller's behaviour.
+// link does is measured by tests/net/links.sh over tbf (CTest net_links); these pin the
+// controller's behaviour.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,6 +10,7 @@
 #include <functional>
 #include <memory>
 #include <numeric>
+#include <span>
 #include <vector>
 
 #include "protocol/fault_link.h"
@@ -205,3 +207,29 @@ TEST(RateControl, RandomLossWithoutAQueueIsNotCongestion) {
 }
 
 }  // namespace
+
+// At the floor rate a stream sends a few datagrams a second, fewer than the queue-delay window
+// (100 ms) holds at any time. A queue seen while it sent faster must still be seen to drain:
+// the rate recovers once its datagrams arrive at the base delay again, instead of the old
+// queue delay holding it at its floor for good.
+TEST(RateControl, ASlowStreamSeesItsQueueDrain) {
+  RateController rc;
+  std::uint32_t sequence = 0;
+  double t = 0;
+  const auto send = [&](double oneWayDelay, double interval) {
+    rc.onSent(sequence, kDatagram, t);
+    const RateController::Arrival a{sequence, std::uint32_t((t + oneWayDelay) * 1e6)};
+    rc.onArrivals(std::span(&a, 1), t + oneWayDelay);
+    ++sequence;
+    t += interval;
+  };
+  for (int i = 0; i < 20; ++i) send(0.010, 0.01);  // the base delay
+  for (int i = 0; i < 30; ++i) send(0.060, 0.01);  // a queue of 50 ms: cut after cut
+  EXPECT_GT(rc.estimate().queueDelay, 0.04);
+  // Now 6 to 7 datagrams a second (the floor rate's pace): the queue stays a while, then
+  // drains.
+  for (int i = 0; i < 3; ++i) send(0.060, 0.15);
+  for (int i = 0; i < 40; ++i) send(0.010, 0.15);
+  EXPECT_LT(rc.estimate().queueDelay, 0.001);
+  EXPECT_GT(rc.rate(), 4.0 * RateControlOptions{}.minRate) << "the rate stayed near its floor";
+}
