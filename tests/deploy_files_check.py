@@ -16,7 +16,9 @@ Every file under deploy/ is read:
   - every job="..." a dashboard expression selects is a job of deploy/prometheus.yml and of
     the ServiceMonitors' job relabelings;
   - with nats-server installed, each NATS configuration (deploy/nats/, deploy/k8s/nats.conf)
-    passes `nats-server -t` with stand-in secrets beside it.
+    passes `nats-server -t` with stand-in secrets beside it;
+  - with kubectl installed, deploy/k8s and deploy/k8s/monitoring build (`kubectl kustomize`,
+    with stand-in secrets), every object in the namespace probecast.
 A failure names the file, the tool or expression, and what is missing.
 
   tests/deploy_files_check.py BIN_DIR SOURCE_DIR WORK_DIR
@@ -327,6 +329,31 @@ if nats_server:
         if run.returncode != 0:
             fail(os.path.relpath(config, src), "nats-server -t: " + (run.stderr + run.stdout).strip())
 
+# --- Kustomizations ------------------------------------------------------------------------------
+
+kubectl = shutil.which("kubectl")
+if kubectl:
+    # A copy of deploy/k8s with stand-in secrets: every file the generators name must exist.
+    k8s = os.path.join(work, "k8s")
+    shutil.rmtree(k8s, ignore_errors=True)
+    shutil.copytree(os.path.join(deploy, "k8s"), k8s,
+                    ignore=shutil.ignore_patterns("secrets"))
+    os.makedirs(os.path.join(k8s, "secrets"))
+    for generator in yaml.safe_load(open(os.path.join(k8s, "kustomization.yaml")))["secretGenerator"]:
+        for f in generator["files"]:
+            open(os.path.join(k8s, f), "w").write("stand-in\n")
+    for folder in (k8s, os.path.join(k8s, "monitoring")):
+        run = subprocess.run([kubectl, "kustomize", folder], capture_output=True, text=True)
+        checked["kustomize"] = checked.get("kustomize", 0) + 1
+        if run.returncode != 0:
+            fail(os.path.relpath(folder, work), "kubectl kustomize: " + run.stderr.strip())
+            continue
+        for doc in yaml.safe_load_all(run.stdout):
+            if doc and doc.get("kind") != "Namespace" and \
+                    doc.get("metadata", {}).get("namespace") != "probecast":
+                fail(os.path.relpath(folder, work),
+                     f"{doc.get('kind')} {doc['metadata'].get('name')} is not in namespace probecast")
+
 for line in failures:
     print(line)
 if checked["flags"] == 0 or checked["metrics"] == 0:
@@ -337,4 +364,5 @@ if failures:
     sys.exit(1)
 print(f"ok: {checked['files']} deploy/ files: {checked['flags']} tool flags in the tools' --help, "
       f"{checked['metrics']} metric names registered, {len(dashboard_jobs)} dashboard jobs scraped, "
-      f"{checked['nats']} NATS configurations pass nats-server -t")
+      f"{checked['nats']} NATS configurations pass nats-server -t, "
+      f"{checked.get('kustomize', 0)} kustomizations build")
