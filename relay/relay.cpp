@@ -275,6 +275,13 @@ void Relay::onCatalogue(const CatalogueRecord& catalogue) {
   hub_ = std::move(hub);
   serving_ = false;
   if (boundPort_ != 0) net.port = boundPort_;  // the same port again
+  // Ready (GET /readyz): caught up, taking clients, and following the field with NATS up.
+  // While NATS is away the relay goes on serving what it holds, but new clients are better
+  // sent to a relay that follows the field.
+  net.ready = [this] {
+    const RelayStats s = stats();
+    return s.serving && s.natsConnected;
+  };
   auto server = NetServer::create(*hub_, net);
   if (!server) {
     setError("cannot serve: " + server.error().message);

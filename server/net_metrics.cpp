@@ -259,16 +259,25 @@ class MetricsConnection : public std::enable_shared_from_this<MetricsConnection>
     response_.keep_alive(false);
     response_.set(http::field::server, "probecast");
     response_.set(http::field::content_type, "text/plain; charset=utf-8");
-    if (!authorized(request, server_.options.bearerToken)) {
+    const bool probe = request.target() == "/healthz" || request.target() == "/readyz";
+    const bool readable =
+        request.method() == http::verb::get || request.method() == http::verb::head;
+    if (probe && readable) {
+      // Orchestrators' probes, answered without the token (MetricsHttpOptions::ready).
+      const bool ready =
+          request.target() == "/healthz" || !server_.options.ready || server_.options.ready();
+      response_.result(ready ? http::status::ok : http::status::service_unavailable);
+      response_.body() = ready ? "ok\n" : "not ready\n";
+    } else if (!authorized(request, server_.options.bearerToken)) {
       // Before the target is even looked at: an unauthorized client learns nothing.
       ++server_.unauthorized;
       response_.result(http::status::unauthorized);
       response_.set(http::field::www_authenticate, "Bearer");
       response_.body() = "unauthorized\n";
-    } else if (request.target() != "/metrics") {
+    } else if (request.target() != "/metrics" && !probe) {
       response_.result(http::status::not_found);
-      response_.body() = "not found: only /metrics is served\n";
-    } else if (request.method() != http::verb::get && request.method() != http::verb::head) {
+      response_.body() = "not found: /metrics, /healthz and /readyz are served\n";
+    } else if (!readable) {
       response_.result(http::status::method_not_allowed);
       response_.set(http::field::allow, "GET, HEAD");
       response_.body() = "method not allowed\n";

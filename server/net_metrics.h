@@ -1,7 +1,8 @@
 // Server metrics in the Prometheus text exposition format (version 0.0.4), and a small HTTP
 // endpoint that serves them: GET /metrics on its own thread (Boost.Beast, which stays inside
-// net_metrics.cpp). The endpoint renders through a callback on every scrape, so it holds no
-// copy of the server's state and needs no lock of its own.
+// net_metrics.cpp), with /healthz and /readyz for orchestrators' probes. The endpoint renders
+// through a callback on every scrape, so it holds no copy of the server's state and needs no lock
+// of its own.
 #pragma once
 
 #include <cstdint>
@@ -55,6 +56,11 @@ struct MetricsHttpOptions {
   // Non-empty: a request must carry `Authorization: Bearer <token>` (compared in constant
   // time), else it gets 401.
   std::string bearerToken;
+  // GET /healthz answers 200 while the endpoint's thread runs (the process is alive); GET
+  // /readyz answers 200 when `ready` returns true (empty: always), else 503. Neither asks for
+  // the bearer token: a kubelet's probe carries no secret, and the answers tell nothing but
+  // "ok" or "not ready". Called on the endpoint's thread.
+  std::function<bool()> ready;
   // A scraper gets this long to send its request and read the answer. Requests are small
   // (GET): headers are capped at 8 KiB and bodies at 0. Connections are served concurrently;
   // with maxConnections open, a new one takes the place of the oldest still awaiting its

@@ -594,11 +594,15 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
                  std::to_string(s.options.port) + ": " + ec.message()};
   }
   s.tcpPort = s.acceptor.local_endpoint().port();
-  // Datagrams leave from any free port, and clients' acks come to it (SessionInfo names it):
-  // clients receive datagrams wherever they come from (the seal says whether to trust one).
+  // Datagrams leave from the UDP port (any free one by default), and clients' acks come to it
+  // (SessionInfo names it): clients receive datagrams wherever they come from (the seal says
+  // whether to trust one).
   s.udpSocket.open(udp::v4(), ec);
-  if (!ec) s.udpSocket.bind(udp::endpoint(address, 0), ec);
-  if (ec) return Error{"cannot open the UDP socket: " + ec.message()};
+  if (!ec) s.udpSocket.bind(udp::endpoint(address, s.options.udpPort), ec);
+  if (ec) {
+    return Error{"cannot open the UDP socket on " + s.options.bindAddress + ":" +
+                 std::to_string(s.options.udpPort) + ": " + ec.message()};
+  }
   s.udpSocket.non_blocking(true, ec);
   s.udpSocket.set_option(asio::socket_base::send_buffer_size(4 << 20), ec);
   // Room for every client's acks of a few polls while the thread is busy (about 50 a second
@@ -664,6 +668,7 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
         s.options.metricsBindAddress.empty() ? "127.0.0.1" : s.options.metricsBindAddress;
     mo.bearerToken = s.options.metricsToken;
     mo.port = *s.options.metricsPort;
+    mo.ready = s.options.ready;
     auto metrics = MetricsHttpServer::create(mo, [&s] { return s.renderMetrics(); });
     if (!metrics) return metrics.error();
     s.metrics = std::move(metrics).value();

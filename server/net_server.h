@@ -81,6 +81,10 @@ struct BuildInfo {
 struct NetServerOptions {
   std::string bindAddress = "0.0.0.0";
   std::uint16_t port = 7450;  // TCP; 0 picks a free one (see NetServer::port)
+  // The UDP socket's port: datagrams leave from it and clients' acks come to it (SessionInfo
+  // names it). 0: a free one (NetServer::udpPort); a fixed one where a firewall or a
+  // container's published ports must name it.
+  std::uint16_t udpPort = 0;
   // Connect tokens (protocol/connect_token.h): a Hello must carry a token signed by one of
   // these verify keys, not expired, not on the revocation list (re-read while serving when
   // the file changes), naming sceneName or any scene.
@@ -136,6 +140,9 @@ struct NetServerOptions {
   std::optional<std::uint16_t> metricsPort;
   std::string metricsBindAddress;
   std::string metricsToken;
+  // What the endpoint's GET /readyz answers: 200 when this returns true, else 503 (empty:
+  // always ready); GET /healthz answers 200 (MetricsHttpOptions). Called on the metrics thread.
+  std::function<bool()> ready;
   // Labels of probecast_build_info (the tools pass theirs: tools/build_info.h); empty: the
   // metric is left out.
   BuildInfo buildInfo;

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Every command-line flag that README.md, docs/*.md and deploy/'s scripts give a tool exists:
-# the tool's --help (or its subcommand's) lists it. A flag belongs to a tool where the docs say
-# so without doubt:
+# Every command-line flag that README.md, docs/*.md, deploy/*.md and deploy/'s scripts give a
+# tool exists: the tool's --help (or its subcommand's) lists it. A flag belongs to a tool where
+# the docs say so without doubt:
 #   - a command: a code span (`...`, across line breaks too), a line of a fenced code block
 #     with its continuation lines (after a trailing \, or indented), or an indented code line,
 #     whose first word is probecast-NAME (or build/bin/probecast-NAME): every --flag in it is
@@ -113,7 +113,7 @@ for f in deploy/*; do
   { echo '```'; sed -E 's#"?\$\{?bin\}?/(probecast-[a-z]+)"?#\1#g' "$f"; echo '```'; } >"$work/$f.md"
   deploy_docs+=("$work/$f.md")
 done
-mentions README.md docs/*.md "${deploy_docs[@]}" >"$work/mentions"
+mentions README.md docs/*.md deploy/*.md "${deploy_docs[@]}" >"$work/mentions"
 checked=0
 failed=0
 while read -r where tool mode word flag; do

@@ -1,14 +1,17 @@
 // The server's observability: Prometheus text from MetricsText, the /metrics endpoint of a
-// real server scraped over a plain socket while a client comes and goes, and the log line
-// formats (text key=value and JSON).
+// real server scraped over a plain socket while a client comes and goes, its health and
+// readiness probes, the fixed ports a container publishes, and the log line formats (text
+// key=value and JSON).
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <ctime>
 #include <limits>
 #include <map>
+#include <memory>
 #include <sstream>
 
 #include "common/log.h"
@@ -350,6 +353,28 @@ TEST(NetMetrics, MetricsPortThatIsTakenIsAnError) {
   EXPECT_NE(second.error().message.find("metrics"), std::string::npos);
 }
 
+// --udp-port: the UDP socket is bound where asked (a container publishes that port), and a
+// port another socket holds is an error naming it.
+TEST(NetMetrics, UdpPortIsTheOneAskedAndATakenOneIsAnError) {
+  namespace asio = boost::asio;
+  asio::io_context io;
+  asio::ip::udp::socket probe(io, asio::ip::udp::endpoint(asio::ip::make_address("127.0.0.1"), 0));
+  const std::uint16_t free = probe.local_endpoint().port();
+  probe.close();
+  FieldHub hub(smallLayout());
+  NetServerOptions o = unstartedOptions("127.0.0.1", 0);
+  o.udpPort = free;
+  auto first = NetServer::create(hub, o);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  EXPECT_EQ((*first)->udpPort(), free);
+  FieldHub other(smallLayout());
+  auto second = NetServer::create(other, o);
+  ASSERT_FALSE(second.ok());
+  EXPECT_NE(second.error().message.find("UDP socket on 127.0.0.1:" + std::to_string(free)),
+            std::string::npos)
+      << second.error().message;
+}
+
 TEST(NetMetrics, ScrapableWhileIdleSocketsAreOpen) {
   NetServerOptions o;
   o.metricsPort = 0;
@@ -389,6 +414,49 @@ TEST(NetMetrics, BearerTokenIsRequiredWhenSet) {
   ASSERT_TRUE(ok.has_value());
   EXPECT_EQ(ok->status, 200);
   EXPECT_NE(ok->body.find("probecast_clients"), std::string::npos);
+}
+
+// Orchestrators' probes: /healthz answers while the endpoint runs, /readyz follows the
+// server's readiness; neither asks for the token that /metrics asks for.
+TEST(NetMetrics, HealthAndReadinessAnswerWithoutTheToken) {
+  auto ready = std::make_shared<std::atomic<bool>>(false);
+  NetServerOptions o;
+  o.metricsPort = 0;
+  o.metricsToken = "s3cret-metrics";
+  o.ready = [ready] { return ready->load(); };
+  TestServer server(-1.0, o);
+  const std::uint16_t port = server.net().metricsPort();
+  const auto status = [&](const std::string& target, const std::string& method = "GET") {
+    auto r = httpGet(port, target, method);
+    return r ? r->status : -1;
+  };
+  EXPECT_EQ(status("/healthz"), 200);
+  EXPECT_EQ(status("/readyz"), 503);
+  ready->store(true);
+  EXPECT_EQ(status("/readyz"), 200);
+  EXPECT_EQ(status("/readyz", "HEAD"), 200);
+  ready->store(false);
+  EXPECT_EQ(status("/readyz"), 503);
+  // Only GET and HEAD are probes; the figures still need the token.
+  EXPECT_EQ(status("/healthz", "POST"), 401);
+  EXPECT_EQ(status("/metrics"), 401);
+  auto body = httpGet(port, "/healthz");
+  ASSERT_TRUE(body.has_value());
+  EXPECT_EQ(body->body, "ok\n");
+  EXPECT_EQ(body->body.find("probecast_"), std::string::npos);
+}
+
+// Without a readiness callback (the field server), a running endpoint is ready.
+TEST(NetMetrics, ReadyByDefault) {
+  NetServerOptions o;
+  o.metricsPort = 0;
+  TestServer server(-1.0, o);
+  auto r = httpGet(server.net().metricsPort(), "/readyz");
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->status, 200);
+  auto missing = httpGet(server.net().metricsPort(), "/other");
+  ASSERT_TRUE(missing.has_value());
+  EXPECT_EQ(missing->status, 404);
 }
 
 TEST(NetMetrics, EndpointListensOnLoopbackByDefault) {

@@ -37,6 +37,8 @@ struct ServeSetup {
 inline void addStreamOptions(CLI::App& app, ServeSetup& s) {
   app.add_option("--bind", s.net.bindAddress, "address to listen on");
   app.add_option("--port", s.net.port, "TCP port (0: any free one)");
+  app.add_option("--udp-port", s.net.udpPort,
+                 "UDP port datagrams leave from and acks come to (0, the default: any free one)");
   app.add_option("--token-key", s.tokenKeyFiles,
                  "verify key file of a connect token issuer (probecast-token keygen); "
                  "repeat it while keys rotate (else $PROBECAST_TOKEN_KEY_FILE)");
