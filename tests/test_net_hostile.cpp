@@ -148,6 +148,9 @@ TEST(NetHostile, ClientThatNeverReadsIsDisconnected) {
   NetServerOptions o;
   o.writeStallSeconds = 1.0;
   o.maxWriteQueueBytes = 1u << 20;
+  // Sent at the ceiling (4 MB/s), not at congestion control's start rate of 1 Mbit/s, which
+  // a client that never acks never raises: the kernel's send buffer fills in a second.
+  o.sender.congestionControl = false;
   HostileFixture f(o);
   // A tiny receive window, datagrams over TCP, and no reads: the server's writes stall.
   RawPeer sloth(f.port(), 4096);
