@@ -47,6 +47,7 @@ ClientSessionOptions sessionOptions(const NetClientOptions& o) {
   s.poseInterval = o.poseInterval;
   s.maxMirrorBytes = o.maxMirrorBytes;
   s.uplinkDatagrams = !o.tcpOnly;
+  s.resume = o.resume;
   s.receiver = o.receiver;
   return s;
 }
