@@ -159,8 +159,11 @@ class ClientSession {
   // The connection is open: the Hello frame, to send before anything else. udpPort 0 asks for
   // datagrams over the TCP stream.
   std::vector<std::uint8_t> connected(double now, std::uint16_t udpPort);
-  // The connection is gone or was closed: the session's receiver is released.
+  // The connection is gone or was closed: the session's receiver is released, or kept for the
+  // next session to resume from (ClientSessionOptions::resume).
   void close();
+  // The next session starts from nothing, as a new client's (a kept receiver is released).
+  void forgetHeld() { keptReceiver_.reset(); }
 
   // Bytes read from the TCP stream, in any pieces: each frame is handled once it is whole,
   // its size checked from its prefix before the body is awaited. An Error ends the session.

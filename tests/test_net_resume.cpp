@@ -7,6 +7,7 @@
 #include <random>
 
 #include "net/tls_certificate.h"
+#include "protocol/client_session.h"
 #include "protocol/resume_state.h"
 #include "protocol/stream_sender.h"
 #include "test_net_support.h"
@@ -196,6 +197,59 @@ TEST(ResumeSender, RefusesVersionsAheadAndClaimsOfAnotherField) {
   auto third = f.sender(3);
   EXPECT_FALSE(third->onMessage(f.claim(shorter, 42), 0.6).ok());
   EXPECT_EQ(third->stats().resumedBricks, 0u);
+}
+
+// One session of `client` with a server speaking `version` whose field is `f`'s: the
+// handshake, then what the sender sends until the client holds every brick. The frames the
+// client sends first are returned.
+std::vector<SessionMessage> runSession(ClientSession& client, const TwoVersions& f,
+                                       std::uint32_t version, std::uint32_t id, double& now,
+                                       std::uint64_t& heldEpoch) {
+  client.connecting(now);
+  auto hello = decodeMessage(client.connected(now, 0));
+  EXPECT_TRUE(hello.ok());
+  heldEpoch = hello ? std::get<HelloMsg>(*hello).heldEpoch : 0;
+  SessionInfoMsg info = f.publisher->sessionInfo();
+  if (version < kResumeVersion) info.fieldEpoch = 0;  // an older server states none
+  for (const SessionMessage& m : {SessionMessage(WelcomeMsg{version, id}), SessionMessage(info)})
+    EXPECT_TRUE(client.onStreamBytes(encodeMessage(m), now).ok());
+  std::vector<SessionMessage> first;
+  auto frames = client.poll(now);
+  EXPECT_TRUE(frames.ok());
+  for (const auto& frame : *frames) first.push_back(decodeMessage(frame).value());
+  auto sender = f.sender(id);
+  for (int i = 0; i < 20 && !client.synced(); ++i, now += 0.05) {
+    for (const auto& d : sender->poll(now)) (void)client.onDatagram(d, now);
+  }
+  EXPECT_TRUE(client.synced());
+  client.close();
+  return first;
+}
+
+TEST(ResumeClient, ResumesFromTheSessionBeforeAndNotWithAnOlderServer) {
+  TwoVersions f(42);
+  ClientSession client(ClientSessionOptions{});
+  double now = 0;
+  std::uint64_t heldEpoch = 0;
+  runSession(client, f, kProtocolVersion, 1, now, heldEpoch);
+  EXPECT_EQ(heldEpoch, 0u);  // a new client holds nothing
+  EXPECT_EQ(client.stats().resumes, 0u);
+
+  // The next session names the field it holds, resumes and says so first.
+  const auto first = runSession(client, f, kProtocolVersion, 2, now, heldEpoch);
+  EXPECT_EQ(heldEpoch, 42u);
+  EXPECT_EQ(client.stats().resumes, 1u);
+  ASSERT_FALSE(first.empty());
+  const auto* resume = std::get_if<ResumeMsg>(&first.front());
+  ASSERT_NE(resume, nullptr) << "first frame: " << sessionMessageName(first.front());
+  EXPECT_EQ(resume->brickCount, std::uint32_t(f.total));
+  EXPECT_EQ(resume->fieldEpoch, 42u);
+
+  // A version 6 server knows no Resume: none is sent, and the session starts from nothing.
+  const auto older = runSession(client, f, kResumeVersion - 1, 3, now, heldEpoch);
+  for (const SessionMessage& m : older)
+    EXPECT_FALSE(std::holds_alternative<ResumeMsg>(m)) << "a Resume to a version 6 server";
+  EXPECT_EQ(client.stats().resumes, 1u);
 }
 
 // Servers of one field (one hub, hence one epoch and the same versions) or of two, over
