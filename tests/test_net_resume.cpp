@@ -64,6 +64,7 @@ TEST(ResumeState, IsCompactForALargeField) {
   std::mt19937_64 rng(5);
   for (int b = 0; b < 60000; ++b) held[0].push_back(HeldBrick{100000 + rng() % 4000, 0});
   const std::vector<std::uint8_t> frame = encodeMessage(resumeMessage(1, 2, held));
+  std::printf("Resume of 60,000 bricks: %zu bytes\n", frame.size());
   EXPECT_LT(frame.size(), 60000u * 3) << "bytes per brick: " << double(frame.size()) / 60000;
   auto back = heldBricksOf(decoded(resumeMessage(1, 2, held)), sizesOf(held));
   ASSERT_TRUE(back.ok());
