@@ -263,13 +263,21 @@ void ClientSession::resume() {
   // A version 7 server whose Hello named an epoch waits for the Resume: it always gets one,
   // empty (holding nothing) where the field is another.
   if (spokenVersion_ < kResumeVersion || heldEpoch_ == 0) return;
-  ResumeMsg claim;  // nothing
-  if (kept && keptInfo_.fieldEpoch == info_.fieldEpoch && keptInfo_.sceneHash == info_.sceneHash &&
-      receiver_->adoptHeld(std::move(*kept))) {
-    claim = resumeMessage(info_.sceneHash, info_.fieldEpoch, receiver_->heldBricks());
-    ++stats_.resumes;
+  resumeFrame_ = encodeMessage(ResumeMsg{});  // nothing
+  if (!kept || keptInfo_.fieldEpoch != info_.fieldEpoch || keptInfo_.sceneHash != info_.sceneHash ||
+      !receiver_->adoptHeld(std::move(*kept)))
+    return;
+  std::vector<std::uint8_t> claim =
+      encodeMessage(resumeMessage(info_.sceneHash, info_.fieldEpoch, receiver_->heldBricks()));
+  if (claim.size() > kMaxResumeFrameBytes) {
+    // Only a field of tens of thousands of bricks at scattered versions and precisions comes
+    // near this, which the queue to the server could not take: start from nothing instead.
+    auto fresh = StreamReceiver::create(info_, sessionId_, options_.receiver);
+    if (fresh) receiver_.emplace(std::move(fresh).value());
+    return;
   }
-  resumeFrame_ = encodeMessage(claim);
+  resumeFrame_ = std::move(claim);
+  ++stats_.resumes;
 }
 
 Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now,

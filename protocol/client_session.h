@@ -45,6 +45,10 @@ std::uint64_t mirrorMemoryBytes(const SessionInfoMsg& info);
 // A client sends only small messages: more than this queued for the server means the server
 // is not reading, and the caller ends the session.
 inline constexpr std::size_t kMaxClientQueuedBytes = 1u << 20;
+// The largest Resume a client sends (half its queue): a claim over it is sent as holding
+// nothing. A Resume takes about 2 bytes per brick, at most 16 (8 of versions that do not
+// compress, 8 of a precision exception).
+inline constexpr std::size_t kMaxResumeFrameBytes = kMaxClientQueuedBytes / 2;
 // UDP datagrams that arrive between the Hello and SessionInfo (the server sends them as soon
 // as the Hello is in, while Welcome and SessionInfo are still on their way over TCP) are kept
 // for the session's receiver, this many at most.
