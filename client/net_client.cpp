@@ -38,19 +38,6 @@ asio::steady_timer::duration toDuration(double seconds) {
 // fallback files carry versions far below this.
 constexpr std::uint64_t kFirstMirrorVersion = std::uint64_t(1) << 40;
 
-bool sameLayout(const gpu::FieldDesc& a, const gpu::FieldDesc& b) {
-  if (a.cascadeCount != b.cascadeCount || a.probeCount != b.probeCount ||
-      a.atlasTileRows != b.atlasTileRows)
-    return false;
-  for (int k = 0; k < a.cascadeCount; ++k) {
-    const gpu::CascadeDesc &x = a.cascades[k], &y = b.cascades[k];
-    if (x.counts != y.counts || x.firstProbe != y.firstProbe || x.atlasTileRow != y.atlasTileRow ||
-        x.origin != y.origin || x.spacing != y.spacing || x.scroll != y.scroll)
-      return false;
-  }
-  return true;
-}
-
 ClientSessionOptions sessionOptions(const NetClientOptions& o) {
   ClientSessionOptions s;
   s.token = o.token;
@@ -60,6 +47,7 @@ ClientSessionOptions sessionOptions(const NetClientOptions& o) {
   s.poseInterval = o.poseInterval;
   s.maxMirrorBytes = o.maxMirrorBytes;
   s.uplinkDatagrams = !o.tcpOnly;
+  s.resume = o.resume;
   s.receiver = o.receiver;
   return s;
 }

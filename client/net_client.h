@@ -41,7 +41,9 @@ struct NetClientOptions {
   bool tls = true;
   std::string serverFingerprint;
   std::string caFile;
-  bool tcpOnly = false;                // ask for datagrams over TCP
+  bool tcpOnly = false;  // ask for datagrams over TCP
+  // A new session resumes from what the mirror holds (ClientSessionOptions::resume).
+  bool resume = true;
   std::uint16_t udpAdvertisePort = 0;  // port the server should send datagrams to (a relay in
                                        // front of this client); 0: this client's own port
   // Port to send acks and repair requests to as datagrams, at the server's address, instead of

@@ -111,6 +111,19 @@ Field Field::create(const std::vector<ProbeVolume>& volumes, const FieldSettings
   return f;
 }
 
+bool sameLayout(const gpu::FieldDesc& a, const gpu::FieldDesc& b) {
+  if (a.cascadeCount != b.cascadeCount || a.probeCount != b.probeCount ||
+      a.atlasTileRows != b.atlasTileRows)
+    return false;
+  for (int k = 0; k < a.cascadeCount; ++k) {
+    const gpu::CascadeDesc &x = a.cascades[k], &y = b.cascades[k];
+    if (x.counts != y.counts || x.firstProbe != y.firstProbe || x.atlasTileRow != y.atlasTileRow ||
+        x.origin != y.origin || x.spacing != y.spacing || x.scroll != y.scroll)
+      return false;
+  }
+  return true;
+}
+
 int Field::probeCount() const {
   int n = 0;
   for (int k = 0; k < desc.cascadeCount; ++k) {

@@ -75,6 +75,10 @@ class Field {
   void fixBorders(int k, int slot);
 };
 
+// Whether two fields lay out their probes alike (cascades, counts, origins, spacing, scroll,
+// atlas places): a brick of one then means the same probes in the other.
+bool sameLayout(const gpu::FieldDesc& a, const gpu::FieldDesc& b);
+
 // Irradiance (rgb, W/m^2) and occlusion (a) at surface point P with normal N, seen from
 // direction V (unit, towards the viewer). Uses the shared sampling code of
 // shaders/interop/probe_sampling.h. `coverage` < 1 where no cascade holds data.

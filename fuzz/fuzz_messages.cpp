@@ -1,7 +1,8 @@
 // Session messages (protocol/session_messages.h): decodeMessage on any bytes returns a message
 // or an Error, never crashes. A decoded message survives re-encoding unchanged, and goes
 // through what a peer does with it next (the hello check, the client's mirror field built from
-// the layout message, the scene state applied to the built-in scene).
+// the layout message, the scene state applied to the built-in scene, a resume claim read as a
+// field of the bricks it claims).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -9,6 +10,7 @@
 
 #include "common/scene.h"
 #include "fuzz_support.h"
+#include "protocol/resume_state.h"
 #include "protocol/session_messages.h"
 
 namespace {
@@ -44,6 +46,10 @@ void useMessage(const SessionMessage& m) {
         if (mirror->cascadeCount() != int(info->cascades.size())) std::abort();
       }
     }
+  } else if (const auto* resume = std::get_if<ResumeMsg>(&m)) {
+    // A field of exactly the claimed bricks, so that the versions are decompressed and read.
+    auto held = heldBricksOf(*resume, {resume->brickCount});
+    if (held && held->front().size() != resume->brickCount) std::abort();
   } else if (const auto* state = std::get_if<SceneStateMsg>(&m)) {
     static const Scene scene = builtinScene();
     SceneState s = evaluateScene(scene, 0.0);

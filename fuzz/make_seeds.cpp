@@ -16,6 +16,7 @@
 #include "protocol/connect_token.h"
 #include "protocol/datagram.h"
 #include "protocol/datagram_seal.h"
+#include "protocol/resume_state.h"
 #include "protocol/secure_io.h"
 #include "protocol/session_messages.h"
 
@@ -63,6 +64,10 @@ void messages() {
   RepairRequestMsg repair;
   repair.bricks = {{0, 1, 2}, {1, 0, 0}};
   write("messages", "repair", encodeMessage(repair));
+  HeldBricks held(2);
+  for (std::uint64_t b = 0; b < 8; ++b) held[0].push_back(HeldBrick{900 + b % 3, b == 2 ? 2 : 0});
+  held[1].assign(4, HeldBrick{870, 0});
+  write("messages", "resume", encodeMessage(resumeMessage(0x5eed, 0x1234567, held)));
 }
 
 // Datagram seeds hold the body without its CRC: the target appends a valid one.

@@ -412,6 +412,9 @@ void Client::endSession(double now, const std::string& error) {
   if (state_ == State::Session || state_ == State::Connecting) ++gen_.sessionsEnded;
   synced_ = false;
   session_.close();
+  // Churn stands for a new client joining, which holds nothing; a lost connection (a relay
+  // killed) resumes on the next endpoint from what the session held.
+  if (error.empty()) session_.forgetHeld();
   writes_.clear();
   queuedBytes_ = 0;
   writing_ = false;

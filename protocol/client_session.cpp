@@ -5,6 +5,7 @@
 #include "common/log.h"
 #include "protocol/brick_codec.h"
 #include "protocol/net_framing.h"
+#include "protocol/resume_state.h"
 
 namespace pc {
 
@@ -74,12 +75,23 @@ std::vector<std::uint8_t> ClientSession::connected(double now, std::uint16_t udp
   hello.clientName = options_.name;
   hello.wantsUdp = udpPort != 0;
   hello.udpPort = udpPort;
+  // The field the previous session left (if any): a server of the same epoch waits for the
+  // Resume that says what of it this client holds.
+  heldEpoch_ = keptReceiver_ ? keptInfo_.fieldEpoch : 0;
+  hello.heldEpoch = heldEpoch_;
   return encodeMessage(hello);
 }
 
 void ClientSession::close() {
   phase_ = SessionPhase::Idle;
+  // What the session held stays for the next one to resume from (protocol version 7): the
+  // brick versions and their codes, the bases of the residuals the next server may send.
+  if (receiver_ && options_.resume && info_.fieldEpoch != 0) {
+    keptReceiver_ = std::move(receiver_);
+    keptInfo_ = info_;
+  }
   receiver_.reset();
+  resumeFrame_.clear();
   frame_ = {};  // released: a server may have sent one frame of megabytes
   frameBytes_ = 0;
   early_.clear();
@@ -156,7 +168,9 @@ Status ClientSession::onFrame(std::span<const std::uint8_t> frame, double now) {
 Status ClientSession::onMessage(SessionMessage& message, double now) {
   const std::string name = sessionMessageName(message);
   if (std::holds_alternative<HelloMsg>(message) || std::holds_alternative<ViewerPoseMsg>(message) ||
-      std::holds_alternative<AckMsg>(message) || std::holds_alternative<RepairRequestMsg>(message))
+      std::holds_alternative<AckMsg>(message) ||
+      std::holds_alternative<RepairRequestMsg>(message) ||
+      std::holds_alternative<ResumeMsg>(message))
     return fail(name + " from the server: only a client sends it");
   if (const auto* reject = std::get_if<RejectMsg>(&message)) {
     ++stats_.rejects;
@@ -215,6 +229,7 @@ Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
   if (!created) return fail(created.error().message);  // mirrorField names "session info"
   receiver_.emplace(std::move(created).value());
   info_ = info;
+  resume();
   const Field& layout = receiver_->field();
   held_.assign(std::size_t(layout.cascadeCount()), {});
   changed_.assign(std::size_t(layout.cascadeCount()), {});
@@ -223,11 +238,15 @@ Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
     held_[k].assign(layout.brickVersions[k].size(), false);
     changed_[k].assign(layout.brickVersions[k].size(), false);
     bricksTotal_ += int(layout.brickVersions[k].size());
+    for (std::size_t b = 0; b < layout.brickVersions[k].size(); ++b) {
+      held_[k][b] = receiver_->brickVersion(k, int(b)) != 0;  // resumed
+      bricksHeld_ += held_[k][b];
+    }
   }
   changedList_.clear();
   lastApplied_ = 0;
-  synced_ = false;
-  syncSeconds_ = -1;
+  synced_ = bricksHeld_ == bricksTotal_;
+  syncSeconds_ = synced_ ? now - connectStartedAt_ : -1;
   lastPoseAt_ = -1e30;  // the server learns the viewer at once
   phase_ = SessionPhase::Streaming;
   ++stats_.sessions;
@@ -236,6 +255,29 @@ Status ClientSession::onSessionInfo(const SessionInfoMsg& info, double now) {
   early_.clear();
   for (const auto& [d, port] : early) (void)handleDatagram(d, now, port);
   return Status::success();
+}
+
+void ClientSession::resume() {
+  std::optional<StreamReceiver> kept = std::move(keptReceiver_);
+  keptReceiver_.reset();
+  // A version 7 server whose Hello named an epoch waits for the Resume: it always gets one,
+  // empty (holding nothing) where the field is another.
+  if (spokenVersion_ < kResumeVersion || heldEpoch_ == 0) return;
+  resumeFrame_ = encodeMessage(ResumeMsg{});  // nothing
+  if (!kept || keptInfo_.fieldEpoch != info_.fieldEpoch || keptInfo_.sceneHash != info_.sceneHash ||
+      !receiver_->adoptHeld(std::move(*kept)))
+    return;
+  std::vector<std::uint8_t> claim =
+      encodeMessage(resumeMessage(info_.sceneHash, info_.fieldEpoch, receiver_->heldBricks()));
+  if (claim.size() > kMaxResumeFrameBytes) {
+    // Only a field of tens of thousands of bricks at scattered versions and precisions comes
+    // near this, which the queue to the server could not take: start from nothing instead.
+    auto fresh = StreamReceiver::create(info_, sessionId_, options_.receiver);
+    if (fresh) receiver_.emplace(std::move(fresh).value());
+    return;
+  }
+  resumeFrame_ = std::move(claim);
+  ++stats_.resumes;
 }
 
 Status ClientSession::onDatagram(std::span<const std::uint8_t> bytes, double now,
@@ -357,6 +399,9 @@ Result<std::vector<std::vector<std::uint8_t>>> ClientSession::poll(double now) {
       return true;
     });
   }
+  // The Resume before anything else on the stream (the acks of the held versions follow it).
+  if (!resumeFrame_.empty()) out.insert(out.begin(), std::move(resumeFrame_));
+  resumeFrame_.clear();
   if (viewer_ && poseDue(now)) {
     ViewerPoseMsg pose = *viewer_;
     pose.time = clock_.at(now).value_or(0.0);

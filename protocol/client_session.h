@@ -45,6 +45,10 @@ std::uint64_t mirrorMemoryBytes(const SessionInfoMsg& info);
 // A client sends only small messages: more than this queued for the server means the server
 // is not reading, and the caller ends the session.
 inline constexpr std::size_t kMaxClientQueuedBytes = 1u << 20;
+// The largest Resume a client sends (half its queue): a claim over it is sent as holding
+// nothing. A Resume takes about 2 bytes per brick, at most 16 (8 of versions that do not
+// compress, 8 of a precision exception).
+inline constexpr std::size_t kMaxResumeFrameBytes = kMaxClientQueuedBytes / 2;
 // UDP datagrams that arrive between the Hello and SessionInfo (the server sends them as soon
 // as the Hello is in, while Welcome and SessionInfo are still on their way over TCP) are kept
 // for the session's receiver, this many at most.
@@ -77,6 +81,10 @@ struct ClientSessionOptions {
   // takeUplinkDatagrams() returns to uplinkPort() at the server's address. False: always over
   // the session stream (callers without a UDP socket).
   bool uplinkDatagrams = false;
+  // The next session resumes from what this one held (protocol version 7, PROTOCOL.md
+  // "Resuming a session"): a server of the same field sends only what is newer. The previous
+  // receiver is kept between sessions for it (the memory a session holds anyway).
+  bool resume = true;
   ReceiverOptions receiver;
 };
 
@@ -121,6 +129,7 @@ struct ClientSessionStats {
   // Acks and repair requests handed out as datagrams (takeUplinkDatagrams), and those that
   // went over the stream instead for their size (over kMaxUplinkFrameBytes).
   std::uint64_t uplinkDatagrams = 0, uplinkTooLarge = 0;
+  std::uint64_t resumes = 0;  // sessions that took the previous session's bricks
 };
 
 // The server's animation clock as a client sees it: the latest scene state's time, run on at
@@ -154,8 +163,11 @@ class ClientSession {
   // The connection is open: the Hello frame, to send before anything else. udpPort 0 asks for
   // datagrams over the TCP stream.
   std::vector<std::uint8_t> connected(double now, std::uint16_t udpPort);
-  // The connection is gone or was closed: the session's receiver is released.
+  // The connection is gone or was closed: the session's receiver is released, or kept for the
+  // next session to resume from (ClientSessionOptions::resume).
   void close();
+  // The next session starts from nothing, as a new client's (a kept receiver is released).
+  void forgetHeld() { keptReceiver_.reset(); }
 
   // Bytes read from the TCP stream, in any pieces: each frame is handled once it is whole,
   // its size checked from its prefix before the body is awaited. An Error ends the session.
@@ -222,6 +234,9 @@ class ClientSession {
   bool connectedPhase() const;
   // Starts sending acks as datagrams once the session may (see uplinkDatagrams).
   void startUplink();
+  // After SessionInfo: takes the previous session's bricks where the field is the same, and
+  // makes the Resume a version 7 server waits for.
+  void resume();
 
   ClientSessionOptions options_;
   SessionPhase phase_ = SessionPhase::Idle;
@@ -231,6 +246,12 @@ class ClientSession {
   std::uint16_t serverUdpPort_ = 0;  // source port of the first datagram accepted; 0: none yet
   SessionInfoMsg info_;
   std::optional<StreamReceiver> receiver_;
+  // The previous session's receiver and layout, until the next SessionInfo resumes from it;
+  // the epoch the Hello named; the Resume to send first.
+  std::optional<StreamReceiver> keptReceiver_;
+  SessionInfoMsg keptInfo_;
+  std::uint64_t heldEpoch_ = 0;
+  std::vector<std::uint8_t> resumeFrame_;
   std::vector<std::uint8_t> frame_;  // the TCP frame being read, prefix first
   std::size_t frameBytes_ = 0;       // its whole size, once the prefix is in
   std::deque<std::pair<std::vector<std::uint8_t>, std::uint16_t>> early_;  // with source port

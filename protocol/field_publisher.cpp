@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <random>
 #include <string>
 
 #include "protocol/brick_precision.h"
@@ -32,6 +33,12 @@ std::size_t versionsKept(const PublisherOptions& o) {
 std::size_t cacheBound(const PublisherOptions& o, std::size_t bricks) {
   return std::min(o.maxCacheBytes, bricks * versionsKept(o) * maxEncodedBrickBytes());
 }
+
+// A fresh run's epoch: random, never 0 (which means "not stated").
+std::uint64_t drawEpoch() {
+  std::random_device rd;
+  return (std::uint64_t(rd()) << 32 | rd()) | 1u;
+}
 }  // namespace
 
 FieldPublisher::FieldPublisher(const Field& layout, PublisherOptions options)
@@ -46,6 +53,7 @@ FieldPublisher::FieldPublisher(const Field& layout, PublisherOptions options)
     for (auto& h : bricks_[k]) h.push_back(BrickVersion{});
     published_[k].resize(bricks_[k].size());
   }
+  info_.fieldEpoch = options_.epoch != 0 ? options_.epoch : drawEpoch();
 }
 
 std::size_t FieldPublisher::historyBoundBytes() const {

@@ -44,6 +44,9 @@ struct PublisherOptions {
   // Codes that moved less than this since the brick's previous version keep their previous
   // value (see holdSmallChanges); zero (the default) quantizes every version exactly.
   DeadZone deadZone;
+  // The run's field epoch (SessionInfoMsg::fieldEpoch); 0: drawn at random. A relay passes on
+  // its field server's, so that clients resume across the endpoints of one run.
+  std::uint64_t epoch = 0;
 };
 
 // Bricks of one field update, quantized (and held by the dead zone) but not yet published.

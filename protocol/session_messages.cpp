@@ -3,6 +3,7 @@
 #include "session_messages.h"
 
 #include <flatbuffers/flatbuffers.h>
+#include <zstd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -40,7 +41,8 @@ struct Encoder {
   fb::Offset<void> operator()(const HelloMsg& m) {
     auto token = fbb.CreateString(m.authToken);
     auto name = fbb.CreateString(m.clientName);
-    return net::CreateHello(fbb, m.protocolVersion, token, name, m.wantsUdp, m.udpPort).Union();
+    return net::CreateHello(fbb, m.protocolVersion, token, name, m.wantsUdp, m.udpPort, m.heldEpoch)
+        .Union();
   }
   fb::Offset<void> operator()(const WelcomeMsg& m) {
     return net::CreateWelcome(fbb, m.protocolVersion, m.sessionId).Union();
@@ -78,6 +80,7 @@ struct Encoder {
     b.add_codecs(fb::Offset<fb::Vector<net::Codec>>(codecsOff.o));
     b.add_max_datagram_bytes(m.maxDatagramBytes);
     b.add_uplink_port(m.uplinkPort);
+    b.add_field_epoch(m.fieldEpoch);
     return b.Finish().Union();
   }
   fb::Offset<void> operator()(const SceneStateMsg& m) {
@@ -160,6 +163,17 @@ struct Encoder {
     }
     return net::CreateRepairRequest(fbb, refsOff, precisionsOff).Union();
   }
+  fb::Offset<void> operator()(const ResumeMsg& m) {
+    auto versionsOff = fbb.CreateVector(m.versions);
+    std::vector<net::BrickPrecision> precisions;
+    precisions.reserve(m.precisions.size());
+    for (const BrickPrecisionMsg& p : m.precisions)
+      precisions.emplace_back(p.brick, std::uint8_t(p.cascade), std::uint8_t(p.precision));
+    auto precisionsOff = fbb.CreateVectorOfStructs(precisions);
+    return net::CreateResume(fbb, m.sceneHash, m.fieldEpoch, m.brickCount, versionsOff,
+                             precisionsOff)
+        .Union();
+  }
 };
 
 net::Body bodyType(const SessionMessage& m) {
@@ -183,6 +197,7 @@ Result<SessionMessage> decodeSessionInfo(const net::SessionInfo& w) {
   m.occlusionDistance = w.occlusion_distance();
   m.maxDatagramBytes = w.max_datagram_bytes();
   m.uplinkPort = w.uplink_port();
+  m.fieldEpoch = w.field_epoch();
   if (w.cascades() && w.cascades()->size() > std::size_t(PC_MAX_CASCADES)) {
     return fail("session info: " + std::to_string(w.cascades()->size()) + " cascades, at most " +
                 std::to_string(PC_MAX_CASCADES) + " supported");
@@ -211,6 +226,42 @@ Result<SessionMessage> decodeSessionInfo(const net::SessionInfo& w) {
   return SessionMessage(std::move(m));
 }
 
+// Bounded here, before anything else reads it: the brick count by the largest field a layout
+// may have, the compressed versions by what zstd makes of one uint64 per brick at worst, one
+// precision per brick. resume_state.h checks the rest against the field.
+Result<SessionMessage> decodeResume(const net::Resume& w) {
+  ResumeMsg m;
+  m.sceneHash = w.scene_hash();
+  m.fieldEpoch = w.field_epoch();
+  m.brickCount = w.brick_count();
+  if (m.brickCount > kMaxResumeBricks) {
+    return fail("resume: " + std::to_string(m.brickCount) + " bricks (at most " +
+                std::to_string(kMaxResumeBricks) + ")");
+  }
+  if (w.versions()) {
+    const std::size_t bound = ZSTD_COMPRESSBOUND(std::size_t(m.brickCount) * 8);
+    if (w.versions()->size() > bound) {
+      return fail("resume: " + std::to_string(w.versions()->size()) + " bytes of versions for " +
+                  std::to_string(m.brickCount) + " bricks (at most " + std::to_string(bound) + ")");
+    }
+    m.versions.assign(w.versions()->begin(), w.versions()->end());
+  }
+  if (w.precisions()) {
+    if (w.precisions()->size() > m.brickCount) {
+      return fail("resume: " + std::to_string(w.precisions()->size()) + " precisions for " +
+                  std::to_string(m.brickCount) + " bricks");
+    }
+    for (const net::BrickPrecision* p : *w.precisions()) {
+      if (p->precision() > kMaxPrecision) {
+        return fail("resume: precision level " + std::to_string(p->precision()) +
+                    " (the coarsest is " + std::to_string(kMaxPrecision) + ")");
+      }
+      m.precisions.push_back(BrickPrecisionMsg{p->cascade(), p->brick(), p->precision()});
+    }
+  }
+  return SessionMessage(std::move(m));
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> encodeMessage(const SessionMessage& message) {
@@ -222,9 +273,9 @@ std::vector<std::uint8_t> encodeMessage(const SessionMessage& message) {
 }
 
 const char* sessionMessageName(const SessionMessage& message) {
-  constexpr const char* kNames[] = {"Hello",       "Welcome",       "Reject",
-                                    "SessionInfo", "SceneState",    "ViewerPose",
-                                    "Ack",         "RepairRequest", "StreamReport"};
+  constexpr const char* kNames[] = {"Hello",        "Welcome",    "Reject", "SessionInfo",
+                                    "SceneState",   "ViewerPose", "Ack",    "RepairRequest",
+                                    "StreamReport", "Resume"};
   static_assert(std::size(kNames) == std::variant_size_v<SessionMessage>);
   return kNames[message.index()];
 }
@@ -278,6 +329,7 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
       m.clientName = str(w->client_name());
       m.wantsUdp = w->wants_udp();
       m.udpPort = w->udp_port();
+      m.heldEpoch = w->held_epoch();
       return SessionMessage(std::move(m));
     }
     case net::Body::Welcome: {
@@ -452,6 +504,8 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
         return fail("stream report: values not finite");
       return SessionMessage(m);
     }
+    case net::Body::Resume:
+      return decodeResume(*root->body_as_Resume());
     case net::Body::NONE:
       break;
   }

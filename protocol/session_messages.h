@@ -31,6 +31,8 @@ struct HelloMsg {
   std::string clientName;
   bool wantsUdp = true;
   std::uint16_t udpPort = 0;
+  // Protocol version 7: the field epoch of what the client's mirror holds (0: none).
+  std::uint64_t heldEpoch = 0;
 };
 
 struct WelcomeMsg {
@@ -59,6 +61,9 @@ struct SessionInfoMsg {
   // The server's UDP port for this session's acks and repair requests (protocol version 6,
   // uplink_datagram.h); 0: they go over the session stream.
   std::uint16_t uplinkPort = 0;
+  // The field server run this field comes from (protocol version 7; 0: not stated): brick
+  // versions of one epoch name the same content on every endpoint serving it.
+  std::uint64_t fieldEpoch = 0;
 };
 
 struct LightStateMsg {
@@ -154,8 +159,22 @@ struct StreamReportMsg {
   std::uint64_t fieldVersion = 0;
 };
 
-using SessionMessage = std::variant<HelloMsg, WelcomeMsg, RejectMsg, SessionInfoMsg, SceneStateMsg,
-                                    ViewerPoseMsg, AckMsg, RepairRequestMsg, StreamReportMsg>;
+// The most bricks a Resume may claim: a layout holds at most 4M probe slots (mirrorField), 64
+// to a brick.
+inline constexpr std::uint32_t kMaxResumeBricks = (4u << 20) / 64;
+
+// What a client's mirror holds, for a session on another endpoint of the same field (protocol
+// version 7; resume_state.h builds and reads it).
+struct ResumeMsg {
+  std::uint64_t sceneHash = 0, fieldEpoch = 0;
+  std::uint32_t brickCount = 0;               // every brick of the field, or 0: nothing held
+  std::vector<std::uint8_t> versions;         // zstd frame of brickCount uint64, as 8 byte planes
+  std::vector<BrickPrecisionMsg> precisions;  // bricks held at a level above 0
+};
+
+using SessionMessage =
+    std::variant<HelloMsg, WelcomeMsg, RejectMsg, SessionInfoMsg, SceneStateMsg, ViewerPoseMsg,
+                 AckMsg, RepairRequestMsg, StreamReportMsg, ResumeMsg>;
 
 // The message's name as the schema spells it ("Hello", "SessionInfo", ...), for errors.
 const char* sessionMessageName(const SessionMessage& message);

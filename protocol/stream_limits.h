@@ -23,7 +23,11 @@ namespace pc {
 // SessionInfo names (uplink_datagram.h), sealed with the session's client->server key, and
 // repeats in each ack the changes and arrivals of the two before it; a version 4 or 5 client
 // acks over the stream as before, and its SessionInfo names no port.
-inline constexpr std::uint32_t kProtocolVersion = 6;
+// Version 7: session resume. The Hello names the field epoch the client's mirror holds, the
+// SessionInfo the server's, and the client says what it holds in a Resume (a union member a
+// version 6 server does not know, so it is sent only to version 7 servers); older clients get
+// the whole field, as before.
+inline constexpr std::uint32_t kProtocolVersion = 7;
 inline constexpr std::uint32_t kMinProtocolVersion = 4;
 // The first version whose clients report arrivals and take StreamReport.
 inline constexpr std::uint32_t kCongestionControlVersion = 3;
@@ -31,6 +35,8 @@ inline constexpr std::uint32_t kCongestionControlVersion = 3;
 inline constexpr std::uint32_t kPrecisionLevelsVersion = 5;
 // The first version whose clients send acks and repair requests as datagrams.
 inline constexpr std::uint32_t kUplinkDatagramsVersion = 6;
+// The first version whose clients and servers resume sessions (Resume, epochs).
+inline constexpr std::uint32_t kResumeVersion = 7;
 
 // UDP datagrams never exceed this (fits the IPv6 minimum MTU of 1280 with headers).
 inline constexpr std::size_t kMaxDatagramBytes = 1200;

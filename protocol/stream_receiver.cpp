@@ -56,6 +56,44 @@ std::vector<std::pair<int, int>> StreamReceiver::takeChangedBricks() {
 
 void StreamReceiver::requestRepair(BrickState& b) { b.wantRepair = true; }
 
+bool StreamReceiver::adoptHeld(StreamReceiver&& previous) {
+  if (!sameLayout(previous.field_.desc, field_.desc) || previous.bricks_.size() != bricks_.size())
+    return false;
+  for (std::size_t k = 0; k < bricks_.size(); ++k) {
+    if (previous.bricks_[k].size() != bricks_[k].size()) return false;
+  }
+  // The atlases and probe records as the previous session left them: the mirror's content.
+  field_ = std::move(previous.field_);
+  field_.version = 0;
+  for (int k = 0; k < int(bricks_.size()); ++k) {
+    for (std::size_t i = 0; i < bricks_[k].size(); ++i) {
+      BrickState& b = bricks_[k][i];
+      BrickState& held = previous.bricks_[k][i];
+      b = BrickState{};
+      // A version past what this server announced is one it would not take as held (a relay
+      // behind the one before): the brick starts from nothing, as the server sees it.
+      if (held.version != 0 && held.version <= announcedVersion_) {
+        b.version = held.version;
+        b.precision = held.precision;
+        b.appliedAt = held.appliedAt;
+        b.content = std::move(held.content);
+      }
+      field_.brickVersions[k][i] = b.version;
+      field_.version = std::max(field_.version, b.version);
+    }
+  }
+  return true;
+}
+
+HeldBricks StreamReceiver::heldBricks() const {
+  HeldBricks held(bricks_.size());
+  for (std::size_t k = 0; k < bricks_.size(); ++k) {
+    held[k].reserve(bricks_[k].size());
+    for (const BrickState& b : bricks_[k]) held[k].push_back(HeldBrick{b.version, b.precision});
+  }
+  return held;
+}
+
 void StreamReceiver::announceFieldVersion(std::uint64_t version) {
   announcedVersion_ = std::max(announcedVersion_, version);
 }

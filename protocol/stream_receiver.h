@@ -22,6 +22,7 @@
 #include "common/result.h"
 #include "protocol/brick_codec.h"
 #include "protocol/datagram.h"
+#include "protocol/resume_state.h"
 #include "protocol/session_messages.h"
 
 namespace pc {
@@ -103,6 +104,13 @@ class StreamReceiver {
 
   // Session message frames to send to the server now (Ack, RepairRequest).
   std::vector<std::vector<std::uint8_t>> poll(double now);
+  // Takes what `previous` (a receiver of an earlier session) holds, when its layout is this
+  // one's: the atlases, and per brick the version, precision and codes (the bases of
+  // residuals), except versions past the field version this server announced, which it would
+  // not take as held. False (nothing taken) for another layout.
+  bool adoptHeld(StreamReceiver&& previous);
+  // Every brick's version and precision, for a Resume.
+  HeldBricks heldBricks() const;
   // ReceiverOptions::ackRepeats from now on (acks that start to travel as datagrams).
   void setAckRepeats(int repeats) { options_.ackRepeats = std::max(0, repeats); }
 

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <string>
 
+#include "protocol/resume_state.h"
+
 namespace pc {
 
 namespace {
@@ -206,6 +208,8 @@ Status StreamSender::onMessage(const SessionMessage& message, double now) {
     s = onRepair(*repair);
   } else if (const auto* pose = std::get_if<ViewerPoseMsg>(&message)) {
     viewer_ = pose->position;
+  } else if (const auto* resume = std::get_if<ResumeMsg>(&message)) {
+    s = onResume(*resume, now);
   } else {
     s = Error{"stream sender: unexpected message type from the client"};
   }
@@ -320,6 +324,47 @@ Status StreamSender::onRepair(const RepairRequestMsg& repair) {
     t.ackedPrecision = r.haveVersion != 0 ? r.havePrecision : 0;
     t.repair = true;
     t.sent = 0;  // not in flight any more: what was sent did not help
+  }
+  return Status::success();
+}
+
+Status StreamSender::onResume(const ResumeMsg& resume, double now) {
+  if (resumeHeard_) return Error{"resume: a second Resume"};
+  resumeHeard_ = true;
+  awaitResumeUntil_ = -1;  // the wait is over either way
+  const SessionInfoMsg& info = publisher_.sessionInfo();
+  if (resume.brickCount == 0) return Status::success();  // holds nothing
+  // Versions of another run, or of another scene, name other content: the client holds
+  // nothing this sender can build on, and gets the whole field as a new client does.
+  if (info.fieldEpoch == 0 || resume.fieldEpoch != info.fieldEpoch ||
+      resume.sceneHash != info.sceneHash) {
+    ++stats_.resumeMismatches;
+    return Status::success();
+  }
+  std::vector<std::size_t> bricks;
+  for (const auto& cascade : tracks_) bricks.push_back(cascade.size());
+  auto held = heldBricksOf(resume, bricks);
+  if (!held) return held.error();  // nothing changed
+  ++stats_.resumes;
+  for (int k = 0; k < int(tracks_.size()); ++k) {
+    for (int b = 0; b < int(tracks_[k].size()); ++b) {
+      const HeldBrick& h = (*held)[k][b];
+      if (h.version == 0) continue;
+      // A version past this sender's newest cannot be checked against anything it holds (a
+      // relay that is behind, or a lie): the client counts as holding nothing of the brick.
+      if (h.version > publisher_.current(k, b).version) {
+        ++stats_.resumeRefusedBricks;
+        continue;
+      }
+      Track& t = tracks_[k][b];
+      t.acked = h.version;
+      t.ackedPrecision = h.precision;
+      // Residuals go on the held version while the publisher has it (the same content on
+      // every endpoint of this epoch); otherwise poll() falls back to self-contained. The
+      // self-contained interval, a safety net, runs from here.
+      t.selfContainedAt = now;
+      ++stats_.resumedBricks;
+    }
   }
   return Status::success();
 }
@@ -448,6 +493,19 @@ void StreamSender::adjustQuality(double now) {
 
 std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
   std::vector<std::vector<std::uint8_t>> out;
+  if (now < awaitResumeUntil_) {
+    // The client's Resume is on its way: bricks sent now would mostly be ones it holds. Only
+    // heartbeats, which tell it the field version and that the server is alive.
+    if (now - lastDatagramAt_ >= options_.heartbeatInterval) {
+      out.push_back(encodeDatagram(sessionId_, sequence_, publisher_.fieldVersion(), {}));
+      if (options_.congestionControl) rate_.onSent(sequence_, out.back().size(), now);
+      ++sequence_;
+      lastDatagramAt_ = now;
+      ++stats_.datagrams;
+      stats_.bytes += out.back().size();
+    }
+    return out;
+  }
   const double rate = sendRate();
   // With congestion control the bucket is a pacer: it holds a few milliseconds at the rate.
   const double burst =

@@ -127,7 +127,11 @@ struct SenderStats {
   } reasons;
   std::uint64_t coarseUpdates = 0;  // updates sent at a precision level above 0
   std::uint64_t badMessages = 0;
-  std::uint64_t aged = 0;       // updates sent because a change reached the age bound's lead
+  std::uint64_t aged = 0;  // updates sent because a change reached the age bound's lead
+  // Resume (protocol version 7): claims of this field taken, claims of another field (taken
+  // as holding nothing), bricks taken as held, and bricks refused for a version past the
+  // newest here.
+  std::uint64_t resumes = 0, resumeMismatches = 0, resumedBricks = 0, resumeRefusedBricks = 0;
   double srtt = 0, rttvar = 0;  // smoothed round trip and its mean deviation, s
 };
 
@@ -203,6 +207,9 @@ class StreamSender {
   // anything else, or a frame that fails decoding, is an Error and changes nothing.
   Status onMessage(std::span<const std::uint8_t> frame, double now);
   Status onMessage(const SessionMessage& message, double now);
+
+  // The client will say what it holds (a Resume): until then, or `until`, only heartbeats.
+  void awaitResume(double until) { awaitResumeUntil_ = until; }
 
   // Datagrams to send now (each at most kMaxDatagramBytes), within the rate limit.
   std::vector<std::vector<std::uint8_t>> poll(double now);
@@ -282,6 +289,9 @@ class StreamSender {
   Status onAck(const AckMsg& ack, double now);
   void queueRepair(const FragmentGapMsg& gap);
   Status onRepair(const RepairRequestMsg& repair);
+  // What the client holds, from the endpoint it left: versions of this field up to the newest
+  // here become its acknowledged versions (PROTOCOL.md "Resuming a session").
+  Status onResume(const ResumeMsg& resume, double now);
   // Whether the change from `ref` (at `refPrecision`) to `version` is below every threshold; if
   // not, t.skipReason names the first threshold it passed.
   bool belowThresholds(Track& t, int k, int b, std::uint64_t version, std::uint64_t ref,
@@ -344,6 +354,8 @@ class StreamSender {
   double oldestPending_ = 0;
   SenderStats stats_;
   std::vector<std::uint64_t> firstSends_;
+  double awaitResumeUntil_ = -1;
+  bool resumeHeard_ = false;
 };
 
 }  // namespace pc

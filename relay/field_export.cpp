@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <random>
 
 #include "common/log.h"
 #include "protocol/session_messages.h"
@@ -28,9 +27,12 @@ Result<std::unique_ptr<FieldExporter>> FieldExporter::create(FieldHub& hub, Expo
 
 FieldExporter::FieldExporter(FieldHub& hub, ExportOptions options, NatsConnection nats)
     : hub_(hub), options_(std::move(options)), nats_(std::move(nats)) {
-  // A fresh epoch for every run: relays holding an earlier run's field start over.
-  std::random_device rd;
-  epoch_ = (std::uint64_t(rd()) << 32 | rd()) | 1u;
+  // The publisher's epoch, fresh for every run: relays holding an earlier run's field start
+  // over, and clients of every relay resume with the versions of this one.
+  {
+    auto hubLock = hub_.lock();
+    epoch_ = hub_.publisher().sessionInfo().fieldEpoch;
+  }
   std::lock_guard lock(statsMutex_);
   stats_.epoch = epoch_;
 }

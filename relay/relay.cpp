@@ -266,7 +266,11 @@ void Relay::onCatalogue(const CatalogueRecord& catalogue) {
   for (int k = 0; k < layout->cascadeCount(); ++k)
     held_[std::size_t(k)].assign(std::size_t(gpu::pcBrickCount(layout->cascade(k))), 0);
 
-  auto hub = std::make_unique<FieldHub>(*layout, options_.publisher);
+  // The field server's epoch: its brick versions name the same content here, so clients
+  // moving between its relays (or to it) resume (PROTOCOL.md "Resuming a session").
+  PublisherOptions publisher = options_.publisher;
+  publisher.epoch = catalogue.epoch;
+  auto hub = std::make_unique<FieldHub>(*layout, publisher);
   NetServerOptions net = options_.net;
   if (net.sceneName.empty()) net.sceneName = catalogue.sceneName;
   std::lock_guard lock(serveMutex_);

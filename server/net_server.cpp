@@ -499,6 +499,20 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
               "Repair requests taken from clients, by transport.", double(repairs),
               {{"transport", transport}});
   }
+  for (const auto& [outcome, n] :
+       {std::pair{"resumed", s.resumes}, std::pair{"other_field", s.resumeMismatches}}) {
+    m.counter("probecast_resumes_total",
+              "Resume messages of clients moving from another endpoint, by outcome: the claim "
+              "taken, or of another field (a full resync).",
+              double(n), {{"outcome", outcome}});
+  }
+  for (const auto& [outcome, n] :
+       {std::pair{"held", s.resumedBricks}, std::pair{"refused", s.resumeRefusedBricks}}) {
+    m.counter("probecast_resume_bricks_total",
+              "Bricks resuming clients claimed, by outcome: taken as held, or refused for a "
+              "version past this server's newest (sent whole).",
+              double(n), {{"outcome", outcome}});
+  }
   m.counter("probecast_uplink_datagrams_total",
             "Datagrams received on the UDP port (client acks and repair requests, and anything "
             "else sent there).",

@@ -187,6 +187,9 @@ struct NetServerStats {
   std::uint64_t datagrams = 0, udpDropped = 0;
   std::uint64_t resends = 0, repairedFragments = 0;  // NetClientInfo's, summed
   std::uint64_t acksTcp = 0, acksUdp = 0, repairsTcp = 0, repairsUdp = 0;  // likewise
+  // Resume messages (PROTOCOL.md "Resuming a session"): claims taken, claims of another field,
+  // bricks taken as held, bricks refused for a version past the newest.
+  std::uint64_t resumes = 0, resumeMismatches = 0, resumedBricks = 0, resumeRefusedBricks = 0;
   // Datagrams to the UDP port that were dropped unanswered, by UplinkDrop.
   std::array<std::uint64_t, kUplinkDropCount> uplinkDrops{};
   std::uint64_t uplinkDatagrams = 0;  // received on the UDP port, dropped or not

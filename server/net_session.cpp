@@ -379,6 +379,14 @@ bool Session::handle(const SessionMessage& message, bool overUdp) {
     refuse(DisconnectCause::Invalid, status.error().message);
     return false;
   }
+  if (std::holds_alternative<ResumeMsg>(message)) {
+    // Counted once, as the sender judged the claim.
+    const SenderStats& st = sender_->stats();
+    server_.totals.resumes += st.resumes;
+    server_.totals.resumeMismatches += st.resumeMismatches;
+    server_.totals.resumedBricks += st.resumedBricks;
+    server_.totals.resumeRefusedBricks += st.resumeRefusedBricks;
+  }
   if (std::holds_alternative<AckMsg>(message)) ++(overUdp ? acksUdp_ : acksTcp_);
   if (std::holds_alternative<RepairRequestMsg>(message)) ++(overUdp ? repairsUdp_ : repairsTcp_);
   return true;
@@ -397,6 +405,11 @@ std::optional<std::string> Session::checkSize(const SessionMessage& message) con
     if (repair->bricks.size() > bricks) {
       return "repair request naming " + std::to_string(repair->bricks.size()) +
              " bricks; the field has " + std::to_string(bricks);
+    }
+  } else if (const auto* resume = std::get_if<ResumeMsg>(&message)) {
+    if (resume->brickCount > bricks) {
+      return "resume claiming " + std::to_string(resume->brickCount) + " bricks; the field has " +
+             std::to_string(bricks);
     }
   }
   return std::nullopt;
@@ -470,6 +483,12 @@ bool Session::onHello(const HelloMsg& hello) {
     if (hello.protocolVersion < kPrecisionLevelsVersion) senderOptions.maxPrecision = 0;
     sender_ = std::make_unique<StreamSender>(server_.hub.publisher(), id_, senderOptions,
                                              &server_.changeCache);
+    // A client whose mirror holds this run's field says what of it in a Resume, which follows
+    // the SessionInfo one round trip later: the sender waits for it rather than send bricks
+    // the client holds.
+    if (hello.protocolVersion >= kResumeVersion && hello.heldEpoch != 0 &&
+        hello.heldEpoch == info.fieldEpoch)
+      sender_->awaitResume(steadySeconds() + kResumeWaitSeconds);
     // Acks as datagrams from clients that send them, on sessions with a UDP path: the client
     // learns the port from the SessionInfo.
     if (useUdp && hello.protocolVersion >= kUplinkDatagramsVersion) {

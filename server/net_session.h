@@ -17,6 +17,8 @@
 namespace pc {
 
 inline constexpr double kStreamReportInterval = 0.5;  // s
+// s a sender waits for the Resume of a client that holds this field before it sends bricks.
+inline constexpr double kResumeWaitSeconds = 1.0;
 
 // A token bucket: `rate` per second, holding at most `burst`.
 struct Bucket {

@@ -137,16 +137,22 @@ inline int mirrorDifference(const client::FieldMirror& mirror, const Field& serv
   return differing;
 }
 
-// A client of `server` with TLS as in production: its certificate pinned, a token of its own.
-inline client::NetClientOptions secureClientOptions(const TestServer& server,
+// A client of the server at `port` with TLS as in production: its certificate pinned
+// (`fingerprint`), a token of its own.
+inline client::NetClientOptions secureClientOptions(std::uint16_t port,
+                                                    const std::string& fingerprint,
                                                     const std::string& name) {
   client::NetClientOptions o;
   o.host = "127.0.0.1";
-  o.port = server.port();
-  o.serverFingerprint = server.fingerprint();
+  o.port = port;
+  o.serverFingerprint = fingerprint;
   o.token = issueTestToken(name);
   o.name = name;
   return o;
+}
+inline client::NetClientOptions secureClientOptions(const TestServer& server,
+                                                    const std::string& name) {
+  return secureClientOptions(server.port(), server.fingerprint(), name);
 }
 
 // A UDP relay that passes datagrams through a FaultLink (loss, bursts, duplication,

@@ -317,6 +317,13 @@ TEST(Relay, ClientsOfAKilledRelayMoveToTheOtherAndKeepTheirField) {
     ASSERT_NE(clients[i]->stats().endpoint, endpointB);
   }
 
+  // What each client received through relay a: the whole field, and a little since.
+  auto received = [&](int i) {
+    const client::NetClientStats st = clients[i]->stats();
+    return double(st.tcpBytes + st.udpBytes);
+  };
+  std::vector<double> bytesAtKill(kClients);
+  for (int i = 0; i < kClients; ++i) bytesAtKill[i] = received(i);
   relayA->kill(SIGKILL);
   const double killed = steadySeconds();
   std::vector<double> movedAfter(kClients, -1);
@@ -343,6 +350,15 @@ TEST(Relay, ClientsOfAKilledRelayMoveToTheOtherAndKeepTheirField) {
   EXPECT_EQ(worstDifference, 0) << "a mirror lost bricks while its client moved";
   for (int i = 0; i < kClients; ++i)
     EXPECT_EQ(mirrorDifference(*mirrors[i], server.field()), 0) << "client " << i;
+  // Relays of one field server share its epoch and versions: the clients resumed, and relay b
+  // sent them nothing of the (frozen) field they held, where a new session sends it whole.
+  sleepFor(0.5);
+  for (int i = 0; i < kClients; ++i) {
+    const double moved = received(i) - bytesAtKill[i];
+    std::printf("client %d: %.0f bytes through relay a, %.0f from the kill on\n", i, bytesAtKill[i],
+                moved);
+    EXPECT_LT(moved, 0.25 * bytesAtKill[i]) << "client " << i << " was sent its field again";
+  }
   std::printf("FIGURE relay_failover clients=%d failover_s=%.3f\n", kClients, failover);
 }
 

@@ -54,6 +54,7 @@ struct ScaleSetup {
   double seconds = 10, warmup = 2;
   double rateLimitMbit = 1.0;
   int failoverClients = 8;
+  bool noResume = false;  // movers start new sessions (the whole field again), as before resume
   int rays = 64, serverWarmup = 8;
   double fieldRate = 10;
   std::string natsServer = "/usr/sbin/nats-server";
@@ -264,6 +265,7 @@ int runScale(const ScaleSetup& s) {
     o.caFile = cert;
     o.token = tokens[std::size_t(s.clients + i)];
     o.name = "mover-" + std::to_string(i);
+    o.resume = !s.noResume;
     mirrors.push_back(std::make_unique<client::FieldMirror>());
     movers.push_back(std::make_unique<client::NetClient>(*mirrors.back(), o));
     movers.back()->start();
@@ -278,6 +280,17 @@ int runScale(const ScaleSetup& s) {
     return true;
   };
   while (!moversSynced(relays[0]->port()) && seconds() - moveStart < 30) sleepFor(0.01);
+  // Bytes the movers receive from the kill until they hold every brick again: the whole field
+  // for a new session, what changed since for one that resumed.
+  auto moverBytes = [&] {
+    double bytes = 0;
+    for (auto& m : movers) {
+      const client::NetClientStats st = m->stats();
+      bytes += double(st.tcpBytes + st.udpBytes);
+    }
+    return bytes;
+  };
+  const double bytesAtKill = moverBytes();
   ::kill(relays[0]->pid(), SIGKILL);
   const double killed = seconds();
   double failover = -1;
@@ -288,6 +301,8 @@ int runScale(const ScaleSetup& s) {
     }
     sleepFor(0.005);
   }
+  const double moverKB =
+      (moverBytes() - bytesAtKill) / 1e3 / double(std::max(1, s.failoverClients));
   int mirrorsHeld = 0;
   for (auto& m : mirrors) mirrorsHeld += m->present() ? 1 : 0;
   for (auto& m : movers) m->stop();
@@ -323,8 +338,11 @@ int runScale(const ScaleSetup& s) {
       break;
     }
   }
-  std::printf("  failover: %d clients moved in %.3f s, %d of them kept their field (logs in %s)\n",
-              s.failoverClients, failover, mirrorsHeld, dir.c_str());
+  std::printf(
+      "  failover: %d clients moved in %.3f s (%s), %.1f kB each on the way, %d of them kept "
+      "their field (logs in %s)\n",
+      s.failoverClients, failover, s.noResume ? "new sessions" : "resumed", moverKB, mirrorsHeld,
+      dir.c_str());
   const std::string sfx =
       ".relays_" + std::to_string(s.relays) + ".clients_" + std::to_string(s.clients);
   figure("relay_cpu_ms_per_client_s" + sfx, relayMsPerClientS, "ms");
@@ -333,6 +351,7 @@ int runScale(const ScaleSetup& s) {
   figure("starved_clients" + sfx, starved, "count");
   figure("held_psnr_db_p5" + sfx, psnrP5, "dB");
   figure("failover_s" + sfx, failover, "s");
+  figure("failover_kb_per_client" + sfx, moverKB, "kB");
   return synced && failover >= 0 && mirrorsHeld == s.failoverClients ? 0 : 2;
 }
 
@@ -349,6 +368,9 @@ Benchmark addScale(CLI::App& app) {
   cmd->add_option("--seconds", s.seconds, "measured window, s");
   cmd->add_option("--warmup", s.warmup, "s after every client is synced, before the window");
   cmd->add_option("--rate-limit", s.rateLimitMbit, "send rate per client, Mbit/s");
+  cmd->add_flag("--no-resume", s.noResume,
+                "movers start new sessions on the other relay (the whole field sent again) "
+                "instead of resuming from their mirrors");
   cmd->add_option("--failover-clients", s.failoverClients,
                   "real clients given two relays, whose move is timed when the first is killed");
   cmd->add_option("--rays", s.rays, "field server rays per probe per update");
