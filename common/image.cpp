@@ -183,6 +183,20 @@ Result<Image> readExr(const std::filesystem::path& path) {
 
 }  // namespace
 
+Image boxDownsample(const Image& image, int k) {
+  if (k <= 1) return image;
+  Image out(image.width / k, image.height / k);
+  const float scale = 1.0f / float(k * k);
+  for (int y = 0; y < out.height; ++y)
+    for (int x = 0; x < out.width; ++x) {
+      glm::vec3 sum(0.0f);
+      for (int dy = 0; dy < k; ++dy)
+        for (int dx = 0; dx < k; ++dx) sum += image.at(x * k + dx, y * k + dy);
+      out.at(x, y) = sum * scale;
+    }
+  return out;
+}
+
 Image8 tonemap(const Image& image, float exposure) {
   Image8 out;
   out.width = image.width;

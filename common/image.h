@@ -25,6 +25,9 @@ struct Image8 {
   std::vector<unsigned char> rgb;
 };
 Image8 tonemap(const Image& image, float exposure);
+// Each k x k block of `image` averaged into one pixel (a box filter in linear radiance, as a
+// renderer integrates a pixel's footprint); the size must be a multiple of k.
+Image boxDownsample(const Image& image, int k);
 
 Status writePng(const std::filesystem::path& path, const Image8& image);
 Status writePng(const std::filesystem::path& path, const Image& image, float exposure);
@@ -36,6 +39,12 @@ Result<Image8> readPng(const std::filesystem::path& path);
 
 // PSNR in dB (infinite for identical images; sizes must match).
 double psnr8(const Image8& a, const Image8& b);
+// The PSNR a test image is expected to have against the reference's noise-free limit. The
+// reference's own noise is independent of the test image's error and has zero mean, so its mean
+// square adds to the measured one: E[MSE] = MSE(test, truth) + MSE(reference, truth), and the
+// second term (known from two half-sample renders) is taken away. NaN where the measured error is
+// under 1.25 times the noise's (within 1 dB of it): the reference is too noisy to judge.
+double psnrWithoutReferenceNoise(double measuredPsnr, double referenceNoisePsnr);
 // Linear PSNR with peak = the reference's 99.9th percentile luminance (robust to fireflies).
 double psnrLinear(const Image& test, const Image& reference);
 // Mean SSIM on the luma of the tone-mapped images (8x8 windows, standard constants).

@@ -164,4 +164,12 @@ Image8 differenceImage(const Image8& a, const Image8& b) {
   return out;
 }
 
+double psnrWithoutReferenceNoise(double measuredPsnr, double referenceNoisePsnr) {
+  if (!std::isfinite(referenceNoisePsnr) || referenceNoisePsnr <= 0) return measuredPsnr;
+  const double measured = std::pow(10.0, -measuredPsnr / 10.0);
+  const double noise = std::pow(10.0, -referenceNoisePsnr / 10.0);
+  if (!(measured > 1.25 * noise)) return std::numeric_limits<double>::quiet_NaN();
+  return -10.0 * std::log10(measured - noise);
+}
+
 }  // namespace pc

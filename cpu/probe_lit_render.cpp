@@ -26,6 +26,7 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
                      const ProbeLitOptions& options, Progress* progress) {
   const int width = options.width, height = options.height;
   const int primary = std::max(1, options.primarySamples);
+  const int strata = int(std::sqrt(double(primary)));
   const DirectLightOptions direct{std::max(1, options.emissiveSamples)};
   const std::vector<gpu::GpuLight> lights = packLights(state);
   const PinholeCamera pinhole(camera, width, height);
@@ -46,7 +47,9 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
         glm::vec3 sum(0.0f);
         for (int s = 0; s < primary; ++s) {
           const glm::vec3 origin = pinhole.origin();
-          const glm::vec3 dir = pinhole.direction(x, y, rng.uniform(), rng.uniform());
+          const float jx = rng.uniform(), jy = rng.uniform();
+          const glm::vec2 j = stratifiedPixelOffset(s, strata, jx, jy);
+          const glm::vec3 dir = pinhole.direction(x, y, j.x, j.y);
           Hit hit;
           if (!scene.intersect(origin, dir, 0.0f, INFINITY, hit)) {
             sum += sky.radiance(dir);

@@ -6,10 +6,13 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <random>
+#include <vector>
 
 #include "common/field.h"
 #include "common/image.h"
 #include "common/scene.h"
+#include "cpu/camera.h"
 #include "cpu/embree_scene.h"
 #include "cpu/lighting.h"
 #include "cpu/path_tracer.h"
@@ -71,6 +74,46 @@ glm::vec3 meanPixel(const Image& image) {
   glm::dvec3 sum(0.0);
   for (const glm::vec3& p : image.pixels) sum += glm::dvec3(p);
   return glm::vec3(sum / double(image.pixels.size()));
+}
+
+// The probe-lit render's primary samples: one in each cell of the pixel's grid first, so that
+// an edge through the pixel is integrated far better than by uniform samples.
+TEST(PixelSamples, StratifiedOnePerCellAndFewerEdgeErrors) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 0.99999f);
+  const int strata = 4, n = strata * strata;
+  std::vector<int> hits(n, 0);
+  for (int s = 0; s < n; ++s) {
+    const glm::vec2 j = pc::stratifiedPixelOffset(s, strata, u(rng), u(rng));
+    ASSERT_GE(j.x, 0.0f);
+    ASSERT_LT(j.x, 1.0f);
+    ASSERT_GE(j.y, 0.0f);
+    ASSERT_LT(j.y, 1.0f);
+    ++hits[int(j.y * strata) * strata + int(j.x * strata)];
+  }
+  for (int h : hits) EXPECT_EQ(h, 1);
+  // Coverage of pixels cut by edges of random angle and offset, estimated with 16 samples.
+  double stratifiedError = 0, uniformError = 0;
+  for (int pixel = 0; pixel < 2000; ++pixel) {
+    const float angle = u(rng) * 6.2831853f, offset = u(rng) - 0.5f;
+    const glm::vec2 normal(std::cos(angle), std::sin(angle));
+    auto inside = [&](glm::vec2 p) { return glm::dot(p - glm::vec2(0.5f), normal) < offset; };
+    // The exact coverage, from a fine grid.
+    int fine = 0;
+    for (int y = 0; y < 200; ++y)
+      for (int x = 0; x < 200; ++x) fine += inside({(x + 0.5f) / 200, (y + 0.5f) / 200});
+    const double exact = fine / 40000.0;
+    int stratified = 0, uniform = 0;
+    for (int s = 0; s < n; ++s) {
+      stratified += inside(pc::stratifiedPixelOffset(s, strata, u(rng), u(rng)));
+      uniform += inside({u(rng), u(rng)});
+    }
+    stratifiedError += std::pow(stratified / double(n) - exact, 2);
+    uniformError += std::pow(uniform / double(n) - exact, 2);
+  }
+  EXPECT_LT(stratifiedError, 0.35 * uniformError);
+  // Past the grid's samples, the rest are uniform in the whole pixel.
+  EXPECT_EQ(pc::stratifiedPixelOffset(n, strata, 0.25f, 0.75f), glm::vec2(0.25f, 0.75f));
 }
 
 TEST(EmbreeScene, CounterClockwiseIsFrontFace) {

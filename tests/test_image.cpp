@@ -222,6 +222,49 @@ TEST(Metrics, KnownNoisePsnr) {
   EXPECT_NEAR(pc::psnr8(n, g), 10.0 * std::log10(255.0 * 255.0 / (64.0 + 1.0 / 12.0)), 0.1);
 }
 
+// A test image with an error of its own, scored against a noisy reference and against the
+// noise-free one: taking the reference's noise (known from its two halves) out of the first
+// recovers the second.
+TEST(Metrics, ReferenceNoiseIsTakenOutOfTheMeasure) {
+  pc::Image8 truth, test, reference;
+  truth.width = test.width = reference.width = 256;
+  truth.height = test.height = reference.height = 256;
+  truth.rgb.assign(256 * 256 * 3, 128);
+  test.rgb.resize(truth.rgb.size());
+  reference.rgb.resize(truth.rgb.size());
+  std::mt19937 rng(11);
+  std::normal_distribution<double> error(0.0, 4.0), noise(0.0, 6.0);
+  auto level = [](double v) {
+    return static_cast<unsigned char>(std::clamp(std::lround(v), 0L, 255L));
+  };
+  for (std::size_t i = 0; i < truth.rgb.size(); ++i) {
+    test.rgb[i] = level(128.0 + error(rng));
+    reference.rgb[i] = level(128.0 + noise(rng));
+  }
+  const double noisePsnr = pc::psnr8(reference, truth);
+  const double measured = pc::psnr8(test, reference);
+  const double estimate = pc::psnrWithoutReferenceNoise(measured, noisePsnr);
+  EXPECT_LT(measured, pc::psnr8(test, truth) - 3.0);  // the noise dominates the raw measure
+  EXPECT_NEAR(estimate, pc::psnr8(test, truth), 0.15);
+  // Within 1 dB of the noise: not judged.
+  EXPECT_TRUE(std::isnan(pc::psnrWithoutReferenceNoise(30.0, 30.5)));
+  // A noise-free reference (infinite or unknown noise PSNR) leaves the measure as it is.
+  EXPECT_EQ(pc::psnrWithoutReferenceNoise(27.5, std::numeric_limits<double>::infinity()), 27.5);
+}
+
+TEST(Image, BoxDownsampleAveragesEachBlockInLinearLight) {
+  pc::Image fine(4, 2);
+  for (int y = 0; y < 2; ++y)
+    for (int x = 0; x < 4; ++x) fine.at(x, y) = glm::vec3(float(x + 4 * y), 1.0f, 0.0f);
+  pc::Image coarse = pc::boxDownsample(fine, 2);
+  ASSERT_EQ(coarse.width, 2);
+  ASSERT_EQ(coarse.height, 1);
+  EXPECT_FLOAT_EQ(coarse.at(0, 0).x, (0 + 1 + 4 + 5) / 4.0f);
+  EXPECT_FLOAT_EQ(coarse.at(1, 0).x, (2 + 3 + 6 + 7) / 4.0f);
+  EXPECT_FLOAT_EQ(coarse.at(1, 0).y, 1.0f);
+  EXPECT_EQ(pc::boxDownsample(fine, 1).pixels, fine.pixels);
+}
+
 TEST(Metrics, LinearPsnrUsesReferencePeak) {
   // Reference luminance 2 everywhere: peak 2; error 0.2 per channel: MSE 0.04 -> 20 dB.
   pc::Image ref(64, 64), test(64, 64);

@@ -21,7 +21,9 @@ void addRenderOptions(CLI::App& cmd, RenderSetup& s) {
   cmd.add_option("--spp", s.spp, "reference paths per pixel");
   cmd.add_option("--updates", s.updates, "field updates for the bake");
   cmd.add_option("--camera", s.camera, "camera index");
-  cmd.add_option("--aa", s.primarySamples, "primary samples per pixel of the probe-lit render");
+  cmd.add_option("--aa", s.primarySamples,
+                 "primary samples per pixel of the probe-lit render (stratified)")
+      ->capture_default_str();
   cmd.add_option("--ao-radius", s.aoRadius,
                  "ambient occlusion radius of the indirect light, in probe spacings (0: off)")
       ->capture_default_str();

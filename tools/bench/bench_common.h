@@ -21,7 +21,10 @@ struct RenderSetup {
   int spp = 512;     // reference paths per pixel
   int updates = 64;  // bake updates
   int camera = 0;
-  int primarySamples = 4;
+  // Primary samples of the probe-lit render, stratified in the pixel: 16 bring the error at
+  // high-contrast edges under the references' own noise, so that the figures measure light,
+  // not aliasing (docs/BENCHMARKS.md, "Edges").
+  int primarySamples = 16;
   int emissiveSamples = 32;
   // Ambient occlusion radius of the probe-lit render's indirect light, in probe spacings
   // (ProbeLitOptions::aoRadius); 0: none.

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 namespace pc::bench {
@@ -18,11 +19,15 @@ constexpr unsigned char kGapGrey = 128, kMissingGrey = 40;
 nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
 nlohmann::json scoresJson(const Scores& s) {
-  return {{"psnr", number(s.psnr)}, {"ssim", number(s.ssim)}, {"flip", number(s.flip)}};
+  return {{"psnr", number(s.psnr)},
+          {"psnr_noise_free_estimate", number(s.psnrNoiseFree)},
+          {"ssim", number(s.ssim)},
+          {"flip", number(s.flip)}};
 }
 
 std::string cell(double v, const char* format) {
   if (std::isinf(v)) return "inf";
+  if (std::isnan(v)) return "-";
   char buf[32];
   std::snprintf(buf, sizeof buf, format, v);
   return buf;
@@ -118,22 +123,23 @@ Status writeQualityReport(const fs::path& dir, const QualityRun& run,
      << " reference paths per pixel, " << run.updates
      << " bake updates. PSNR on tone-mapped 8-bit sRGB (dB), SSIM, LDR-FLIP (mean, 0 = equal, "
      << cell(run.pixelsPerDegree, "%.1f") << " pixels per degree).\n\n";
-  md << "| scene | volumes | probes | spacing | probe-lit PSNR | SSIM | FLIP | client PSNR | SSIM "
-        "| FLIP | ref noise dB | bake s | ref s |\n";
-  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  md << "| scene | volumes | probes | spacing | probe-lit PSNR | noise-free est. | SSIM | FLIP | "
+        "client PSNR | noise-free est. | SSIM | FLIP | ref noise dB | bake s | ref s |\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const QualityRow& r : rows) {
     if (!r.error.empty()) {
-      md << "| " << r.scene << " | error: " << escaped(r.error) << " |||||||||||\n";
+      md << "| " << r.scene << " | error: " << escaped(r.error) << " |||||||||||||\n";
       continue;
     }
     md << "| " << r.scene << " | " << r.volumes << " | " << r.probes << " | "
        << cell(r.spacing, "%.3g") << " | " << cell(r.probeLit.psnr, "%.2f") << " | "
-       << cell(r.probeLit.ssim, "%.3f") << " | " << cell(r.probeLit.flip, "%.4f") << " | ";
+       << cell(r.probeLit.psnrNoiseFree, "%.2f") << " | " << cell(r.probeLit.ssim, "%.3f") << " | "
+       << cell(r.probeLit.flip, "%.4f") << " | ";
     if (r.client) {
-      md << cell(r.client->psnr, "%.2f") << " | " << cell(r.client->ssim, "%.3f") << " | "
-         << cell(r.client->flip, "%.4f") << " | ";
+      md << cell(r.client->psnr, "%.2f") << " | " << cell(r.client->psnrNoiseFree, "%.2f") << " | "
+         << cell(r.client->ssim, "%.3f") << " | " << cell(r.client->flip, "%.4f") << " | ";
     } else {
-      md << "n/a (" << r.clientNote << ") | | | ";
+      md << "n/a (" << r.clientNote << ") | | | | ";
     }
     md << cell(r.referenceNoisePsnr, "%.1f") << " | " << cell(r.bakeSeconds, "%.1f") << " | "
        << cell(r.referenceSeconds, "%.1f") << " |\n";

@@ -15,6 +15,7 @@ namespace pc::bench {
 // One image's scores against the reference.
 struct Scores {
   double psnr = 0, ssim = 0, flip = 0;
+  double psnrNoiseFree = 0;  // psnrWithoutReferenceNoise (common/image.h); NaN: unjudged
 };
 
 struct QualityRow {
