@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "../shaders/interop/probe_update.h"
+#include "../shaders/interop/sh_probe.h"
 
 // The shared sampling code reads the field through these fetches; on the CPU they read the
 // atlases bilinearly, exactly as a GPU sampler with linear filtering would.
@@ -96,6 +97,7 @@ Field Field::create(const std::vector<ProbeVolume>& volumes, const FieldSettings
     const float maxRay = own.maxRayDistance.value_or(settings.maxRayDistance);
     c.maxRayDistance = maxRay > 0.0f ? maxRay : 1.5f * std::sqrt(3.0f) * v.spacing;
     c.blendMargin = own.blendMargin.value_or(settings.blendMargin) * v.spacing;
+    c.encoding = int(own.encoding.value_or(settings.encoding));
     int n = pcSlotCount(c);
     slots += n;
     rows += pcAtlasTileRows(n);
@@ -106,6 +108,9 @@ Field Field::create(const std::vector<ProbeVolume>& volumes, const FieldSettings
   f.depth = makeAtlas(PC_DEPTH_TEXELS + 2, rows, 2);
   f.occlusion = makeAtlas(PC_OCCLUSION_TEXELS + 2, rows, 1);
   f.probes.assign(slots, ProbeRecord{});
+  for (int k = 0; k < count; ++k) {
+    if (pcEncodingIsSh(f.desc.cascades[k].encoding)) f.sh.assign(slots, ShCoefficients{});
+  }
   f.brickVersions.resize(count);
   for (int k = 0; k < count; ++k) f.brickVersions[k].assign(pcBrickCount(f.desc.cascades[k]), 0);
   return f;
@@ -168,6 +173,66 @@ glm::vec2 fetchDepth(const Field& field, int cascade, int slot, glm::vec3 dir) {
   return pcFetchDepth(field, cascade, slot, dir);
 }
 
+static_assert(int(ProbeEncoding::Octahedral) == PC_ENCODING_OCTAHEDRAL &&
+                  int(ProbeEncoding::Sh1) == PC_ENCODING_SH1 &&
+                  int(ProbeEncoding::Sh2) == PC_ENCODING_SH2,
+              "ProbeEncoding mirrors the shared PC_ENCODING_* constants");
+
+ShCoefficients projectSh(std::span<const glm::vec3> dirs, std::span<const glm::vec3> radiance,
+                         int count) {
+  ShCoefficients c{};
+  const std::size_t n = std::min(dirs.size(), radiance.size());
+  if (n == 0) return c;
+  count = std::clamp(count, 0, PC_SH_MAX_COEFFICIENTS);
+  for (std::size_t r = 0; r < n; ++r) {
+    for (int i = 0; i < count; ++i) c[i] += pcShBasis(i, dirs[r]) * radiance[r];
+  }
+  const float scale = 4.0f * PC_PI / float(n);
+  for (glm::vec3& v : c) v *= scale;
+  return c;
+}
+
+glm::vec3 shIrradiance(const ShCoefficients& c, int count, glm::vec3 dir) {
+  glm::vec3 e(0.0f);
+  count = std::clamp(count, 0, PC_SH_MAX_COEFFICIENTS);
+  for (int i = 0; i < count; ++i) e += pcShCosineLobe(i) * pcShBasis(i, dir) * c[i];
+  return glm::max(e, glm::vec3(0.0f));
+}
+
+float deriveShTile(Field& field, int k, int slot) {
+  constexpr int n = PC_IRRADIANCE_TEXELS;
+  const CascadeDesc& c = field.cascade(k);
+  const int count = pcShCoefficientCount(c.encoding);
+  const ShCoefficients& coefficients = field.shProbe(k, slot);
+  const ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
+  float maxChange = 0.0f;
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const vec3 e =
+          pcEncodeIrradiance(shIrradiance(coefficients, count, pcTexelDirection(x, y, n)));
+      float* texel = field.irradiance.at(origin.x + 1 + x, origin.y + 1 + y);
+      const vec3 delta = glm::abs(e - vec3(texel[0], texel[1], texel[2]));
+      maxChange = std::max(maxChange, std::max(delta.x, std::max(delta.y, delta.z)));
+      texel[0] = e.x, texel[1] = e.y, texel[2] = e.z;
+    }
+  }
+  fixTileBorder(field.irradiance, origin, n);
+  return maxChange;
+}
+
+void roundShToHalf(Field& field) {
+  for (ShCoefficients& probe : field.sh) {
+    for (glm::vec3& v : probe) {
+      for (int ch = 0; ch < 3; ++ch) v[ch] = glm::unpackHalf1x16(glm::packHalf1x16(v[ch]));
+    }
+  }
+}
+
+int irradianceBytesPerProbe(ProbeEncoding encoding) {
+  const int halves = pcShStoredHalves(int(encoding));
+  return halves > 0 ? 2 * halves : 2 * 3 * PC_IRRADIANCE_TEXELS * PC_IRRADIANCE_TEXELS;
+}
+
 }  // namespace pc
 
 namespace pc::gpu {
@@ -189,6 +254,12 @@ vec2 cachedTileCoord(vec3 dir) {
 
 vec3 pcFetchIrradiance(const pc::Field& field, int cascade, int slot, vec3 dir) {
   constexpr int n = PC_IRRADIANCE_TEXELS;
+  // An SH probe answers from its coefficients: exact in direction, no tile between.
+  const int encoding = field.encoding(cascade);
+  if (pcEncodingIsSh(encoding)) {
+    return pcEncodeIrradiance(
+        pc::shIrradiance(field.shProbe(cascade, slot), pcShCoefficientCount(encoding), dir));
+  }
   vec3 out;
   pc::bilinear<3>(field.irradiance, pcAtlasTileOrigin(field.desc.cascades[cascade], slot, n + 2),
                   cachedTileCoord<n>(dir), n + 2, &out.x);

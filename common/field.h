@@ -3,8 +3,10 @@
 // The server's update writes it, baked files store it, renderers sample it.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <glm/glm.hpp>
+#include <span>
 #include <vector>
 
 #include "../shaders/interop/probe_math.h"
@@ -30,7 +32,13 @@ struct FieldSettings {
   float maxRayDistance = 0.0f;     // world units; 0: 1.5 x the cage diagonal (see create)
   float occlusionDistance = 1.0f;  // d_max, fraction of the finest spacing
   float blendMargin = 1.0f;        // fraction of a cascade's spacing
+  // How cascades store irradiance where their volume does not say (VolumeSettings::encoding).
+  ProbeEncoding encoding = ProbeEncoding::Octahedral;
 };
+
+// One SH probe's radiance coefficients, rgb each, in the order of pcShBasis (band 2; a band-1
+// probe uses the first 4 and keeps the rest zero).
+using ShCoefficients = std::array<glm::vec3, 9>;
 
 // One probe's bookkeeping. `offset` is the relocation from its grid point.
 struct ProbeRecord {
@@ -58,6 +66,10 @@ class Field {
   Atlas depth;                      // rg: mean and mean square of hit distance
   Atlas occlusion;                  // r: cos-weighted share of rays that travel past d_max
   std::vector<ProbeRecord> probes;  // field-wide slot index: cascades[k].firstProbe + slot
+  // Radiance coefficients of every probe slot, field-wide slot order, when any cascade is SH
+  // (empty otherwise). For an SH cascade they are the field's own; its irradiance tiles are
+  // derived from them (deriveShTile) for whatever reads tiles (wire, GPU client).
+  std::vector<ShCoefficients> sh;
   std::vector<std::vector<std::uint64_t>> brickVersions;  // [cascade][brick]
   std::uint64_t version = 0;  // bumped by every update that changes something
   std::uint64_t sceneHash = 0;
@@ -67,6 +79,11 @@ class Field {
   ProbeRecord& probe(int k, int slot) { return probes[desc.cascades[k].firstProbe + slot]; }
   const ProbeRecord& probe(int k, int slot) const {
     return probes[desc.cascades[k].firstProbe + slot];
+  }
+  int encoding(int k) const { return desc.cascades[k].encoding; }  // PC_ENCODING_*
+  ShCoefficients& shProbe(int k, int slot) { return sh[desc.cascades[k].firstProbe + slot]; }
+  const ShCoefficients& shProbe(int k, int slot) const {
+    return sh[desc.cascades[k].firstProbe + slot];
   }
   int probeCount() const;                          // real probes, not padding slots
   glm::vec3 probePosition(int k, int slot) const;  // world, relocated
@@ -94,5 +111,24 @@ glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm
 // Bilinear fetches used by sampleField, exposed for tests and the bake checks.
 glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir);  // decoded
 glm::vec2 fetchDepth(const Field& field, int cascade, int slot, glm::vec3 dir);
+
+// ---- spherical-harmonics probes (shaders/interop/sh_probe.h) ----
+
+// Radiance coefficients of `count` (4 or 9) basis functions from radiance samples in uniformly
+// spread unit directions: (4 pi / samples) * sum L Y_i.
+ShCoefficients projectSh(std::span<const glm::vec3> dirs, std::span<const glm::vec3> radiance,
+                         int count);
+// Irradiance (W/m^2) toward unit `dir` from the first `count` coefficients: the cosine lobe's
+// convolution, clamped at 0.
+glm::vec3 shIrradiance(const ShCoefficients& c, int count, glm::vec3 dir);
+// Rewrites the irradiance tile of SH probe (k, slot) (interior and border) from its
+// coefficients; returns the largest change of an encoded texel, for change detection.
+float deriveShTile(Field& field, int k, int slot);
+// Rounds every coefficient to float16, as baked files store them: what a client would hold.
+void roundShToHalf(Field& field);
+// Bytes one probe's irradiance takes at 16 bits per value in `encoding`: an 8x8 rgb tile
+// (octahedral, interior only, as the wire carries it), 28 halves (L2, 27 padded to a 4-byte
+// boundary) or 12 (L1). Depth moments and occlusion, octahedral in every encoding, come on top.
+int irradianceBytesPerProbe(ProbeEncoding encoding);
 
 }  // namespace pc

@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "result.h"
@@ -117,6 +118,13 @@ struct Sky {
   glm::vec3 ambientIrradiance() const;
 };
 
+// How a volume's probes store irradiance: octahedral tiles, or spherical-harmonics coefficients
+// of band 1 or 2 (shaders/interop/sh_probe.h). Values equal the shared PC_ENCODING_* constants.
+// Sidecar and command-line names: "octahedral", "sh1", "sh2".
+enum class ProbeEncoding : int { Octahedral = 0, Sh1 = 1, Sh2 = 2 };
+std::optional<ProbeEncoding> parseProbeEncoding(std::string_view name);
+const char* probeEncodingName(ProbeEncoding encoding);
+
 // A volume's own update settings (the sidecar's per-volume keys, docs/SCENES.md); each one
 // unset takes the field's (FieldSettings, common/field.h). Units as there: biases and blend
 // margin in fractions of the volume's spacing, the ray distance in world units.
@@ -126,6 +134,7 @@ struct VolumeSettings {
   std::optional<float> viewBias;        // [0, 1]
   std::optional<float> maxRayDistance;  // > 0
   std::optional<float> blendMargin;     // [0, 4]
+  std::optional<ProbeEncoding> encoding;
 };
 
 // One cascade of probes. Cascades are ordered finest first.

@@ -246,6 +246,15 @@ VolumeSettings parseVolumeSettings(const json& j, const std::string& ptr, std::s
   s.normalBias = inRange("normal_bias", 0.0f, 1.0f, false);
   s.viewBias = inRange("view_bias", 0.0f, 1.0f, false);
   s.blendMargin = inRange("blend_margin", 0.0f, 4.0f, false);
+  if (j.contains("encoding")) {
+    const json& e = j["encoding"];
+    std::optional<ProbeEncoding> encoding;
+    if (e.is_string()) encoding = parseProbeEncoding(e.get<std::string>());
+    if (!encoding)
+      fail(ptr + "/encoding",
+           volume + "encoding must be \"octahedral\", \"sh1\" or \"sh2\", got " + e.dump());
+    s.encoding = encoding;
+  }
   if (j.contains("max_ray_distance")) {
     const float v = number(j["max_ray_distance"], ptr + "/max_ray_distance");
     if (!(v > 0.0f))
@@ -264,7 +273,7 @@ VolumeSettings parseVolumeSettings(const json& j, const std::string& ptr, std::s
 ProbeVolume parseVolume(const json& j, const std::string& ptr, std::size_t index) {
   object(j, ptr,
          {"origin", "spacing", "counts", "min", "max", "hysteresis", "normal_bias", "view_bias",
-          "max_ray_distance", "blend_margin", "rays_per_probe"});
+          "max_ray_distance", "blend_margin", "rays_per_probe", "encoding"});
   ProbeVolume v;
   v.settings = parseVolumeSettings(j, ptr, index);
   if (!j.contains("spacing")) fail(ptr, "volume has no 'spacing'");
@@ -521,6 +530,25 @@ std::string sidecarReport(const Scene& scene) {
   std::string where = (scene.source.parent_path() / "scene.json").string();
   for (const std::filesystem::path& f : scene_detail::sidecarFolders()) where += ", " + f.string();
   return "scene " + scene.name + ": no sidecar (looked for " + where + ")";
+}
+
+std::optional<ProbeEncoding> parseProbeEncoding(std::string_view name) {
+  if (name == "octahedral") return ProbeEncoding::Octahedral;
+  if (name == "sh1") return ProbeEncoding::Sh1;
+  if (name == "sh2") return ProbeEncoding::Sh2;
+  return std::nullopt;
+}
+
+const char* probeEncodingName(ProbeEncoding encoding) {
+  switch (encoding) {
+    case ProbeEncoding::Sh1:
+      return "sh1";
+    case ProbeEncoding::Sh2:
+      return "sh2";
+    case ProbeEncoding::Octahedral:
+      break;
+  }
+  return "octahedral";
 }
 
 }  // namespace pc

@@ -20,6 +20,7 @@
 #include "common/temp_file.h"
 #include "protocol/baked_field_generated.h"
 #include "protocol/crc64.h"
+#include "shaders/interop/sh_probe.h"
 
 namespace pc {
 
@@ -334,6 +335,74 @@ using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
 
 }  // namespace
 
+// SH cascades (PC_ENCODING_SH1/SH2): a known encoding per cascade, coefficients for every
+// slot when any cascade is SH, finite, and within float16's range (files store halves).
+Status checkSh(const Field& f) {
+  bool any = false;
+  for (int k = 0; k < f.desc.cascadeCount; ++k) {
+    const int e = f.desc.cascades[k].encoding;
+    if (e < PC_ENCODING_OCTAHEDRAL || e > PC_ENCODING_SH2)
+      return Error{"cascade " + std::to_string(k) + ": unknown irradiance encoding " +
+                   std::to_string(e) + " (0 octahedral, 1 sh1, 2 sh2)"};
+    any = any || pcEncodingIsSh(e);
+  }
+  if (!any) return Status::success();
+  if (f.sh.size() != std::size_t(f.desc.probeCount)) {
+    return Error{std::to_string(f.sh.size()) + " SH probes, layout gives " +
+                 std::to_string(f.desc.probeCount)};
+  }
+  for (int k = 0; k < f.desc.cascadeCount; ++k) {
+    const CascadeDesc& c = f.desc.cascades[k];
+    const int count = pcShCoefficientCount(c.encoding);
+    for (int slot = 0; slot < pcSlotCount(c) && count > 0; ++slot) {
+      const ShCoefficients& p = f.shProbe(k, slot);
+      for (int i = 0; i < count; ++i) {
+        if (!finite(p[i]) || glm::any(glm::greaterThan(glm::abs(p[i]), glm::vec3(65504.0f))))
+          return Error{"cascade " + std::to_string(k) + " probe " + std::to_string(slot) +
+                       ": SH coefficient not finite or beyond float16's range"};
+      }
+    }
+  }
+  return Status::success();
+}
+
+// One SH cascade's coefficients as the file stores them (baked_field.fbs, sh_coefficients).
+std::vector<std::uint16_t> packSh(const Field& f, int k) {
+  const CascadeDesc& c = f.desc.cascades[k];
+  const int count = pcShCoefficientCount(c.encoding), stride = pcShStoredHalves(c.encoding);
+  std::vector<std::uint16_t> halves(std::size_t(pcSlotCount(c)) * std::size_t(stride), 0);
+  for (int slot = 0; slot < pcSlotCount(c); ++slot) {
+    const ShCoefficients& p = f.shProbe(k, slot);
+    for (int i = 0; i < count; ++i) {
+      for (int ch = 0; ch < 3; ++ch)
+        halves[std::size_t(slot) * stride + 3 * i + ch] = glm::packHalf1x16(p[i][ch]);
+    }
+  }
+  return halves;
+}
+
+// The inverse of packSh, after checking the count; the padding half is ignored.
+Status unpackSh(const flatbuffers::Vector<std::uint16_t>* halves, Field& f, int k) {
+  const CascadeDesc& c = f.desc.cascades[k];
+  const int count = pcShCoefficientCount(c.encoding), stride = pcShStoredHalves(c.encoding);
+  const std::size_t expected = std::size_t(pcSlotCount(c)) * std::size_t(stride);
+  const std::size_t got = halves ? halves->size() : 0;
+  if (got != expected) {
+    return Error{"cascade " + std::to_string(k) + ": " + std::to_string(got) +
+                 " SH coefficient halves, layout gives " + std::to_string(expected)};
+  }
+  for (int slot = 0; slot < pcSlotCount(c); ++slot) {
+    ShCoefficients& p = f.shProbe(k, slot);
+    for (int i = 0; i < count; ++i) {
+      for (int ch = 0; ch < 3; ++ch) {
+        const flatbuffers::uoffset_t at = flatbuffers::uoffset_t(slot * stride + 3 * i + ch);
+        p[i][ch] = glm::unpackHalf1x16(halves->Get(at));
+      }
+    }
+  }
+  return Status::success();
+}
+
 Status validateField(const Field& f) {
   const FieldDesc& d = f.desc;
   if (d.cascadeCount < 0 || d.cascadeCount > PC_MAX_CASCADES) {
@@ -386,7 +455,7 @@ Status validateField(const Field& f) {
   if (Status st = checkAtlas(f.irradiance, kIrradiance, t.rows); !st) return st;
   if (Status st = checkAtlas(f.depth, kDepth, t.rows); !st) return st;
   if (Status st = checkAtlas(f.occlusion, kOcclusion, t.rows); !st) return st;
-  return Status::success();
+  return checkSh(f);
 }
 
 Result<std::vector<std::uint8_t>> encodeBakedField(const Field& f,
@@ -402,6 +471,7 @@ Result<std::vector<std::uint8_t>> encodeBakedField(const Field& f,
   std::uint64_t estimate = irr->data.size() + dep->data.size() + occ->data.size() +
                            f.probes.size() * sizeof(wire::Probe) + 65536;
   for (const auto& b : f.brickVersions) estimate += b.size() * 8;
+  estimate += f.sh.size() * std::size_t(2 * PC_SH2_STORED_HALVES);
   if (estimate > kMaxBakedFileBytes) {
     return Error{"cannot encode field: about " + std::to_string(estimate) +
                  " bytes, over the baked file limit of " + std::to_string(kMaxBakedFileBytes)};
@@ -430,9 +500,12 @@ Result<std::vector<std::uint8_t>> encodeBakedField(const Field& f,
     wire::Vec3 origin(c.origin.x, c.origin.y, c.origin.z);
     wire::Int3 counts(c.counts.x, c.counts.y, c.counts.z);
     wire::Int3 scroll(c.scroll.x, c.scroll.y, c.scroll.z);
+    flatbuffers::Offset<flatbuffers::Vector<std::uint16_t>> sh;
+    if (pcEncodingIsSh(c.encoding)) sh = fbb.CreateVector(packSh(f, k));
     cascades.push_back(wire::CreateCascade(fbb, &origin, c.spacing, &counts, c.firstProbe, &scroll,
                                            c.atlasTileRow, c.normalBias, c.viewBias,
-                                           c.maxRayDistance, c.blendMargin, bricks, c.hysteresis));
+                                           c.maxRayDistance, c.blendMargin, bricks, c.hysteresis,
+                                           std::uint8_t(c.encoding), sh));
   }
   auto cascadesOff = fbb.CreateVector(cascades);
 
@@ -618,6 +691,12 @@ Result<Field> decodeBakedField(std::span<const std::uint8_t> bytes, std::uint64_
     if (!(c.hysteresis >= 0.0f && c.hysteresis < 1.0f))
       return fail("cascade " + std::to_string(k) + ": hysteresis " + std::to_string(c.hysteresis) +
                   " outside [0, 1)");
+    c.encoding = wc->encoding();
+    if (c.encoding > PC_ENCODING_SH2)
+      return fail("cascade " + std::to_string(k) + ": unknown irradiance encoding " +
+                  std::to_string(c.encoding) + " (0 octahedral, 1 sh1, 2 sh2)");
+    if (!pcEncodingIsSh(c.encoding) && wc->sh_coefficients() && wc->sh_coefficients()->size())
+      return fail("cascade " + std::to_string(k) + ": SH coefficients in an octahedral cascade");
     // The layout check comes before any allocation sized by these counts.
     if (Status s = checkCascade(c, int(k), t); !s) return fail(s.error().message);
     const auto* bricks = wc->brick_versions();
@@ -642,6 +721,14 @@ Result<Field> decodeBakedField(std::span<const std::uint8_t> bytes, std::uint64_
     return fail("field holds " + std::to_string(f.desc.probeCount) + " probe slots in " +
                 std::to_string(f.desc.atlasTileRows) + " tile rows, cascades give " +
                 std::to_string(t.slots) + " in " + std::to_string(t.rows));
+  }
+
+  // SH coefficients, now that the slot total (checked above) bounds the allocation.
+  for (std::size_t k = 0; k < cascadeCount; ++k) {
+    if (!pcEncodingIsSh(f.desc.cascades[k].encoding)) continue;
+    if (f.sh.empty()) f.sh.assign(std::size_t(t.slots), ShCoefficients{});
+    const wire::Cascade* wc = cascades->Get(flatbuffers::uoffset_t(k));
+    if (Status s = unpackSh(wc->sh_coefficients(), f, int(k)); !s) return fail(s.error().message);
   }
 
   const auto* probes = root->probes();

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "../shaders/interop/probe_update.h"
+#include "../shaders/interop/sh_probe.h"
 
 namespace pc {
 
@@ -80,6 +81,33 @@ const TexelDirections& TexelDirections::get() {
   return dirs;
 }
 
+namespace {
+
+// An SH probe's irradiance update: the rays that met no backface (those see the inside of
+// geometry and carry no light, as in the tiles) projected onto the basis, blended with the
+// probe's coefficients by the same hysteresis as a tile. The blend is linear in radiance (SH
+// coefficients have no gamma-encoded form); the tile, derived afterwards, is encoded as usual.
+float blendShProbe(Field& field, int k, int slot, const RayResult* rays, const glm::vec3* dirs,
+                   int rayCount, float alpha) {
+  glm::vec3 frontDirs[kMaxRaysPerProbe], radiance[kMaxRaysPerProbe];
+  int front = 0;
+  for (int i = 0; i < rayCount; ++i) {
+    if (rays[i].distance < 0.0f) continue;
+    frontDirs[front] = dirs[i];
+    radiance[front] = rays[i].radiance;
+    ++front;
+  }
+  if (front == 0) return 0.0f;
+  const int count = pcShCoefficientCount(field.encoding(k));
+  const ShCoefficients sample =
+      projectSh({frontDirs, std::size_t(front)}, {radiance, std::size_t(front)}, count);
+  ShCoefficients& coefficients = field.shProbe(k, slot);
+  for (int i = 0; i < count; ++i) coefficients[i] = glm::mix(sample[i], coefficients[i], alpha);
+  return deriveShTile(field, k, slot);
+}
+
+}  // namespace
+
 float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm::vec3* dirs,
                  int rayCount, const BlendTaps& taps) {
   // Field::create and baked-file decoding keep the ray count in range; the per-ray scratch
@@ -132,8 +160,11 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
 
   float maxChange = (oldState != record.state || moved) ? inf : 0.0f;
 
-  // ---- irradiance: E = pi * cos-weighted mean radiance; backface rays carry no light ----
-  {
+  // ---- irradiance, SH cascades: project the rays, blend the coefficients, derive the tile ----
+  if (pcEncodingIsSh(c.encoding)) {
+    maxChange = std::max(maxChange, blendShProbe(field, k, slot, rays, dirs, rayCount, alpha));
+  } else {
+    // ---- irradiance: E = pi * cos-weighted mean radiance; backface rays carry no light ----
     constexpr int n = PC_IRRADIANCE_TEXELS;
     const TexelTaps& tt = taps.irradiance;
     glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);

@@ -152,6 +152,14 @@ void VulkanTracer::setStateOnce(const SceneState& state) {
 }
 
 Result<UpdateStats> VulkanTracer::update(Field& field, const UpdateRequest& request) {
+  // The compute blend writes octahedral tiles only; SH projection runs on the Embree path.
+  for (int k = 0; k < field.cascadeCount(); ++k) {
+    if (field.encoding(k) != gpu::PC_ENCODING_OCTAHEDRAL)
+      return Error{"vulkan tracer: cascade " + std::to_string(k) + " is encoded " +
+                   probeEncodingName(ProbeEncoding(field.encoding(k))) +
+                   "; the GPU blend writes octahedral tiles only: trace SH cascades with the "
+                   "Embree backend"};
+  }
   return impl_->guarded("update", [&] { return updateOnce(field, request); });
 }
 

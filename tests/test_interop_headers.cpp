@@ -16,6 +16,7 @@
 #include "shaders/interop/probe_update.h"
 #include "shaders/interop/probe_view.h"
 #include "shaders/interop/screen_ao.h"
+#include "shaders/interop/sh_probe.h"
 #include "shaders/interop/shadow_roulette.h"
 #include "shaders/interop/tonemap.h"
 

@@ -125,6 +125,32 @@ TEST(VolumeSettings, BadValuesNameTheVolumeAndTheKey) {
   // Rays per probe are the field's: both tracers trace every cascade with one ray set.
   expectRejected(R"(, "rays_per_probe": 64)", "", "volume 0", "--rays");
   expectRejected("", R"(, "hysterisis": 0.5)", "/volumes/1/hysterisis", "unknown key");
+  expectRejected(R"(, "encoding": "sh3")", "", "volume 0", "encoding must be");
+  expectRejected("", R"(, "encoding": 2)", "/volumes/1/encoding", "\"sh2\"");
+}
+
+// The irradiance encoding: per volume, octahedral where unset, laid into each cascade and into
+// the field's SH coefficient store (only where some cascade is SH).
+TEST(VolumeSettings, EncodingReachesItsCascade) {
+  auto scene = loadWithSidecar("encoding", sidecarWithVolumes(R"(, "encoding": "sh2")", ""));
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  EXPECT_EQ(scene->volumes[0].settings.encoding, ProbeEncoding::Sh2);
+  EXPECT_FALSE(scene->volumes[1].settings.encoding);
+  Field field = Field::create(scene->volumes, FieldSettings{});
+  EXPECT_EQ(field.encoding(0), gpu::PC_ENCODING_SH2);
+  EXPECT_EQ(field.encoding(1), gpu::PC_ENCODING_OCTAHEDRAL);
+  EXPECT_EQ(field.sh.size(), field.probes.size());
+  FieldSettings sh1;
+  sh1.encoding = ProbeEncoding::Sh1;  // the field's default for volumes that do not say
+  Field second = Field::create(scene->volumes, sh1);
+  EXPECT_EQ(second.encoding(0), gpu::PC_ENCODING_SH2);
+  EXPECT_EQ(second.encoding(1), gpu::PC_ENCODING_SH1);
+  auto plain = loadWithSidecar("plain", sidecarWithVolumes("", ""));
+  ASSERT_TRUE(plain.ok()) << plain.error().message;
+  EXPECT_TRUE(Field::create(plain->volumes, FieldSettings{}).sh.empty());
+  EXPECT_EQ(parseProbeEncoding("sh1"), ProbeEncoding::Sh1);
+  EXPECT_FALSE(parseProbeEncoding("SH1"));
+  EXPECT_STREQ(probeEncodingName(ProbeEncoding::Octahedral), "octahedral");
 }
 
 // Two fields alike but for cascade 0's hysteresis, two updates on `backend`: the first update

@@ -47,6 +47,11 @@ int main(int argc, char** argv) {
                  "(0: never)")
       ->check(CLI::Range(0, 1 << 30));
   app.add_option("--updates", updates, "field updates")->check(CLI::Range(1, 1000000));
+  std::string encoding;
+  app.add_option("--encoding", encoding,
+                 "every volume's irradiance encoding, overriding the sidecar's: octahedral, sh1 "
+                 "or sh2 (SH needs the embree backend)")
+      ->check(CLI::IsMember({"octahedral", "sh1", "sh2"}));
   app.add_option("--rays", rays, "rays per probe per update")
       ->check(CLI::Range(pc::kMinRaysPerProbe, pc::kMaxRaysPerProbe));
   app.add_option("--time", time, "animation time of the baked state (seconds)")->check(pc::kFinite);
@@ -105,6 +110,9 @@ int main(int argc, char** argv) {
   settings.raysPerProbe = rays;
   // Volumes from the sidecar (checked against the geometry), else placed from the geometry.
   std::vector<pc::ProbeVolume> volumes = pc::sceneVolumes(*scene, autoVolumes);
+  if (!encoding.empty()) {
+    for (pc::ProbeVolume& v : volumes) v.settings.encoding = pc::parseProbeEncoding(encoding);
+  }
   pc::Field field = pc::Field::create(volumes, settings);
   field.sceneHash = scene->hash;
   pc::VulkanTracerOptions vulkan;

@@ -107,6 +107,7 @@ json cascadeJson(const pc::Field& field, int k, const pc::inspect::CascadeSummar
           {"view_bias", c.viewBias},
           {"max_ray_distance", c.maxRayDistance},
           {"blend_margin", c.blendMargin},
+          {"encoding", pc::probeEncodingName(pc::ProbeEncoding(c.encoding))},
           {"atlas_tile_row", c.atlasTileRow},
           {"atlas_tile_rows", pc::gpu::pcAtlasTileRows(slots)},
           {"states", states},
@@ -163,6 +164,7 @@ void printTable(const json& j) {
     std::printf("  biases          normal %g, view %g, blend margin %g, max ray distance %g\n",
                 c["normal_bias"].get<double>(), c["view_bias"].get<double>(),
                 c["blend_margin"].get<double>(), c["max_ray_distance"].get<double>());
+    std::printf("  encoding        %s\n", c["encoding"].get<std::string>().c_str());
     std::printf("  atlas rows      %d..%d\n", c["atlas_tile_row"].get<int>(),
                 c["atlas_tile_row"].get<int>() + c["atlas_tile_rows"].get<int>() - 1);
     const json& s = c["states"];

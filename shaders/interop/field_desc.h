@@ -30,6 +30,15 @@ PC_CONST int PC_SAMPLE_NO_OCCLUSION = 2;   // skip the occlusion tile (probe-ray
 // No wider search when a point's cages hold no probe with data (tests: what the fallback saves).
 PC_CONST int PC_SAMPLE_NO_FALLBACK = 4;
 
+// Irradiance encodings of a cascade (CascadeDesc.encoding). Octahedral: the irradiance tiles
+// are the field's own. SH: spherical-harmonics coefficients of radiance per probe (sh_probe.h)
+// are the field's own, and the irradiance tiles are derived from them after every update, so
+// that whatever reads tiles (wire, GPU client) keeps working. Depth moments and occlusion stay
+// octahedral in every encoding: SH this low in order cannot carry visibility.
+PC_CONST int PC_ENCODING_OCTAHEDRAL = 0;
+PC_CONST int PC_ENCODING_SH1 = 1;  // L1: 4 coefficients per colour channel
+PC_CONST int PC_ENCODING_SH2 = 2;  // L2: 9 coefficients per colour channel
+
 PC_CONST float PC_PI = 3.14159265358979f;
 PC_CONST float PC_IRRADIANCE_GAMMA = 5.0f;  // encoding gamma of the irradiance atlas
 
@@ -49,7 +58,7 @@ struct CascadeDesc {
   float blendMargin;     // world units over which a point fades to the next coarser cascade
   // -- 64
   float hysteresis;  // the blend's weight of history (FieldSettings, or the volume's own)
-  float pad0;
+  int encoding;      // PC_ENCODING_*: how the cascade stores irradiance (sh_probe.h)
   float pad1;
   float pad2;
   // -- 80

@@ -80,8 +80,11 @@ Result<std::vector<std::string>> sceneFilesIn(const std::string& dir) {
 }
 
 Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, int cascades,
-                             bool autoVolumes) {
+                             bool autoVolumes, std::optional<ProbeEncoding> encoding) {
   std::vector<ProbeVolume> volumes = sceneVolumes(scene, autoVolumes);
+  if (encoding) {
+    for (ProbeVolume& v : volumes) v.settings.encoding = encoding;
+  }
   if (cascades > 1) {
     const ProbeVolume base = volumes.front();
     const glm::vec3 centre = base.origin + 0.5f * base.spacing * glm::vec3(base.counts - 1);
@@ -102,7 +105,24 @@ Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, i
   auto stats = bakeField(field, **tracer, options);
   if (!stats) return stats.error();
   if (seconds) *seconds = stats->ms / 1000.0;
+  roundShToHalf(field);
   return field;
+}
+
+double fieldBytesPerProbe(const Field& field, bool withVisibility) {
+  double bytes = 0;
+  int probes = 0;
+  for (int k = 0; k < field.cascadeCount(); ++k) {
+    const glm::ivec3 n = field.cascade(k).counts;
+    const int count = n.x * n.y * n.z;
+    bytes += double(count) * irradianceBytesPerProbe(ProbeEncoding(field.encoding(k)));
+    probes += count;
+  }
+  if (probes == 0) return 0;
+  // Depth moments (2 values) and occlusion (1) per texel, at 16 bits, in every encoding.
+  const int visibility = 2 * (2 * gpu::PC_DEPTH_TEXELS * gpu::PC_DEPTH_TEXELS +
+                              gpu::PC_OCCLUSION_TEXELS * gpu::PC_OCCLUSION_TEXELS);
+  return bytes / probes + (withVisibility ? visibility : 0);
 }
 
 // Bumped when the path tracer's output changes, so that no older cached image stands in for it
@@ -169,7 +189,8 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
   Comparison c;
   auto camera = sceneCamera(scene, setup.camera);
   if (!camera) return camera.error();
-  auto field = bakeSceneField(scene, setup.updates, &c.bakeSeconds, 0, setup.autoVolumes);
+  auto field =
+      bakeSceneField(scene, setup.updates, &c.bakeSeconds, 0, setup.autoVolumes, setup.encoding);
   if (!field) return field.error();
   c.probes = field->probeCount();
   c.field = std::move(field).value();

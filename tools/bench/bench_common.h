@@ -4,6 +4,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,8 @@ struct RenderSetup {
   float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;
   std::string cacheDir = "build/reference-cache";
   bool autoVolumes = false;  // place cascades from the geometry, ignoring the sidecar's
+  // Every cascade's irradiance encoding, overriding the volumes' own (quality --encoding).
+  std::optional<ProbeEncoding> encoding;
 };
 void addRenderOptions(CLI::App& cmd, RenderSetup& setup);
 
@@ -54,9 +57,14 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
 // the spacing of the one before and the same counts (nested cascades, as a camera-centred
 // field would hold).
 // autoVolumes: the cascades placed from the geometry (sceneVolumes) even where the scene has
-// its own.
+// its own. encoding: every cascade's, overriding the volumes' own; SH coefficients are
+// rounded to float16 after the bake, as files store them.
 Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds = nullptr,
-                             int cascades = 0, bool autoVolumes = false);
+                             int cascades = 0, bool autoVolumes = false,
+                             std::optional<ProbeEncoding> encoding = std::nullopt);
+// Bytes per probe of the field's irradiance at 16 bits per value (irradianceBytesPerProbe),
+// averaged over its real probes; `withVisibility` adds the depth moments and occlusion tiles.
+double fieldBytesPerProbe(const Field& field, bool withVisibility);
 
 // Path-traced reference, from the cache when an identical render is there.
 struct Reference {

@@ -98,6 +98,7 @@ std::string commandLine(const QualityOptions& o) {
        " --spp " + std::to_string(o.setup.spp) + " --updates " + std::to_string(o.setup.updates);
   if (o.setup.autoVolumes) c += " --auto-volumes";
   c += " --aa " + std::to_string(o.setup.primarySamples);
+  if (o.setup.encoding) c += std::string(" --encoding ") + probeEncodingName(*o.setup.encoding);
   if (o.noClient)
     c += " --no-client";
   else
@@ -136,6 +137,8 @@ QualityRow measure(const std::string& path, const QualityOptions& o, bool many,
   row.probes = r->probes;
   row.cascades = r->field.cascadeCount();
   row.spacing = r->field.cascadeCount() ? r->field.cascade(0).spacing : 0.0f;
+  row.bytesPerProbe = fieldBytesPerProbe(r->field, false);
+  row.bytesPerProbeWithVisibility = fieldBytesPerProbe(r->field, true);
   row.referenceNoisePsnr = r->referenceNoisePsnr;
   row.bakeSeconds = r->bakeSeconds;
   row.referenceSeconds = r->referenceSeconds;
@@ -189,6 +192,8 @@ void printFigures(const QualityRow& r, bool many) {
     figure("psnr_probe_vs_noise_free_reference_est" + suffix, r.probeLit.psnrNoiseFree, "dB");
   figure("ssim_probe_vs_reference" + suffix, r.probeLit.ssim, "ratio");
   figure("flip_probe_vs_reference" + suffix, r.probeLit.flip, "ratio");
+  figure("bytes_per_probe" + suffix, r.bytesPerProbe, "bytes");
+  figure("bytes_per_probe_with_visibility" + suffix, r.bytesPerProbeWithVisibility, "bytes");
   if (r.client) {
     figure("psnr_client_vs_reference" + suffix, r.client->psnr, "dB");
     if (std::isfinite(r.client->psnrNoiseFree))
@@ -286,6 +291,12 @@ Benchmark addQuality(CLI::App& app) {
   cmd->add_option("--ppd", o.pixelsPerDegree, "FLIP's observer: pixels per degree of view")
       ->check(CLI::PositiveNumber);
   addRenderOptions(*cmd, o.setup);
+  cmd->add_option_function<std::string>(
+         "--encoding",
+         // IsMember below has checked the name already.
+         [](const std::string& name) { o.setup.encoding = parseProbeEncoding(name); },
+         "every cascade's irradiance encoding: octahedral, sh1 or sh2 (overrides the volumes')")
+      ->check(CLI::IsMember({"octahedral", "sh1", "sh2"}));
   return {cmd, [] { return run(o); }};
 }
 

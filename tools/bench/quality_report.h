@@ -25,6 +25,8 @@ struct QualityRow {
   std::string volumes;  // "sidecar" or "auto"
   int probes = 0, cascades = 0;
   float spacing = 0;  // finest cascade
+  // Irradiance bytes per probe at 16 bits (fieldBytesPerProbe), and with depth and occlusion.
+  double bytesPerProbe = 0, bytesPerProbeWithVisibility = 0;
   Scores probeLit;
   std::optional<Scores> client;  // unset when no client render was made
   std::string clientNote;        // why not, when unset
