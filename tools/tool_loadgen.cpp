@@ -26,7 +26,10 @@ int main(int argc, char** argv) {
   double seconds = 10, warmup = 2;
   std::string jsonPath;
   bool decodeEach = false;
-  pc::addConnectOption(app, o.host, o.port, "the server");
+  pc::addConnectOption(app, o.host, o.port, o.alternates,
+                       "the server; several (relays of one field, comma-separated or the flag "
+                       "again): each client takes the least loaded (PROTOCOL.md, \"Choosing an "
+                       "endpoint by load\")");
   // The spelling before --connect, as probecast-client has it; kept for one release.
   app.add_option("--host", o.host, "deprecated: --connect HOST:PORT")->group("Deprecated");
   app.add_option("--port", o.port, "deprecated: --connect HOST:PORT")->group("Deprecated");
