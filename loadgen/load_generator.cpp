@@ -271,6 +271,7 @@ class Client {
   void onLayout(double now);
   void onSceneState(const SceneStateMsg& state, double now);
   void onDatagram(const Status& status, double now);
+  void noteSynced();  // counts the session as synced once it holds every brick
   void onReport(double now);
   // The emulated link: a datagram that reached this client's socket at `now` enters the
   // link's queue (or is dropped at its tail); deliverLink hands on those whose time came.
@@ -346,6 +347,8 @@ void Client::tick(double now) {
   if (!frames) return endSession(now, frames.error().message);
   for (Bytes& f : *frames) send(std::move(f));
   if (state_ != State::Session) return;  // a send may have failed
+  // A resumed session may hold every brick from its start, with no datagram to say so.
+  noteSynced();
   sendUplink();
   const ReceiverStats& rs = session_.receiver()->stats();
   window_.repairs += rs.repairBricks - lastRepairs_;
@@ -650,11 +653,14 @@ void Client::onDatagram(const Status& status, double now) {
     // Versions up to the one at join were published before the session: initial sync.
     if (version > infoVersion_) recordLatency(version, now);
   }
-  if (!synced_ && session_.synced()) {
-    synced_ = true;
-    ++gen_.synced;
-    syncSeconds_ = session_.syncSeconds();
-  }
+  noteSynced();
+}
+
+void Client::noteSynced() {
+  if (synced_ || !session_.synced()) return;
+  synced_ = true;
+  ++gen_.synced;
+  syncSeconds_ = session_.syncSeconds();
 }
 
 // How long the client has been behind: since the publish of the oldest announced field

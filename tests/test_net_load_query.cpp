@@ -44,18 +44,20 @@ TEST(LoadQuery, FormatRoundTripsAndRefusesOtherBytes) {
 }
 
 TEST(LoadQuery, ClientsChooseTheLeastLoadedLiveEndpoint) {
-  std::vector<net::ProbedEndpoint> e{answered("10.0.0.1", 40, 100), answered("10.0.0.2", 10, 100),
-                                     answered("10.0.0.3", 10, 20)};
+  std::vector<net::ProbedEndpoint> e{answered("10.0.0.1", 60, 100), answered("10.0.0.2", 10, 100),
+                                     answered("10.0.0.3", 10, 40)};
   EXPECT_EQ(net::chooseEndpoint(e), 1u);  // the smallest share of its cap
   // Sessions this process opened since the answers count: 31 more make the second busier.
   const std::vector<int> opened{0, 31, 0};
   EXPECT_EQ(net::chooseEndpoint(e, "", opened), 2u);
   e[1].load->ready = false;  // a relay that lost NATS: after every ready one
   EXPECT_EQ(net::chooseEndpoint(e), 2u);
-  e[2].load->clients = 20;  // full
+  // The one that just failed goes after the others of its class, however light.
+  EXPECT_EQ(net::chooseEndpoint(e, e[2].key()), 0u);
+  e[2].load->clients = 40;  // full: with the not ready ones
   EXPECT_EQ(net::chooseEndpoint(e), 0u);
-  // The one that just failed goes after the others of its class.
-  EXPECT_EQ(net::chooseEndpoint(e, e[0].key()), 2u);
+  e[0].load->ready = false;  // none ready: the least loaded of them
+  EXPECT_EQ(net::chooseEndpoint(e), 1u);
 
   // No answers (servers without load queries): the order given, after the one that failed.
   std::vector<net::ProbedEndpoint> silent(3, answered("", 0, 0));

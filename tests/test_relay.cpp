@@ -781,8 +781,15 @@ TEST(Relay, NewClientsGoToTheLessLoadedRelayAndLeaveAKilledOne) {
   EXPECT_TRUE(waitFor([&] { return on(endpointA); }, 30.0))
       << "the clients of the killed relay did not all move to the live one";
   const double moved = steadySeconds() - killed;
-  for (const auto& [where, n] : (*spread)->snapshot().perEndpoint)
+  const load::LoadSnapshot snap = (*spread)->snapshot();
+  std::printf("load clients: %d synced, %d in session\n", snap.synced, snap.inSession);
+  for (const auto& [where, n] : snap.perEndpoint)
     std::printf("load clients on %s: %d\n", where.c_str(), n);
+  for (auto& c : clients) {
+    const client::NetClientStats st = c->stats();
+    std::printf("client on %s, synced %d, sessions %llu: %s\n", st.endpoint.c_str(), int(st.synced),
+                (unsigned long long)st.sessions, st.lastError.c_str());
+  }
   std::printf("FIGURE relay_balance real=%d load=%d busy=12 moved_s=%.3f\n", kReal, 6, moved);
   (*spread)->stop();
   (*busy)->stop();

@@ -16,6 +16,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -135,6 +136,17 @@ int runScale(const ScaleSetup& s) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   load::raiseFileLimit();
+  // This process holds a TCP and a UDP socket per client (and the movers'); each relay a TCP
+  // socket per client. Better said now than as connect errors a minute in.
+  if (rlimit files{}; getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur != RLIM_INFINITY &&
+                      files.rlim_cur < rlim_t(2 * (s.clients + s.failoverClients) + 256)) {
+    return std::fprintf(stderr,
+                        "scale: %d clients need about %d open files, the limit is %llu (raise "
+                        "it: ulimit -n)\n",
+                        s.clients, 2 * (s.clients + s.failoverClients) + 256,
+                        (unsigned long long)files.rlim_cur),
+           1;
+  }
 
   // Keys, a token per client (the relays' per-token caps stay on), one certificate for every
   // relay.
