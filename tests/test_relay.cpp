@@ -332,6 +332,9 @@ TEST(Relay, ClientsOfAKilledRelayMoveToTheOtherAndKeepTheirField) {
     client::NetClientOptions o = clientOptions(portA, "");
     o.caFile = cert;
     o.alternates = {{"127.0.0.1", portB}};
+    // The endpoints in the order given, so that every client starts on a (choosing by load is
+    // NewClientsGoToTheLessLoadedRelayAndLeaveAKilledOne's).
+    o.loadProbeTimeout = 0;
     mirrors.push_back(std::make_unique<client::FieldMirror>());
     clients.push_back(std::make_unique<client::NetClient>(*mirrors.back(), o));
     clients.back()->start();
@@ -675,6 +678,7 @@ TEST(Relay, AHundredLoadClientsOfAKilledRelayAreServedByTheOther) {
   o.host = "127.0.0.1";
   o.port = relays.portA;
   o.alternates = {{"127.0.0.1", relays.portB}};
+  o.loadProbeInterval = 0;  // all on a, in the order given, until it is killed
   o.caFile = relays.cert;
   o.token = kToken;
   o.clients = 100;
