@@ -1,15 +1,17 @@
 // scale: the field served past one machine's worth of clients, on this host. Starts a
 // nats-server (JetStream in a temporary folder), probecast-server exporting its field to it,
-// R probecast-relay processes, and N load-generator clients spread over the relays (in this
-// process); measures a window, then kills one relay (SIGKILL) under a few real clients given
-// two endpoints and times their move to another relay.
+// R probecast-relay processes, and N load-generator clients spread evenly over the relays (in
+// this process, one generator per relay); measures a window, then starts a few real clients
+// given every relay, which choose one by load, kills the relay most of them chose (SIGKILL)
+// and times their move to the least loaded survivors.
 //
 // Figures: relay_cpu_ms_per_client_s (the relays' CPU in the window / N / window: what a client
-// costs its relay), field_server_cpu_ms_per_s (the field server's whole process: it serves no
-// client, so it should not grow with R or N; run R = 1, 2, 3 to see it flat), p99 latency from
-// the field server's publish to a client's apply (through NATS and a relay), starved clients,
-// the held field's PSNR (5th percentile over clients), and failover_s (the slowest of the
-// moving clients, from the kill to holding every brick on the other relay).
+// costs its relay; printed per relay too, and _max the busiest relay's), field_server_cpu_ms_
+// per_s (the field server's whole process: it serves no client, so it should not grow with R
+// or N; run R = 2, 3 to see it flat), p99 latency from the field server's publish to a client's
+// apply (through NATS and a relay), starved clients, the held field's PSNR (5th percentile over
+// clients: its error against the current field), and failover_s (the slowest of the moving
+// clients, from the kill to holding every brick on another relay).
 // clang-format off
 #include <utility>  // first: Boost.Asio 1.74 uses std::exchange without including it
 // clang-format on
