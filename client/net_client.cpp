@@ -107,7 +107,6 @@ struct NetClient::Impl {
   // Where the next connection goes: every address of every endpoint given, asked for its load
   // before each connection where there is more than one (net/load_probe.h), the least loaded
   // taken; the one that just failed (`avoid`) goes after the others of its class.
-  std::vector<net::ProbedEndpoint> candidates;
   std::string current, avoid;  // address:port of the current (latest) and the failed endpoint
   NetEndpoint chooseEndpoint(std::string& connectTo);
   std::array<std::uint8_t, 16 * 1024> readBuffer{};
@@ -169,7 +168,7 @@ void NetClient::Impl::connect() {
 NetEndpoint NetClient::Impl::chooseEndpoint(std::string& connectTo) {
   std::vector<net::LoadEndpoint> given{{options.host, options.port}};
   for (const NetEndpoint& e : options.alternates) given.push_back({e.host, e.port});
-  candidates = net::resolveEndpoints(given);
+  std::vector<net::ProbedEndpoint> candidates = net::resolveEndpoints(given);
   if (candidates.empty()) {  // nothing resolves now: the first, whose resolve error is logged
     connectTo = options.host;
     return NetEndpoint{options.host, options.port};
