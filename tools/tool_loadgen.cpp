@@ -94,6 +94,12 @@ int main(int argc, char** argv) {
     std::printf("%s: %d/%d in session, %d synced, %llu sessions started, %llu errors\n", phase,
                 s.inSession, s.clients, s.synced, (unsigned long long)s.sessionsStarted,
                 (unsigned long long)s.errors);
+    // Where the clients chose to be, given several endpoints.
+    if (s.perEndpoint.size() > 1) {
+      std::printf("  in session per endpoint:");
+      for (const auto& [endpoint, n] : s.perEndpoint) std::printf(" %s %d", endpoint.c_str(), n);
+      std::printf("\n");
+    }
     std::fflush(stdout);
   };
   for (double t = 0; t < o.rampSeconds + warmup; t += 1.0) {
