@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "common/log.h"
+#include "net/load_probe.h"
 #include "net/session_stream.h"
 #include "protocol/client_session.h"
 #include "update_latency.h"
@@ -103,16 +104,11 @@ struct NetClient::Impl {
   std::uint64_t connection = 0;  // bumps per connection: handlers of an old one do nothing
   bool tcpOpen = false;
   double backoff = 0;
-  // Which endpoint: 0 is options.host:port, i > 0 is options.alternates[i - 1].
-  std::size_t endpointIndex = 0;
-  NetEndpoint first;
-  const NetEndpoint& currentEndpoint() {
-    if (endpointIndex == 0) {
-      first = NetEndpoint{options.host, options.port};
-      return first;
-    }
-    return options.alternates[endpointIndex - 1];
-  }
+  // Where the next connection goes: every address of every endpoint given, asked for its load
+  // before each connection where there is more than one (net/load_probe.h), the least loaded
+  // taken; the one that just failed (`avoid`) goes after the others of its class.
+  std::string current, avoid;  // address:port of the current (latest) and the failed endpoint
+  NetEndpoint chooseEndpoint(std::string& connectTo);
   std::array<std::uint8_t, 16 * 1024> readBuffer{};
   std::array<std::uint8_t, 2048> udpBuffer{};
   udp::endpoint udpFrom;
@@ -144,7 +140,8 @@ void NetClient::Impl::connect() {
   if (options.tls && !tls) return fail("TLS is not set up");
   stream = tls ? std::make_shared<net::SessionStream>(tcp::socket(io), tls->context())
                : std::make_shared<net::SessionStream>(tcp::socket(io));
-  const NetEndpoint& to = currentEndpoint();
+  std::string address;  // what to connect to: a numeric address, or the name to resolve
+  const NetEndpoint to = chooseEndpoint(address);
   {
     std::lock_guard lock(mutex);
     stats.endpoint = to.host + ":" + std::to_string(to.port);
@@ -152,7 +149,7 @@ void NetClient::Impl::connect() {
   if (tls) {
     if (Status s = tls->prepare(*stream->tlsStream(), to.host); !s) return fail(s.error().message);
   }
-  resolver.async_resolve(to.host, std::to_string(to.port),
+  resolver.async_resolve(address, std::to_string(to.port),
                          [this, id, st = stream, host = to.host](
                              boost::system::error_code ec, tcp::resolver::results_type results) {
                            if (id != connection || stopping) return;
@@ -166,6 +163,27 @@ void NetClient::Impl::connect() {
                                                  onConnected(id);
                                                });
                          });
+}
+
+NetEndpoint NetClient::Impl::chooseEndpoint(std::string& connectTo) {
+  std::vector<net::LoadEndpoint> given{{options.host, options.port}};
+  for (const NetEndpoint& e : options.alternates) given.push_back({e.host, e.port});
+  std::vector<net::ProbedEndpoint> candidates = net::resolveEndpoints(given);
+  if (candidates.empty()) {  // nothing resolves now: the first, whose resolve error is logged
+    connectTo = options.host;
+    return NetEndpoint{options.host, options.port};
+  }
+  if (candidates.size() > 1 && options.loadProbeTimeout > 0)
+    net::probeLoads(candidates, options.loadProbeTimeout);
+  const net::ProbedEndpoint& chosen = candidates[*net::chooseEndpoint(candidates, avoid)];
+  if (!current.empty() && chosen.key() != current) {
+    std::lock_guard lock(mutex);
+    ++stats.endpointSwitches;
+  }
+  current = chosen.key();
+  avoid.clear();
+  connectTo = chosen.address;
+  return NetEndpoint{chosen.host, chosen.port};
 }
 
 void NetClient::Impl::onConnected(std::uint64_t id) {
@@ -217,13 +235,10 @@ void NetClient::Impl::fail(const std::string& why) {
     stats.synced = false;
   }
   if (stopping) return;
-  // The next endpoint serving the field, if there are several: a relay that died is left at
-  // once (after the short first backoff), and one that refuses is not asked again first.
-  if (!options.alternates.empty()) {
-    endpointIndex = (endpointIndex + 1) % (options.alternates.size() + 1);
-    std::lock_guard lock(mutex);
-    ++stats.endpointSwitches;
-  }
+  // With several endpoints serving the field, the next connection goes to the least loaded
+  // live one: a relay that died is left at once (after the short first backoff), and one that
+  // refuses is not asked again first.
+  avoid = current;
   const double wait = backoff;
   backoff = std::min(options.backoffMax, std::max(options.backoffInitial, backoff * 2));
   retryTimer.expires_after(toDuration(wait));

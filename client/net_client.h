@@ -30,9 +30,14 @@ struct NetEndpoint {
 struct NetClientOptions {
   std::string host = "127.0.0.1";
   std::uint16_t port = 7450;
-  // Further endpoints serving the same field (relays): a connection that is lost or fails
-  // moves on to the next one, in order, wrapping around; the mirror is kept throughout.
+  // Further endpoints serving the same field (relays). Before each connection every address of
+  // every endpoint (a host name with several DNS records gives several) is asked for its load
+  // (PROTOCOL.md "Choosing an endpoint by load") and the least loaded that takes clients is
+  // chosen; a connection that is lost or fails moves on to the least loaded other one, in
+  // order where none answers; the mirror is kept throughout.
   std::vector<NetEndpoint> alternates;
+  // How long the load queries wait for answers (s); 0: no queries, the endpoints in order.
+  double loadProbeTimeout = 0.2;
   std::string token;
   std::string name = ClientSessionOptions{}.name;
   // TLS 1.3 to the server, verified by a pinned certificate fingerprint ("sha256:<hex>") or

@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "common/series_csv.h"
+#include "net/load_probe.h"
 #include "net/session_stream.h"
 #include "protocol/client_session.h"
 #include "shared_decoder.h"
@@ -83,9 +84,24 @@ struct LoadGenerator::Impl {
   LoadInterval takeInterval();
 
   LoadOptions options;
-  // options.host:port, then options.alternates, resolved once, with the host names TLS checks.
+  // options.host:port, then options.alternates, resolved once (every address of a name), with
+  // the host names TLS checks.
   std::vector<tcp::endpoint> endpoints;
   std::vector<std::string> hosts;
+  std::unique_ptr<std::atomic<int>[]> inSessionAt;  // clients in a session, per endpoint
+
+  // Choosing by load (PROTOCOL.md "Choosing an endpoint by load"): a thread asks every endpoint
+  // for its load every loadProbeInterval; between probes each session this process opens is
+  // added to its endpoint's count, so that a ramp of joins spreads instead of following one
+  // stale figure.
+  std::size_t pickEndpoint(const std::string& avoid);
+  void probeLoads();
+  std::mutex loadMutex;
+  std::vector<net::ProbedEndpoint> probed;
+  std::vector<int> openedSinceProbe;
+  std::thread prober;
+  std::condition_variable proberWake;
+  bool proberStop = false;
   std::shared_ptr<net::TlsClient> tls;  // shared by every client's connections
   std::unique_ptr<SharedBrickDecoder> decoder;
   std::vector<std::unique_ptr<Worker>> workers;
@@ -255,6 +271,7 @@ class Client {
   void onLayout(double now);
   void onSceneState(const SceneStateMsg& state, double now);
   void onDatagram(const Status& status, double now);
+  void noteSynced();  // counts the session as synced once it holds every brick
   void onReport(double now);
   // The emulated link: a datagram that reached this client's socket at `now` enters the
   // link's queue (or is dropped at its tail); deliverLink hands on those whose time came.
@@ -276,7 +293,8 @@ class Client {
   const LoadOptions& o_;
   Worker& worker_;
   int index_;
-  std::size_t endpoint_ = 0;  // into gen_.endpoints: the next is tried after a failed session
+  std::size_t endpoint_ = 0;  // into gen_.endpoints: chosen by load at each connect
+  std::string avoid_;         // address:port of an endpoint whose session just failed
   ClientSession session_;
   // One stream per session; handlers hold it, so a closed stream outlives them.
   std::shared_ptr<net::SessionStream> stream_;
@@ -329,6 +347,8 @@ void Client::tick(double now) {
   if (!frames) return endSession(now, frames.error().message);
   for (Bytes& f : *frames) send(std::move(f));
   if (state_ != State::Session) return;  // a send may have failed
+  // A resumed session may hold every brick from its start, with no datagram to say so.
+  noteSynced();
   sendUplink();
   const ReceiverStats& rs = session_.receiver()->stats();
   window_.repairs += rs.repairBricks - lastRepairs_;
@@ -353,6 +373,8 @@ void Client::connect(double now) {
     }
   } while (!gen_.sessionsStarted.compare_exchange_weak(n, n + 1));
   ++window_.sessions;
+  endpoint_ = gen_.pickEndpoint(avoid_);
+  avoid_.clear();
   const std::uint64_t id = ++connection_;
   state_ = State::Connecting;
   session_.connecting(now);
@@ -406,6 +428,7 @@ void Client::endSession(double now, const std::string& error) {
   udp_.close(ec);
   if (state_ == State::Session) {
     --gen_.inSession;
+    --gen_.inSessionAt[endpoint_];
     window_.sessionSeconds += now - std::max(sessionStartedAt_, window_.start);
   }
   if (synced_) --gen_.synced;
@@ -425,9 +448,11 @@ void Client::endSession(double now, const std::string& error) {
   if (state_ == State::Done) return;
   state_ = worker_.stopping ? State::Done : State::Idle;
   nextConnectAt_ = now + (error.empty() ? o_.rejoinDelay : kErrorRetryDelay);
-  // A session that failed moves on to the next endpoint at once (a relay that died).
+  // A session that failed moves on at once to the least loaded other endpoint (a relay that
+  // died).
   if (!error.empty() && gen_.endpoints.size() > 1) {
-    endpoint_ = (endpoint_ + 1) % gen_.endpoints.size();
+    const tcp::endpoint& failed = gen_.endpoints[endpoint_];
+    avoid_ = failed.address().to_string() + ":" + std::to_string(failed.port());
     nextConnectAt_ = now + o_.rejoinDelay;
   }
 }
@@ -546,6 +571,7 @@ void Client::onLayout(double now) {
   gen_.measureLayout(session_.info());
   state_ = State::Session;
   ++gen_.inSession;
+  ++gen_.inSessionAt[endpoint_];
   sessionStartedAt_ = now;
   lastDatagramAt_ = now;
   synced_ = false;
@@ -627,11 +653,14 @@ void Client::onDatagram(const Status& status, double now) {
     // Versions up to the one at join were published before the session: initial sync.
     if (version > infoVersion_) recordLatency(version, now);
   }
-  if (!synced_ && session_.synced()) {
-    synced_ = true;
-    ++gen_.synced;
-    syncSeconds_ = session_.syncSeconds();
-  }
+  noteSynced();
+}
+
+void Client::noteSynced() {
+  if (synced_ || !session_.synced()) return;
+  synced_ = true;
+  ++gen_.synced;
+  syncSeconds_ = session_.syncSeconds();
 }
 
 // How long the client has been behind: since the publish of the oldest announced field
@@ -905,17 +934,21 @@ Result<std::unique_ptr<LoadGenerator>> LoadGenerator::create(LoadOptions options
   auto impl = std::make_unique<Impl>(std::move(options));
   Impl& g = *impl;
   // Resolved once: a thousand clients never ask the resolver a thousand times.
-  asio::io_context io;
-  tcp::resolver resolver(io);
-  boost::system::error_code ec;
-  std::vector<std::pair<std::string, std::uint16_t>> all{{g.options.host, g.options.port}};
-  all.insert(all.end(), g.options.alternates.begin(), g.options.alternates.end());
-  for (const auto& [host, port] : all) {
-    auto results = resolver.resolve(host, std::to_string(port), ec);
-    if (ec || results.empty()) return Error{"resolve " + host + ": " + ec.message()};
-    g.endpoints.push_back(*results.begin());
-    g.hosts.push_back(host);
+  std::vector<net::LoadEndpoint> all{{g.options.host, g.options.port}};
+  for (const auto& [host, port] : g.options.alternates) all.push_back({host, port});
+  g.probed = net::resolveEndpoints(all);
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    if (std::none_of(g.probed.begin(), g.probed.end(),
+                     [&](const net::ProbedEndpoint& p) { return p.given == i; }))
+      return Error{"resolve " + all[i].host + ": no address"};
   }
+  for (const net::ProbedEndpoint& p : g.probed) {
+    boost::system::error_code ec;
+    g.endpoints.emplace_back(asio::ip::make_address(p.address, ec), p.port);
+    g.hosts.push_back(p.host);
+  }
+  g.inSessionAt = std::make_unique<std::atomic<int>[]>(g.endpoints.size());
+  g.openedSinceProbe.assign(g.endpoints.size(), 0);
   if (g.options.tls) {
     net::TlsClientSettings settings;
     settings.pinnedFingerprint = g.options.serverFingerprint;
@@ -937,6 +970,20 @@ Result<std::unique_ptr<LoadGenerator>> LoadGenerator::create(LoadOptions options
 void LoadGenerator::start() {
   Impl& g = *impl_;
   if (g.running) return;
+  // The first clients choose from fresh figures.
+  if (g.endpoints.size() > 1 && g.options.loadProbeInterval > 0) {
+    g.probeLoads();
+    g.prober = std::thread([&g] {
+      std::unique_lock lock(g.loadMutex);
+      while (!g.proberStop) {
+        g.proberWake.wait_for(lock, std::chrono::duration<double>(g.options.loadProbeInterval));
+        if (g.proberStop) break;
+        lock.unlock();
+        g.probeLoads();
+        lock.lock();
+      }
+    });
+  }
   const double now = nowSeconds();
   g.windowStart = g.startedAt = g.intervalStart = now;
   for (int i = 0; i < g.options.clients; ++i) {
@@ -972,7 +1019,35 @@ void LoadGenerator::stop() {
     });
   }
   for (auto& w : g.workers) w->thread.join();
+  if (g.prober.joinable()) {
+    {
+      std::lock_guard lock(g.loadMutex);
+      g.proberStop = true;
+    }
+    g.proberWake.notify_all();
+    g.prober.join();
+  }
   g.running = false;
+}
+
+void LoadGenerator::Impl::probeLoads() {
+  std::vector<net::ProbedEndpoint> fresh;
+  {
+    std::lock_guard lock(loadMutex);
+    fresh = probed;
+  }
+  net::probeLoads(fresh, options.loadProbeTimeout);
+  std::lock_guard lock(loadMutex);
+  probed = std::move(fresh);
+  std::fill(openedSinceProbe.begin(), openedSinceProbe.end(), 0);
+}
+
+std::size_t LoadGenerator::Impl::pickEndpoint(const std::string& avoid) {
+  if (endpoints.size() == 1) return 0;
+  std::lock_guard lock(loadMutex);
+  const std::size_t i = net::chooseEndpoint(probed, avoid, openedSinceProbe).value_or(0);
+  ++openedSinceProbe[i];
+  return i;
 }
 
 void LoadGenerator::beginWindow() {
@@ -1096,6 +1171,11 @@ LoadSnapshot LoadGenerator::snapshot() const {
   s.sessionsEnded = g.sessionsEnded.load();
   s.errors = g.errors.load();
   s.newestFieldVersion = g.newestFieldVersion.load();
+  for (std::size_t i = 0; i < g.endpoints.size(); ++i) {
+    const tcp::endpoint& e = g.endpoints[i];
+    s.perEndpoint.emplace_back(e.address().to_string() + ":" + std::to_string(e.port()),
+                               g.inSessionAt[i].load());
+  }
   return s;
 }
 

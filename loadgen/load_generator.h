@@ -37,9 +37,13 @@ Result<std::vector<LinkClass>> parseRateMix(const std::string& text);
 struct LoadOptions {
   std::string host = "127.0.0.1";  // an IPv4/IPv6 address or a host name (resolved once)
   std::uint16_t port = 7450;
-  // More endpoints of the same field (relays): a client whose session fails connects to the
-  // next one, in order, wrapping around.
+  // More endpoints of the same field (relays). Every address of every endpoint is asked for its
+  // load every loadProbeInterval (PROTOCOL.md "Choosing an endpoint by load"); each session
+  // goes to the least loaded (counting the sessions this process opened since the answers), a
+  // client whose session fails to the least loaded other one, in order where none answers.
   std::vector<std::pair<std::string, std::uint16_t>> alternates;
+  double loadProbeInterval = 0.5;  // s; 0: no load queries, the endpoints in order
+  double loadProbeTimeout = 0.2;   // s a probe waits for answers
   std::string token;
   // One token per client instead (client i presents clientTokens[i % size]), as real
   // viewers each hold their own.
@@ -102,6 +106,8 @@ struct LoadSnapshot {
   std::uint64_t sessionsStarted = 0, sessionsEnded = 0;
   std::uint64_t errors = 0;
   std::uint64_t newestFieldVersion = 0;  // announced by any SceneState so far
+  // Clients in a session per endpoint address ("address:port"), in the order resolved.
+  std::vector<std::pair<std::string, int>> perEndpoint;
 };
 
 struct Percentiles {

@@ -183,7 +183,15 @@ void Relay::handle(const KvChange& change, double now) {
     stats_.lastError = why;
   };
   if (change.caughtUp) {
-    if (!catalogue_) return;  // an empty bucket: the catalogue comes with the field server
+    if (!catalogue_) {
+      // An empty bucket: the field server made it and has put nothing yet (or this relay
+      // started first). Everything from here on comes as it is put: the catalogue, then the
+      // bricks, then the state naming their version, so the relay holds the whole field at
+      // that first state and serves from there (commit).
+      logInfo("relay: bucket " + options_.bucket + " is empty; waiting for the field server");
+      caughtUp_ = true;
+      return;
+    }
     if (!caughtUp_) logInfo("relay: caught up from bucket " + options_.bucket);
     caughtUp_ = true;
     commit(now);

@@ -280,6 +280,55 @@ void NetServer::Impl::receiveUdp() {
   });
 }
 
+void NetServer::Impl::receiveLoadQueries() {
+  if (!loadSocket.is_open()) return;
+  loadSocket.async_wait(udp::socket::wait_read, [this](boost::system::error_code ec) {
+    if (ec || stopped) return;
+    answerLoadQueries();
+    receiveLoadQueries();
+  });
+}
+
+void NetServer::Impl::answerLoadQueries() {
+  // A few per turn of the event loop, as drainUdp reads: a flood of queries waits in the
+  // socket's buffer (or is lost there) rather than holding up the sessions.
+  constexpr int kPerTurn = 64;
+  for (int i = 0; i < kPerTurn && !stopped; ++i) {
+    std::array<std::uint8_t, 2 * net::kLoadQueryBytes> in{};
+    udp::endpoint from;
+    boost::system::error_code ec;
+    const std::size_t n = loadSocket.receive_from(asio::buffer(in), from, 0, ec);
+    if (ec) return;  // nothing more now
+    if (!answerLoadQuery(loadSocket, std::span(in.data(), n), from)) ++totals.loadMalformed;
+  }
+}
+
+bool NetServer::Impl::answerLoadQuery(udp::socket& socket, std::span<const std::uint8_t> bytes,
+                                      const udp::endpoint& from) {
+  const auto nonce = net::decodeLoadQuery(bytes);
+  if (!nonce) return false;
+  // The answer is no larger than the query, and their number is capped: a forged source
+  // address turns this into neither an amplifier nor a flood.
+  const double now = steadySeconds();
+  loadTokens =
+      std::min(kLoadAnswersPerSecond, loadTokens + (now - loadTokensAt) * kLoadAnswersPerSecond);
+  loadTokensAt = now;
+  if (loadTokens < 1) {
+    ++totals.loadLimited;
+    return true;
+  }
+  loadTokens -= 1;
+  net::EndpointLoad load;
+  load.clients = std::uint32_t(sessions.size());
+  load.maxClients = std::uint32_t(options.maxClients);
+  load.ready = options.ready ? options.ready() : true;
+  const net::LoadDatagram reply = net::encodeLoadReply(*nonce, load);
+  boost::system::error_code ec;
+  socket.send_to(asio::buffer(reply), from, 0, ec);
+  ++totals.loadAnswered;
+  return true;
+}
+
 void NetServer::Impl::drainUdp() {
   // recvmmsg: one system call per batch of datagrams. A few batches per turn of the event
   // loop at most, so that a flood of datagrams cannot hold up the sessions' streams and polls
@@ -313,6 +362,8 @@ void NetServer::Impl::drainUdp() {
 
 void NetServer::Impl::onUplink(std::span<const std::uint8_t> bytes, bool truncated,
                                const udp::endpoint& from, double now) {
+  // Where the datagram socket has the session port's number, load queries come to it too.
+  if (loadOnDatagramSocket && answerLoadQuery(udpSocket, bytes, from)) return;
   // Before authentication a datagram costs a header check, a lookup and a counter.
   ++totals.uplinkDatagrams;
   if (truncated || bytes.size() > kMaxUplinkDatagramBytes) return dropUplink(UplinkDrop::Oversized);
@@ -517,6 +568,14 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
             "Datagrams received on the UDP port (client acks and repair requests, and anything "
             "else sent there).",
             double(s.uplinkDatagrams));
+  for (auto [outcome, n] :
+       {std::pair{"answered", s.loadAnswered}, std::pair{"limited", s.loadLimited},
+        std::pair{"malformed", s.loadMalformed}}) {
+    m.counter("probecast_load_queries_total",
+              "Load queries on UDP at the session port, by outcome: answered, left unanswered "
+              "for the cap on answers per second, or not a query.",
+              double(n), {{"outcome", outcome}});
+  }
   for (std::size_t c = 0; c < kUplinkDropCount; ++c) {
     m.counter("probecast_uplink_dropped_total",
               "Datagrams on the UDP port dropped unanswered, by cause.", double(s.uplinkDrops[c]),
@@ -623,6 +682,23 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
   // per client, each under 100 bytes of payload).
   s.udpSocket.set_option(asio::socket_base::receive_buffer_size(1 << 20), ec);
   s.udpPortNumber = s.udpSocket.local_endpoint().port();
+  // Load queries come to the session's port number over UDP: to the datagram socket where it
+  // has that number (--udp-port the same as --port, as containers publish it), else to a socket
+  // of their own. A port that is taken by another program costs only the answers: clients then
+  // rank this server as silent.
+  s.loadOnDatagramSocket = s.options.answerLoadQueries && s.udpPortNumber == s.tcpPort;
+  if (s.options.answerLoadQueries && !s.loadOnDatagramSocket) {
+    boost::system::error_code loadError;
+    s.loadSocket.open(udp::v4(), loadError);
+    if (!loadError) s.loadSocket.bind(udp::endpoint(address, s.tcpPort), loadError);
+    if (!loadError) s.loadSocket.non_blocking(true, loadError);
+    if (loadError) {
+      logWarn("load queries: cannot bind UDP " + s.options.bindAddress + ":" +
+              std::to_string(s.tcpPort) + " (" + loadError.message() +
+              "); clients will not see this server's load");
+      s.loadSocket.close(loadError);
+    }
+  }
   // Session ids start at a random point, so a restarted server never reuses its old ids and
   // a client's stale datagrams from before the restart are refused.
   std::random_device rd;
@@ -694,6 +770,7 @@ void NetServer::start() {
   Impl& s = *impl_;
   s.acceptNext();
   s.receiveUdp();
+  s.receiveLoadQueries();
   s.schedulePoll();
   s.thread = std::thread([&s] {
     // Named, so a profiler or the load benchmark can tell this thread's CPU time from the
@@ -715,6 +792,7 @@ void NetServer::stop() {
     for (auto& [id, session] : s.sessions) list.push_back(session);
     for (auto& session : list) session->close(DisconnectCause::Shutdown, "server stopping");
     s.udpSocket.close(ec);
+    s.loadSocket.close(ec);
     s.publishStats();
   });
   s.thread.join();

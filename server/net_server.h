@@ -85,6 +85,9 @@ struct NetServerOptions {
   // names it). 0: a free one (NetServer::udpPort); a fixed one where a firewall or a
   // container's published ports must name it.
   std::uint16_t udpPort = 0;
+  // Answer load queries on UDP at the session port's number (net/load_probe.h), so that
+  // clients given several endpoints pick the least loaded.
+  bool answerLoadQueries = true;
   // Connect tokens (protocol/connect_token.h): a Hello must carry a token signed by one of
   // these verify keys, not expired, not on the revocation list (re-read while serving when
   // the file changes), naming sceneName or any scene.
@@ -193,6 +196,9 @@ struct NetServerStats {
   // Datagrams to the UDP port that were dropped unanswered, by UplinkDrop.
   std::array<std::uint64_t, kUplinkDropCount> uplinkDrops{};
   std::uint64_t uplinkDatagrams = 0;  // received on the UDP port, dropped or not
+  // Load queries (PROTOCOL.md "Choosing an endpoint by load"): answered, not answered for the
+  // cap on answers per second, not a query.
+  std::uint64_t loadAnswered = 0, loadLimited = 0, loadMalformed = 0;
   // Sender polls skipped because a TCP-only client's write queue was full (the client gets
   // the newest state later instead of a backlog).
   std::uint64_t tcpQueueFullPolls = 0;

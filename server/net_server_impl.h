@@ -14,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "net/load_probe.h"
 #include "net/tls_context.h"
 #include "net_address_limits.h"
 #include "net_server.h"
@@ -32,7 +33,7 @@ class Session;
 
 struct NetServer::Impl {
   Impl(FieldHub& h, NetServerOptions o)
-      : hub(h), options(std::move(o)), acceptor(io), udpSocket(io), pollTimer(io) {}
+      : hub(h), options(std::move(o)), acceptor(io), udpSocket(io), loadSocket(io), pollTimer(io) {}
 
   void acceptNext();
   void onAccepted(tcp::socket socket);
@@ -51,6 +52,14 @@ struct NetServer::Impl {
   void drainUdp();
   void onUplink(std::span<const std::uint8_t> bytes, bool truncated, const udp::endpoint& from,
                 double now);
+  // Load queries (net/load_probe.h) on the UDP port of the session's number: each answered
+  // with a datagram of the query's size, at most kLoadAnswersPerSecond of them.
+  void receiveLoadQueries();
+  void answerLoadQueries();
+  // Answers `bytes` if they are a load query (within the cap); false if they are not one.
+  bool answerLoadQuery(udp::socket& socket, std::span<const std::uint8_t> bytes,
+                       const udp::endpoint& from);
+  static constexpr double kLoadAnswersPerSecond = 2000;
   void dropUplink(UplinkDrop cause) { ++totals.uplinkDrops[std::size_t(cause)]; }
   std::string renderMetrics() const;
 
@@ -59,6 +68,9 @@ struct NetServer::Impl {
   asio::io_context io;
   tcp::acceptor acceptor;
   udp::socket udpSocket;
+  udp::socket loadSocket;             // closed where the port could not be bound (no load answers)
+  bool loadOnDatagramSocket = false;  // the datagram socket has the session port's number
+  double loadTokens = kLoadAnswersPerSecond, loadTokensAt = 0;
   asio::steady_timer pollTimer;
   // TLS for every session stream, unless options.tls.enabled is false.
   std::unique_ptr<net::ssl::context> tls;

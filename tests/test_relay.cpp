@@ -89,7 +89,8 @@ std::string readText(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
-std::unique_ptr<pc::relay::Relay> startRelay(const std::string& url, const std::string& id) {
+// A relay on loopback with a development certificate, not started.
+std::unique_ptr<pc::relay::Relay> makeRelay(const std::string& url, const std::string& id) {
   pc::relay::RelayOptions o;
   o.nats.urls = url;
   o.relayId = id;
@@ -99,10 +100,15 @@ std::unique_ptr<pc::relay::Relay> startRelay(const std::string& url, const std::
   o.net.tls.devSelfSigned = true;
   auto relay = pc::relay::Relay::create(o);
   EXPECT_TRUE(relay.ok()) << (relay ? "" : relay.error().message);
+  return relay ? std::move(relay).value() : nullptr;
+}
+
+std::unique_ptr<pc::relay::Relay> startRelay(const std::string& url, const std::string& id) {
+  auto relay = makeRelay(url, id);
   if (!relay) return nullptr;
-  const Status started = (*relay)->start(30.0);
+  const Status started = relay->start(30.0);
   EXPECT_TRUE(started.ok()) << (started ? "" : started.error().message);
-  return std::move(relay).value();
+  return relay;
 }
 
 client::NetClientOptions clientOptions(std::uint16_t port, const std::string& fingerprint) {
@@ -181,6 +187,31 @@ struct RelayPair {
   std::string keyFile, cert, key;
   std::uint16_t portA, portB;
   std::unique_ptr<test::Child> a, b;
+};
+
+// A field server whose field freezes, exported through its own nats-server to a RelayPair.
+struct FrozenFieldThroughTwoRelays {
+  explicit FrozenFieldThroughTwoRelays(const std::string& name)
+      : dir(testDir(name)),
+        nats(dir),
+        server(0.8),
+        exporter(startExporter(server.hub(), nats.url())) {}
+  // The field frozen and both relays listening; false, with a failure added, otherwise.
+  bool start() {
+    if (!exporter || !waitFor([&] { return server.frozen(); }, 60.0)) {
+      ADD_FAILURE() << "no field exported";
+      return false;
+    }
+    relays = std::make_unique<RelayPair>(dir, nats.url());
+    if (relays->listening()) return true;
+    ADD_FAILURE() << "the relays never listened (see " << dir.string() << ")";
+    return false;
+  }
+  fs::path dir;
+  NatsServer nats;
+  TestServer server;
+  std::unique_ptr<pc::relay::FieldExporter> exporter;  // goes before the hub it follows
+  std::unique_ptr<RelayPair> relays;
 };
 
 TEST(FieldBucket, RecordsRoundTripAndRefuseOtherBytes) {
@@ -286,15 +317,10 @@ TEST(Relay, StartsLateCatchesUpAndServesTheServersField) {
 TEST(Relay, ClientsOfAKilledRelayMoveToTheOtherAndKeepTheirField) {
   if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
   ASSERT_TRUE(fs::exists(kBin + "probecast-relay")) << "probecast-relay is not built";
-  const fs::path dir = testDir("kill");
-  NatsServer nats(dir);
-  TestServer server(0.8);
-  auto exporter = startExporter(server.hub(), nats.url());
-  ASSERT_TRUE(exporter);
-  ASSERT_TRUE(waitFor([&] { return server.frozen(); }, 60.0));
-
-  RelayPair relays(dir, nats.url());
-  ASSERT_TRUE(relays.listening()) << "the relays never listened (see " << dir.string() << ")";
+  FrozenFieldThroughTwoRelays setup("kill");
+  ASSERT_TRUE(setup.start());
+  const TestServer& server = setup.server;
+  RelayPair& relays = *setup.relays;
   const std::string& cert = relays.cert;
   const std::uint16_t portA = relays.portA, portB = relays.portB;
   auto& relayA = relays.a;
@@ -306,6 +332,9 @@ TEST(Relay, ClientsOfAKilledRelayMoveToTheOtherAndKeepTheirField) {
     client::NetClientOptions o = clientOptions(portA, "");
     o.caFile = cert;
     o.alternates = {{"127.0.0.1", portB}};
+    // The endpoints in the order given, so that every client starts on a (choosing by load is
+    // NewClientsGoToTheLessLoadedRelayAndLeaveAKilledOne's).
+    o.loadProbeTimeout = 0;
     mirrors.push_back(std::make_unique<client::FieldMirror>());
     clients.push_back(std::make_unique<client::NetClient>(*mirrors.back(), o));
     clients.back()->start();
@@ -364,14 +393,19 @@ TEST(Relay, ClientsOfAKilledRelayMoveToTheOtherAndKeepTheirField) {
 
 // The NATS server is killed and started again (same port, same store) while the field moves:
 // the relay keeps its client in session, serving what it holds, and follows the field again
-// once NATS is back.
-TEST(Relay, KeepsServingThroughANatsRestartAndResumes) {
-  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
-  const fs::path dir = testDir("nats-restart");
+// once NATS is back. With the bucket in memory (--nats-memory) the restart loses it: the field
+// server makes it again and puts its whole field, and the relay catches up from it, the same
+// run's field (no new epoch), its client still in the same session.
+void natsRestartKeepsServing(const std::string& name, bool memoryBucket) {
+  const fs::path dir = testDir(name);
   NatsServer nats(dir);
   TestServer server(-1.0);  // never frozen: new versions keep coming
-  auto exporter = startExporter(server.hub(), nats.url());
-  ASSERT_TRUE(exporter);
+  pc::relay::ExportOptions eo;
+  eo.nats.urls = nats.url();
+  eo.bucket.memoryStorage = memoryBucket;
+  auto exporter = pc::relay::FieldExporter::create(server.hub(), eo);
+  ASSERT_TRUE(exporter.ok()) << exporter.error().message;
+  (*exporter)->start();
   auto relay = startRelay(nats.url(), "steady");
   ASSERT_TRUE(relay);
   client::FieldMirror mirror;
@@ -379,13 +413,18 @@ TEST(Relay, KeepsServingThroughANatsRestartAndResumes) {
   client.start();
   ASSERT_TRUE(waitFor([&] { return client.stats().synced; }, 30.0));
 
+  const std::uint64_t republished = (*exporter)->stats().republishes;
   nats.kill();
+  sleepFor(0.3);  // what the relay had received by the kill is committed by now
   const std::uint64_t before = relay->stats().fieldVersion;
-  sleepFor(2.5);
+  sleepFor(2.2);
   EXPECT_TRUE(client.stats().connected) << "the relay dropped its client while NATS was away";
   EXPECT_TRUE(relay->stats().serving);
   EXPECT_EQ(relay->serverStats().clients.size(), 1u);
   EXPECT_TRUE(mirror.present());
+  // It serves the versions it held: nothing newer came, nothing was lost.
+  EXPECT_EQ(relay->stats().fieldVersion, before);
+  EXPECT_EQ(client.stats().serverFieldVersion, before);
 
   nats.start();
   ASSERT_TRUE(waitFor([&] { return relay->stats().fieldVersion > before + 2; }, 30.0))
@@ -394,10 +433,72 @@ TEST(Relay, KeepsServingThroughANatsRestartAndResumes) {
   const client::NetClientStats c = client.stats();
   EXPECT_EQ(c.sessions, 1u) << "the client's session should have survived the NATS restart";
   EXPECT_TRUE(c.connected);
-  EXPECT_TRUE(exporter->stats().connected);
-  std::printf("FIGURE relay_nats_restart watch_restarts=%llu republishes=%llu\n",
-              (unsigned long long)relay->stats().watchRestarts,
-              (unsigned long long)exporter->stats().republishes);
+  EXPECT_TRUE((*exporter)->stats().connected);
+  EXPECT_EQ(relay->stats().epochChanges, 0u);
+  // The bucket was made again, and the whole field put into it.
+  if (memoryBucket) {
+    EXPECT_GT((*exporter)->stats().republishes, republished);
+  }
+  std::printf("FIGURE relay_nats_restart%s watch_restarts=%llu republishes=%llu\n",
+              memoryBucket ? "_memory" : "", (unsigned long long)relay->stats().watchRestarts,
+              (unsigned long long)(*exporter)->stats().republishes);
+  relay.reset();
+  exporter->reset();
+}
+
+TEST(Relay, KeepsServingThroughANatsRestartAndResumes) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  natsRestartKeepsServing("nats-restart", false);
+}
+
+TEST(Relay, KeepsServingThroughANatsRestartThatLosesAMemoryBucket) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  natsRestartKeepsServing("nats-restart-memory", true);
+}
+
+// The relay starts before the field server: first there is no bucket, then an empty one (the
+// field server making it; longer than a watch's silence), then the field. The relay waits
+// through both and serves the field once it comes, every brick at the server's version.
+TEST(Relay, StartedBeforeTheFieldServerServesItsFieldOnceItComes) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  const fs::path dir = testDir("early");
+  NatsServer nats(dir);
+  auto relay = makeRelay(nats.url(), "early");
+  ASSERT_TRUE(relay);
+  Status started = Error{"not yet"};
+  std::thread starter([&] { started = relay->start(60.0); });
+  sleepFor(1.0);  // no bucket
+  pc::relay::NatsOptions no;
+  no.urls = nats.url();
+  auto maker = pc::relay::NatsConnection::connect(no);
+  ASSERT_TRUE(maker.ok()) << maker.error().message;
+  ASSERT_TRUE(maker->createBucket(pc::relay::ExportOptions{}.bucket).ok());
+  sleepFor(2.5);  // an empty bucket, watched
+  EXPECT_FALSE(relay->stats().serving);
+
+  TestServer server(0.8);
+  auto exporter = startExporter(server.hub(), nats.url());
+  ASSERT_TRUE(exporter);
+  starter.join();
+  ASSERT_TRUE(started.ok()) << started.error().message;
+  ASSERT_TRUE(waitFor([&] { return server.frozen(); }, 60.0));
+  const std::uint64_t frozenVersion = server.field().version;
+  ASSERT_TRUE(waitFor([&] { return relay->stats().fieldVersion == frozenVersion; }, 20.0))
+      << relay->stats().lastError;
+  std::vector<std::vector<std::uint64_t>> relayVersions, serverVersions;
+  ASSERT_TRUE(relay->withHub([&](const FieldHub& h) { relayVersions = versionsOf(h); }));
+  {
+    auto lock = server.hub().lock();
+    serverVersions = versionsOf(server.hub());
+  }
+  EXPECT_EQ(relayVersions, serverVersions);
+  client::FieldMirror mirror;
+  client::NetClient c(mirror, clientOptions(relay->port(), relay->tlsFingerprint()));
+  c.start();
+  EXPECT_TRUE(waitFor([&] { return mirrorDifference(mirror, server.field()) == 0; }, 30.0))
+      << mirrorDifference(mirror, server.field()) << " bricks differ";
+  relay.reset();
+  exporter.reset();
 }
 
 // The field server is stopped and another run starts (a new epoch, another field): the relay
@@ -418,8 +519,15 @@ TEST(Relay, FollowsARestartedFieldServer) {
   client::NetClient client(mirror, clientOptions(port, relay->tlsFingerprint()));
   client.start();
   ASSERT_TRUE(waitFor([&] { return mirrorDifference(mirror, first->field()) == 0; }, 30.0));
+  const std::uint64_t held = relay->stats().fieldVersion;
   exporter.reset();
   first.reset();
+  // No field server for longer than a watch's silence: the relay serves what it holds.
+  sleepFor(2.5);
+  EXPECT_TRUE(relay->stats().serving);
+  EXPECT_EQ(relay->stats().fieldVersion, held);
+  EXPECT_TRUE(client.stats().connected);
+  EXPECT_EQ(client.stats().sessions, 1u);
 
   TestServer second(1.6);  // another moment of the animation: another field
   exporter = startExporter(second.hub(), nats.url());
@@ -570,6 +678,7 @@ TEST(Relay, AHundredLoadClientsOfAKilledRelayAreServedByTheOther) {
   o.host = "127.0.0.1";
   o.port = relays.portA;
   o.alternates = {{"127.0.0.1", relays.portB}};
+  o.loadProbeInterval = 0;  // all on a, in the order given, until it is killed
   o.caFile = relays.cert;
   o.token = kToken;
   o.clients = 100;
@@ -611,6 +720,85 @@ TEST(Relay, AHundredLoadClientsOfAKilledRelayAreServedByTheOther) {
               failover, r.latencyMs.p99);
   g.stop();
   exporter.reset();
+}
+
+// Choosing by load: relay a serves twelve clients that know only it; clients given both relays
+// (real clients and load-generator ones), a first, go to b, which answers with fewer. Then b is
+// killed (SIGKILL) and every one of them moves to a, the live one.
+TEST(Relay, NewClientsGoToTheLessLoadedRelayAndLeaveAKilledOne) {
+  if (!natsServerPresent()) GTEST_SKIP() << "nats-server is not installed (" << kNatsServer << ")";
+  ASSERT_TRUE(fs::exists(kBin + "probecast-relay")) << "probecast-relay is not built";
+  FrozenFieldThroughTwoRelays setup("balance");
+  ASSERT_TRUE(setup.start());
+  RelayPair& relays = *setup.relays;
+  const std::string endpointA = "127.0.0.1:" + std::to_string(relays.portA);
+  const std::string endpointB = "127.0.0.1:" + std::to_string(relays.portB);
+
+  auto loadOptions = [&](int clients) {
+    load::LoadOptions o;
+    o.host = "127.0.0.1";
+    o.port = relays.portA;
+    o.caFile = relays.cert;
+    o.token = kToken;
+    o.clients = clients;
+    o.rampSeconds = 0.5;
+    o.minHeldPsnr = 0;  // starving is not what this test is about
+    o.maxChangeAge = 1e9;
+    return o;
+  };
+  auto busy = load::LoadGenerator::create(loadOptions(12));
+  ASSERT_TRUE(busy.ok()) << busy.error().message;
+  (*busy)->start();
+  ASSERT_TRUE(waitFor([&] { return (*busy)->snapshot().synced == 12; }, 60.0));
+
+  constexpr int kReal = 3;
+  std::vector<std::unique_ptr<client::FieldMirror>> mirrors;
+  std::vector<std::unique_ptr<client::NetClient>> clients;
+  for (int i = 0; i < kReal; ++i) {
+    client::NetClientOptions o = clientOptions(relays.portA, "");
+    o.caFile = relays.cert;
+    o.alternates = {{"127.0.0.1", relays.portB}};
+    mirrors.push_back(std::make_unique<client::FieldMirror>());
+    clients.push_back(std::make_unique<client::NetClient>(*mirrors.back(), o));
+    clients.back()->start();
+  }
+  load::LoadOptions spreadOptions = loadOptions(6);
+  spreadOptions.alternates = {{"127.0.0.1", relays.portB}};
+  auto spread = load::LoadGenerator::create(spreadOptions);
+  ASSERT_TRUE(spread.ok()) << spread.error().message;
+  (*spread)->start();
+  auto on = [&](const std::string& endpoint) {
+    for (auto& c : clients) {
+      const client::NetClientStats st = c->stats();
+      if (!st.synced || st.endpoint != endpoint) return false;
+    }
+    const load::LoadSnapshot snap = (*spread)->snapshot();
+    for (const auto& [where, n] : snap.perEndpoint)
+      if (n != (where == endpoint ? snap.clients : 0)) return false;
+    return snap.synced == snap.clients;
+  };
+  EXPECT_TRUE(waitFor([&] { return on(endpointB); }, 30.0))
+      << "clients given both relays did not all choose b, the less loaded";
+  for (auto& c : clients) EXPECT_EQ(c->stats().endpoint, endpointB);
+
+  relays.b->kill(SIGKILL);
+  const double killed = steadySeconds();
+  EXPECT_TRUE(waitFor([&] { return on(endpointA); }, 30.0))
+      << "the clients of the killed relay did not all move to the live one";
+  const double moved = steadySeconds() - killed;
+  const load::LoadSnapshot snap = (*spread)->snapshot();
+  std::printf("load clients: %d synced, %d in session\n", snap.synced, snap.inSession);
+  for (const auto& [where, n] : snap.perEndpoint)
+    std::printf("load clients on %s: %d\n", where.c_str(), n);
+  for (auto& c : clients) {
+    const client::NetClientStats st = c->stats();
+    std::printf("client on %s, synced %d, sessions %llu: %s\n", st.endpoint.c_str(), int(st.synced),
+                (unsigned long long)st.sessions, st.lastError.c_str());
+  }
+  std::printf("FIGURE relay_balance real=%d load=%d busy=12 moved_s=%.3f\n", kReal, 6, moved);
+  (*spread)->stop();
+  (*busy)->stop();
+  for (auto& c : clients) c->stop();
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -9,6 +10,7 @@
 #include <string>
 #include <tuple>
 #include <utility>
+#include <vector>
 
 #include "common/scene.h"
 #include "protocol/stream_limits.h"
@@ -82,18 +84,48 @@ inline std::optional<std::pair<std::string, std::uint16_t>> parseEndpoint(const 
   return std::pair{text.substr(0, colon), static_cast<std::uint16_t>(value)};
 }
 
-// --connect HOST:PORT, the server a tool connects to (probecast-loadgen): sets `host` and
-// `port` where given. A value without a port in 1..65535 is a usage error.
+// HOST:PORT[,HOST:PORT...]: one endpoint or several (relays of one field), or nullopt naming
+// nothing; `bad` is set to the first part that is not an endpoint.
+inline std::optional<std::vector<std::pair<std::string, std::uint16_t>>> parseEndpoints(
+    const std::string& text, std::string& bad) {
+  std::vector<std::pair<std::string, std::uint16_t>> endpoints;
+  for (std::size_t start = 0; start <= text.size();) {
+    const std::size_t comma = std::min(text.find(',', start), text.size());
+    const std::string one = text.substr(start, comma - start);
+    start = comma + 1;
+    const auto endpoint = parseEndpoint(one);
+    if (!endpoint) {
+      bad = one;
+      return std::nullopt;
+    }
+    endpoints.push_back(*endpoint);
+  }
+  return endpoints;
+}
+
+// --connect HOST:PORT[,HOST:PORT...], the server a tool connects to (probecast-loadgen): sets
+// `host` and `port` to the first, `alternates` to the others (relays of one field, chosen by
+// load). Given again, the endpoints add up. A part without a port in 1..65535 is a usage
+// error.
 inline CLI::Option* addConnectOption(CLI::App& app, std::string& host, std::uint16_t& port,
+                                     std::vector<std::pair<std::string, std::uint16_t>>& alternates,
                                      const std::string& description) {
-  auto parse = [&host, &port](const std::string& text) {
-    auto endpoint = parseEndpoint(text);
-    if (!endpoint)
-      throw CLI::ValidationError("--connect", "expected HOST:PORT, got '" + text + "'");
-    std::tie(host, port) = *endpoint;
+  auto parse = [&host, &port, &alternates](const std::vector<std::string>& texts) {
+    std::vector<std::pair<std::string, std::uint16_t>> all;
+    for (const std::string& text : texts) {
+      std::string bad;
+      auto endpoints = parseEndpoints(text, bad);
+      if (!endpoints)
+        throw CLI::ValidationError("--connect",
+                                   "expected HOST:PORT[,HOST:PORT...], got '" + bad + "'");
+      all.insert(all.end(), endpoints->begin(), endpoints->end());
+    }
+    if (all.empty()) return;
+    std::tie(host, port) = all.front();
+    alternates.assign(all.begin() + 1, all.end());
   };
-  return app.add_option_function<std::string>("--connect", parse, description)
-      ->type_name("HOST:PORT");
+  return app.add_option_function<std::vector<std::string>>("--connect", parse, description)
+      ->type_name("HOST:PORT[,HOST:PORT...]");
 }
 
 // A finite number: CLI11 reads "nan" and "inf" as numbers, which no option here means.

@@ -86,10 +86,12 @@ int main(int argc, char** argv) {
   app.add_option("--test-resize", resize, "windowed: resize the window to WxH after 2 frames");
   // Network mode: the field comes from a server (the baked file stays the fallback).
   pc::client::NetRunConfig net;
-  std::string connect;
+  std::vector<std::string> connect;
   app.add_option("--connect", connect,
                  "stream the field from a server at HOST:PORT; several (relays of one field), "
-                 "comma-separated, are tried in turn when one fails");
+                 "comma-separated or the flag again: the least loaded is taken, and another "
+                 "when one fails")
+      ->type_name("HOST:PORT[,HOST:PORT...]");
   std::string tokenFile;
   app.add_option("--token-file", tokenFile,
                  "--connect: connect token file (else $PROBECAST_TOKEN_FILE or $PROBECAST_TOKEN)");
@@ -158,14 +160,12 @@ int main(int argc, char** argv) {
   if (!connect.empty()) {
     // HOST:PORT, or several (relays of one field) separated by commas.
     std::vector<pc::client::NetEndpoint> endpoints;
-    for (std::size_t start = 0; start <= connect.size();) {
-      const std::size_t comma = std::min(connect.find(',', start), connect.size());
-      const std::string one = connect.substr(start, comma - start);
-      start = comma + 1;
-      const auto endpoint = pc::parseEndpoint(one);
-      if (!endpoint)
-        return pc::logError("--connect: expected HOST:PORT[,HOST:PORT...], got '" + one + "'"), 1;
-      endpoints.push_back({endpoint->first, endpoint->second});
+    for (const std::string& text : connect) {
+      std::string bad;
+      const auto parsed = pc::parseEndpoints(text, bad);
+      if (!parsed)
+        return pc::logError("--connect: expected HOST:PORT[,HOST:PORT...], got '" + bad + "'"), 1;
+      for (const auto& [host, port] : *parsed) endpoints.push_back({host, port});
     }
     net.net.host = endpoints.front().host;
     net.net.port = endpoints.front().port;

@@ -26,7 +26,10 @@ int main(int argc, char** argv) {
   double seconds = 10, warmup = 2;
   std::string jsonPath;
   bool decodeEach = false;
-  pc::addConnectOption(app, o.host, o.port, "the server");
+  pc::addConnectOption(app, o.host, o.port, o.alternates,
+                       "the server; several (relays of one field, comma-separated or the flag "
+                       "again): each client takes the least loaded (PROTOCOL.md, \"Choosing an "
+                       "endpoint by load\")");
   // The spelling before --connect, as probecast-client has it; kept for one release.
   app.add_option("--host", o.host, "deprecated: --connect HOST:PORT")->group("Deprecated");
   app.add_option("--port", o.port, "deprecated: --connect HOST:PORT")->group("Deprecated");
@@ -91,6 +94,12 @@ int main(int argc, char** argv) {
     std::printf("%s: %d/%d in session, %d synced, %llu sessions started, %llu errors\n", phase,
                 s.inSession, s.clients, s.synced, (unsigned long long)s.sessionsStarted,
                 (unsigned long long)s.errors);
+    // Where the clients chose to be, given several endpoints.
+    if (s.perEndpoint.size() > 1) {
+      std::printf("  in session per endpoint:");
+      for (const auto& [endpoint, n] : s.perEndpoint) std::printf(" %s %d", endpoint.c_str(), n);
+      std::printf("\n");
+    }
     std::fflush(stdout);
   };
   for (double t = 0; t < o.rampSeconds + warmup; t += 1.0) {

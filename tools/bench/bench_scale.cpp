@@ -1,21 +1,24 @@
 // scale: the field served past one machine's worth of clients, on this host. Starts a
 // nats-server (JetStream in a temporary folder), probecast-server exporting its field to it,
-// R probecast-relay processes, and N load-generator clients spread over the relays (in this
-// process); measures a window, then kills one relay (SIGKILL) under a few real clients given
-// two endpoints and times their move to another relay.
+// R probecast-relay processes, and N load-generator clients spread evenly over the relays (in
+// this process, one generator per relay); measures a window, then starts a few real clients
+// given every relay, which choose one by load, kills the relay most of them chose (SIGKILL)
+// and times their move to the least loaded survivors.
 //
 // Figures: relay_cpu_ms_per_client_s (the relays' CPU in the window / N / window: what a client
-// costs its relay), field_server_cpu_ms_per_s (the field server's whole process: it serves no
-// client, so it should not grow with R or N; run R = 1, 2, 3 to see it flat), p99 latency from
-// the field server's publish to a client's apply (through NATS and a relay), starved clients,
-// the held field's PSNR (5th percentile over clients), and failover_s (the slowest of the
-// moving clients, from the kill to holding every brick on the other relay).
+// costs its relay; printed per relay too, and _max the busiest relay's), field_server_cpu_ms_
+// per_s (the field server's whole process: it serves no client, so it should not grow with R
+// or N; run R = 2, 3 to see it flat), p99 latency from the field server's publish to a client's
+// apply (through NATS and a relay), starved clients, the held field's PSNR (5th percentile over
+// clients: its error against the current field), and failover_s (the slowest of the moving
+// clients, from the kill to holding every brick on another relay).
 // clang-format off
 #include <utility>  // first: Boost.Asio 1.74 uses std::exchange without including it
 // clang-format on
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -54,6 +57,7 @@ struct ScaleSetup {
   double seconds = 10, warmup = 2;
   double rateLimitMbit = 1.0;
   int failoverClients = 8;
+  int loadThreads = 0;    // network threads per load generator; 0: one per 250 clients
   bool noResume = false;  // movers start new sessions (the whole field again), as before resume
   int rays = 64, serverWarmup = 8;
   double fieldRate = 10;
@@ -134,6 +138,17 @@ int runScale(const ScaleSetup& s) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   load::raiseFileLimit();
+  // This process holds a TCP and a UDP socket per client (and the movers'); each relay a TCP
+  // socket per client. Better said now than as connect errors a minute in.
+  if (rlimit files{}; getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur != RLIM_INFINITY &&
+                      files.rlim_cur < rlim_t(2 * (s.clients + s.failoverClients) + 256)) {
+    return std::fprintf(stderr,
+                        "scale: %d clients need about %d open files, the limit is %llu (raise "
+                        "it: ulimit -n)\n",
+                        s.clients, 2 * (s.clients + s.failoverClients) + 256,
+                        (unsigned long long)files.rlim_cur),
+           1;
+  }
 
   // Keys, a token per client (the relays' per-token caps stay on), one certificate for every
   // relay.
@@ -224,6 +239,8 @@ int runScale(const ScaleSetup& s) {
     o.clients = s.clients / s.relays + (r < s.clients % s.relays ? 1 : 0);
     for (int i = r; i < s.clients; i += s.relays) o.clientTokens.push_back(tokens[std::size_t(i)]);
     o.rampSeconds = std::max(1.0, 0.005 * o.clients);
+    // A thousand clients are more than one network thread keeps up with at 1 Mbit/s each.
+    o.threads = s.loadThreads > 0 ? s.loadThreads : std::max(1, (o.clients + 249) / 250);
     auto g = load::LoadGenerator::create(o);
     if (!g)
       return std::fprintf(stderr, "scale: load generator: %s\n", g.error().message.c_str()), 1;
@@ -244,24 +261,27 @@ int runScale(const ScaleSetup& s) {
 
   // The window.
   for (auto& g : generators) g->beginWindow();
-  double relayCpu0 = 0;
-  for (auto& r : relays) relayCpu0 += cpuSeconds(r->pid());
+  std::vector<double> relayCpu0, relayCpu1;
+  for (auto& r : relays) relayCpu0.push_back(cpuSeconds(r->pid()));
   const double fieldCpu0 = cpuSeconds((*field)->pid()), t0 = seconds();
   sleepFor(s.seconds);
-  double relayCpu1 = 0;
-  for (auto& r : relays) relayCpu1 += cpuSeconds(r->pid());
+  for (auto& r : relays) relayCpu1.push_back(cpuSeconds(r->pid()));
   const double fieldCpu1 = cpuSeconds((*field)->pid()), window = seconds() - t0;
   std::vector<load::LoadReport> reports;
   for (auto& g : generators) reports.push_back(g->report());
 
-  // Failover: clients of relay 0 given relay 1 as well; relay 0 killed.
+  // Failover: real clients given every relay choose one by load (PROTOCOL.md "Choosing an
+  // endpoint by load"); the relay most of them chose is killed, and they move to the least
+  // loaded survivor.
   std::vector<std::unique_ptr<client::FieldMirror>> mirrors;
   std::vector<std::unique_ptr<client::NetClient>> movers;
+  auto endpointOf = [&](std::size_t r) { return "127.0.0.1:" + std::to_string(relays[r]->port()); };
   for (int i = 0; i < s.failoverClients; ++i) {
     client::NetClientOptions o;
     o.host = "127.0.0.1";
     o.port = relays[0]->port();
-    o.alternates = {{"127.0.0.1", relays[1]->port()}};
+    for (std::size_t r = 1; r < relays.size(); ++r)
+      o.alternates.push_back({"127.0.0.1", relays[r]->port()});
     o.caFile = cert;
     o.token = tokens[std::size_t(s.clients + i)];
     o.name = "mover-" + std::to_string(i);
@@ -271,43 +291,66 @@ int runScale(const ScaleSetup& s) {
     movers.back()->start();
   }
   const double moveStart = seconds();
-  auto moversSynced = [&](std::uint16_t port) {
-    const std::string endpoint = "127.0.0.1:" + std::to_string(port);
-    for (auto& m : movers) {
-      const client::NetClientStats st = m->stats();
-      if (!st.synced || st.endpoint != endpoint) return false;
-    }
+  auto allMoversSynced = [&] {
+    for (auto& m : movers)
+      if (!m->stats().synced) return false;
     return true;
   };
-  while (!moversSynced(relays[0]->port()) && seconds() - moveStart < 30) sleepFor(0.01);
+  while (!allMoversSynced() && seconds() - moveStart < 30) sleepFor(0.01);
+  std::vector<int> moversOn(relays.size(), 0);
+  for (auto& m : movers) {
+    const std::string at = m->stats().endpoint;
+    for (std::size_t r = 0; r < relays.size(); ++r) moversOn[r] += at == endpointOf(r);
+  }
+  const std::size_t victim =
+      std::size_t(std::max_element(moversOn.begin(), moversOn.end()) - moversOn.begin());
+  std::vector<std::size_t> moving;  // the movers on the victim
+  for (std::size_t i = 0; i < movers.size(); ++i)
+    if (movers[i]->stats().endpoint == endpointOf(victim)) moving.push_back(i);
   // Bytes the movers receive from the kill until they hold every brick again: the whole field
   // for a new session, what changed since for one that resumed.
   auto moverBytes = [&] {
     double bytes = 0;
-    for (auto& m : movers) {
-      const client::NetClientStats st = m->stats();
+    for (std::size_t i : moving) {
+      const client::NetClientStats st = movers[i]->stats();
       bytes += double(st.tcpBytes + st.udpBytes);
     }
     return bytes;
   };
+  auto moved = [&] {
+    for (std::size_t i : moving) {
+      const client::NetClientStats st = movers[i]->stats();
+      if (!st.synced || st.endpoint == endpointOf(victim)) return false;
+    }
+    return true;
+  };
   const double bytesAtKill = moverBytes();
-  ::kill(relays[0]->pid(), SIGKILL);
+  ::kill(relays[victim]->pid(), SIGKILL);
   const double killed = seconds();
   double failover = -1;
-  while (seconds() - killed < 30) {
-    if (moversSynced(relays[1]->port())) {
+  while (!moving.empty() && seconds() - killed < 30) {
+    if (moved()) {
       failover = seconds() - killed;
       break;
     }
     sleepFor(0.005);
   }
+  // Where they went: each survivor's share of the movers.
+  std::string landed;
+  for (std::size_t r = 0; r < relays.size(); ++r) {
+    if (r == victim) continue;
+    int n = 0;
+    for (std::size_t i : moving) n += movers[i]->stats().endpoint == endpointOf(r);
+    landed += " relay-" + std::to_string(r) + ":" + std::to_string(n);
+  }
   const double moverKB =
-      (moverBytes() - bytesAtKill) / 1e3 / double(std::max(1, s.failoverClients));
+      (moverBytes() - bytesAtKill) / 1e3 / double(std::max<std::size_t>(1, moving.size()));
   int mirrorsHeld = 0;
-  for (auto& m : mirrors) mirrorsHeld += m->present() ? 1 : 0;
+  for (std::size_t i : moving) mirrorsHeld += mirrors[i]->present() ? 1 : 0;
   for (auto& m : movers) m->stop();
   for (auto& g : generators) g->stop();
-  for (std::size_t r = 1; r < relays.size(); ++r) (void)relays[r]->stop();
+  for (std::size_t r = 0; r < relays.size(); ++r)
+    if (r != victim) (void)relays[r]->stop();
   (void)(*field)->stop();
 
   // Figures over every relay's clients.
@@ -320,13 +363,24 @@ int runScale(const ScaleSetup& s) {
     errors += r.errors;
     psnrP5 = std::min(psnrP5, r.all.heldPsnrP5);
   }
-  const double relayMsPerClientS = (relayCpu1 - relayCpu0) * 1e3 / double(s.clients) / window;
+  double relayCpu = 0, relayMaxMsPerClientS = 0;
+  std::vector<double> perRelay;  // ms of CPU per client-second, relay by relay
+  for (std::size_t r = 0; r < relays.size(); ++r) {
+    relayCpu += relayCpu1[r] - relayCpu0[r];
+    const int clients = std::max(1, reports[r].clients);
+    perRelay.push_back((relayCpu1[r] - relayCpu0[r]) * 1e3 / double(clients) / window);
+    relayMaxMsPerClientS = std::max(relayMaxMsPerClientS, perRelay.back());
+  }
+  const double relayMsPerClientS = relayCpu * 1e3 / double(s.clients) / window;
   const double fieldMsPerS = (fieldCpu1 - fieldCpu0) * 1e3 / window;
   std::printf("scale: %d relays, %d clients (%s), %.1f s window, %s\n", s.relays, s.clients,
               synced ? "all synced" : "NOT all synced within 60 s", window,
               machineDescription().c_str());
   std::printf("  relays %.3f ms CPU per client-second, field server %.1f ms CPU per second\n",
               relayMsPerClientS, fieldMsPerS);
+  for (std::size_t r = 0; r < relays.size(); ++r)
+    std::printf("  relay-%zu: %d clients, %.3f ms CPU per client-second\n", r, reports[r].clients,
+                perRelay[r]);
   std::printf(
       "  latency p99 %.1f ms (publish -> apply, through NATS), starved %d, errors %llu, "
       "held field PSNR p5 %.1f dB\n",
@@ -339,20 +393,22 @@ int runScale(const ScaleSetup& s) {
     }
   }
   std::printf(
-      "  failover: %d clients moved in %.3f s (%s), %.1f kB each on the way, %d of them kept "
-      "their field (logs in %s)\n",
-      s.failoverClients, failover, s.noResume ? "new sessions" : "resumed", moverKB, mirrorsHeld,
-      dir.c_str());
+      "  failover: relay-%zu killed under %zu of %d clients, who moved in %.3f s (%s) to the "
+      "least loaded survivors (%s ), %.1f kB each on the way, %d of them kept their field "
+      "(logs in %s)\n",
+      victim, moving.size(), s.failoverClients, failover, s.noResume ? "new sessions" : "resumed",
+      landed.c_str(), moverKB, mirrorsHeld, dir.c_str());
   const std::string sfx =
       ".relays_" + std::to_string(s.relays) + ".clients_" + std::to_string(s.clients);
   figure("relay_cpu_ms_per_client_s" + sfx, relayMsPerClientS, "ms");
+  figure("relay_cpu_ms_per_client_s_max" + sfx, relayMaxMsPerClientS, "ms");
   figure("field_server_cpu_ms_per_s" + sfx, fieldMsPerS, "ms");
   figure("p99_latency_ms" + sfx, p99, "ms");
   figure("starved_clients" + sfx, starved, "count");
   figure("held_psnr_db_p5" + sfx, psnrP5, "dB");
   figure("failover_s" + sfx, failover, "s");
   figure("failover_kb_per_client" + sfx, moverKB, "kB");
-  return synced && failover >= 0 && mirrorsHeld == s.failoverClients ? 0 : 2;
+  return synced && failover >= 0 && mirrorsHeld == int(moving.size()) ? 0 : 2;
 }
 
 }  // namespace
@@ -372,7 +428,10 @@ Benchmark addScale(CLI::App& app) {
                 "movers start new sessions on the other relay (the whole field sent again) "
                 "instead of resuming from their mirrors");
   cmd->add_option("--failover-clients", s.failoverClients,
-                  "real clients given two relays, whose move is timed when the first is killed");
+                  "real clients given every relay, whose move is timed when the relay most of them "
+                  "chose by load is killed");
+  cmd->add_option("--load-threads", s.loadThreads,
+                  "network threads per relay's load generator (0: one per 250 clients)");
   cmd->add_option("--rays", s.rays, "field server rays per probe per update");
   cmd->add_option("--field-rate", s.fieldRate, "field server updates per second");
   cmd->add_option("--nats-server", s.natsServer, "the nats-server executable");
