@@ -67,7 +67,10 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   double t = options_.startTime + elapsed;
   const bool freezing = options_.freezeAt >= 0 && t >= options_.freezeAt;
   if (freezing) t = options_.freezeAt;
-  const SceneState state = evaluateScene(scene_, t);
+  std::vector<EditRegion> edited;
+  const SceneState state =
+      options_.editor ? options_.editor->evaluate(t, edited) : evaluateScene(scene_, t);
+  if (!edited.empty()) scheduler_.prioritize(field_, edited);
 
   UpdateStats us;
   if (!frozen_ && tracer_) us = update(state, tick);
@@ -94,6 +97,7 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   stats_.ticks = tick;
   stats_.fieldVersion = field_.version;
   stats_.animationTime = t;
+  stats_.editVersion = state.editVersion;
   if (us.totalMs > 0) stats_.lastUpdateMs = us.totalMs;
   stats_.lastBricksChanged = us.bricksChanged;
   stats_.frozen = frozen_;
