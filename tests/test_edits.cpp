@@ -8,6 +8,7 @@
 
 #include "common/emissive_lights.h"
 #include "common/scene_edits.h"
+#include "protocol/client_session.h"
 #include "server/probe_scheduler.h"
 #include "test_net_support.h"
 
@@ -218,6 +219,38 @@ TEST(EditMessages, RoundTripAndCarryAddedLightsToTheClientsState) {
   forged.lights[1].added = false;
   SceneState other = evaluateScene(scene, 3.0);
   EXPECT_FALSE(applySceneState(forged, other).ok());
+}
+
+TEST(EditMessages, ClientSendsEditsOnlyToServersThatTakeThem) {
+  const Field field = Field::create(defaultVolumes(builtinScene()), FieldSettings{});
+  for (const std::uint32_t version : {kEditsVersion - 1, kEditsVersion}) {
+    ClientSession session(ClientSessionOptions{});
+    const EditMsg edit{9, lightEdit(0, 2.0f)};
+    EXPECT_FALSE(session.sendEdit(edit).ok());  // no session yet
+    session.connecting(0.0);
+    (void)session.connected(0.0, 0);
+    std::vector<std::uint8_t> bytes = encodeMessage(WelcomeMsg{version, 1});
+    const std::vector<std::uint8_t> info = encodeMessage(sessionInfoFor(field));
+    bytes.insert(bytes.end(), info.begin(), info.end());
+    ASSERT_TRUE(session.onStreamBytes(bytes, 0.0).ok());
+    ASSERT_TRUE(session.streaming());
+    const Status sent = session.sendEdit(edit);
+    auto frames = session.poll(0.01);
+    ASSERT_TRUE(frames.ok());
+    std::size_t edits = 0;
+    for (const auto& f : *frames) {
+      auto m = decodeMessage(f);
+      edits += m && std::holds_alternative<EditMsg>(*m) ? 1 : 0;
+    }
+    if (version < kEditsVersion) {
+      ASSERT_FALSE(sent.ok());
+      EXPECT_NE(sent.error().message.find("takes no edits"), std::string::npos);
+      EXPECT_EQ(edits, 0u);
+    } else {
+      EXPECT_TRUE(sent.ok());
+      EXPECT_EQ(edits, 1u);
+    }
+  }
 }
 
 TEST(EditScheduling, ProbesNearAnEditComeFirst) {
