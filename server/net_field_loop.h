@@ -40,6 +40,11 @@ struct FieldLoopOptions {
   // Runtime edits (scene_editor.h): each tick traces and publishes the scene with the edits in
   // force, and the probes near an edit are scheduled first. Null: the animation alone.
   SceneEditor* editor = nullptr;
+  // After an edit, this many updates blend with at most this hysteresis (every cascade), as a
+  // bake's first updates do: the probes drop most of their history of the scene before the
+  // edit (0.5^8: 0.4% of it) instead of converging over seconds. 0: no such updates.
+  int editConvergeUpdates = 8;
+  float editHysteresis = 0.5f;
 };
 
 struct FieldLoopStats {
@@ -115,6 +120,8 @@ class FieldLoop {
   FieldLoopOptions options_;
   ProbeScheduler scheduler_;
   bool frozen_ = false;
+  int convergeLeft_ = 0;                  // updates still at editHysteresis
+  std::vector<float> restoreHysteresis_;  // each cascade's own, while they are
   mutable std::mutex statsMutex_;
   FieldLoopStats stats_;
 };
