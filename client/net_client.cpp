@@ -127,6 +127,11 @@ struct NetClient::Impl {
   AnimationClock clock;               // the session's, copied as scene states arrive
   std::vector<float> latencySamples;  // UpdateLatency's, until takeLatencySamples
   std::uint64_t layoutGeneration = 0;
+  std::optional<SceneStateMsg> editedScene;  // the session's, as scene states arrive
+  std::vector<EditMsg> editsToSend;          // until the next poll
+  std::vector<EditResultMsg> editResults;    // until takeEditResults
+  std::vector<EditArrival> editArrivals;     // until takeEditArrivals
+  std::uint64_t newestEditVersion = 0;
 };
 
 void NetClient::Impl::connect() {
@@ -286,15 +291,28 @@ void NetClient::Impl::receiveUdp() {
 // loop, and the counters.
 void NetClient::Impl::afterInput(double now) {
   bool clockChanged = false;
+  std::vector<EditResultMsg> results;
   for (const SessionEvent& e : session.events()) {
     if (e.kind == SessionEvent::Kind::Layout) onLayout(now);
     if (e.kind == SessionEvent::Kind::SceneState)
       latency.published(e.scene.fieldVersion, e.scene.publishTime, now);
+    if (e.kind == SessionEvent::Kind::EditResult) results.push_back(e.edit);
     clockChanged |= e.kind == SessionEvent::Kind::SceneState;
   }
   const ClientSessionStats& s = session.stats();
   std::lock_guard lock(mutex);
-  if (clockChanged) clock = session.clock();
+  if (clockChanged) {
+    clock = session.clock();
+    editedScene = session.editedScene();
+    if (editedScene && editedScene->editVersion > newestEditVersion) {
+      newestEditVersion = editedScene->editVersion;
+      if (editArrivals.size() < kMaxKeptEditEvents)
+        editArrivals.push_back({newestEditVersion, now});
+    }
+  }
+  for (EditResultMsg& r : results) {
+    if (editResults.size() < kMaxKeptEditEvents) editResults.push_back(std::move(r));
+  }
   stats.connectAttempts = s.connectAttempts;
   stats.rejects = s.rejects;
   stats.tcpBytes = s.tcpBytes;
@@ -358,6 +376,12 @@ void NetClient::Impl::poll() {
   {
     std::lock_guard lock(mutex);
     if (viewer) session.setViewer(viewer->position, viewer->orientation);
+    for (const EditMsg& edit : std::exchange(editsToSend, {})) {
+      // Refused here (no session, an older server): the caller hears it as the server's
+      // answer would come.
+      if (Status sent = session.sendEdit(edit); !sent && editResults.size() < kMaxKeptEditEvents)
+        editResults.push_back(EditResultMsg{edit.editId, false, sent.error().message, 0, 0});
+    }
   }
   auto frames = session.poll(now);
   if (!frames) return fail(frames.error().message);
@@ -513,6 +537,31 @@ std::vector<float> NetClient::takeLatencySamples() {
 }
 
 std::uint16_t NetClient::udpPort() const { return impl_->udpPortNumber; }
+
+void NetClient::sendEdit(const EditMsg& edit) {
+  std::lock_guard lock(impl_->mutex);
+  if (impl_->editsToSend.size() < kMaxQueuedEdits) {
+    impl_->editsToSend.push_back(edit);
+  } else {
+    impl_->editResults.push_back(
+        EditResultMsg{edit.editId, false, "too many edits waiting to be sent", 0, 0});
+  }
+}
+
+std::vector<EditResultMsg> NetClient::takeEditResults() {
+  std::lock_guard lock(impl_->mutex);
+  return std::exchange(impl_->editResults, {});
+}
+
+std::optional<SceneStateMsg> NetClient::editedScene() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->editedScene;
+}
+
+std::vector<EditArrival> NetClient::takeEditArrivals() {
+  std::lock_guard lock(impl_->mutex);
+  return std::exchange(impl_->editArrivals, {});
+}
 
 std::uint64_t NetClient::layoutGeneration() const {
   std::lock_guard lock(impl_->mutex);

@@ -96,6 +96,15 @@ struct NetClientStats {
   ReceiverStats receiver;
 };
 
+// A scene state with newer runtime edits than any before it, and when it arrived
+// (netClockSeconds()).
+struct EditArrival {
+  std::uint64_t editVersion = 0;
+  double at = 0;
+};
+// Edit results and arrivals kept until taken; later ones are dropped.
+inline constexpr std::size_t kMaxKeptEditEvents = 4096;
+
 class NetClient {
  public:
   NetClient(FieldMirror& mirror, NetClientOptions options);
@@ -120,6 +129,18 @@ class NetClient {
   std::uint64_t layoutGeneration() const;
   // The local UDP port datagrams are received on (0 before start or in TCP-only mode).
   std::uint16_t udpPort() const;
+
+  // Runtime edits (PROTOCOL.md "Runtime edits"): sent at the next poll of the session; the
+  // server applies them only for a token with the editor role. Every edit gets one result
+  // (takeEditResults), the server's, or a local refusal when there is no session to send it in.
+  void sendEdit(const EditMsg& edit);
+  std::vector<EditResultMsg> takeEditResults();
+  // The newest scene state with runtime edits in force: while there is one, frames take their
+  // lights, instance transforms and emission from it (applySceneState) instead of replaying
+  // the animation. Nothing while no edit is in force.
+  std::optional<SceneStateMsg> editedScene() const;
+  // Each newer edit version's first arrival, since the last call.
+  std::vector<EditArrival> takeEditArrivals();
 
   struct Impl;
 

@@ -91,6 +91,7 @@ int runNetHeadless(const ClientConfig& config, const NetRunConfig& run) {
     FrameInput input;
     input.probeView = config.probeView;
     input.time = time;
+    input.edited = client.editedScene();
     if (config.stereo) {
       input.cameras[0] = offsetCamera(*camera, -0.5f * config.ipd);
       input.cameras[1] = offsetCamera(*camera, 0.5f * config.ipd);

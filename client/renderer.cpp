@@ -98,7 +98,12 @@ Result<VkCommandBuffer> Renderer::beginFrame() {
 
 void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   const Scene& scene = *scene_;
-  const SceneState state = evaluateScene(scene, input.time);
+  SceneState state = evaluateScene(scene, input.time);
+  if (input.edited) {
+    // A state of another scene (counts that differ) is left aside: the animation goes on.
+    SceneState edited = state;
+    if (applySceneState(*input.edited, edited)) state = std::move(edited);
+  }
   std::vector<gpu::DrawData> draws = drawData(scene, gpuScene_->packed(), state);
 
   LightSet lights =

@@ -29,6 +29,7 @@
 #include "gpu_scene.h"
 #include "light_pack.h"
 #include "probe_view.h"
+#include "protocol/session_messages.h"
 #include "renderer_shadow_cache.h"
 #include "shaders/interop/screen_ao.h"
 
@@ -87,6 +88,11 @@ struct FrameInput {
   std::optional<double> clock;
   // The probe debug view over the lit frame (client_probe_view.comp); off by default.
   ProbeViewSettings probeView;
+  // The server's scene state while runtime edits are in force (NetClient::editedScene): its
+  // lights, instance transforms and emission replace the animation's at `time`, so direct
+  // light and the field describe the same scene. Added lights past the renderer's light
+  // count (fixed at creation) are left out.
+  std::optional<SceneStateMsg> edited;
 };
 
 // Where tone mapping writes: an 8-bit UNORM color image with one layer per view (side by

@@ -62,7 +62,7 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
     if (mat >= 0 && std::size_t(mat) < scene.materials.size()) {
       const Material& m = scene.materials[mat];
       d.baseColor = glm::vec4(m.baseColor, 0.0f);
-      d.emissive = glm::vec4(m.emissive, 0.0f);
+      d.emissive = glm::vec4(m.emissive * state.emissionScaleOf(mat), 0.0f);  // runtime edits
       const int textures = int(scene.textures.size());
       d.textures.x = m.baseColorTexture < textures ? m.baseColorTexture : -1;
       d.textures.y = m.emissiveTexture < textures ? m.emissiveTexture : -1;

@@ -296,6 +296,7 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
       FrameInput input;
       input.time = animationTime;
       input.probeView = probeView;
+      if (client) input.edited = client->editedScene();
       if (config.stereo) {
         input.cameras[0] = offsetCamera(fly.camera(), -0.5f * config.ipd);
         input.cameras[1] = offsetCamera(fly.camera(), 0.5f * config.ipd);

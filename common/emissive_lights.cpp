@@ -118,8 +118,11 @@ EmissiveLights EmissiveLights::build(const Scene& scene, const SceneState& state
     const glm::vec3 cross = glm::cross(p1 - p0, p2 - p0);
     const float twiceArea = glm::length(cross);
     if (twiceArea <= 0.0f) continue;
+    // An edit may dim or switch off a material's emission (SceneState::emissionScale).
+    const glm::vec3 radiance = src.radiance * state.emissionScaleOf(mesh.material);
+    if (gpu::pcLuminance(radiance) <= 0.0f) continue;
     lights.triangles_.push_back(
-        {p0, p1 - p0, p2 - p0, side * cross / twiceArea, 0.5f * twiceArea, src.radiance});
+        {p0, p1 - p0, p2 - p0, side * cross / twiceArea, 0.5f * twiceArea, radiance});
   }
   if (lights.triangles_.empty()) return lights;
   double sum = 0.0;

@@ -268,6 +268,17 @@ struct SceneState {
   double time = 0.0;
   std::vector<Light> lights;
   std::vector<glm::mat4> instanceTransforms;
+  // Runtime edits (common/scene_edits.h): the last `addedLights` of `lights` were added by
+  // edits (point lights, after the scene's own); per material, a factor on its emission (empty:
+  // all 1); the edit version the state includes (0: none, the animation alone).
+  std::uint32_t addedLights = 0;
+  std::vector<float> emissionScale;
+  std::uint64_t editVersion = 0;
+  float emissionScaleOf(int material) const {
+    return material >= 0 && std::size_t(material) < emissionScale.size()
+               ? emissionScale[std::size_t(material)]
+               : 1.0f;
+  }
 };
 SceneState evaluateScene(const Scene& scene, double time);
 

@@ -202,6 +202,7 @@ void EmbreeScene::transformInstance(std::size_t i, const glm::mat4& transform) {
 }
 
 void EmbreeScene::update(const SceneState& state) {
+  emissionScale_ = state.emissionScale;
   bool changed = false;
   for (std::size_t i = 0; i < geometries_.size(); ++i) {
     if (!geometries_[i] || scene_->instances[i].animation < 0) continue;
@@ -300,7 +301,11 @@ SurfacePoint EmbreeScene::surface(const Hit& hit, glm::vec3 origin, glm::vec3 di
     };
     sp.albedo = mat.baseColor * texture(mat.baseColorTexture);
     // Emitters are one-sided: their back does not glow.
-    if (mat.isEmissive() && !sp.backface) sp.emission = mat.emissive * texture(mat.emissiveTexture);
+    if (mat.isEmissive() && !sp.backface)
+      sp.emission = mat.emissive * texture(mat.emissiveTexture) *
+                    (std::size_t(mesh.material) < emissionScale_.size()
+                         ? emissionScale_[std::size_t(mesh.material)]
+                         : 1.0f);
     // The map perturbs the unflipped normal in the mesh's own frame; the result is then turned
     // as the vertex normal was, so the back of a two-sided surface sees the mirrored relief.
     const std::vector<glm::vec4>& tangents = worldTangents_[hit.instance];

@@ -49,7 +49,8 @@ class EmbreeScene {
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
-  // Moves animated instances to their transforms in `state` and recommits.
+  // Moves animated instances to their transforms in `state` and recommits; takes its
+  // emission factors.
   void update(const SceneState& state);
 
   bool intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, Hit& hit) const;
@@ -86,7 +87,8 @@ class EmbreeScene {
   // and its handedness times the sign of the transform's determinant.
   std::vector<std::vector<glm::vec4>> worldTangents_;
   std::vector<glm::mat4> transforms_;
-  bool dynamic_ = false;  // any animated instance
+  std::vector<float> emissionScale_;  // the state's (SceneState::emissionScale)
+  bool dynamic_ = false;              // any animated instance
 };
 
 }  // namespace pc

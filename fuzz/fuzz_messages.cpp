@@ -2,13 +2,15 @@
 // or an Error, never crashes. A decoded message survives re-encoding unchanged, and goes
 // through what a peer does with it next (the hello check, the client's mirror field built from
 // the layout message, the scene state applied to the built-in scene, a resume claim read as a
-// field of the bricks it claims).
+// field of the bricks it claims, an edit checked and applied to the built-in scene).
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <variant>
 
 #include "common/scene.h"
+#include "common/scene_edits.h"
 #include "fuzz_support.h"
 #include "protocol/resume_state.h"
 #include "protocol/session_messages.h"
@@ -50,6 +52,15 @@ void useMessage(const SessionMessage& m) {
     // A field of exactly the claimed bricks, so that the versions are decompressed and read.
     auto held = heldBricksOf(*resume, {resume->brickCount});
     if (held && held->front().size() != resume->brickCount) std::abort();
+  } else if (const auto* edit = std::get_if<EditMsg>(&m)) {
+    // What a server does with an editor's edit: checked and applied, or refused unchanged.
+    static const Scene scene = builtinScene();
+    SceneEdits edits(scene);
+    auto applied = edits.apply(edit->edit, 0.5);
+    if (!applied && edits.version() != 0) std::abort();
+    const SceneState s = edits.evaluate(0.5);
+    for (const Light& l : s.lights)
+      if (!std::isfinite(l.intensity) || !std::isfinite(l.position.x)) std::abort();
   } else if (const auto* state = std::get_if<SceneStateMsg>(&m)) {
     static const Scene scene = builtinScene();
     SceneState s = evaluateScene(scene, 0.0);

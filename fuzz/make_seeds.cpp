@@ -68,6 +68,20 @@ void messages() {
   for (std::uint64_t b = 0; b < 8; ++b) held[0].push_back(HeldBrick{900 + b % 3, b == 2 ? 2 : 0});
   held[1].assign(4, HeldBrick{870, 0});
   write("messages", "resume", encodeMessage(resumeMessage(0x5eed, 0x1234567, held)));
+  EditMsg edit;
+  edit.editId = 3;
+  edit.edit.op = EditOp::SetLight;
+  edit.edit.fields = kEditPosition | kEditColor | kEditIntensity;
+  edit.edit.position = {0.1f, 1.2f, 0.3f};
+  edit.edit.color = {1.0f, 0.5f, 0.2f};
+  edit.edit.intensity = 5.0f;
+  write("messages", "edit", encodeMessage(edit));
+  EditMsg move;
+  move.edit.op = EditOp::MoveInstance;
+  move.edit.target = 4;
+  move.edit.transform[3] = {0.2f, 0.3f, 0.1f, 1.0f};
+  write("messages", "edit-move", encodeMessage(move));
+  write("messages", "edit-result", encodeMessage(EditResultMsg{3, false, "light 9", 0, 9}));
 }
 
 // Datagram seeds hold the body without its CRC: the target appends a valid one.

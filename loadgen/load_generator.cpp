@@ -524,6 +524,8 @@ void Client::afterInput(double now) {
       case SessionEvent::Kind::StreamReport:
         onReport(now);
         break;
+      case SessionEvent::Kind::EditResult:  // load clients send no edits
+        break;
     }
   }
 }

@@ -64,6 +64,7 @@ void ClientSession::connecting(double now) {
   connectStartedAt_ = now;
   error_.clear();
   sessionId_ = 0;
+  editsOut_.clear();  // an edit is answered in the session it was sent in, or not at all
   ++stats_.connectAttempts;
 }
 
@@ -170,7 +171,7 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
   if (std::holds_alternative<HelloMsg>(message) || std::holds_alternative<ViewerPoseMsg>(message) ||
       std::holds_alternative<AckMsg>(message) ||
       std::holds_alternative<RepairRequestMsg>(message) ||
-      std::holds_alternative<ResumeMsg>(message))
+      std::holds_alternative<ResumeMsg>(message) || std::holds_alternative<EditMsg>(message))
     return fail(name + " from the server: only a client sends it");
   if (const auto* reject = std::get_if<RejectMsg>(&message)) {
     ++stats_.rejects;
@@ -206,9 +207,22 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
     events_.push_back(SessionEvent{SessionEvent::Kind::StreamReport, {}, {}});
     return Status::success();
   }
+  if (auto* result = std::get_if<EditResultMsg>(&message)) {
+    if (phase_ != SessionPhase::Streaming) return fail("EditResult before SessionInfo");
+    SessionEvent e{SessionEvent::Kind::EditResult, {}, {}};
+    e.edit = std::move(*result);
+    events_.push_back(std::move(e));
+    return Status::success();
+  }
   auto& state = std::get<SceneStateMsg>(message);
   clock_.update(state.animationTime, now);
   if (receiver_) receiver_->announceFieldVersion(state.fieldVersion);
+  // The newest state with edits in force: the scene, until a state without them comes.
+  if (state.editVersion > 0) {
+    edited_ = state;
+  } else {
+    edited_.reset();
+  }
   events_.push_back(SessionEvent{SessionEvent::Kind::SceneState, std::move(state), {}});
   return Status::success();
 }
@@ -402,6 +416,8 @@ Result<std::vector<std::vector<std::uint8_t>>> ClientSession::poll(double now) {
   // The Resume before anything else on the stream (the acks of the held versions follow it).
   if (!resumeFrame_.empty()) out.insert(out.begin(), std::move(resumeFrame_));
   resumeFrame_.clear();
+  for (auto& edit : editsOut_) out.push_back(std::move(edit));
+  editsOut_.clear();
   if (viewer_ && poseDue(now)) {
     ViewerPoseMsg pose = *viewer_;
     pose.time = clock_.at(now).value_or(0.0);
@@ -409,6 +425,17 @@ Result<std::vector<std::vector<std::uint8_t>>> ClientSession::poll(double now) {
     lastPoseAt_ = now;
   }
   return out;
+}
+
+Status ClientSession::sendEdit(const EditMsg& edit) {
+  if (phase_ != SessionPhase::Streaming) return Error{"no session to send the edit in"};
+  if (spokenVersion_ < kEditsVersion)
+    return Error{"the server speaks protocol version " + std::to_string(spokenVersion_) +
+                 ", which takes no edits (version " + std::to_string(kEditsVersion) + ")"};
+  if (editsOut_.size() >= kMaxQueuedEdits)
+    return Error{std::to_string(kMaxQueuedEdits) + " edits are waiting already"};
+  editsOut_.push_back(encodeMessage(edit));
+  return Status::success();
 }
 
 void ClientSession::startUplink() {

@@ -105,11 +105,16 @@ struct SessionEvent {
     SceneState,    // a scene state arrived (scene); clock() has taken it
     Datagram,      // a datagram was handled (either transport); status says whether it was refused
     StreamReport,  // the server's report on this client's stream (report())
+    EditResult,    // the server's answer to an edit this client sent (edit)
   };
   Kind kind;
   SceneStateMsg scene;  // Kind::SceneState
   Status status;        // Kind::Datagram
+  EditResultMsg edit;   // Kind::EditResult
 };
+
+// Edits sendEdit holds until the next poll; more are refused.
+inline constexpr std::size_t kMaxQueuedEdits = 64;
 
 struct ClientSessionStats {
   std::uint64_t connectAttempts = 0;  // connecting() calls
@@ -194,6 +199,13 @@ class ClientSession {
   void setViewer(glm::vec3 position, glm::quat orientation);
   // Whether poll would send a pose now (for callers that compute it only when it is due).
   bool poseDue(double now) const;
+  // A runtime edit (protocol version 8), sent with the next poll; the server answers with an
+  // EditResult event. An Error when no session streams, the server takes no edits, or too many
+  // wait already. Only a token with the editor role gets an edit applied.
+  Status sendEdit(const EditMsg& edit);
+  // The newest scene state that includes runtime edits (SceneStateMsg::editVersion > 0): while
+  // there is one, it is the scene (lights, transforms, emission), not the local animation.
+  const std::optional<SceneStateMsg>& editedScene() const { return edited_; }
 
   // Bricks (cascade, brick) changed since the previous call, each once, for the caller to
   // read from receiver()->field() or brickVersion().
@@ -278,6 +290,8 @@ class ClientSession {
   AnimationClock clock_;
   std::optional<StreamReportMsg> report_;
   double reportAt_ = 0;
+  std::optional<SceneStateMsg> edited_;
+  std::vector<std::vector<std::uint8_t>> editsOut_;
   ClientSessionStats stats_;
 };
 

@@ -87,7 +87,7 @@ struct Encoder {
     std::vector<fb::Offset<net::LightState>> lights;
     for (const LightStateMsg& l : m.lights) {
       net::Vec3 p = toWire(l.position), d = toWire(l.direction), c = toWire(l.color);
-      lights.push_back(net::CreateLightState(fbb, &p, &d, &c, l.intensity));
+      lights.push_back(net::CreateLightState(fbb, &p, &d, &c, l.intensity, l.added, l.range));
     }
     auto lightsOff = fbb.CreateVector(lights);
     std::vector<net::Mat4> mats;
@@ -95,8 +95,23 @@ struct Encoder {
       mats.emplace_back(fb::span<const float, 16>(&t[0][0], 16));
     }
     auto matsOff = fbb.CreateVectorOfStructs(mats);
+    fb::Offset<fb::Vector<float>> emissionOff;
+    if (!m.emissionScales.empty()) emissionOff = fbb.CreateVector(m.emissionScales);
     return net::CreateSceneState(fbb, m.animationTime, lightsOff, matsOff, m.fieldVersion,
-                                 m.publishTime)
+                                 m.publishTime, m.editVersion, emissionOff)
+        .Union();
+  }
+  fb::Offset<void> operator()(const EditMsg& m) {
+    const SceneEdit& e = m.edit;
+    net::Vec3 p = toWire(e.position), d = toWire(e.direction), c = toWire(e.color);
+    net::Mat4 t(fb::span<const float, 16>(&e.transform[0][0], 16));
+    return net::CreateEdit(fbb, m.editId, net::EditOp(e.op), e.target, e.fields, &p, &d, &c,
+                           e.intensity, e.range, &t, e.emission)
+        .Union();
+  }
+  fb::Offset<void> operator()(const EditResultMsg& m) {
+    auto reason = fbb.CreateString(m.reason);
+    return net::CreateEditResult(fbb, m.editId, m.accepted, reason, m.editVersion, m.target)
         .Union();
   }
   fb::Offset<void> operator()(const ViewerPoseMsg& m) {
@@ -275,7 +290,7 @@ std::vector<std::uint8_t> encodeMessage(const SessionMessage& message) {
 const char* sessionMessageName(const SessionMessage& message) {
   constexpr const char* kNames[] = {"Hello",        "Welcome",    "Reject", "SessionInfo",
                                     "SceneState",   "ViewerPose", "Ack",    "RepairRequest",
-                                    "StreamReport", "Resume"};
+                                    "StreamReport", "Resume",     "Edit",   "EditResult"};
   static_assert(std::size(kNames) == std::variant_size_v<SessionMessage>);
   return kNames[message.index()];
 }
@@ -352,10 +367,14 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
       if (!std::isfinite(m.publishTime)) return fail("scene state: publish time not finite");
       if (w->lights()) {
         for (const net::LightState* l : *w->lights()) {
-          LightStateMsg s{fromWire(l->position()), fromWire(l->direction()), fromWire(l->color()),
-                          l->intensity()};
+          LightStateMsg s{fromWire(l->position()),
+                          fromWire(l->direction()),
+                          fromWire(l->color()),
+                          l->intensity(),
+                          l->added(),
+                          l->range()};
           if (!finite(s.position) || !finite(s.direction) || !finite(s.color) ||
-              !std::isfinite(s.intensity)) {
+              !std::isfinite(s.intensity) || !std::isfinite(s.range)) {
             return fail("scene state: light values not finite");
           }
           m.lights.push_back(s);
@@ -370,6 +389,17 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
             (&mat[0][0])[i] = x;
           }
           m.instanceTransforms.push_back(mat);
+        }
+      }
+      m.editVersion = w->edit_version();
+      if (w->emission_scales()) {
+        if (w->emission_scales()->size() > kMaxEmissionScales)
+          return fail("scene state: " + std::to_string(w->emission_scales()->size()) +
+                      " emission factors (at most " + std::to_string(kMaxEmissionScales) + ")");
+        for (float f : *w->emission_scales()) {
+          if (!std::isfinite(f) || f < 0.0f)
+            return fail("scene state: emission factor " + std::to_string(f) + " not finite or < 0");
+          m.emissionScales.push_back(f);
         }
       }
       return SessionMessage(std::move(m));
@@ -506,6 +536,34 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
     }
     case net::Body::Resume:
       return decodeResume(*root->body_as_Resume());
+    case net::Body::Edit: {
+      // Values are SceneEdits' to bound (an EditResult names what was wrong); only what no
+      // edit can be is refused here.
+      const auto* w = root->body_as_Edit();
+      const auto op = std::uint8_t(w->op());
+      if (op == 0 || op > kLastEditOp) return fail("edit: unknown operation " + std::to_string(op));
+      EditMsg m;
+      m.editId = w->edit_id();
+      m.edit.op = EditOp(op);
+      m.edit.target = w->target();
+      m.edit.fields = w->fields();
+      m.edit.position = fromWire(w->position());
+      m.edit.direction = fromWire(w->direction());
+      m.edit.color = fromWire(w->color());
+      m.edit.intensity = w->intensity();
+      m.edit.range = w->range();
+      if (w->transform())
+        std::memcpy(&m.edit.transform[0][0], w->transform()->m()->data(), 16 * sizeof(float));
+      m.edit.emission = w->emission();
+      return SessionMessage(m);
+    }
+    case net::Body::EditResult: {
+      const auto* w = root->body_as_EditResult();
+      EditResultMsg m{w->edit_id(), w->accepted(), str(w->reason()), w->edit_version(),
+                      w->target()};
+      if (m.reason.size() > kMaxEditReasonBytes) m.reason.resize(kMaxEditReasonBytes);
+      return SessionMessage(std::move(m));
+    }
     case net::Body::NONE:
       break;
   }
@@ -629,29 +687,63 @@ Result<Field> mirrorField(const SessionInfoMsg& info) {
 SceneStateMsg sceneStateMessage(const SceneState& state) {
   SceneStateMsg m;
   m.animationTime = state.time;
-  for (const Light& l : state.lights) {
-    m.lights.push_back(LightStateMsg{l.position, l.direction, l.color, l.intensity});
+  const std::size_t firstAdded =
+      state.lights.size() - std::min<std::size_t>(state.addedLights, state.lights.size());
+  for (std::size_t i = 0; i < state.lights.size(); ++i) {
+    const Light& l = state.lights[i];
+    m.lights.push_back(
+        LightStateMsg{l.position, l.direction, l.color, l.intensity, i >= firstAdded, l.range});
   }
   m.instanceTransforms = state.instanceTransforms;
+  m.editVersion = state.editVersion;
+  m.emissionScales = state.emissionScale;
   return m;
 }
 
 Status applySceneState(const SceneStateMsg& message, SceneState& state) {
-  if (message.lights.size() != state.lights.size() ||
+  // The scene's own lights come first, then those edits added (point lights): the scene
+  // holds the first kind's types and cones, the message the second's.
+  std::size_t sceneLights =
+      state.lights.size() - std::min<std::size_t>(state.addedLights, state.lights.size());
+  std::size_t added = 0;
+  for (std::size_t i = 0; i < message.lights.size(); ++i) {
+    if (message.lights[i].added != (i >= sceneLights)) {
+      return Error{"scene state: light " + std::to_string(i) +
+                   (message.lights[i].added ? " is an added one" : " is not an added one") +
+                   ", the scene has " + std::to_string(sceneLights) + " lights of its own"};
+    }
+    added += message.lights[i].added ? 1 : 0;
+  }
+  if (message.lights.size() - added != sceneLights || added > kMaxAddedLights ||
       message.instanceTransforms.size() != state.instanceTransforms.size()) {
-    return Error{"scene state: " + std::to_string(message.lights.size()) + " lights and " +
+    return Error{"scene state: " + std::to_string(message.lights.size()) + " lights (" +
+                 std::to_string(added) + " added) and " +
                  std::to_string(message.instanceTransforms.size()) + " instances, the scene has " +
-                 std::to_string(state.lights.size()) + " and " +
+                 std::to_string(sceneLights) + " and " +
                  std::to_string(state.instanceTransforms.size())};
   }
   state.time = message.animationTime;
+  state.lights.resize(sceneLights);
   for (std::size_t i = 0; i < message.lights.size(); ++i) {
-    state.lights[i].position = message.lights[i].position;
-    state.lights[i].direction = message.lights[i].direction;
-    state.lights[i].color = message.lights[i].color;
-    state.lights[i].intensity = message.lights[i].intensity;
+    const LightStateMsg& m = message.lights[i];
+    if (i >= sceneLights) {
+      Light l;
+      l.name = "edit " + std::to_string(i - sceneLights);
+      l.type = LightType::Point;
+      l.range = std::max(0.0f, m.range);
+      state.lights.push_back(l);
+    } else if (message.editVersion > 0) {
+      state.lights[i].range = std::max(0.0f, m.range);
+    }
+    state.lights[i].position = m.position;
+    state.lights[i].direction = m.direction;
+    state.lights[i].color = m.color;
+    state.lights[i].intensity = m.intensity;
   }
+  state.addedLights = std::uint32_t(added);
   state.instanceTransforms = message.instanceTransforms;
+  state.editVersion = message.editVersion;
+  state.emissionScale = message.emissionScales;
   return Status::success();
 }
 

@@ -17,6 +17,7 @@
 #include "common/field.h"
 #include "common/result.h"
 #include "common/scene.h"
+#include "common/scene_edits.h"
 #include "protocol/connect_token.h"
 #include "protocol/stream_limits.h"
 
@@ -69,6 +70,9 @@ struct SessionInfoMsg {
 struct LightStateMsg {
   glm::vec3 position{0.0f}, direction{0.0f}, color{0.0f};
   float intensity = 0;
+  // Protocol version 8: a point light an edit added, and its range (0: unlimited).
+  bool added = false;
+  float range = 0;
 };
 
 struct SceneStateMsg {
@@ -80,6 +84,10 @@ struct SceneStateMsg {
   // at, so a client knows when each brick version was published.
   std::uint64_t fieldVersion = 0;
   double publishTime = 0;
+  // Protocol version 8: the runtime edits included (0: none; clients replay the animation),
+  // and per material a factor on its emission (empty: all 1).
+  std::uint64_t editVersion = 0;
+  std::vector<float> emissionScales;
 };
 
 struct ViewerPoseMsg {
@@ -172,9 +180,30 @@ struct ResumeMsg {
   std::vector<BrickPrecisionMsg> precisions;  // bricks held at a level above 0
 };
 
+// Protocol version 8: a runtime edit (common/scene_edits.h) from an editor's session. Decoding
+// checks only the structure and the operation; SceneEdits bounds every value, so a hostile
+// value gets an EditResult naming it and the session goes on.
+struct EditMsg {
+  std::uint32_t editId = 0;
+  SceneEdit edit;
+};
+
+struct EditResultMsg {
+  std::uint32_t editId = 0;
+  bool accepted = false;
+  std::string reason;
+  std::uint64_t editVersion = 0;
+  std::uint32_t target = 0;
+};
+
+// An EditResult's reason is cut to this many bytes when read.
+inline constexpr std::size_t kMaxEditReasonBytes = 512;
+// The most scene materials a SceneState may carry emission factors for.
+inline constexpr std::size_t kMaxEmissionScales = 65536;
+
 using SessionMessage =
     std::variant<HelloMsg, WelcomeMsg, RejectMsg, SessionInfoMsg, SceneStateMsg, ViewerPoseMsg,
-                 AckMsg, RepairRequestMsg, StreamReportMsg, ResumeMsg>;
+                 AckMsg, RepairRequestMsg, StreamReportMsg, ResumeMsg, EditMsg, EditResultMsg>;
 
 // The message's name as the schema spells it ("Hello", "SessionInfo", ...), for errors.
 const char* sessionMessageName(const SessionMessage& message);
@@ -208,7 +237,8 @@ SessionInfoMsg sessionInfoFor(const Field& field);
 Result<Field> mirrorField(const SessionInfoMsg& info);
 
 // Scene state <-> message. applySceneState needs the scene's own lights and instances (types,
-// cones, meshes) and fails when the counts differ.
+// cones, meshes), evaluated at any time, and fails when the instance counts differ or the
+// message's lights are neither the scene's nor, after them, lights edits added.
 SceneStateMsg sceneStateMessage(const SceneState& state);
 Status applySceneState(const SceneStateMsg& message, SceneState& state);
 

@@ -27,7 +27,11 @@ namespace pc {
 // SessionInfo the server's, and the client says what it holds in a Resume (a union member a
 // version 6 server does not know, so it is sent only to version 7 servers); older clients get
 // the whole field, as before.
-inline constexpr std::uint32_t kProtocolVersion = 7;
+// Version 8: runtime edits. A client whose token has the editor role sends Edit (a union
+// member a version 7 server does not know, so it is sent only to version 8 servers) and hears
+// an EditResult; the SceneState says which edits it includes, the lights edits added and the
+// emission factors, which older clients ignore (they replay the animation as before).
+inline constexpr std::uint32_t kProtocolVersion = 8;
 inline constexpr std::uint32_t kMinProtocolVersion = 4;
 // The first version whose clients report arrivals and take StreamReport.
 inline constexpr std::uint32_t kCongestionControlVersion = 3;
@@ -37,6 +41,8 @@ inline constexpr std::uint32_t kPrecisionLevelsVersion = 5;
 inline constexpr std::uint32_t kUplinkDatagramsVersion = 6;
 // The first version whose clients and servers resume sessions (Resume, epochs).
 inline constexpr std::uint32_t kResumeVersion = 7;
+// The first version whose clients send Edit and whose servers answer it with EditResult.
+inline constexpr std::uint32_t kEditsVersion = 8;
 
 // UDP datagrams never exceed this (fits the IPv6 minimum MTU of 1280 with headers).
 inline constexpr std::size_t kMaxDatagramBytes = 1200;

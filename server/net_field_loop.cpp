@@ -67,10 +67,34 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   double t = options_.startTime + elapsed;
   const bool freezing = options_.freezeAt >= 0 && t >= options_.freezeAt;
   if (freezing) t = options_.freezeAt;
-  const SceneState state = evaluateScene(scene_, t);
+  std::vector<EditRegion> edited;
+  const SceneState state =
+      options_.editor ? options_.editor->evaluate(t, edited) : evaluateScene(scene_, t);
+  if (!edited.empty()) {
+    scheduler_.prioritize(field_, edited);
+    // A new edit's state goes out before the update that traces it: clients light the scene
+    // as edited one update sooner, and the field follows over the next updates anyway.
+    if (Status early = hub_.publish(field_, sceneStateMessage(state), now); !early)
+      logError("publish: " + early.error().message);
+  }
 
+  if (!edited.empty()) convergeLeft_ = options_.editConvergeUpdates;
   UpdateStats us;
-  if (!frozen_ && tracer_) us = update(state, tick);
+  if (!frozen_ && tracer_) {
+    if (convergeLeft_ > 0 && restoreHysteresis_.empty()) {
+      for (int k = 0; k < field_.cascadeCount(); ++k) {
+        restoreHysteresis_.push_back(field_.cascade(k).hysteresis);
+        field_.desc.cascades[k].hysteresis =
+            std::min(field_.desc.cascades[k].hysteresis, options_.editHysteresis);
+      }
+    }
+    us = update(state, tick);
+    if (convergeLeft_ > 0 && --convergeLeft_ == 0) {
+      for (int k = 0; k < field_.cascadeCount(); ++k)
+        field_.desc.cascades[k].hysteresis = restoreHysteresis_[std::size_t(k)];
+      restoreHysteresis_.clear();
+    }
+  }
   // Published every tick, frozen or not: the scene state doubles as the clients' clock.
   const auto publishStart = std::chrono::steady_clock::now();
   Status published = hub_.publish(field_, sceneStateMessage(state), now);
@@ -94,6 +118,7 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   stats_.ticks = tick;
   stats_.fieldVersion = field_.version;
   stats_.animationTime = t;
+  stats_.editVersion = state.editVersion;
   if (us.totalMs > 0) stats_.lastUpdateMs = us.totalMs;
   stats_.lastBricksChanged = us.bricksChanged;
   stats_.frozen = frozen_;

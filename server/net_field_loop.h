@@ -19,6 +19,7 @@
 #include "net_hub.h"
 #include "net_metrics.h"
 #include "probe_scheduler.h"
+#include "scene_editor.h"
 #include "tracer.h"
 
 namespace pc {
@@ -36,6 +37,14 @@ struct FieldLoopOptions {
   // field stays as it is and is still published every tick: clients keep what they hold and
   // the scene keeps moving.
   std::function<Result<std::unique_ptr<Tracer>>()> fallback;
+  // Runtime edits (scene_editor.h): each tick traces and publishes the scene with the edits in
+  // force, and the probes near an edit are scheduled first. Null: the animation alone.
+  SceneEditor* editor = nullptr;
+  // After an edit, this many updates blend with at most this hysteresis (every cascade), as a
+  // bake's first updates do: the probes drop most of their history of the scene before the
+  // edit (0.5^8: 0.4% of it) instead of converging over seconds. 0: no such updates.
+  int editConvergeUpdates = 8;
+  float editHysteresis = 0.5f;
 };
 
 struct FieldLoopStats {
@@ -45,9 +54,10 @@ struct FieldLoopStats {
   double lastUpdateMs = 0;
   int lastBricksChanged = 0;
   bool frozen = false;
-  UpdateStats lastUpdate;     // the tracer's figures of the latest update (per-pass times)
-  double lastPublishMs = 0;   // quantizing the changed bricks for the senders
-  std::uint64_t updates = 0;  // ticks that traced (not frozen)
+  UpdateStats lastUpdate;         // the tracer's figures of the latest update (per-pass times)
+  std::uint64_t editVersion = 0;  // the runtime edits the latest state includes
+  double lastPublishMs = 0;       // quantizing the changed bricks for the senders
+  std::uint64_t updates = 0;      // ticks that traced (not frozen)
   double updateSeconds = 0, publishSeconds = 0;  // totals
   std::string tracer;                            // the tracer's name; empty once none is left
   std::uint64_t tracerFailures = 0;              // tracer calls that failed
@@ -110,6 +120,8 @@ class FieldLoop {
   FieldLoopOptions options_;
   ProbeScheduler scheduler_;
   bool frozen_ = false;
+  int convergeLeft_ = 0;                  // updates still at editHysteresis
+  std::vector<float> restoreHysteresis_;  // each cascade's own, while they are
   mutable std::mutex statsMutex_;
   FieldLoopStats stats_;
 };

@@ -564,6 +564,14 @@ void appendServerMetrics(MetricsText& m, const NetServerStats& s) {
               "version past this server's newest (sent whole).",
               double(n), {{"outcome", outcome}});
   }
+  for (const auto& [outcome, n] :
+       {std::pair{"applied", s.editsApplied}, std::pair{"invalid", s.editsInvalid},
+        std::pair{"denied", s.editsDenied}}) {
+    m.counter("probecast_edits_total",
+              "Edit messages of clients, by outcome: applied, refused for their values (or on an "
+              "endpoint that takes none), refused for a token without the editor role.",
+              double(n), {{"outcome", outcome}});
+  }
   m.counter("probecast_uplink_datagrams_total",
             "Datagrams received on the UDP port (client acks and repair requests, and anything "
             "else sent there).",

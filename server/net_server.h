@@ -20,6 +20,7 @@
 #include "common/histogram.h"
 #include "common/log.h"
 #include "common/result.h"
+#include "common/scene_edits.h"
 #include "net_hub.h"
 #include "net_metrics.h"
 #include "protocol/stream_sender.h"
@@ -149,6 +150,11 @@ struct NetServerOptions {
   // Labels of probecast_build_info (the tools pass theirs: tools/build_info.h); empty: the
   // metric is left out.
   BuildInfo buildInfo;
+  // Runtime edits (PROTOCOL.md "Runtime edits"): called on the network thread with an Edit of
+  // a session whose token has the editor role; it applies the edit or returns an Error naming
+  // what was wrong, which the client hears in its EditResult. Empty: this endpoint takes no
+  // edits (a relay), and every Edit is refused.
+  std::function<Result<EditOutcome>(const SceneEdit&)> edits;
 };
 
 struct NetClientInfo {
@@ -193,6 +199,9 @@ struct NetServerStats {
   // Resume messages (PROTOCOL.md "Resuming a session"): claims taken, claims of another field,
   // bricks taken as held, bricks refused for a version past the newest.
   std::uint64_t resumes = 0, resumeMismatches = 0, resumedBricks = 0, resumeRefusedBricks = 0;
+  // Edit messages (PROTOCOL.md "Runtime edits"): applied; refused for their values (or on an
+  // endpoint that takes none); refused because the session's token is not an editor's.
+  std::uint64_t editsApplied = 0, editsInvalid = 0, editsDenied = 0;
   // Datagrams to the UDP port that were dropped unanswered, by UplinkDrop.
   std::array<std::uint64_t, kUplinkDropCount> uplinkDrops{};
   std::uint64_t uplinkDatagrams = 0;  // received on the UDP port, dropped or not

@@ -360,7 +360,8 @@ bool Session::handle(const SessionMessage& message, bool overUdp) {
   if (std::holds_alternative<WelcomeMsg>(message) || std::holds_alternative<RejectMsg>(message) ||
       std::holds_alternative<SessionInfoMsg>(message) ||
       std::holds_alternative<SceneStateMsg>(message) ||
-      std::holds_alternative<StreamReportMsg>(message)) {
+      std::holds_alternative<StreamReportMsg>(message) ||
+      std::holds_alternative<EditResultMsg>(message)) {
     refuse(DisconnectCause::WrongDirection,
            std::string(sessionMessageName(message)) + " from a client: only the server sends it");
     return false;
@@ -368,6 +369,14 @@ bool Session::handle(const SessionMessage& message, bool overUdp) {
   if (auto invalid = checkSize(message)) {
     refuse(DisconnectCause::Invalid, *invalid);
     return false;
+  }
+  if (const auto* edit = std::get_if<EditMsg>(&message)) {
+    if (overUdp) {
+      refuse(DisconnectCause::Protocol, "Edit as a datagram: only acks and repair requests");
+      return false;
+    }
+    onEdit(*edit);
+    return !closed_;
   }
   if (const auto* pose = std::get_if<ViewerPoseMsg>(&message)) setViewer(*pose);
   Status status;
@@ -529,6 +538,45 @@ void Session::sendReject(RejectMsg reject) {
   if (frame.size() > bytesReceived_)
     return close(DisconnectCause::Rejected, "Hello too short for a Reject");
   enqueue(share(std::move(frame)));
+}
+
+void Session::onEdit(const EditMsg& edit) {
+  EditResultMsg result;
+  result.editId = edit.editId;
+  result.target = edit.edit.target;
+  const char* outcome = "applied";
+  if (claims_.role != TokenRole::Editor) {
+    // A viewer never changes the server's state; it hears why and keeps its session.
+    result.reason = "edits need a connect token with the editor role; this one's is " +
+                    std::string(tokenRoleName(claims_.role));
+    outcome = "denied";
+    ++server_.totals.editsDenied;
+  } else if (!server_.options.edits) {
+    result.reason = "this endpoint takes no edits (a relay): send them to the field server";
+    outcome = "invalid";
+    ++server_.totals.editsInvalid;
+  } else if (auto applied = server_.options.edits(edit.edit); !applied) {
+    result.reason = applied.error().message;
+    outcome = "invalid";
+    ++server_.totals.editsInvalid;
+  } else {
+    result.accepted = true;
+    result.editVersion = applied->version;
+    result.target = applied->target;
+    ++server_.totals.editsApplied;
+  }
+  logEvent(result.accepted ? LogLevel::Info : LogLevel::Warn,
+           result.accepted ? "edit applied" : "edit refused",
+           {{"session", id_},
+            {"name", escapeUntrusted(name_, kMaxClientNameBytes)},
+            {"token", tokenIdHex(claims_.id)},
+            {"role", std::string(tokenRoleName(claims_.role))},
+            {"op", editOpName(edit.edit.op)},
+            {"target", edit.edit.target},
+            {"outcome", outcome},
+            {"edit_version", result.editVersion},
+            {"reason", result.reason}});
+  enqueue(share(encodeMessage(result)));
 }
 
 void Session::setViewer(const ViewerPoseMsg& pose) {

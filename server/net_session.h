@@ -112,6 +112,9 @@ class Session : public std::enable_shared_from_this<Session> {
   // gets more bytes than it sent: the reason is cut to fit, and nothing is written when not
   // even an empty reason fits.
   void sendReject(RejectMsg reject);
+  // An Edit: applied through the server's edit handler where this session's token has the
+  // editor role; answered with an EditResult either way, logged, and the session goes on.
+  void onEdit(const EditMsg& edit);
   // Applies a viewer pose to the probe scheduler's viewer set, within the field's bounds.
   void setViewer(const ViewerPoseMsg& pose);
   void enqueue(SharedBytes bytes);

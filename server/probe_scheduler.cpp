@@ -1,14 +1,24 @@
 #include "probe_scheduler.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 namespace pc {
+
+namespace {
+// Priority of a probe near an edit, over one viewer-distance unit; staleness is at most 1e6.
+constexpr float kBoostPriority = 1e12f;
+}  // namespace
 
 std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tick,
                                            const std::vector<glm::vec3>& viewers,
                                            const std::vector<float>& weights) {
   if (lastUpdate_.size() != field.probes.size()) lastUpdate_.assign(field.probes.size(), 0);
+  if (boost_.size() != field.probes.size()) {
+    boost_.assign(field.probes.size(), 0);
+    boostDistance_.assign(field.probes.size(), 0.0f);
+  }
   struct Candidate {
     ProbeRef ref;
     float priority;
@@ -26,9 +36,15 @@ std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tic
       if (r.state == gpu::PC_PROBE_SLEEPING) period = options_.sleepingPeriod;
       if (r.state == gpu::PC_PROBE_INSIDE) period = options_.insidePeriod;
       // Stagger periodic probes by slot so each tick takes an even share.
+      const bool boosted = boost_[index] > 0;
       const bool due =
-          never || period <= 1 || (tick + std::uint64_t(s)) % std::uint64_t(period) == 0;
+          never || boosted || period <= 1 || (tick + std::uint64_t(s)) % std::uint64_t(period) == 0;
       if (!due) continue;
+      if (boosted) {
+        // Above any staleness (at most 1e6 for a probe never updated): an edit's region first.
+        candidates.push_back({{k, s}, kBoostPriority / (1.0f + boostDistance_[index])});
+        continue;
+      }
       float staleness = never ? 1e6f : float(tick - last);
       float distance = 0.0f;
       if (!viewers.empty()) {
@@ -52,14 +68,45 @@ std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tic
   plan.reserve(candidates.size());
   for (const Candidate& c : candidates) {
     plan.push_back(c.ref);
-    lastUpdate_[std::size_t(field.cascade(c.ref.cascade).firstProbe) + c.ref.slot] =
-        std::max<std::uint64_t>(tick, 1);
+    const std::size_t index = std::size_t(field.cascade(c.ref.cascade).firstProbe) + c.ref.slot;
+    lastUpdate_[index] = std::max<std::uint64_t>(tick, 1);
+    if (boost_[index] > 0) --boost_[index];
   }
   // Probes sorted by cascade and slot trace with better memory locality.
   std::sort(plan.begin(), plan.end(), [](ProbeRef a, ProbeRef b) {
     return a.cascade != b.cascade ? a.cascade < b.cascade : a.slot < b.slot;
   });
   return plan;
+}
+
+void ProbeScheduler::prioritize(const Field& field, const std::vector<EditRegion>& regions) {
+  if (boost_.size() != field.probes.size()) {
+    boost_.assign(field.probes.size(), 0);
+    boostDistance_.assign(field.probes.size(), 0.0f);
+  }
+  for (int k = 0; k < field.cascadeCount(); ++k) {
+    const gpu::CascadeDesc& c = field.cascade(k);
+    for (int s = 0; s < gpu::pcSlotCount(c); ++s) {
+      if (!gpu::pcSlotValid(c, s)) continue;
+      const glm::vec3 p = field.probePosition(k, s);
+      float nearest = std::numeric_limits<float>::infinity();
+      for (const EditRegion& r : regions) {
+        const float d = glm::length(p - r.center);
+        if (d <= r.radius) nearest = std::min(nearest, d);  // false for NaN
+      }
+      if (!std::isfinite(nearest)) continue;
+      const std::size_t index = std::size_t(c.firstProbe) + s;
+      const float distance = nearest / c.spacing;
+      // A probe in two edits' regions keeps the nearer one's rank.
+      boostDistance_[index] =
+          boost_[index] > 0 ? std::min(boostDistance_[index], distance) : distance;
+      boost_[index] = kEditBoostUpdates;
+    }
+  }
+}
+
+std::size_t ProbeScheduler::boostedProbes() const {
+  return std::size_t(std::count_if(boost_.begin(), boost_.end(), [](auto b) { return b > 0; }));
 }
 
 }  // namespace pc

@@ -1,12 +1,14 @@
 // Chooses the probes to update each tick: active and new probes every tick, sleeping and
 // inside-geometry probes now and then (staggered, so their cost spreads evenly), and under a
-// budget, the stalest probes nearest a viewer first.
+// budget, the stalest probes nearest a viewer first. Probes in the region of a runtime edit
+// (prioritize) come before all of those, nearest the edit first, for their next few updates.
 #pragma once
 
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <vector>
 
+#include "common/scene_edits.h"
 #include "tracer.h"
 
 namespace pc {
@@ -28,10 +30,22 @@ class ProbeScheduler {
                              const std::vector<float>& weights = {});
   // Forces every probe into the next plan (scene cut, history reset).
   void resetAll() { lastUpdate_.clear(); }
+  // An edit changed the light within `regions`: the probes there, sleeping or not, come first
+  // in each of their next kEditBoostUpdates plans (nearest a region's centre first), so that
+  // the field around the change converges before anything else is refreshed.
+  void prioritize(const Field& field, const std::vector<EditRegion>& regions);
+  // Probes still to be updated first for an edit.
+  std::size_t boostedProbes() const;
+
+  static constexpr std::uint8_t kEditBoostUpdates = 16;
 
  private:
   SchedulerOptions options_;
   std::vector<std::uint64_t> lastUpdate_;  // per field-wide slot; 0 = never
+  // Per field-wide slot: plans left at the front for an edit, and the distance to the nearest
+  // edit's centre in the cascade's spacings.
+  std::vector<std::uint8_t> boost_;
+  std::vector<float> boostDistance_;
 };
 
 }  // namespace pc

@@ -122,7 +122,7 @@ void VulkanTracer::setStateOnce(const SceneState& state) {
     GpuMaterial g{};
     g.baseColor = s.baseColor;
     g.baseColorTexture = tex(s.baseColorTexture);
-    g.emissive = s.emissive;
+    g.emissive = s.emissive * state.emissionScaleOf(int(i));  // runtime edits' factor
     g.emissiveTexture = tex(s.emissiveTexture);
     g.sampled = emissive.sampled(int(i)) ? 1 : 0;
     g.alphaTexture = tex(s.alphaTexture);

@@ -37,10 +37,10 @@ inline const KeyPair& testKeys() {
   return keys;
 }
 inline std::string issueTestToken(const std::string& client, std::int64_t ttlSeconds = 3600,
-                                  std::int64_t issuedAgo = 0) {
+                                  std::int64_t issuedAgo = 0, TokenRole role = TokenRole::Viewer) {
   const std::int64_t now = unixSeconds();
-  auto token = issueToken(testKeys().signing, newTokenClaims(client, "*", TokenRole::Viewer, 1,
-                                                             now - issuedAgo, ttlSeconds));
+  auto token = issueToken(testKeys().signing,
+                          newTokenClaims(client, "*", role, 1, now - issuedAgo, ttlSeconds));
   EXPECT_TRUE(token.ok());
   return token ? *token : std::string();
 }
@@ -85,6 +85,9 @@ class TestServer {
     if (net.tokenKeys.empty()) net.tokenKeys = {testKeys().verify};
     // TLS as in production, with a certificate made for the test; clients pin fingerprint().
     if (net.tls.enabled && net.tls.certificateFile.empty()) net.tls.devSelfSigned = true;
+    // Runtime edits as probecast-server takes them (only editor tokens get one applied).
+    editor_ = std::make_unique<SceneEditor>(scene_);
+    if (!net.edits) net.edits = [this](const SceneEdit& e) { return editor_->submit(e); };
     auto server = NetServer::create(*hub_, net);
     EXPECT_TRUE(server.ok()) << (server ? "" : server.error().message);
     server_ = std::move(server).value();
@@ -92,6 +95,7 @@ class TestServer {
     FieldLoopOptions loop;
     loop.rate = 10;
     loop.freezeAt = freezeAt;
+    loop.editor = editor_.get();
     loop_ = std::make_unique<FieldLoop>(scene_, *tracer_, field_, *hub_, loop);
     thread_ = std::thread([this] { loop_->run(stop_, steadySeconds); });
   }
@@ -109,6 +113,8 @@ class TestServer {
   FieldHub& hub() { return *hub_; }
   bool frozen() const { return loop_->stats().frozen; }
   const FieldLoop& loop() const { return *loop_; }
+  const SceneEditor& editor() const { return *editor_; }
+  const Scene& scene() const { return scene_; }
   // Only once frozen() (the field thread no longer writes it).
   const Field& field() const { return field_; }
 
@@ -117,6 +123,7 @@ class TestServer {
   std::unique_ptr<Tracer> tracer_;
   Field field_;
   std::unique_ptr<FieldHub> hub_;
+  std::unique_ptr<SceneEditor> editor_;
   std::unique_ptr<NetServer> server_;
   std::unique_ptr<FieldLoop> loop_;
   std::atomic<bool> stop_{false};

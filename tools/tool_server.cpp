@@ -293,7 +293,14 @@ void waitForTheEnd(const pc::NetServer& server, const pc::FieldLoop& fieldLoop,
 int serve(const pc::Scene& scene, pc::Tracer& tracer, pc::Field& field, const ServerSetup& s,
           const Signals& signals) {
   pc::FieldHub hub(field, s.publisherOptions);
-  auto server = pc::NetServer::create(hub, s.net);
+  // Runtime edits from sessions with editor tokens: the network thread submits them, the
+  // field thread traces and publishes the scene with them.
+  pc::SceneEditor editor(scene);
+  pc::NetServerOptions net = s.net;
+  net.edits = [&editor](const pc::SceneEdit& edit) { return editor.submit(edit); };
+  pc::FieldLoopOptions loop = s.loop;
+  loop.editor = &editor;
+  auto server = pc::NetServer::create(hub, net);
   if (!server) return pc::logError(server.error().message), 1;
   // The first publish happens before any client can connect, so every Welcome carries a field.
   (void)hub.publish(field, pc::sceneStateMessage(pc::evaluateScene(scene, s.loop.startTime)),
@@ -319,7 +326,7 @@ int serve(const pc::Scene& scene, pc::Tracer& tracer, pc::Field& field, const Se
   pc::announceServing(s.net, (*server)->port(), (*server)->metricsPort(),
                       (*server)->tlsFingerprint());
 
-  pc::FieldLoop fieldLoop(scene, tracer, field, hub, s.loop);
+  pc::FieldLoop fieldLoop(scene, tracer, field, hub, loop);
   (*server)->setExtraMetrics([&fieldLoop, &exporter](pc::MetricsText& m) {
     pc::appendFieldLoopMetrics(m, fieldLoop.stats());
     if (exporter) pc::relay::appendExportMetrics(m, exporter->stats());

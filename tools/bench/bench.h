@@ -39,5 +39,6 @@ Benchmark addStream(CLI::App& app);
 Benchmark addLoad(CLI::App& app);
 Benchmark addContact(CLI::App& app);
 Benchmark addScale(CLI::App& app);
+Benchmark addEdits(CLI::App& app);
 
 }  // namespace pc::bench
