@@ -15,7 +15,18 @@ constexpr double kSentRecordSeconds = 3.0;
 constexpr std::size_t kMinLossSamples = 20;
 // The queue delay is the floor of at least this many datagrams' one-way delays.
 constexpr std::size_t kMinDelaySamples = 3;
+// Deliveries below this share of what was sent over the same time: the link, not the sender,
+// set them.
+constexpr double kShortDelivery = 0.8;
 }  // namespace
+
+double RateController::sentRate(double now) const {
+  double bytes = 0;
+  for (auto it = sent_.rbegin(); it != sent_.rend() && it->sentAt >= now - options_.measureWindow;
+       ++it)
+    bytes += it->bytes;
+  return bytes / options_.measureWindow;
+}
 
 RateController::RateController(RateControlOptions options) : options_(options) {
   estimate_.rate = std::clamp(options_.startRate, options_.minRate, options_.maxRate);
@@ -158,11 +169,17 @@ void RateController::decide(double now) {
       congestive > options_.lossOveruse && estimate_.queueDelay > options_.lossQueueDelay;
   if (estimate_.queueDelay > options_.queueDelayTarget || congestionLoss) {
     if (now >= holdUntil_) {
-      // What arrived is the link's rate only while the sender had more to send: an
+      // What arrived is the link's rate while the sender had more to send: an
       // application-limited sender's deliveries say nothing of the link, and cutting to them
       // would leave a sender that sends little (a still field, coarse versions) at a rate far
-      // below its link when its changes come back. Then the cut is from the rate.
-      const double arrived = estimate_.delivered > 0 && !appLimited_ ? estimate_.delivered : rate;
+      // below its link when its changes come back. Then the cut is from the rate, unless
+      // what arrived fell short of what it sent: then a queue holds or drops the rest, and
+      // what arrived is the link's rate however little the sender had to send. (Cut from a
+      // rate far above its link, 15% at a time, a sender whose link narrowed kept sending
+      // ten times what the link carried for seconds.)
+      const double delivered = estimate_.delivered;
+      const bool linkLimited = !appLimited_ || delivered < kShortDelivery * sentRate(now);
+      const double arrived = delivered > 0 && linkLimited ? delivered : rate;
       lastOveruseRate_ = arrived;
       rate = std::min(rate, options_.decrease * arrived);
       ++estimate_.overuses;

@@ -108,6 +108,8 @@ class RateController {
     bool lost;
   };
   double unwrap(std::uint32_t micros);
+  // Bytes/s sent over the last measureWindow.
+  double sentRate(double now) const;
   void settle();
   void decide(double now);
 

@@ -92,6 +92,7 @@ StreamSender::StreamSender(FieldPublisher& publisher, std::uint32_t sessionId,
   for (int k = 0; k < publisher.cascadeCount(); ++k) tracks_[k].resize(publisher.brickCount(k));
   stats_.srtt = options_.initialRtt;
   stats_.rttvar = options_.initialRtt / 2;
+  descentHold_ = options_.descentHold;
 }
 
 double StreamSender::resendTimeout() const {
@@ -466,28 +467,48 @@ double StreamSender::distanceInBricks(int k, int b) const {
 
 void StreamSender::adjustQuality(double now) {
   if (now - levelAt_ < options_.qualityInterval) return;
-  // Short of rate: changes at the age bound waited for tokens in most polls of the interval.
-  const bool shortOfRate = shortPolls_ * 2 > levelPolls_;
+  // Short of rate: the sender spent its rate and changes at the age bound waited in most polls.
+  // Pacing holds a poll to a few milliseconds of the rate, so some change at the age bound
+  // waits in most polls whenever several come due together, with the rate far from spent:
+  // waiting alone said the rate was short where it was not (a client of a 2 Mbit/s link
+  // climbed to the coarsest level while its sender sent 0.5 Mbit/s).
+  const double use = levelAllowed_ > 0 ? levelSent_ / levelAllowed_ : 1.0;
+  const bool shortOfRate = shortPolls_ * 2 > levelPolls_ && use >= options_.fullUse;
   if (shortOfRate && oldestPending_ > 0.5 * options_.ageBound &&
       level_ < options_.maxQualityLevel) {
     ++level_;
     roomySince_ = -1;
+    levelUpAt_ = now;
+    // Short again soon after a level came down: that level does not fit this link, so the
+    // next try waits twice as long (the refinements and coarse versions of each try cost).
+    if (now - levelDownAt_ < 2.0 * descentHold_)
+      descentHold_ = std::min(descentHold_ * 2.0, options_.maxDescentHold);
   } else if (shortOfRate) {
     roomySince_ = -1;
   } else {
-    // A level comes down after a second with room: the thresholds it lowers make more
-    // versions worth sending, which the next interval shows. Where the client lacked no change
-    // over the interval (a still field), each interval with room takes one down: what is left
-    // to send is the refinement of what it holds coarse.
+    // Not short: a level comes down after descentHold_ of this (an interval on a still
+    // field, where what is left to send is the refinement of what the client holds coarse).
+    // The thresholds it lowers make more versions worth sending: the sender then spends more
+    // of its rate, and the controller, no longer application-limited, finds whether the link
+    // carries it; if not, the level goes up again. Neither the oldest change nor the share of
+    // the rate spent holds a level up: while the field moves, what the thresholds hold back
+    // waits up to the age bound's lead at every level, so the oldest change is always past
+    // half the bound (a ladder that came down only below that never came down on an animated
+    // scene); and an application-limited sender's rate does not grow, so a share of it says
+    // little about the link.
     if (roomySince_ < 0) roomySince_ = now;
-    const double hold = oldestPending_ > 0 ? 1.0 : options_.qualityInterval;
-    if (level_ > 0 && now - roomySince_ >= hold && oldestPending_ < 0.5 * options_.ageBound) {
+    const double hold = oldestPending_ > 0 ? descentHold_ : options_.qualityInterval;
+    if (level_ > 0 && now - roomySince_ >= hold) {
       --level_;
       roomySince_ = now;
+      levelDownAt_ = now;
     }
+    // The last level that came down held: the link has room, come down at the usual pace.
+    if (levelDownAt_ > levelUpAt_ && now - levelDownAt_ >= 2.0) descentHold_ = options_.descentHold;
   }
   levelAt_ = now;
   shortPolls_ = levelPolls_ = 0;
+  levelAllowed_ = levelSent_ = 0;
   oldestPending_ = 0;
 }
 
@@ -513,10 +534,12 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
           ? std::clamp(rate * options_.pacingBurstSeconds, 3.0 * double(kMaxDatagramBytes),
                        std::max(options_.burstBytes, 3.0 * double(kMaxDatagramBytes)))
           : options_.burstBytes;
-  if (lastPoll_ < 0)
+  if (lastPoll_ < 0) {
     tokens_ = burst;
-  else
+  } else {
     tokens_ = std::min(burst, tokens_ + rate * std::max(0.0, now - lastPoll_));
+    levelAllowed_ += rate * std::max(0.0, now - lastPoll_);
+  }
   lastPoll_ = now;
   firstSends_.clear();
 
@@ -561,6 +584,7 @@ void StreamSender::release(double now, std::vector<std::vector<std::uint8_t>>& o
     lastDatagramAt_ = now;
     ++stats_.datagrams;
     stats_.bytes += p.datagram.size();
+    levelSent_ += double(p.datagram.size());
     if (options_.congestionControl) rate_.onSent(p.sequence, p.datagram.size(), now);
     out.push_back(std::move(p.datagram));
     paced_.pop_front();

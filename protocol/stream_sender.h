@@ -67,10 +67,18 @@ struct SenderOptions {
   double ageBound = 1.0;
   double ageLead = 0.25;
   // The quality ladder: while the client's rate is short of what the field's changes need
-  // (bricks waited with tokens spent) and changes get old, each level up doubles the
-  // perceptual thresholds, so the client holds a coarser but current field rather than an
-  // exact but old one; levels come down again when the rate has room. 0 keeps full quality.
+  // (the sender spent its rate and changes at the age bound still waited) and changes get old,
+  // each level up doubles the perceptual thresholds, so the client holds a coarser but current
+  // field rather than an exact but old one; levels come down again when the rate has room (the
+  // sender was not short of it for a while). 0 keeps full quality.
   int maxQualityLevel = 4;
+  // Short of rate needs at least this share of the rate spent over a ladder interval (pacing
+  // leaves some change waiting in most polls whatever the rate, so waiting alone says nothing).
+  double fullUse = 0.85;
+  // s without being short before a level comes down; doubled (up to maxDescentHold) each time
+  // the level must go up again soon after, back to descentHold once a level held for 2 s.
+  double descentHold = 1.0;
+  double maxDescentHold = 4.0;
   // Each level also sends coarser precision (brick_precision.h): versions are rounded to
   // min(level, maxPrecision), so that the changes the age bound forces out cost fewer bits.
   // Bricks held coarser than the level allows are refined once the level comes down. 0: the
@@ -351,6 +359,10 @@ class StreamSender {
   int level_ = 0;
   double levelAt_ = 0, roomySince_ = -1;
   std::uint32_t shortPolls_ = 0, levelPolls_ = 0;
+  // Over the current interval: the bytes the rate allowed and the bytes that left.
+  double levelAllowed_ = 0, levelSent_ = 0;
+  double levelDownAt_ = -1e30, levelUpAt_ = -1e30;
+  double descentHold_ = 1.0;  // options_.descentHold, set in the constructor
   double oldestPending_ = 0;
   SenderStats stats_;
   std::vector<std::uint64_t> firstSends_;

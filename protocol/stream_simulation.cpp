@@ -91,6 +91,7 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
     auto datagrams = sender.poll(t);
     r.maxDatagramsPerPoll = std::max(r.maxDatagramsPerPoll, datagrams.size());
     for (auto& d : datagrams) {
+      if (faulty) r.faultBytes += d.size();
       r.maxDatagramBytes = std::max(r.maxDatagramBytes, d.size());
       link.send(std::move(d), t);
     }
@@ -109,13 +110,14 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
     r.maxCacheBytes = std::max(r.maxCacheBytes, publisher.cache().bytes());
     r.maxHistoryBytes = std::max(r.maxHistoryBytes, publisher.historyBytes());
     r.seconds = t;
-    if (faulty && t >= nextHeldSample) {
+    if (t >= faultStart && t >= nextHeldSample) {
       // What the client holds while the field changes (the sender's own measure).
       nextHeldSample = t + 0.25;
       const HeldFieldReport held = sender.heldField(t);
       if (held.heldBricks > 0) {
-        r.heldAges.push_back(held.oldestChangeSeconds);
-        r.heldPsnrs.push_back(held.psnrDb);
+        (faulty ? r.heldAges : r.settleHeldAges).push_back(held.oldestChangeSeconds);
+        (faulty ? r.heldPsnrs : r.settleHeldPsnrs).push_back(held.psnrDb);
+        (faulty ? r.qualityLevels : r.settleQualityLevels).push_back(sender.qualityLevel());
       }
     }
     if (r.heldEverySeconds < 0 && holdsEveryBrick(server, receiver)) r.heldEverySeconds = t;

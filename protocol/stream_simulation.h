@@ -55,6 +55,12 @@ struct StreamSimulationResult {
   // The sender's held-field measures (HeldFieldReport) every 0.25 s of the fault phase: the
   // age of the oldest change the client lacked, and the held field's PSNR.
   std::vector<double> heldAges, heldPsnrs;
+  std::vector<int> qualityLevels;  // the sender's quality level at the same samples
+  // The same measures every 0.25 s after the fault phase, while the settle phase runs.
+  std::vector<double> settleHeldAges, settleHeldPsnrs;
+  std::vector<int> settleQualityLevels;
+  // The sender's bytes (datagrams) in the fault phase.
+  std::uint64_t faultBytes = 0;
   Field mirror;  // the receiver's field at the end
 };
 

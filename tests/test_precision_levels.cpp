@@ -284,33 +284,6 @@ TEST(PrecisionLevels, ReceiverHoldsTheCoarseLevelRefinesItAndSaysSo) {
   EXPECT_EQ(*decoder.last, *publisher.find(k, b, v2));
 }
 
-// One update of a traced field: every brick's light moves a little (a slow phase) and every
-// irradiance texel carries ray noise of about 1% of its value, a few of the codec's steps.
-void evolveWithRayNoise(Field& f, std::mt19937& rng, float phase) {
-  test::evolveField(f, rng, 1.0f, 0.2f * phase);
-  std::normal_distribution<float> noise(0.0f, 0.01f);
-  for (int k = 0; k < f.cascadeCount(); ++k) {
-    for (int slot = 0; slot < gpu::pcBrickCount(f.cascade(k)) * gpu::PC_PROBES_PER_BRICK; ++slot) {
-      if (!gpu::pcSlotValid(f.cascade(k), slot)) continue;
-      const glm::ivec2 o =
-          gpu::pcAtlasTileOrigin(f.cascade(k), slot, gpu::PC_IRRADIANCE_TEXELS + 2);
-      for (int y = 1; y <= gpu::PC_IRRADIANCE_TEXELS; ++y)
-        for (int x = 1; x <= gpu::PC_IRRADIANCE_TEXELS; ++x)
-          for (int ch = 0; ch < 3; ++ch) {
-            float& e = f.irradiance.at(o.x + x, o.y + y)[ch];
-            e = std::max(0.0f, e * (1.0f + noise(rng)));
-          }
-      f.fixBorders(k, slot);
-    }
-  }
-}
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, std::size_t(p * double(v.size())))];
-}
-
 // A link that carries about a third of what the field's changes need: with precision levels
 // the client's oldest change stays younger than without them, the held field stays close, and
 // once the field stops changing the client converges to the exact field (refined to level 0).
@@ -331,7 +304,7 @@ TEST(PrecisionLevels, ShortLinkHoldsACoarseButCurrentFieldThenTheExactOne) {
     o.sender.burstBytes = 8e3;
     o.sender.maxPrecision = maxPrecision;
     auto rng = std::make_shared<std::mt19937>(5u);
-    auto advance = [rng](Field& f, double t) { evolveWithRayNoise(f, *rng, float(t)); };
+    auto advance = [rng](Field& f, double t) { test::evolveWithRayNoise(f, *rng, float(t)); };
     auto r = runStreamSimulation(server, advance, o);
     EXPECT_TRUE(r.converged) << "precision " << maxPrecision;
     EXPECT_EQ(test::differingBricks(r.mirror, test::quantizedCopy(server)), 0);
@@ -339,10 +312,10 @@ TEST(PrecisionLevels, ShortLinkHoldsACoarseButCurrentFieldThenTheExactOne) {
   };
   const StreamSimulationResult exact = run(0);
   const StreamSimulationResult coarse = run(kMaxPrecision);
-  const double ageExact = percentile(exact.heldAges, 0.95);
-  const double ageCoarse = percentile(coarse.heldAges, 0.95);
-  const double psnrExact = percentile(exact.heldPsnrs, 0.05);
-  const double psnrCoarse = percentile(coarse.heldPsnrs, 0.05);
+  const double ageExact = test::percentile(exact.heldAges, 0.95);
+  const double ageCoarse = test::percentile(coarse.heldAges, 0.95);
+  const double psnrExact = test::percentile(exact.heldPsnrs, 0.05);
+  const double psnrCoarse = test::percentile(coarse.heldPsnrs, 0.05);
   std::printf(
       "short link: oldest change p95 %.2f s exact, %.2f s with levels; held PSNR p5 %.1f / "
       "%.1f dB; %llu of %llu updates coarse, %llu refinements; converged after %.2f / %.2f s\n",

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -159,6 +160,34 @@ inline int differingBricks(const Field& mirror, const Field& quantized) {
     }
   }
   return n;
+}
+
+// One update of a traced field: every brick's light moves a little (a slow phase) and every
+// irradiance texel carries ray noise of about 1% of its value, a few of the codec's steps.
+inline void evolveWithRayNoise(Field& f, std::mt19937& rng, float phase) {
+  evolveField(f, rng, 1.0f, 0.2f * phase);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  for (int k = 0; k < f.cascadeCount(); ++k) {
+    for (int slot = 0; slot < gpu::pcBrickCount(f.cascade(k)) * gpu::PC_PROBES_PER_BRICK; ++slot) {
+      if (!gpu::pcSlotValid(f.cascade(k), slot)) continue;
+      const glm::ivec2 o =
+          gpu::pcAtlasTileOrigin(f.cascade(k), slot, gpu::PC_IRRADIANCE_TEXELS + 2);
+      for (int y = 1; y <= gpu::PC_IRRADIANCE_TEXELS; ++y)
+        for (int x = 1; x <= gpu::PC_IRRADIANCE_TEXELS; ++x)
+          for (int ch = 0; ch < 3; ++ch) {
+            float& e = f.irradiance.at(o.x + x, o.y + y)[ch];
+            e = std::max(0.0f, e * (1.0f + noise(rng)));
+          }
+      f.fixBorders(k, slot);
+    }
+  }
+}
+
+// The p-th quantile of `v` (0 when empty).
+inline double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, std::size_t(p * double(v.size())))];
 }
 
 }  // namespace pc::test

@@ -66,6 +66,8 @@ struct StreamSetup {
   double loss = 0;
   double refresh = 2.0;  // s: the sender's refresh interval
   double rateLimit = 0;  // Mbit/s of the sender's token bucket; 0: unconstrained
+  int maxQualityLevel = SenderOptions{}.maxQualityLevel;
+  int maxPrecision = SenderOptions{}.maxPrecision;
   int width = 320, height = 180;
   int aa = 2;
   bool breakdown = false;
@@ -87,6 +89,8 @@ struct Client {
   double downBytes = 0, upBytes = 0, datagrams = 0, messages = 0;
   double measuredDown = 0, measuredUp = 0;
   SenderStats senderAtStart;
+  // The sender's held-field measures every 0.25 s of the measured window, and its level then.
+  std::vector<double> heldPsnrs, heldAges, levels;
   // With --breakdown, over the measured window: payload bytes by section (each section coded
   // alone, the others equal to the base or zero) and codes changed against the base.
   std::array<double, 4> sectionBytes{}, sectionChanged{};
@@ -123,6 +127,13 @@ void addBreakdown(Client& c, const std::vector<std::uint8_t>& datagram) {
       c.sectionBytes[s] += double(encodeBrick(only, base.get()).size());
     }
   }
+}
+
+// The p-th quantile of `v` (0 when empty).
+double quantile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, std::size_t(p * double(v.size())))];
 }
 
 bool holdsEveryBrick(const Field& server, const StreamReceiver& r) {
@@ -195,6 +206,12 @@ Benchmark addStream(CLI::App& app) {
                   "seconds after which a brick with any newer version is sent anyway");
   cmd->add_option("--rate-limit", s.rateLimit,
                   "sender rate limit in Mbit/s (0: unconstrained, so the table shows demand)");
+  cmd->add_option("--max-quality-level", s.maxQualityLevel,
+                  "highest level of the sender's quality ladder (0: full quality always)")
+      ->capture_default_str();
+  cmd->add_option("--max-precision", s.maxPrecision,
+                  "coarsest precision level the ladder sends (0: the codec's own)")
+      ->capture_default_str();
   cmd->add_option("--width", s.width, "probe-lit image width");
   cmd->add_option("--height", s.height, "probe-lit image height");
   cmd->add_option("--aa", s.aa, "primary samples per pixel of the probe-lit images");
@@ -243,6 +260,8 @@ Benchmark addStream(CLI::App& app) {
           c.publisher = std::make_unique<FieldPublisher>(server, po);
           (void)c.publisher->publish(server, 0.0);
           so.refreshInterval = s.refresh;
+          so.maxQualityLevel = s.maxQualityLevel;
+          so.maxPrecision = s.maxPrecision;
           so.bytesPerSecond = s.rateLimit > 0 ? s.rateLimit * 1e6 / 8.0 : 1e12;
           so.burstBytes = s.rateLimit > 0 ? so.burstBytes : 1e12;
           const std::uint32_t session = 0x57e4'0000u + std::uint32_t(i);
@@ -272,7 +291,7 @@ Benchmark addStream(CLI::App& app) {
         ProbeScheduler scheduler(SchedulerOptions{8, 16, s.budget});
         std::vector<glm::vec3> viewers;
         if (!scene->cameras.empty()) viewers.push_back(scene->cameras[0].position);
-        double nextTick = 0.0, traceSeconds = 0.0, measureStart = -1, end = -1;
+        double nextTick = 0.0, traceSeconds = 0.0, measureStart = -1, end = -1, nextSample = -1;
         std::uint64_t ticks = 0, probeUpdates = 0, brickChanges = 0;
         std::uint32_t rotation = 9000;
         std::printf("stream: %s, %d probes in %d bricks, %d rays, %.0f updates/s, %s\n",
@@ -335,7 +354,17 @@ Benchmark addStream(CLI::App& app) {
           if (measureStart < 0 && (allJoined || t >= s.joinLimit)) {
             measureStart = t;
             end = t + s.seconds;
+            nextSample = t;
             for (Client& c : clients) c.senderAtStart = c.sender->stats();
+          }
+          if (nextSample >= 0 && t >= nextSample) {
+            nextSample += 0.25;
+            for (Client& c : clients) {
+              const HeldFieldReport held = c.sender->heldField(t);
+              c.heldPsnrs.push_back(held.psnrDb);
+              c.heldAges.push_back(held.oldestChangeSeconds);
+              c.levels.push_back(c.sender->qualityLevel());
+            }
           }
         }
         const double measured = end - measureStart;
@@ -415,22 +444,39 @@ Benchmark addStream(CLI::App& app) {
             figPsnr = psnr;
           }
         }
+        std::printf(
+            "\nheld field (the sender's measure every 0.25 s of the window, against the current "
+            "field):\n%9s %9s %9s %9s %9s %9s %9s\n",
+            "threshold", "psnr_p5", "psnr_p50", "age_p95_s", "age_max_s", "level", "coarse%");
+        for (const Client& c : clients) {
+          double level = 0;
+          for (double l : c.levels) level += l / double(std::max<std::size_t>(c.levels.size(), 1));
+          const SenderStats& st = c.sender->stats();
+          const double updates = double(st.updates - c.senderAtStart.updates);
+          const double coarse = double(st.coarseUpdates - c.senderAtStart.coarseUpdates);
+          std::printf("%9.4f %9.2f %9.2f %9.2f %9.2f %9.2f %8.0f%%\n", c.threshold,
+                      quantile(c.heldPsnrs, 0.05), quantile(c.heldPsnrs, 0.5),
+                      quantile(c.heldAges, 0.95), quantile(c.heldAges, 1.0), level,
+                      updates > 0 ? 100.0 * coarse / updates : 0.0);
+        }
         if (s.breakdown) {
           std::printf("\nwhy updates were sent (measured window, per second):\n");
-          std::printf("%9s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s\n", "threshold", "first",
-                      "irr_max", "irr_mean", "depth", "occl", "offset", "state", "settled",
-                      "refresh", "repair", "timeout");
+          std::printf("%9s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s %7s\n", "threshold",
+                      "first", "irr_max", "irr_mean", "depth", "occl", "offset", "state", "settled",
+                      "refresh", "repair", "timeout", "aged", "refine");
           for (const Client& c : clients) {
             const auto& a = c.sender->stats().reasons;
             const auto& b = c.senderAtStart.reasons;
             auto rate = [&](std::uint64_t x, std::uint64_t y) { return double(x - y) / measured; };
-            std::printf("%9.4f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f\n",
-                        c.threshold, rate(a.first, b.first), rate(a.irradiance, b.irradiance),
-                        rate(a.irradianceMean, b.irradianceMean), rate(a.depth, b.depth),
-                        rate(a.occlusion, b.occlusion), rate(a.offset, b.offset),
-                        rate(a.state, b.state), rate(a.settled, b.settled),
-                        rate(a.refresh, b.refresh), rate(a.repair, b.repair),
-                        rate(a.timeout, b.timeout));
+            std::printf(
+                "%9.4f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f %7.1f "
+                "%7.1f\n",
+                c.threshold, rate(a.first, b.first), rate(a.irradiance, b.irradiance),
+                rate(a.irradianceMean, b.irradianceMean), rate(a.depth, b.depth),
+                rate(a.occlusion, b.occlusion), rate(a.offset, b.offset), rate(a.state, b.state),
+                rate(a.settled, b.settled), rate(a.refresh, b.refresh), rate(a.repair, b.repair),
+                rate(a.timeout, b.timeout), rate(c.sender->stats().aged, c.senderAtStart.aged),
+                rate(a.refine, b.refine));
           }
           std::printf(
               "\nbytes per update by section (each coded alone) and codes changed "
@@ -450,6 +496,8 @@ Benchmark addStream(CLI::App& app) {
         figure("mbit_per_client", figMbit, "Mbit/s");
         figure("raw_ratio", figRatio, "x");
         figure("psnr_client_vs_server_field", figPsnr, "dB");
+        figure("held_psnr_db_p5", quantile(clients.front().heldPsnrs, 0.05), "dB");
+        figure("oldest_change_s_p95", quantile(clients.front().heldAges, 0.95), "s");
         return 0;
       }};
 }
