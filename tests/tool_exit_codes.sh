@@ -58,7 +58,7 @@ expect 1 "nope.gltf: file not found" \
 # A server address without a port: a usage error before anything connects.
 expect 1 "--connect: expected HOST:PORT.*, got 'localhost'" \
   "$bin/probecast-client" --scene builtin --connect localhost --out "$work/out"
-expect 1 "--connect: expected HOST:PORT, got 'localhost'" \
+expect 1 "--connect: expected HOST:PORT.*, got 'localhost'" \
   "$bin/probecast-loadgen" --connect localhost --clients 1
 
 exit $failed
