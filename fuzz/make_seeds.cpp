@@ -11,6 +11,7 @@
 
 #include "common/scene.h"
 #include "fuzz_support.h"
+#include "net/load_probe.h"
 #include "protocol/baked_file.h"
 #include "protocol/brick_codec.h"
 #include "protocol/connect_token.h"
@@ -308,6 +309,29 @@ void sealedDatagrams() {
 
 }  // namespace
 
+// A query, and replies of an idle, a busy, a full and a not-ready endpoint.
+void loadQueries() {
+  auto bytes = [](const net::LoadDatagram& d) {
+    return std::vector<std::uint8_t>(d.begin(), d.end());
+  };
+  write("load_query", "query", bytes(net::encodeLoadQuery(0x0123456789abcdefull)));
+  const struct {
+    const char* name;
+    std::uint32_t clients, max;
+    bool ready;
+  } replies[] = {{"idle", 0, 64, true},
+                 {"busy", 1000, 0, true},
+                 {"full", 64, 64, true},
+                 {"catching-up", 3, 64, false}};
+  for (const auto& r : replies) {
+    net::EndpointLoad load;
+    load.clients = r.clients;
+    load.maxClients = r.max;
+    load.ready = r.ready;
+    write("load_query", std::string("reply-") + r.name, bytes(net::encodeLoadReply(7, load)));
+  }
+}
+
 int main(int argc, char** argv) {
   if (argc != 2) {
     std::fprintf(stderr, "usage: make_seeds <dir>\n");
@@ -321,6 +345,7 @@ int main(int argc, char** argv) {
   sessions();
   tokens();
   sealedDatagrams();
+  loadQueries();
   std::printf("make_seeds: %d seeds under %s\n", written, outDir.c_str());
   return 0;
 }
