@@ -155,6 +155,7 @@ void FieldPublisher::commit(PreparedBricks prepared, double now) {
       for (std::size_t b = 0; b < bricks_[k].size(); ++b) {
         auto& h = bricks_[k][b];
         while (h.size() > 1) {
+          dropCoarse(h.front());
           h.pop_front();
           historyBytes_ -= kBrickBytes;
         }
@@ -178,6 +179,7 @@ void FieldPublisher::trim(std::deque<BrickVersion>& h) {
       sentKept += !isRecent;
       kept.push_front(std::move(h[i]));
     } else {
+      dropCoarse(h[i]);
       historyBytes_ -= kBrickBytes;
     }
   }
@@ -196,9 +198,36 @@ std::shared_ptr<const QuantizedBrick> FieldPublisher::find(int cascade, int bric
 std::shared_ptr<const QuantizedBrick> FieldPublisher::find(int cascade, int brick,
                                                            std::uint64_t version,
                                                            int precision) const {
-  auto content = find(cascade, brick, version);
-  if (!content || precision <= 0) return content;
-  return std::make_shared<const QuantizedBrick>(coarsenBrick(*content, precision));
+  if (precision <= 0) return find(cascade, brick, version);
+  precision = std::min(precision, kMaxPrecision);
+  const BrickVersion* held = nullptr;
+  for (const BrickVersion& v : bricks_[cascade][brick])
+    if (v.version == version && version != 0) held = &v;
+  if (!held) return nullptr;
+  auto& slot = held->coarse[std::size_t(precision - 1)];
+  {
+    std::lock_guard lock(readersMutex_);
+    if (slot) return slot;
+  }
+  auto coarse = std::make_shared<const QuantizedBrick>(coarsenBrick(*held->content, precision));
+  std::lock_guard lock(readersMutex_);
+  if (slot) return slot;  // another sender coarsened it meanwhile
+  if (coarseBytes_ + kBrickBytes > options_.maxCoarseBytes) {
+    for (const auto& cascadeBricks : bricks_)
+      for (const auto& h : cascadeBricks)
+        for (const BrickVersion& v : h) dropCoarse(v);
+  }
+  slot = coarse;
+  coarseBytes_ += kBrickBytes;
+  return coarse;
+}
+
+void FieldPublisher::dropCoarse(const BrickVersion& v) const {
+  for (auto& c : v.coarse) {
+    if (!c) continue;
+    c.reset();
+    coarseBytes_ -= kBrickBytes;
+  }
 }
 
 std::shared_ptr<const EncodedUpdate> FieldPublisher::encoded(int cascade, int brick,
@@ -209,11 +238,14 @@ std::shared_ptr<const EncodedUpdate> FieldPublisher::encoded(int cascade, int br
   basePrecision = base != 0 ? std::clamp(basePrecision, 0, kMaxPrecision) : 0;
   const EncodeKey key{cascade, std::uint32_t(brick),    version,
                       base,    std::uint8_t(precision), std::uint8_t(basePrecision)};
-  // A version asked for is about to reach a client, which may later name it as its base.
-  for (BrickVersion& v : bricks_[cascade][brick]) {
-    if (v.version == version) v.sent = true;
+  {
+    std::lock_guard lock(readersMutex_);
+    // A version asked for is about to reach a client, which may later name it as its base.
+    for (BrickVersion& v : bricks_[cascade][brick]) {
+      if (v.version == version) v.sent = true;
+    }
+    if (auto hit = cache_.find(key)) return hit;
   }
-  if (auto hit = cache_.find(key)) return hit;
   auto content = find(cascade, brick, version, precision);
   if (!content) return nullptr;
   std::shared_ptr<const QuantizedBrick> baseContent;
@@ -221,13 +253,16 @@ std::shared_ptr<const EncodedUpdate> FieldPublisher::encoded(int cascade, int br
     baseContent = find(cascade, brick, base, basePrecision);
     if (!baseContent) return nullptr;
   }
-  ++encodes_;
   const auto start = std::chrono::steady_clock::now();
   std::vector<std::uint8_t> payload = encodeBrick(*content, baseContent.get(), options_.zstdLevel);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::lock_guard lock(readersMutex_);
+  ++encodes_;
   encodeSeconds_ += seconds;
   encodeTimes_.observe(seconds);
+  // Two senders may have encoded the same update at once: the first one stored is kept.
+  if (auto hit = cache_.find(key)) return hit;
   return cache_.insert(key, kCodecQuantZstd, std::move(payload));
 }
 

@@ -1,15 +1,19 @@
 // The server's side of streaming that every client shares: after each field update, the bricks
 // whose version changed are quantized once and kept in a short per-brick history (the bases a
 // residual may refer to); encoded updates come from one EncodeCache. Each client's StreamSender
-// reads from here. Not thread-safe: call publish/commit and every sender from the same thread,
-// or hold one lock around them; prepare() may run outside that lock on the thread that
-// commits.
+// reads from here. Senders may read it from several threads at once (encoded(), find() and the
+// const accessors; the encode cache and the coarse versions have their own mutex), but
+// commit() must not run beside any of them: FieldHub holds a shared lock around the senders'
+// polls and an exclusive one around commit(). prepare() may run outside that lock on the thread
+// that commits.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -18,6 +22,7 @@
 #include "common/histogram.h"
 #include "common/result.h"
 #include "protocol/brick_codec.h"
+#include "protocol/brick_precision.h"
 #include "protocol/encode_cache.h"
 #include "protocol/session_messages.h"
 
@@ -41,6 +46,11 @@ struct PublisherOptions {
   std::size_t maxHistoryBytes = 256u << 20;
   std::size_t maxCacheBytes = 64u << 20;
   int zstdLevel = 3;
+  // Cap on the coarsened copies of versions (find() at a precision level) kept for reuse.
+  // Every client at a coarse level compares against and encodes on top of its base at that
+  // level; coarsening it afresh for each of them was the network thread's largest cost with
+  // many clients. Past the cap every kept copy is dropped and coarsened again when asked for.
+  std::size_t maxCoarseBytes = 64u << 20;
   // Codes that moved less than this since the brick's previous version keep their previous
   // value (see holdSmallChanges); zero (the default) quantizes every version exactly.
   DeadZone deadZone;
@@ -71,6 +81,8 @@ struct BrickVersion {
   double publishedAt = 0;  // time publish() first saw this version
   std::shared_ptr<const QuantizedBrick> content;
   bool sent = false;  // encoded for a client at least once (see PublisherOptions::sentVersions)
+  // The content at precision levels 1..kMaxPrecision, once asked for (FieldPublisher::find).
+  mutable std::array<std::shared_ptr<const QuantizedBrick>, kMaxPrecision> coarse{};
 };
 
 class FieldPublisher {
@@ -134,11 +146,14 @@ class FieldPublisher {
   // The built-in scene (9 bricks, V = 20, 98,816-byte bricks): 16.90 MB and 17.96 MB.
   std::size_t historyBoundBytes() const;
   std::size_t cacheBoundBytes() const;
+  // The figures below are read while no sender runs (with FieldHub's lock held).
   std::uint64_t encodes() const { return encodes_; }
   // Seconds spent encoding those updates (cache misses), for the server's metrics.
   double encodeSeconds() const { return encodeSeconds_; }
   // The same encodes by duration, seconds (encodeTimeBounds), for the server's histogram.
   const Histogram& encodeTimes() const { return encodeTimes_; }
+  // Bytes of the coarsened copies kept (at most PublisherOptions::maxCoarseBytes plus one).
+  std::size_t coarseBytes() const { return coarseBytes_; }
   // Codes the dead zone held at their previous value, and codes quantized, in all.
   std::uint64_t heldCodes() const { return heldCodes_; }
   std::uint64_t quantizedCodes() const { return quantizedCodes_; }
@@ -154,7 +169,12 @@ class FieldPublisher {
   std::vector<std::vector<std::deque<std::pair<std::uint64_t, double>>>> published_;
   std::size_t totalBricks_ = 0;
   std::size_t historyBytes_ = 0, currentBytes_ = 0;
+  // Guards what readers change: the encode cache, the sent flags, the coarse copies and the
+  // encode figures. Encoding and coarsening run outside it.
+  mutable std::mutex readersMutex_;
   EncodeCache cache_;
+  mutable std::size_t coarseBytes_ = 0;
+  void dropCoarse(const BrickVersion& v) const;  // with readersMutex_ held
   std::uint64_t encodes_ = 0;
   double encodeSeconds_ = 0;
   Histogram encodeTimes_{encodeTimeBounds()};

@@ -52,10 +52,18 @@ std::optional<BrickChange> BrickChangeCache::get(const FieldPublisher& publisher
                                                  int brick, std::uint64_t version,
                                                  std::uint64_t ref, int refPrecision) {
   const Key key{cascade, brick, version, ref, refPrecision};
-  if (auto it = entries_.find(key); it != entries_.end()) {
-    ++hits_;
-    return it->second;
+  {
+    std::lock_guard lock(mutex_);
+    if (auto it = entries_.find(key); it != entries_.end()) {
+      ++hits_;
+      return it->second;
+    }
   }
+  std::optional<BrickChange> change;
+  auto cur = publisher.find(cascade, brick, version);
+  auto old = publisher.find(cascade, brick, ref, refPrecision);
+  if (cur && old) change = brickChange(*cur, *old);
+  std::lock_guard lock(mutex_);
   // Senders only compare a brick's current version, so pairs of older versions are never asked
   // for again. Dropping them whenever the map has doubled since the last time keeps it near
   // what is live (current versions x the references clients hold) at an amortized constant
@@ -69,11 +77,7 @@ std::optional<BrickChange> BrickChangeCache::get(const FieldPublisher& publisher
     pruneAt_ = std::min(maxEntries_, std::max(kMinPruneAt, 2 * entries_.size()));
   }
   ++computed_;
-  std::optional<BrickChange> change;
-  auto cur = publisher.find(cascade, brick, version);
-  auto old = publisher.find(cascade, brick, ref, refPrecision);
-  if (cur && old) change = brickChange(*cur, *old);
-  entries_.emplace(key, change);
+  entries_.emplace(key, change);  // kept as it is where another sender stored it meanwhile
   return change;
 }
 

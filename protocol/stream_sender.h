@@ -36,6 +36,7 @@
 #include <deque>
 #include <glm/glm.hpp>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <unordered_map>
@@ -158,8 +159,8 @@ inline constexpr double kHeldPsnrCap = 99.0;
 // A brick version's content never changes, so the comparison of (version, reference) is the
 // same for every client, and clients that acknowledged the same versions ask for the same
 // pairs: comparing once per pair instead of once per client keeps the perceptual skip's cost
-// from growing with the client count. Not thread-safe: use it where the senders are used
-// (the server polls them all under one lock).
+// from growing with the client count. Senders on several threads may share it (the server
+// polls them in parallel); the figures are read while none of them runs.
 class BrickChangeCache {
  public:
   explicit BrickChangeCache(std::size_t maxEntries = 16384)
@@ -202,6 +203,7 @@ class BrickChangeCache {
   // nullopt: a version was missing from the history (it never comes back).
   std::unordered_map<Key, std::optional<BrickChange>, KeyHash> entries_;
   std::uint64_t computed_ = 0, hits_ = 0;
+  std::mutex mutex_;  // guards the above; comparisons run outside it
 };
 
 class StreamSender {

@@ -1,7 +1,9 @@
 // What the field thread and the network thread share: the FieldPublisher (with every client's
 // StreamSender reading it), the newest scene state, and the viewers' positions. One mutex
 // guards all of it; the field thread holds it only while publishing a finished update, the
-// network thread while it polls the senders, so neither waits long for the other.
+// network threads while they poll the senders, so neither waits long for the other. Polls of
+// senders share it (sharedLock: the publisher and the change cache guard what readers
+// change); everything else takes it whole (lock).
 #pragma once
 
 #include <algorithm>
@@ -13,6 +15,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <shared_mutex>
 #include <string>
 #include <vector>
 
@@ -52,7 +55,7 @@ class FieldHub {
   // bricks newer than the ones held.
   void commit(PreparedBricks prepared, const SceneStateMsg& stamped, double now) {
     auto frame = std::make_shared<const std::vector<std::uint8_t>>(encodeMessage(stamped));
-    std::lock_guard lock(mutex_);
+    std::unique_lock lock(mutex_);
     sceneFrame_ = std::move(frame);
     animationTime_ = stamped.animationTime;
     ++sceneSerial_;
@@ -67,11 +70,11 @@ class FieldHub {
   // nearer, so a weight never buys a client more viewers; weight 0 gives a session's pose no
   // say at all.
   void setViewer(std::uint32_t session, glm::vec3 position, int weight = 1) {
-    std::lock_guard lock(mutex_);
+    std::unique_lock lock(mutex_);
     viewers_[session] = Viewer{position, weight};
   }
   void removeViewer(std::uint32_t session) {
-    std::lock_guard lock(mutex_);
+    std::unique_lock lock(mutex_);
     viewers_.erase(session);
   }
   // Viewers of another process's clients (a relay's, through NATS), replacing what `source`
@@ -79,12 +82,12 @@ class FieldHub {
   // relay that dies stops steering the scheduler. Weights as setViewer's.
   void setRemoteViewers(const std::string& source, std::vector<glm::vec3> positions,
                         std::vector<float> weights, double expiresAt) {
-    std::lock_guard lock(mutex_);
+    std::unique_lock lock(mutex_);
     remote_[source] = Remote{std::move(positions), std::move(weights), expiresAt};
   }
   // The same with each viewer's weight, for the scheduler (ProbeScheduler::plan).
   void weightedViewers(std::vector<glm::vec3>& positions, std::vector<float>& weights) const {
-    std::lock_guard lock(mutex_);
+    std::shared_lock lock(mutex_);
     positions.clear();
     weights.clear();
     for (const auto& [id, v] : viewers_) {
@@ -109,8 +112,10 @@ class FieldHub {
     return out;
   }
 
-  // Everything below is read under lock() by the network thread.
-  std::unique_lock<std::mutex> lock() const { return std::unique_lock(mutex_); }
+  // Everything below is read under lock() by the network thread, or under sharedLock() by the
+  // threads that poll senders (StreamSender::poll and what it reads) at once.
+  std::unique_lock<std::shared_mutex> lock() const { return std::unique_lock(mutex_); }
+  std::shared_lock<std::shared_mutex> sharedLock() const { return std::shared_lock(mutex_); }
   FieldPublisher& publisher() { return publisher_; }
   // Encoded SceneState of the newest update (null before the first), and a counter that
   // changes with it.
@@ -129,7 +134,7 @@ class FieldHub {
   }
 
  private:
-  mutable std::mutex mutex_;
+  mutable std::shared_mutex mutex_;
   FieldPublisher publisher_;
   std::shared_ptr<const std::vector<std::uint8_t>> sceneFrame_;
   std::uint64_t sceneSerial_ = 0;

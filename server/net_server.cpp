@@ -172,24 +172,57 @@ void NetServer::Impl::reloadRevocations(double now) {
   }
 }
 
+// What a poll holds at once stays near this many bytes of datagrams (plus one session's burst)
+// per polling thread, instead of every session's burst together: the datagrams of one slice of
+// the sessions are built under the hub lock, then sent, before the next slice is polled. All
+// senders' self-contained refreshes fall due in the same poll when clients joined together
+// (every selfContainedInterval), and 100 clients then produced about 25 MB of datagrams at
+// once; the heap kept that high-water mark, and the server's RSS stepped up every 30 s.
+constexpr std::size_t kPollSliceBytes = 2u << 20;
+
 void NetServer::Impl::poll() {
-  // The datagrams of one slice of the sessions are built under the hub lock, then sent, before
-  // the next slice is polled: what a poll holds at once stays near kPollSliceBytes (plus one
-  // session's burst) instead of every session's burst together. All senders' brick
-  // self-contained refreshes fall due in the same poll when clients joined together (every
-  // selfContainedInterval), and 100 clients then produced about 25 MB of datagrams at once;
-  // the heap kept that high-water mark, and the server's RSS stepped up every 30 s.
-  constexpr std::size_t kPollSliceBytes = 2u << 20;
   const double now = steadySeconds();
   reloadRevocations(now);
   // Copies: a session may close (and leave the map) while sending.
-  std::vector<std::shared_ptr<Session>> list;
-  for (auto& [id, s] : sessions) list.push_back(s);
-  std::vector<std::vector<Bytes>> datagrams(list.size());
-  std::vector<SharedBytes> scenes(list.size());
+  std::vector<std::shared_ptr<Session>> datagramSessions, others;
+  for (auto& [id, s] : sessions) (s->overUdp() ? datagramSessions : others).push_back(s);
   double pollSeconds = 0;
+
+  // Datagram sessions in parts, each polled, sealed and sent by one of the workers (this
+  // thread among them) while the others do theirs: nothing of a session is shared with another
+  // part but the publisher and the change cache, read under the hub's shared lock. More parts
+  // than threads, because sessions differ in what they send and a thread that finishes its part
+  // takes the next.
+  if (!datagramSessions.empty()) {
+    const std::size_t threads = std::size_t(workers->threads());
+    const std::size_t parts = std::min(datagramSessions.size(), threads == 1 ? 1 : 4 * threads);
+    std::vector<SharedBytes> scenes(datagramSessions.size());
+    std::vector<PartFigures> figures;
+    for (std::size_t p = 0; p < parts; ++p)
+      figures.push_back({0, Histogram(sendQueueDelayBounds()), Histogram(updateLatencyBounds())});
+    const std::span<const std::shared_ptr<Session>> all(datagramSessions);
+    const std::span<SharedBytes> allScenes(scenes);
+    workers->run(parts, [&](std::size_t p) {
+      const std::size_t begin = all.size() * p / parts, end = all.size() * (p + 1) / parts;
+      pollDatagramSessions(all.subspan(begin, end - begin), now,
+                           allScenes.subspan(begin, end - begin), figures[p]);
+    });
+    for (const PartFigures& f : figures) {
+      pollSeconds += f.pollSeconds;
+      totals.sendQueueDelay.merge(f.queueDelay);
+      totals.updateLatency.merge(f.updateLatency);
+    }
+    // Scene states and reports go on each session's stream, from this thread (the streams'
+    // own).
+    for (std::size_t i = 0; i < datagramSessions.size(); ++i)
+      datagramSessions[i]->send(now, {}, scenes[i]);
+  }
+
+  // The other sessions (over TCP, or before their Welcome) on this thread alone.
+  std::vector<std::vector<Bytes>> datagrams(others.size());
+  std::vector<SharedBytes> scenes(others.size());
   std::size_t next = 0;
-  do {
+  while (next < others.size()) {
     const std::size_t first = next;
     {
       const double sliceStart = steadySeconds();
@@ -197,53 +230,84 @@ void NetServer::Impl::poll() {
       const std::uint64_t serial = hub.sceneSerial();
       const SharedBytes frame = hub.sceneFrame();
       std::size_t sliceBytes = 0;
-      for (; next < list.size() && sliceBytes < kPollSliceBytes; ++next) {
-        list[next]->pollLocked(now, serial, frame, datagrams[next], scenes[next]);
+      for (; next < others.size() && sliceBytes < kPollSliceBytes; ++next) {
+        others[next]->pollLocked(now, serial, frame, datagrams[next], scenes[next]);
         for (const Bytes& d : datagrams[next]) sliceBytes += d.size();
-      }
-      if (next == list.size()) {
-        // The publisher's figures for the metrics, while its lock is held anyway.
-        const FieldPublisher& publisher = hub.publisher();
-        totals.fieldVersion = publisher.fieldVersion();
-        totals.encodes = publisher.encodes();
-        totals.encodeSeconds = publisher.encodeSeconds();
-        totals.encodeCacheBytes = publisher.cache().bytes();
-        totals.encodeCacheEntries = publisher.cache().entries();
-        totals.encodeCacheBoundBytes = publisher.cacheBoundBytes();
-        totals.historyBytes = publisher.historyBytes();
-        totals.historyBoundBytes = publisher.historyBoundBytes();
-        totals.currentBricksBytes = publisher.currentBytes();
-        totals.changeCacheBytes = changeCache.bytes();
-        totals.changeCacheEntries = changeCache.entries();
-        totals.encodeTimes = publisher.encodeTimes();
       }
       pollSeconds += steadySeconds() - sliceStart;
     }
     // send() takes the datagrams and flushUdp() frees them, before the next slice is built.
     for (std::size_t i = first; i < next; ++i)
-      list[i]->send(now, std::move(datagrams[i]), scenes[i]);
-    flushUdp();
+      others[i]->send(now, std::move(datagrams[i]), scenes[i]);
+    flushUdp(udpBatch, totals.sendQueueDelay);
     // The slice's updates have left for their sockets (or write queues): their latency.
     const double sent = steadySeconds();
-    for (std::size_t i = first; i < next; ++i) list[i]->observeSent(sent);
-  } while (next < list.size());
+    for (std::size_t i = first; i < next; ++i) others[i]->observeSent(sent, totals.updateLatency);
+  }
+
+  {
+    // The publisher's figures for the metrics, read while no sender runs.
+    auto lock = hub.lock();
+    const FieldPublisher& publisher = hub.publisher();
+    totals.fieldVersion = publisher.fieldVersion();
+    totals.encodes = publisher.encodes();
+    totals.encodeSeconds = publisher.encodeSeconds();
+    totals.encodeCacheBytes = publisher.cache().bytes();
+    totals.encodeCacheEntries = publisher.cache().entries();
+    totals.encodeCacheBoundBytes = publisher.cacheBoundBytes();
+    totals.historyBytes = publisher.historyBytes();
+    totals.historyBoundBytes = publisher.historyBoundBytes();
+    totals.currentBricksBytes = publisher.currentBytes();
+    totals.changeCacheBytes = changeCache.bytes();
+    totals.changeCacheEntries = changeCache.entries();
+    totals.encodeTimes = publisher.encodeTimes();
+  }
   publishStats(pollSeconds);
 }
 
-void NetServer::Impl::flushUdp() {
+void NetServer::Impl::pollDatagramSessions(std::span<const std::shared_ptr<Session>> list,
+                                           double now, std::span<SharedBytes> scenes,
+                                           PartFigures& figures) {
+  const std::size_t sliceBytes =
+      std::max<std::size_t>(kPollSliceBytes / std::size_t(workers->threads()), 256u << 10);
+  std::vector<std::vector<Bytes>> datagrams(list.size());
+  std::vector<UdpOut> batch;
+  std::size_t next = 0;
+  while (next < list.size()) {
+    const std::size_t first = next;
+    {
+      const double sliceStart = steadySeconds();
+      auto lock = hub.sharedLock();
+      const std::uint64_t serial = hub.sceneSerial();
+      const SharedBytes frame = hub.sceneFrame();
+      std::size_t bytes = 0;
+      for (; next < list.size() && bytes < sliceBytes; ++next) {
+        list[next]->pollLocked(now, serial, frame, datagrams[next], scenes[next]);
+        for (const Bytes& d : datagrams[next]) bytes += d.size();
+      }
+      figures.pollSeconds += steadySeconds() - sliceStart;
+    }
+    for (std::size_t i = first; i < next; ++i) list[i]->sealDatagrams(now, datagrams[i], batch);
+    flushUdp(batch, figures.queueDelay);
+    const double sent = steadySeconds();
+    for (std::size_t i = first; i < next; ++i) list[i]->observeSent(sent, figures.updateLatency);
+  }
+}
+
+void NetServer::Impl::flushUdp(std::vector<UdpOut>& batch, Histogram& queueDelay) {
   // One system call per batch instead of one per datagram. A datagram the socket refuses (its
   // buffer is full) is dropped and the rest of the batch is tried, as a send_to per datagram
-  // would.
+  // would. Several threads may send on the socket at once; each datagram goes whole.
   constexpr std::size_t kBatch = 256;
   std::array<mmsghdr, kBatch> messages;
   std::array<iovec, kBatch> vectors;
   const int fd = udpSocket.native_handle();
   std::size_t i = 0;
-  while (i < udpBatch.size()) {
+  while (i < batch.size()) {
     std::size_t n = 0;
     std::array<std::size_t, kBatch> index;
-    for (std::size_t j = i; j < udpBatch.size() && n < kBatch; ++j) {
-      UdpOut& d = udpBatch[j];
+    for (std::size_t j = i; j < batch.size() && n < kBatch; ++j) {
+      UdpOut& d = batch[j];
       if (d.session->closed()) continue;
       vectors[n] = iovec{d.bytes.data(), d.bytes.size()};
       messages[n] = mmsghdr{};
@@ -257,19 +321,19 @@ void NetServer::Impl::flushUdp() {
     int sent = ::sendmmsg(fd, messages.data(), unsigned(n), MSG_DONTWAIT);
     if (sent < 0 && errno == EINTR) continue;
     if (sent <= 0) {
-      udpBatch[index[0]].session->udpSent(0, false);
+      batch[index[0]].session->udpSent(0, false);
       sent = 1;
     } else {
       const double at = steadySeconds();
       for (int m = 0; m < sent; ++m) {
-        const UdpOut& d = udpBatch[index[m]];
+        const UdpOut& d = batch[index[m]];
         d.session->udpSent(d.bytes.size(), true);
-        totals.sendQueueDelay.observe(at - d.queuedAt);
+        queueDelay.observe(at - d.queuedAt);
       }
     }
     i = index[std::size_t(sent) - 1] + 1;
   }
-  udpBatch.clear();
+  batch.clear();
 }
 
 void NetServer::Impl::receiveUdp() {
@@ -718,6 +782,12 @@ Result<std::unique_ptr<NetServer>> NetServer::create(FieldHub& hub, NetServerOpt
       s.fieldBricks += std::size_t(hub.publisher().brickCount(k));
     setViewerBounds(s, hub.publisher().sessionInfo());
   }
+  const int sendThreads = s.options.sendThreads > 0
+                              ? std::min(s.options.sendThreads, 64)
+                              : std::clamp(int(std::thread::hardware_concurrency()) / 2, 1, 8);
+  // Named as the network thread: CPU figures by thread name (probecast-bench load) count them
+  // together.
+  s.workers = std::make_unique<NetWorkers>(sendThreads, "pc-net");
   AddressLimitOptions limits;
   limits.maxPendingPerAddress = s.options.maxPendingPerAddress;
   limits.maxSessionsPerAddress = s.options.maxSessionsPerAddress;

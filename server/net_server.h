@@ -137,6 +137,10 @@ struct NetServerOptions {
   double helloTimeout = 5.0;     // s from accept to a Hello
   double silenceTimeout = 10.0;  // s without any message from a client (full acks come every 1 s)
   double pollInterval = 0.005;   // s between sender polls
+  // Threads that poll, seal and send the datagram sessions (the network thread among them);
+  // 0: half the cores, 1 to 8. One thread's share of a 1 Mbit/s client is about 1 ms of CPU a
+  // second (probecast-bench load), so one thread serves several hundred at most.
+  int sendThreads = 0;
   // Prometheus metrics (GET /metrics over HTTP) on this port; nothing: no endpoint; 0: any
   // free port (NetServer::metricsPort). Bound on metricsBindAddress, else on loopback only
   // (127.0.0.1): the figures name clients and their addresses. With a metricsToken, a

@@ -18,6 +18,7 @@
 #include "net/tls_context.h"
 #include "net_address_limits.h"
 #include "net_server.h"
+#include "net_workers.h"
 
 namespace pc {
 
@@ -30,6 +31,15 @@ using SharedBytes = std::shared_ptr<const Bytes>;
 inline SharedBytes share(Bytes bytes) { return std::make_shared<const Bytes>(std::move(bytes)); }
 
 class Session;
+
+// A datagram of one poll, sealed, to be sent with the others (sendmmsg) once every session of
+// its part was polled.
+struct UdpOut {
+  Session* session;  // kept alive by the poll's list of sessions
+  udp::endpoint to;
+  Bytes bytes;
+  double queuedAt;  // steadySeconds() when the session queued it
+};
 
 struct NetServer::Impl {
   Impl(FieldHub& h, NetServerOptions o)
@@ -45,7 +55,15 @@ struct NetServer::Impl {
   void poll();
   void remove(std::uint32_t id, DisconnectCause cause);
   void publishStats(double pollSeconds = 0);
-  void flushUdp();
+  // Sends `batch` (and empties it), each datagram's queueing delay into `queueDelay`.
+  void flushUdp(std::vector<UdpOut>& batch, Histogram& queueDelay);
+  // The poll's work for datagram sessions, spread over the workers; what it measured.
+  struct PartFigures {
+    double pollSeconds = 0;  // under the hub lock
+    Histogram queueDelay, updateLatency;
+  };
+  void pollDatagramSessions(std::span<const std::shared_ptr<Session>> list, double now,
+                            std::span<SharedBytes> scenes, PartFigures& figures);
   // Client datagrams (acks and repair requests, PROTOCOL.md "Acks over UDP"): the socket is
   // read whenever it has some, in batches, on this thread.
   void receiveUdp();
@@ -82,13 +100,10 @@ struct NetServer::Impl {
   bool stopped = false;
   // Perceptual comparisons shared by every session's sender (used under the hub lock).
   BrickChangeCache changeCache;
-  // UDP datagrams of one poll, sent together (sendmmsg) after every session was polled.
-  struct UdpOut {
-    Session* session;  // kept alive by the poll's list of sessions
-    udp::endpoint to;
-    Bytes bytes;
-    double queuedAt;  // steadySeconds() when the session queued it
-  };
+  // Datagram sessions are polled, sealed and sent by these threads (this one among them),
+  // NetServerOptions::sendThreads in all.
+  std::unique_ptr<NetWorkers> workers;
+  // UDP datagrams of the sessions polled on this thread alone (over TCP, or not yet welcomed).
   std::vector<UdpOut> udpBatch;
   // recvmmsg's buffers: one byte more than the largest uplink datagram, so that a larger one
   // shows as truncated.

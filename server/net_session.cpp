@@ -120,35 +120,45 @@ void Session::pollLocked(double now, std::uint64_t sceneSerial, const SharedByte
   repairedFragments_ = sender_->stats().repairedFragments;
 }
 
+void Session::sealDatagrams(double now, std::vector<Bytes>& datagrams, std::vector<UdpOut>& out) {
+  if (closed_ || !sealFailure_.empty() || !udpTarget_) return;
+  for (Bytes& d : datagrams) {
+    // Sealed with this session's key: nobody else can read them, nor write into this session.
+    if (sealer_) {
+      Bytes sealed;
+      sealed.reserve(d.size() + kSealOverheadBytes);
+      if (Status s = sealer_->seal(d, sealed); !s) {
+        sealFailure_ = "datagram keys used up: " + s.error().message;
+        break;
+      }
+      d = std::move(sealed);
+    }
+    out.push_back({this, *udpTarget_, std::move(d), now});
+  }
+  datagrams.clear();
+}
+
 void Session::send(double now, std::vector<Bytes> datagrams, const SharedBytes& scene) {
   if (closed_) return;
+  if (!sealFailure_.empty()) return close(DisconnectCause::Shutdown, sealFailure_);
   if (scene) enqueue(scene);
   if (!report_.empty()) enqueue(share(std::move(report_)));
   report_.clear();
+  if (udpTarget_) {
+    // Sent with every other session's datagrams of this poll (Impl::flushUdp).
+    sealDatagrams(now, datagrams, server_.udpBatch);
+    if (!sealFailure_.empty()) return close(DisconnectCause::Shutdown, sealFailure_);
+  }
   for (Bytes& d : datagrams) {
     if (closed_) return;
-    if (udpTarget_) {
-      // Sent with every other session's datagrams of this poll (Impl::flushUdp), sealed with
-      // this session's key: nobody else can read them, nor write into this session.
-      if (sealer_) {
-        Bytes sealed;
-        sealed.reserve(d.size() + kSealOverheadBytes);
-        if (Status s = sealer_->seal(d, sealed); !s)
-          return close(DisconnectCause::Shutdown, "datagram keys used up: " + s.error().message);
-        d = std::move(sealed);
-      }
-      server_.udpBatch.push_back({this, *udpTarget_, std::move(d), now});
-      continue;
-    }
     enqueue(share(datagramFrame(d)));
     ++datagrams_;
   }
   checkTimeouts(now);
 }
 
-void Session::observeSent(double now) {
-  for (const double published : sentPublishTimes_)
-    server_.totals.updateLatency.observe(std::max(0.0, now - published));
+void Session::observeSent(double now, Histogram& latency) {
+  for (const double published : sentPublishTimes_) latency.observe(std::max(0.0, now - published));
   sentPublishTimes_.clear();
 }
 

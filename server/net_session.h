@@ -60,16 +60,27 @@ class Session : public std::enable_shared_from_this<Session> {
   // A message this client must not have sent: counted by cause, then the session ends.
   void refuse(DisconnectCause cause, const std::string& detail);
 
-  // Called by the server's poll with the hub locked: datagrams and scene state to send.
+  // Called by the server's poll with the hub locked (shared, for a datagram session: several
+  // threads poll theirs at once, and nothing of this session is touched by another thread
+  // meanwhile): datagrams and scene state to send.
   void pollLocked(double now, std::uint64_t sceneSerial, const SharedBytes& sceneFrame,
                   std::vector<Bytes>& datagrams, SharedBytes& scene);
 
-  // Called by the server's poll without the hub lock.
+  // A datagram session's datagrams of one poll, sealed and added to `out` for flushUdp: the
+  // part of sending that runs on any of the polling threads. A failure to seal closes the
+  // session at its next send().
+  void sealDatagrams(double now, std::vector<Bytes>& datagrams, std::vector<UdpOut>& out);
+
+  // Called by the server's poll on the network thread, without the hub lock: the scene state
+  // and report go out on the session's stream, and over TCP the datagrams too.
   void send(double now, std::vector<Bytes> datagrams, const SharedBytes& scene);
 
   // After the poll's datagrams left (flushUdp): the publish-to-send latency of the brick
-  // versions pollLocked sent for the first time, into the server's histogram.
-  void observeSent(double now);
+  // versions pollLocked sent for the first time, into `latency`.
+  void observeSent(double now, Histogram& latency);
+
+  // Datagrams go over UDP, so the session is polled with the others of its kind in parallel.
+  bool overUdp() const { return udpTarget_.has_value() && sender_ != nullptr; }
 
   bool closed() const { return closed_; }
   // What became of a datagram of flushUdp: a full socket buffer drops it (UDP loss, which the
@@ -126,6 +137,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::uint32_t id_;
   // Seals this session's UDP datagrams with the key from its TLS session; none without TLS.
   std::optional<DatagramSealer> sealer_;
+  std::string sealFailure_;  // why sealDatagrams failed; send() closes the session
   // Opens this session's acks sent as datagrams (protocol version 6 clients with UDP), with
   // the client->server key from its TLS session (none without TLS: the plain form, taken only
   // from peerAddress_).

@@ -70,6 +70,9 @@ inline void addStreamOptions(CLI::App& app, ServeSetup& s) {
                  "coarsest precision level a short link is sent (0: the codec's own always; "
                  "PROTOCOL.md, Precision levels)")
       ->check(CLI::Range(0, pc::kMaxPrecision));
+  app.add_option("--send-threads", s.net.sendThreads,
+                 "threads that poll, seal and send datagram sessions (0: half the cores, 1-8)")
+      ->check(CLI::Range(0, 64));
 }
 
 // How long the process runs and what it reports.

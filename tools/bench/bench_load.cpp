@@ -7,12 +7,13 @@
 // With several --clients values (e.g. 10,100,300,1000) it runs each against a fresh server and
 // prints the fan-out curve: the server encodes each brick version once for all clients, so
 // what each client costs is sending, and cpu_ms_per_client_s should stay flat as N grows.
-// cpu_ms_per_client_s = CPU of the server's network thread ("pc-net", which does all the
-// per-client work) during the window / N / window, read from /proc/<pid>/task/<tid>/stat; the
-// whole process's figure (process_cpu_ms_per_client_s, minus its idle CPU) is printed too but
-// includes the field thread, whose CPU varies with what the shared cores give it. The server
-// and the clients share this machine's cores; --field-nice lowers the priority of the server's
-// tracing threads (everything but pc-net) so that serving comes first.
+// cpu_ms_per_client_s = CPU of the server's network threads (all named "pc-net": the one
+// that runs the sessions and the ones that poll, seal and send with it, --send-threads; they
+// do all the per-client work) during the window / N / window, read from
+// /proc/<pid>/task/<tid>/stat; the whole process's figure (process_cpu_ms_per_client_s, minus its
+// idle CPU) is printed too but includes the field thread, whose CPU varies with what the shared
+// cores give it. The server and the clients share this machine's cores; --field-nice lowers the
+// priority of the server's tracing threads (everything but pc-net) so that serving comes first.
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -44,6 +45,7 @@ struct LoadSetup {
   int rays = 256;              // the server's default
   int serverWarmup = 8;
   int maxPrecision = kMaxPrecision;  // the server's default
+  int sendThreads = 0;               // the server's default (half the cores, 1-8)
   double starveSeconds = 2.0;
   std::string server;     // default: probecast-server beside this executable
   std::string serverLog;  // default: load-server.log in the build folder of the server
@@ -100,6 +102,9 @@ Benchmark addLoad(CLI::App& app) {
   cmd->add_option("--max-precision", s.maxPrecision,
                   "server's coarsest precision level for short links (0: the codec's own)")
       ->check(CLI::Range(0, kMaxPrecision));
+  cmd->add_option("--send-threads", s.sendThreads,
+                  "server threads that poll, seal and send datagram sessions (0: its default)")
+      ->check(CLI::Range(0, 64));
   cmd->add_option("--starve-seconds", s.starveSeconds, "gap that makes a client starved");
   cmd->add_option("--session-seconds", s.sessionSeconds,
                   "churn: sessions end after about this long");
@@ -152,6 +157,7 @@ Benchmark addLoad(CLI::App& app) {
                           "--rate-limit",     std::to_string(s.rateLimitMbit * 1e6 / 8),
                           "--max-clients",    std::to_string(n + 16),
                           "--max-precision",  std::to_string(s.maxPrecision),
+                          "--send-threads",   std::to_string(s.sendThreads),
                           "--stats-interval", "0"};
           if (s.tcpOnly) o.serverArgs.push_back("--tcp-only");
           o.load.clients = n;
@@ -207,7 +213,7 @@ Benchmark addLoad(CLI::App& app) {
               l.starvedClients, r.rssEndMb - r.rssWarmMb);
         }
         std::printf(
-            "net = the server's network thread (pc-net, /proc/<pid>/task), idle "
+            "net = the server's network threads (pc-net, /proc/<pid>/task), idle "
             "before any client %.2f ms/s; net/cl/s = cpu_ms_per_client_s = net / "
             "clients; srv = the whole server process (idle %.1f ms/s), "
             "srv/cl/s = (srv - srv idle) / clients; field = the field thread alone "
