@@ -18,11 +18,14 @@ UpdateStats FieldLoop::update(const SceneState& state, std::uint64_t tick) {
   std::vector<glm::vec3> viewers;
   std::vector<float> weights;
   hub_.weightedViewers(viewers, weights);
-  request.probes = scheduler_.plan(field_, tick, viewers, weights);
+  request.probes = scheduler_.plan(field_, tick, viewers, weights, &rest_);
   request.changeThreshold = options_.changeThreshold;
   while (tracer_) {
     Result<UpdateStats> updated = moveAndUpdate(state, request);
-    if (updated) return std::move(updated).value();
+    if (updated) {
+      rest_.observe(field_, request.probes);
+      return std::move(updated).value();
+    }
     const std::string& why = updated.error().message;
     logError("field update " + std::to_string(tick) + " failed: " + why);
     {
@@ -79,6 +82,17 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   }
 
   if (!edited.empty()) convergeLeft_ = options_.editConvergeUpdates;
+  {
+    // Any change of what the tracer sees (lights, instances, emission, edits) wakes every
+    // probe; the clock alone does not.
+    SceneStateMsg untimed = sceneStateMessage(state);
+    untimed.animationTime = 0;
+    std::vector<std::uint8_t> key = encodeMessage(untimed);
+    if (key != restKey_) {
+      rest_.wakeAll();
+      restKey_ = std::move(key);
+    }
+  }
   UpdateStats us;
   if (!frozen_ && tracer_) {
     if (convergeLeft_ > 0 && restoreHysteresis_.empty()) {
@@ -128,6 +142,7 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
     stats_.updateSeconds += us.totalMs / 1e3;
   }
   stats_.lastPublishMs = publishMs;
+  stats_.restingProbes = rest_.restingProbes();
   stats_.publishSeconds += publishMs / 1e3;
 }
 
@@ -160,6 +175,9 @@ void appendFieldLoopMetrics(MetricsText& m, const FieldLoopStats& s) {
           double(s.lastUpdate.bricksChanged));
   m.gauge("probecast_field_last_probes_updated", "Probes traced by the latest update.",
           double(s.lastUpdate.probesUpdated));
+  m.gauge("probecast_field_resting_probes",
+          "Probes at rest in a still scene (updated every rest period only).",
+          double(s.restingProbes));
   // Per pass, the latest update. The CPU tracer fuses trace and shade (shade reads 0); a GPU
   // tracer adds its timestamped passes. The update's whole duration is a metric of its own, not
   // a pass: sum(probecast_field_last_pass_seconds) would count it twice.

@@ -30,6 +30,8 @@ struct FieldLoopOptions {
   double freezeAt = -1.0;  // animation time where the clock and the field stop (< 0: never)
   std::filesystem::path dumpField;  // at the freeze, the exact field is written here
   SchedulerOptions scheduler;
+  // Probes at rest in a still scene (probe_rest.h): updated every rest period only.
+  RestOptions rest;
   float changeThreshold = 0.0f;
   // Where the tracer fails (an Error from setState or update: a GPU lost or out of memory),
   // the field thread makes this one and goes on with it from the field as the last completed
@@ -62,6 +64,7 @@ struct FieldLoopStats {
   std::string tracer;                            // the tracer's name; empty once none is left
   std::uint64_t tracerFailures = 0;              // tracer calls that failed
   std::string lastFailure;                       // the latest one's message
+  std::size_t restingProbes = 0;                 // probes at rest after the latest update
 };
 
 // The field thread's metrics (probecast_field_*) for the server's /metrics endpoint.
@@ -78,7 +81,8 @@ class FieldLoop {
         field_(field),
         hub_(hub),
         options_(std::move(options)),
-        scheduler_(options_.scheduler) {
+        scheduler_(options_.scheduler),
+        rest_(options_.rest) {
     stats_.tracer = tracer.name();
   }
 
@@ -119,6 +123,8 @@ class FieldLoop {
   FieldHub& hub_;
   FieldLoopOptions options_;
   ProbeScheduler scheduler_;
+  ProbeRest rest_;
+  std::vector<std::uint8_t> restKey_;  // the scene state the probes rest in (encoded, untimed)
   bool frozen_ = false;
   int convergeLeft_ = 0;                  // updates still at editHysteresis
   std::vector<float> restoreHysteresis_;  // each cascade's own, while they are

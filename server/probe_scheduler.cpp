@@ -13,7 +13,8 @@ constexpr float kBoostPriority = 1e12f;
 
 std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tick,
                                            const std::vector<glm::vec3>& viewers,
-                                           const std::vector<float>& weights) {
+                                           const std::vector<float>& weights,
+                                           const ProbeRest* rest) {
   if (lastUpdate_.size() != field.probes.size()) lastUpdate_.assign(field.probes.size(), 0);
   if (boost_.size() != field.probes.size()) {
     boost_.assign(field.probes.size(), 0);
@@ -35,10 +36,16 @@ std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tic
       int period = 1;
       if (r.state == gpu::PC_PROBE_SLEEPING) period = options_.sleepingPeriod;
       if (r.state == gpu::PC_PROBE_INSIDE) period = options_.insidePeriod;
-      // Stagger periodic probes by slot so each tick takes an even share.
+      // Stagger periodic probes by slot so each tick takes an even share; resting probes by
+      // brick, so that a still scene's bricks change one at a time.
+      std::uint64_t phase = std::uint64_t(s);
+      if (rest && rest->resting(index) && rest->options().period > period) {
+        period = rest->options().period;
+        phase = std::uint64_t(s / gpu::PC_PROBES_PER_BRICK) * 7919u + std::uint64_t(k) * 104729u;
+      }
       const bool boosted = boost_[index] > 0;
       const bool due =
-          never || boosted || period <= 1 || (tick + std::uint64_t(s)) % std::uint64_t(period) == 0;
+          never || boosted || period <= 1 || (tick + phase) % std::uint64_t(period) == 0;
       if (!due) continue;
       if (boosted) {
         // Above any staleness (at most 1e6 for a probe never updated): an edit's region first.

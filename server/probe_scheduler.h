@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/scene_edits.h"
+#include "probe_rest.h"
 #include "tracer.h"
 
 namespace pc {
@@ -25,9 +26,12 @@ class ProbeScheduler {
   // `viewers`: world positions of the viewers (empty: no preference). `weights` (empty: all 1;
   // else one per viewer, >= 1): a viewer of weight w counts as w times nearer, so under a
   // budget its surroundings come first in proportion to what its connect token allows.
+  // `rest` (null: none rests): a resting probe is due every rest period only, all probes of a
+  // brick in the same tick, so that the bricks of a still scene change one at a time.
   std::vector<ProbeRef> plan(const Field& field, std::uint64_t tick,
                              const std::vector<glm::vec3>& viewers = {},
-                             const std::vector<float>& weights = {});
+                             const std::vector<float>& weights = {},
+                             const ProbeRest* rest = nullptr);
   // Forces every probe into the next plan (scene cut, history reset).
   void resetAll() { lastUpdate_.clear(); }
   // An edit changed the light within `regions`: the probes there, sleeping or not, come first

@@ -139,6 +139,11 @@ void addFieldOptions(CLI::App& app, ServerSetup& s) {
   app.add_option("--warmup", s.warmup, "warm-up updates without --probes")
       ->check(CLI::Range(0, 100000000));
   app.add_option("--budget", s.loop.scheduler.budget, "most probes per update (0: all due)");
+  app.add_flag("--no-rest{false}", s.loop.rest.enabled,
+               "update every probe every tick, also in a still scene (by default a probe that "
+               "stopped changing rests: updated every --rest-period ticks)");
+  app.add_option("--rest-period", s.loop.rest.period, "ticks between updates of a resting probe")
+      ->check(CLI::Range(1, 100000));
   app.add_option("--time", s.loop.startTime, "animation time of the first update")
       ->check(pc::kFinite);
   app.add_option("--freeze-at", s.loop.freezeAt,

@@ -40,5 +40,6 @@ Benchmark addLoad(CLI::App& app);
 Benchmark addContact(CLI::App& app);
 Benchmark addScale(CLI::App& app);
 Benchmark addEdits(CLI::App& app);
+Benchmark addRest(CLI::App& app);
 
 }  // namespace pc::bench

@@ -16,10 +16,7 @@
 #include "bench.h"
 #include "client/field_mirror.h"
 #include "client/net_client.h"
-#include "protocol/connect_token.h"
-#include "server/bake.h"
-#include "server/net_field_loop.h"
-#include "server/net_server.h"
+#include "loopback_server.h"
 
 namespace pc::bench {
 
@@ -74,57 +71,17 @@ int runEdits(const EditsSetup& o) {
   auto loaded = loadBenchScene(o.scene, o.sidecar);
   if (!loaded) return std::fprintf(stderr, "edits: %s\n", loaded.error().message.c_str()), 1;
   const Scene scene = std::move(loaded).value();
-  auto made = makeEmbreeTracer(scene);
-  if (!made) return std::fprintf(stderr, "edits: %s\n", made.error().message.c_str()), 1;
-  std::unique_ptr<Tracer> tracer = std::move(made).value();
-  FieldSettings settings;
-  settings.raysPerProbe = o.rays;
-  Field field =
-      Field::create(scene.volumes.empty() ? defaultVolumes(scene) : scene.volumes, settings);
-  field.sceneHash = scene.hash;
-  if (Status s = tracer->setState(evaluateScene(scene, 0.0)); !s)
-    return std::fprintf(stderr, "edits: %s\n", s.error().message.c_str()), 1;
-  BakeOptions bake;
-  bake.updates = o.bakeUpdates;
-  if (auto baked = bakeField(field, *tracer, bake); !baked)
-    return std::fprintf(stderr, "edits: bake: %s\n", baked.error().message.c_str()), 1;
-
-  const KeyPair keys = generateKeyPair();
-  const auto token = [&](const std::string& name, TokenRole role) {
-    auto t = issueToken(keys.signing, newTokenClaims(name, "*", role, 1, unixSeconds(), 3600));
-    return t ? *t : std::string();
-  };
-  FieldHub hub(field);
-  SceneEditor editor(scene);
-  NetServerOptions net;
-  net.bindAddress = "127.0.0.1";
-  net.port = 0;
-  net.tokenKeys = {keys.verify};
-  net.tls.devSelfSigned = true;
-  net.maxClients = std::size_t(o.clients) + 8;
-  net.maxSessionsPerAddress = std::size_t(o.clients) + 8;
-  net.handshakesPerSecondPerAddress = double(o.clients) + 8;
-  net.edits = [&editor](const SceneEdit& e) { return editor.submit(e); };
-  (void)hub.publish(field, sceneStateMessage(evaluateScene(scene, 0.0)), steadySeconds());
-  auto server = NetServer::create(hub, net);
-  if (!server) return std::fprintf(stderr, "edits: %s\n", server.error().message.c_str()), 1;
-  (*server)->start();
-  FieldLoopOptions loopOptions;
-  loopOptions.rate = o.rate;
-  loopOptions.editor = &editor;
-  loopOptions.scheduler.budget = o.budget;
-  FieldLoop loop(scene, *tracer, field, hub, loopOptions);
-  std::atomic<bool> stop{false};
-  std::thread fieldThread([&] { loop.run(stop, steadySeconds); });
-
+  LoopbackServerOptions serverOptions;
+  serverOptions.rays = o.rays;
+  serverOptions.bakeUpdates = o.bakeUpdates;
+  serverOptions.clients = o.clients;
+  serverOptions.loop.rate = o.rate;
+  serverOptions.loop.scheduler.budget = o.budget;
+  auto started = LoopbackServer::start(scene, serverOptions);
+  if (!started) return std::fprintf(stderr, "edits: %s\n", started.error().message.c_str()), 1;
+  LoopbackServer& server = **started;
   const auto clientOptions = [&](const std::string& name, TokenRole role) {
-    client::NetClientOptions c;
-    c.host = "127.0.0.1";
-    c.port = (*server)->port();
-    c.serverFingerprint = (*server)->tlsFingerprint();
-    c.token = token(name, role);
-    c.name = name;
-    return c;
+    return server.clientOptions(name, role);
   };
   std::vector<std::unique_ptr<client::FieldMirror>> mirrors;
   std::vector<std::unique_ptr<client::NetClient>> viewers;
@@ -213,12 +170,10 @@ int runEdits(const EditsSetup& o) {
         e, everyone ? "applied it" : "NOT all applied", slowest * 1e3, o.settleDb, settledAt);
   }
 
-  stop = true;
-  fieldThread.join();
+  server.stop();
   for (auto& v : viewers) v->stop();
   editorClient.stop();
-  (*server)->stop();
-  const NetServerStats stats = (*server)->stats();
+  const NetServerStats stats = server.server().stats();
   std::printf(
       "edits: %s; %d viewers, %d edits every %.1f s, field at %.0f updates/s, %d rays "
       "per probe; %llu applied, %d refused, %d not settled within the interval\n",
