@@ -30,19 +30,11 @@ LightSample lightSample(const gpu::GpuLight& light, glm::vec3 P, glm::vec3 N) {
 }  // namespace
 
 template <class R>
-glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLight> lights,
-                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
-                           glm::vec3 N, R& rng, const DirectLightOptions& options) {
-  glm::vec3 E(0.0f);
-  std::uint64_t shadowRays = 0;
-  // Counted locally and added once: the counter may be shared by a thread's many calls.
-  struct Count {
-    std::uint64_t& local;
-    std::uint64_t* total;
-    ~Count() {
-      if (total) *total += local;
-    }
-  } count{shadowRays, options.shadowRayCount};
+std::size_t directLightSamples(std::span<const gpu::GpuLight> lights,
+                               const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                               glm::vec3 N, R& rng, const DirectLightOptions& options,
+                               std::vector<ShadowSample>& out) {
+  const std::size_t first = out.size();
   const std::size_t lightCount = lights.size();
   // Up to kStackLights lights without a heap allocation per call.
   constexpr std::size_t kStackLights = 16;
@@ -62,16 +54,14 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLig
         gpu::pcShadowRouletteWeight(luminance(ls.irradiance), total, options.shadowRouletteShare,
                                     options.shadowRouletteKey, int(i));
     if (weight == 0.0f) continue;
-    ++shadowRays;
-    if (scene.occluded(shadowOrigin, ls.wi, gpu::PC_SHADOW_NEAR, ls.far)) continue;
-    E += weight == 1.0f ? ls.irradiance : ls.irradiance * weight;
+    out.push_back({shadowOrigin, ls.wi, ls.far,
+                   weight == 1.0f ? ls.irradiance : ls.irradiance * weight, false});
   }
 
   const int samples = options.emissiveSamples;
-  if (emissive.empty() || samples <= 0) return E;
+  if (emissive.empty() || samples <= 0) return out.size() - first;
   const std::vector<EmissiveLights::Triangle>& tris = emissive.triangles();
   const std::vector<float>& cdf = emissive.cdf();
-  glm::vec3 sum(0.0f);
   for (int s = 0; s < samples; ++s) {
     // Stratified choice of triangle: one sample per 1/samples slice of the CDF, so a few
     // samples already spread over the emitters in proportion to their power.
@@ -92,16 +82,35 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLig
     const glm::vec3 toTarget = target - shadowOrigin;
     const float targetDistance = glm::length(toTarget);
     if (!(targetDistance > 0.0f)) continue;
-    ++shadowRays;
-    if (scene.occluded(shadowOrigin, toTarget / targetDistance, gpu::PC_SHADOW_NEAR,
-                       targetDistance * gpu::PC_SHADOW_FAR_SCALE))
-      continue;
     const float pdfArea = pTriangle / tri.area;
-    sum += tri.radiance * (geometry / pdfArea);
+    out.push_back({shadowOrigin, toTarget / targetDistance,
+                   targetDistance * gpu::PC_SHADOW_FAR_SCALE, tri.radiance * (geometry / pdfArea),
+                   true});
   }
-  return E + sum / float(samples);
+  return out.size() - first;
 }
 
+template <class R>
+glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLight> lights,
+                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                           glm::vec3 N, R& rng, const DirectLightOptions& options) {
+  thread_local std::vector<ShadowSample> samples;
+  samples.clear();
+  directLightSamples(lights, emissive, P, shadowOrigin, N, rng, options, samples);
+  if (options.shadowRayCount) *options.shadowRayCount += samples.size();
+  glm::vec3 E(0.0f), sum(0.0f);
+  for (const ShadowSample& s : samples) {
+    if (scene.occluded(s.origin, s.dir, gpu::PC_SHADOW_NEAR, s.far)) continue;
+    (s.emitter ? sum : E) += s.irradiance;
+  }
+  return options.emissiveSamples > 0 && !emissive.empty() ? E + sum / float(options.emissiveSamples)
+                                                          : E;
+}
+
+template std::size_t directLightSamples<RayRng>(std::span<const gpu::GpuLight>,
+                                                const EmissiveLights&, glm::vec3, glm::vec3,
+                                                glm::vec3, RayRng&, const DirectLightOptions&,
+                                                std::vector<ShadowSample>&);
 template glm::vec3 directIrradiance<Rng>(const EmbreeScene&, std::span<const gpu::GpuLight>,
                                          const EmissiveLights&, glm::vec3, glm::vec3, glm::vec3,
                                          Rng&, const DirectLightOptions&);

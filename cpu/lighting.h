@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <span>
+#include <vector>
 
 #include "../common/emissive_lights.h"
 #include "../common/light_pack.h"
@@ -29,6 +30,31 @@ struct DirectLightOptions {
   float shadowRouletteShare = 0.0f;
   std::uint32_t shadowRouletteKey = 0;
 };
+
+// One light sample at a surface point and the shadow ray that decides it: unoccluded, the
+// sample adds `irradiance` to the point's punctual sum (emitter false) or to its emitter sum
+// (emitter true), which directIrradiance divides by the sample count.
+struct ShadowSample {
+  glm::vec3 origin{0.0f}, dir{0.0f};
+  float far = 0.0f;
+  glm::vec3 irradiance{0.0f};
+  bool emitter = false;
+};
+
+// The light samples of directIrradiance at P, each with its shadow ray, in the order
+// directIrradiance sums them, without tracing them: callers that trace many points' shadow
+// rays together. Appends to `out`; returns how many it appended. Draws from `rng` as
+// directIrradiance does.
+template <class R>
+std::size_t directLightSamples(std::span<const gpu::GpuLight> lights,
+                               const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                               glm::vec3 N, R& rng, const DirectLightOptions& options,
+                               std::vector<ShadowSample>& out);
+extern template std::size_t directLightSamples<RayRng>(std::span<const gpu::GpuLight>,
+                                                       const EmissiveLights&, glm::vec3, glm::vec3,
+                                                       glm::vec3, RayRng&,
+                                                       const DirectLightOptions&,
+                                                       std::vector<ShadowSample>&);
 
 // Irradiance E (W/m^2) arriving at P (normal N, unit) directly from `lights` (packLights of
 // the state) and the emitters, shadowed.

@@ -15,6 +15,7 @@ class EmbreeTracer final : public Tracer {
  public:
   static Result<std::unique_ptr<EmbreeTracer>> create(const Scene& scene,
                                                       const TracerOptions& options);
+  ~EmbreeTracer() override;
   std::string name() const override { return "embree"; }
   // Neither fails: the scene and its buffers were made by create.
   Status setState(const SceneState& state) override;
@@ -29,12 +30,17 @@ class EmbreeTracer final : public Tracer {
  private:
   EmbreeTracer(const Scene& scene, std::unique_ptr<EmbreeScene> embree,
                const TracerOptions& options);
+  void traceShadowRays(const std::vector<ShadowSample>& samples, std::vector<RTCRay>& rays) const;
   const Scene& scene_;
   std::unique_ptr<EmbreeScene> embree_;
   TracerOptions options_;
   std::vector<gpu::GpuLight> lights_;  // the state's lights, packed once per state
   EmissiveSurfaces surfaces_;          // found once: setState only places them
   EmissiveLights emissive_;
+  // One update's per-ray buffers (tens of MB at full updates), kept from one update to the
+  // next: allocated fresh, every update paid for their pages again.
+  struct Scratch;
+  std::unique_ptr<Scratch> scratch_;
 };
 
 // Ray directions of one update: the Fibonacci set under the update's random rotation.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <glm/gtc/packing.hpp>
 #include <limits>
 
@@ -65,13 +66,33 @@ TexelTaps TexelTaps::build(const std::vector<glm::vec3>& texelDirs, const glm::v
   return taps;
 }
 
+CosineRows CosineRows::build(const TexelTaps& taps, int rayCount) {
+  CosineRows rows;
+  rows.stride = (rayCount + kLanes - 1) / kLanes * kLanes;
+  const std::size_t texels = taps.begin.empty() ? 0 : taps.begin.size() - 1;
+  rows.weight.assign(texels * std::size_t(rows.stride), 0.0f);
+  rows.total.assign(texels, 0.0f);
+  for (std::size_t t = 0; t < texels; ++t) {
+    for (std::uint32_t j = taps.begin[t]; j < taps.begin[t + 1]; ++j) {
+      rows.weight[t * std::size_t(rows.stride) + taps.ray[j]] = taps.weight[j];
+      rows.total[t] += taps.weight[j];
+    }
+  }
+  return rows;
+}
+
 BlendTaps BlendTaps::build(const glm::vec3* rayDirs, int rayCount, float distanceExponent) {
+  static_assert(PC_IRRADIANCE_TEXELS == PC_OCCLUSION_TEXELS,
+                "the blend sums irradiance and occlusion over the same cosine rows");
   const TexelDirections& t = TexelDirections::get();
   // Depth: weights under 1e-4 of the peak change the moments by less than float rounding of
   // a typical sum; they are most of the pairs, since the cos^50 lobe is narrow.
-  return {TexelTaps::build(t.irradiance, rayDirs, rayCount, 1.0f, 0.0f),
-          TexelTaps::build(t.depth, rayDirs, rayCount, distanceExponent, 1e-4f),
-          TexelTaps::build(t.occlusion, rayDirs, rayCount, 1.0f, 0.0f)};
+  BlendTaps taps{TexelTaps::build(t.irradiance, rayDirs, rayCount, 1.0f, 0.0f),
+                 TexelTaps::build(t.depth, rayDirs, rayCount, distanceExponent, 1e-4f),
+                 TexelTaps::build(t.occlusion, rayDirs, rayCount, 1.0f, 0.0f),
+                 {}};
+  taps.cosine = CosineRows::build(taps.irradiance, rayCount);
+  return taps;
 }
 
 const TexelDirections& TexelDirections::get() {
@@ -161,30 +182,69 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
   float maxChange = (oldState != record.state || moved) ? inf : 0.0f;
 
   // ---- irradiance, SH cascades: project the rays, blend the coefficients, derive the tile ----
-  if (pcEncodingIsSh(c.encoding)) {
+  const bool sh = pcEncodingIsSh(c.encoding);
+  if (sh)
     maxChange = std::max(maxChange, blendShProbe(field, k, slot, rays, dirs, rayCount, alpha));
-  } else {
-    // ---- irradiance: E = pi * cos-weighted mean radiance; backface rays carry no light ----
+  // ---- irradiance (E = pi * cos-weighted mean radiance; backface rays carry no light) and
+  // occlusion (cos-weighted share of rays that travel past d_max), from one pass per texel
+  // over the cosine rows ----
+  {
     constexpr int n = PC_IRRADIANCE_TEXELS;
-    const TexelTaps& tt = taps.irradiance;
-    glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
+    constexpr int kLanes = CosineRows::kLanes;
+    using Lanes = float __attribute__((vector_size(kLanes * sizeof(float))));
+    const CosineRows& rows = taps.cosine;
+    const float dmax = field.desc.occlusionDistance;
+    // Per-ray inputs as contiguous arrays, zero past the last ray: radiance of front-face hits
+    // and misses, 1 for those (their weight counts), 1 for rays past d_max.
+    alignas(16) float red[kMaxRaysPerProbe], green[kMaxRaysPerProbe], blue[kMaxRaysPerProbe];
+    alignas(16) float front[kMaxRaysPerProbe], open[kMaxRaysPerProbe];
+    for (int i = 0; i < rows.stride; ++i) {
+      const bool ray = i < rayCount, isFront = ray && rays[i].distance >= 0.0f;
+      red[i] = isFront ? rays[i].radiance.x : 0.0f;
+      green[i] = isFront ? rays[i].radiance.y : 0.0f;
+      blue[i] = isFront ? rays[i].radiance.z : 0.0f;
+      front[i] = isFront ? 1.0f : 0.0f;
+      open[i] = ray && rays[i].distance > dmax ? 1.0f : 0.0f;
+    }
+    const auto load = [](const float* p) {
+      Lanes v;
+      std::memcpy(&v, p, sizeof v);
+      return v;
+    };
+    const auto sum = [](Lanes v) {
+      float s = 0.0f;
+      for (int l = 0; l < kLanes; ++l) s += v[l];
+      return s;
+    };
+    const glm::ivec2 irradianceOrigin = pcAtlasTileOrigin(c, slot, n + 2);
+    const glm::ivec2 occlusionOrigin = pcAtlasTileOrigin(c, slot, PC_OCCLUSION_TEXELS + 2);
     for (int t = 0; t < n * n; ++t) {
-      glm::vec3 sum(0.0f);
-      float weight = 0.0f;
-      for (std::uint32_t j = tt.begin[t]; j < tt.begin[t + 1]; ++j) {
-        const RayResult& r = rays[tt.ray[j]];
-        if (r.distance < 0.0f) continue;
-        sum += tt.weight[j] * r.radiance;
-        weight += tt.weight[j];
+      const float* w = &rows.weight[std::size_t(t) * std::size_t(rows.stride)];
+      Lanes r{}, g{}, b{}, frontWeight{}, openWeight{};
+      for (int i = 0; i < rows.stride; i += kLanes) {
+        const Lanes wi = load(w + i);
+        r += wi * load(red + i);
+        g += wi * load(green + i);
+        b += wi * load(blue + i);
+        frontWeight += wi * load(front + i);
+        openWeight += wi * load(open + i);
       }
-      if (weight <= 0.0f) continue;
-      glm::vec3 sample = pcEncodeIrradiance(PC_PI * sum / weight);
-      float* texel = field.irradiance.at(origin.x + 1 + t % n, origin.y + 1 + t / n);
-      glm::vec3 old(texel[0], texel[1], texel[2]);
-      glm::vec3 blended = glm::mix(sample, old, alpha);
-      glm::vec3 delta = glm::abs(blended - old);
-      maxChange = std::max(maxChange, std::max(delta.x, std::max(delta.y, delta.z)));
-      texel[0] = blended.x, texel[1] = blended.y, texel[2] = blended.z;
+      const int x = t % n, y = t / n;
+      const float weight = sum(frontWeight), allWeight = rows.total[std::size_t(t)];
+      if (!sh && weight > 0.0f) {
+        const glm::vec3 s(sum(r), sum(g), sum(b));
+        glm::vec3 sample = pcEncodeIrradiance(PC_PI * s / weight);
+        float* texel = field.irradiance.at(irradianceOrigin.x + 1 + x, irradianceOrigin.y + 1 + y);
+        glm::vec3 old(texel[0], texel[1], texel[2]);
+        glm::vec3 blended = glm::mix(sample, old, alpha);
+        glm::vec3 delta = glm::abs(blended - old);
+        maxChange = std::max(maxChange, std::max(delta.x, std::max(delta.y, delta.z)));
+        texel[0] = blended.x, texel[1] = blended.y, texel[2] = blended.z;
+      }
+      if (allWeight > 0.0f) {
+        float* texel = field.occlusion.at(occlusionOrigin.x + 1 + x, occlusionOrigin.y + 1 + y);
+        texel[0] = glm::mix(sum(openWeight) / allWeight, texel[0], alpha);
+      }
     }
   }
   // ---- depth moments: sharp lobe; backface hits count at a fraction of their distance ----
@@ -209,23 +269,6 @@ float blendProbe(Field& field, int k, int slot, const RayResult* rays, const glm
       float* texel = field.depth.at(origin.x + 1 + t % n, origin.y + 1 + t / n);
       texel[0] = glm::mix(m1 / weight, texel[0], alpha);
       texel[1] = glm::mix(m2 / weight, texel[1], alpha);
-    }
-  }
-  // ---- occlusion: cos-weighted share of rays that travel past d_max ----
-  {
-    constexpr int n = PC_OCCLUSION_TEXELS;
-    const TexelTaps& tt = taps.occlusion;
-    glm::ivec2 origin = pcAtlasTileOrigin(c, slot, n + 2);
-    const float dmax = field.desc.occlusionDistance;
-    for (int t = 0; t < n * n; ++t) {
-      float open = 0.0f, weight = 0.0f;
-      for (std::uint32_t j = tt.begin[t]; j < tt.begin[t + 1]; ++j) {
-        open += rays[tt.ray[j]].distance > dmax ? tt.weight[j] : 0.0f;
-        weight += tt.weight[j];
-      }
-      if (weight <= 0.0f) continue;
-      float* texel = field.occlusion.at(origin.x + 1 + t % n, origin.y + 1 + t / n);
-      texel[0] = glm::mix(open / weight, texel[0], alpha);
     }
   }
   field.fixBorders(k, slot);

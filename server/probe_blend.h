@@ -36,8 +36,21 @@ struct TexelTaps {
                          int rayCount, float exponent, float minWeight);
 };
 
+// The irradiance and occlusion lobes (both cosine over the same 8x8 texel directions, so the
+// same weights) as a dense texel x ray matrix, each row padded with zeros to a multiple of
+// kLanes rays: the CPU blend sums a texel's row over contiguous per-ray arrays, kLanes rays at
+// a time, instead of gathering its taps one by one.
+struct CosineRows {
+  static constexpr int kLanes = 4;
+  int stride = 0;             // rays per row, padded
+  std::vector<float> weight;  // texel t, ray i at [t * stride + i]; the taps' weights, else 0
+  std::vector<float> total;   // per texel: the sum of its taps' weights, in tap order
+  static CosineRows build(const TexelTaps& taps, int rayCount);
+};
+
 struct BlendTaps {
   TexelTaps irradiance, depth, occlusion;
+  CosineRows cosine;  // irradiance's taps (equal to occlusion's) as dense rows
   static BlendTaps build(const glm::vec3* rayDirs, int rayCount, float distanceExponent);
 };
 

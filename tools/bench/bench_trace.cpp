@@ -1,19 +1,23 @@
 // trace: in one run, on the same scene and the same probe rays, (a) bare Embree closest-hit
 // throughput for the probe rays alone and (b) the full field update (probe rays, shadow rays,
-// shading with the previous field, blending). Prints both rates and their ratio.
+// shading with the previous field, blending). Prints both rates and their ratio. The field
+// the measured updates leave can be written, or compared with one written before: a faster
+// update must leave the same field.
 #include <chrono>
 
 #include "bench.h"
 #include "common/field.h"
 #include "common/volume_placement.h"
+#include "protocol/baked_file.h"
 #include "server/bake.h"
 #include "server/embree_tracer.h"
+#include "server/field_compare.h"
 
 namespace pc::bench {
 
 Benchmark addTrace(CLI::App& app) {
   auto* cmd = app.add_subcommand("trace", "Embree: raw probe-ray rate vs full field update rate");
-  static std::string scenePath = "builtin", sidecar;
+  static std::string scenePath = "builtin", sidecar, writeField, compareField;
   static int updates = 6, warmup = 4, rays = 256;
   static std::vector<int> counts;
   static float roulette = pc::TracerOptions{}.shadowRouletteShare;
@@ -29,6 +33,10 @@ Benchmark addTrace(CLI::App& app) {
   cmd->add_option("--rays", rays, "rays per probe");
   cmd->add_option("--counts", counts, "probes per axis of a single cascade over the scene (x y z)")
       ->expected(3);
+  cmd->add_option("--write-field", writeField, "write the field the measured updates left here");
+  cmd->add_option("--compare-field", compareField,
+                  "compare the field the measured updates left with this one (--write-field of "
+                  "the same command)");
   return {cmd, [] {
             auto scene = loadBenchScene(scenePath, sidecar);
             if (!scene) {
@@ -106,6 +114,30 @@ Benchmark addTrace(CLI::App& app) {
             figure("update_mrays", full, "Mrays/s");
             figure("update_probe_mrays", fullProbe, "Mrays/s");
             figure("trace_ratio", full / raw, "ratio");
+            if (!writeField.empty()) {
+              if (Status s = writeBakedField(writeField, field); !s) {
+                std::fprintf(stderr, "trace: %s\n", s.error().message.c_str());
+                return 1;
+              }
+            }
+            if (!compareField.empty()) {
+              auto reference = readBakedField(compareField, 0);
+              if (!reference) {
+                std::fprintf(stderr, "trace: %s\n", reference.error().message.c_str());
+                return 1;
+              }
+              if (!sameLayout(field.desc, reference->desc)) {
+                std::fprintf(stderr, "trace: %s holds another field layout\n",
+                             compareField.c_str());
+                return 1;
+              }
+              const FieldDifference d = compareFields(field, *reference);
+              std::printf("against %s: %d probes active in both, %d states differ\n",
+                          compareField.c_str(), d.probes, d.stateMismatches);
+              figure("field_rel_diff_irradiance", d.irradiance, "ratio");
+              figure("field_rel_diff_depth", d.depth, "ratio");
+              figure("field_state_mismatches", d.stateMismatches, "probes");
+            }
             return 0;
           }};
 }
