@@ -226,5 +226,41 @@ TEST(ClientSunCascades, ThinPostShadowFarFromTheCentreMatchesCpuVisibility) {
   EXPECT_EQ(ctx->validationErrorCount(), 0u);
 }
 
+// The shadow cache with cascades: a still camera keeps every cascade, a moved one redraws
+// those whose fit changed, and the kept maps give the image a fresh renderer draws.
+TEST(ClientSunCascades, StillCameraKeepsTheMapsAMovedOneRedrawsThem) {
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  const Scene scene = yard(kPostLo, kPostHi, 3.0f);
+  Camera moved = postCamera();
+  moved.position += glm::vec3(1.0f, 0.0f, -0.5f);
+  FieldMirror mirror;
+  RendererOptions ro;
+  ro.width = 96;
+  ro.height = 72;
+  auto renderer = Renderer::create(*ctx, scene, mirror, ro);
+  ASSERT_TRUE(renderer.ok()) << (renderer ? "" : renderer.error().message);
+  std::vector<int> drawn;
+  int layers = 0;
+  Renderer::Readback last;
+  for (const Camera& camera : {postCamera(), postCamera(), moved, moved}) {
+    FrameInput input;
+    input.cameras[0] = camera;
+    auto frame = (*renderer)->renderOffscreen(input);
+    ASSERT_TRUE(frame.ok());
+    drawn.push_back((*renderer)->lastStats().shadowViewsDrawn);
+    layers = (*renderer)->lastStats().shadowViews;
+    last = std::move(frame).value();
+  }
+  EXPECT_EQ(layers, gpu::PC_SUN_CASCADES);
+  EXPECT_EQ(drawn, (std::vector<int>{layers, 0, drawn[2], 0}));
+  EXPECT_GT(drawn[2], 0);  // at least the nearest slice's map moved
+  const ClientFrame fresh = renderClientFrame(*ctx, scene, nullptr, moved, nullptr, 96, 72);
+  ASSERT_EQ(last.display.size(), 1u);
+  ASSERT_EQ(fresh.display.size(), 1u);
+  EXPECT_EQ(last.display[0].rgb, fresh.display[0].rgb);
+  EXPECT_EQ(ctx->validationErrorCount(), 0u);
+}
+
 }  // namespace
 }  // namespace pc::client::test

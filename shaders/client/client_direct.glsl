@@ -46,18 +46,20 @@ float filteredShadow(int array, int layer, vec2 uv, float ref, float texel) {
 
 // The sun's cascade `c` at P: its visibility, and how far inside the map P lies
 // (pcSunCascadeWeight: below 0 outside). The receiver moves along its normal by
-// PC_SUN_NORMAL_OFFSET_TEXELS of this map's texels (an orthographic map's x row has length
-// 2 / its width), so surfaces do not shadow themselves at any cascade's resolution.
+// PC_SUN_NORMAL_OFFSET_TEXELS of this map's texels (an orthographic map's x and y rows have
+// length 2 / its width and height; the larger texel counts), so surfaces do not shadow
+// themselves at any cascade's resolution.
 float sunCascade(GpuLight l, vec3 P, vec3 N, int c, out float visibility) {
   mat4 m = shadowMatrices[l.shadowMatrix + c];
-  float texelWorld = 2.0 * l.shadowTexel / length(vec3(m[0][0], m[1][0], m[2][0]));
+  float rows =
+      min(length(vec3(m[0][0], m[1][0], m[2][0])), length(vec3(m[0][1], m[1][1], m[2][1])));
+  float texelWorld = 2.0 * l.shadowTexel / rows;
   vec3 ndc = (m * vec4(P + N * (l.normalOffset * texelWorld) - l.position, 1.0)).xyz;
   vec2 uv = ndc.xy * 0.5 + 0.5;
   float weight = pcSunCascadeWeight(uv, ndc.z, l.shadowTexel);
-  visibility = weight < 0.0
-                   ? 1.0
-                   : filteredShadow(l.shadowArray, l.shadowLayer + c, uv, ndc.z - l.depthBias,
-                                    l.shadowTexel);
+  visibility = weight < 0.0 ? 1.0
+                            : filteredShadow(l.shadowArray, l.shadowLayer + c, uv,
+                                             ndc.z - l.depthBias, l.shadowTexel);
   return weight;
 }
 

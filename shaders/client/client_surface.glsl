@@ -1,7 +1,10 @@
 // The surface a visibility-buffer sample names, rebuilt where the pixel-centre ray meets the
-// triangle's plane: the point the rasterizer would have interpolated attributes at (outside
-// the triangle on edge samples, as non-centroid interpolation does), so position, normal and
-// texture coordinates equal what a G-buffer would have stored, without its bytes per sample.
+// triangle's plane: the point the rasterizer would have interpolated attributes at, so normal
+// and texture coordinates equal what a G-buffer would have stored, without its bytes per
+// sample. On edge samples that point lies outside the triangle (as non-centroid interpolation
+// puts it); the position that is lit is moved back onto the triangle, since the plane's
+// continuation past a concave junction lies behind the other wall, where the sun or a probe
+// on the far side reaches it: a bright line along every junction.
 // Conventions follow the CPU renders (cpu/lighting.cpp, cpu/embree_scene.cpp): two-sided
 // diffuse surfaces whose shading normal is turned to the viewer's side, one-sided emitters
 // whose front is the mesh's counter-clockwise side. Needs client_common.glsl first, and
@@ -88,6 +91,13 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   Surface s;
   s.distance = max(hit.z, 0.0);
   s.position = eye + ray * s.distance;
+  if (min(b0, min(b1, b2)) < 0.0) {
+    // Outside: to the triangle's point with the barycentrics clamped, as an offset from the
+    // ray's point (no large world coordinates cancel).
+    vec3 b = max(vec3(b0, b1, b2), vec3(0.0));
+    b /= b.x + b.y + b.z;
+    s.position += (b.y - b1) * e1 + (b.z - b2) * e2;
+  }
   vec3 cross12 = cross(e1, e2);
   float area = length(cross12);
   vec3 toEye = -ray;
