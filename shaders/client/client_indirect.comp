@@ -22,6 +22,7 @@ layout(constant_id = 2) const bool VIS_BUFFER = false;
 
 #include "client_field_fetch.glsl"
 #include "client_visibility.glsl"
+#include "client_samples.glsl"
 
 // Hooks of shaders/interop/screen_ao_horizons.h: the surface buffer and the view's rays.
 #define PC_AO_PARAM int view,
@@ -96,7 +97,8 @@ void main() {
     } else if (visibility == 0u) {
       shaded[s] = skyRadiance(ray);  // no geometry: the sky through the pixel centre
     } else {
-      Surface f = surfaceOf(visibility, eye, ray, rayDx, rayDy);
+      vec3 sampleRay = normalize(rayUnderPixel(id.z, vec2(id.xy) + samplePosition(s)));
+      Surface f = surfaceOf(visibility, eye, ray, rayDx, rayDy, sampleRay);
       vec3 V = -ray;
       vec3 indirect = fieldIrradiance(f.position, f.vertexNormal, f.normal, V);
       if (occlusion < 1.0) indirect *= pcAoMultiBounce(occlusion, f.albedo);

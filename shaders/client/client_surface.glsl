@@ -2,9 +2,10 @@
 // triangle's plane: the point the rasterizer would have interpolated attributes at, so normal
 // and texture coordinates equal what a G-buffer would have stored, without its bytes per
 // sample. On edge samples that point lies outside the triangle (as non-centroid interpolation
-// puts it); the position that is lit is moved back onto the triangle, since the plane's
-// continuation past a concave junction lies behind the other wall, where the sun or a probe
-// on the far side reaches it: a bright line along every junction.
+// puts it), and the plane's continuation past a concave junction lies behind the other wall,
+// where the sun or a probe on the far side reaches it: a bright line along every junction. The
+// position that is lit is then where the sample's own ray meets the triangle (inside it, as
+// the CPU renders' primary rays find it), clamped onto the triangle against rounding.
 // Conventions follow the CPU renders (cpu/lighting.cpp, cpu/embree_scene.cpp): two-sided
 // diffuse surfaces whose shading normal is turned to the viewer's side, one-sided emitters
 // whose front is the mesh's counter-clockwise side. Needs client_common.glsl first, and
@@ -74,8 +75,9 @@ WorldTriangle worldTriangle(DrawData d, uint triangle) {
 }
 
 // `id`: a non-zero visibility value; `eye`, `ray` (unit): the pixel-centre ray of its view;
-// `rayDx`, `rayDy`: the next pixel's centre rays across and down (any length).
-Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
+// `rayDx`, `rayDy`: the next pixel's centre rays across and down (any length); `sampleRay`
+// (unit): the ray through the sample that named the triangle.
+Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy, vec3 sampleRay) {
   uint triangle = id - 1u;
   DrawData d = draws[drawOfTriangle(triangle)];
   WorldTriangle w = worldTriangle(d, triangle);
@@ -92,11 +94,14 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   s.distance = max(hit.z, 0.0);
   s.position = eye + ray * s.distance;
   if (min(b0, min(b1, b2)) < 0.0) {
-    // Outside: to the triangle's point with the barycentrics clamped, as an offset from the
+    // Outside: the sample's own ray, then the barycentrics clamped, as an offset from the
     // ray's point (no large world coordinates cancel).
-    vec3 b = max(vec3(b0, b1, b2), vec3(0.0));
-    b /= b.x + b.y + b.z;
-    s.position += (b.y - b1) * e1 + (b.z - b2) * e2;
+    vec3 sampleHit = planeHit(sampleRay, e1, e2, tv, cross(tv, e1));
+    s.position = eye + sampleRay * max(sampleHit.z, 0.0);
+    vec3 b = vec3(1.0 - sampleHit.x - sampleHit.y, sampleHit.x, sampleHit.y);
+    vec3 clamped = max(b, vec3(0.0));
+    clamped /= clamped.x + clamped.y + clamped.z;
+    s.position += (clamped.y - b.y) * e1 + (clamped.z - b.z) * e2;
   }
   vec3 cross12 = cross(e1, e2);
   float area = length(cross12);
