@@ -89,7 +89,8 @@ SunCascadeMatrices fitSunCascades(const glm::mat4& lightView, glm::vec3 origin, 
       farDistance = std::max(farDistance, d);
     }
   }
-  nearDistance = std::max(nearDistance, std::max(focus.nearPlane, 1e-6f));
+  nearDistance =
+      std::max({nearDistance, focus.nearPlane, gpu::PC_SUN_CASCADE_NEAREST * farDistance});
   if (!(farDistance > nearDistance)) return out;
   const auto splits = sunCascadeSplits(nearDistance, farDistance);
 

@@ -17,9 +17,12 @@ PC_BEGIN
 // Maps per sun (shadow layers and matrices, from GpuLight::shadowLayer / shadowMatrix on).
 PC_CONST int PC_SUN_CASCADES = 4;
 // Split distances: this share of a logarithmic split, the rest a uniform one (the "practical
-// split scheme"). Logarithmic gives equal texels per pixel on screen but spends almost all of
-// a map on the first metre; the mix keeps far slices from growing too coarse.
-PC_CONST float PC_SUN_CASCADE_LOG_SHARE = 0.6f;
+// split scheme"). Logarithmic gives equal texels per pixel on screen; the uniform share keeps
+// far slices from growing too coarse.
+PC_CONST float PC_SUN_CASCADE_LOG_SHARE = 0.9f;
+// The slices start no nearer than this share of the farthest distance: a near plane of a few
+// centimetres would spend the logarithmic split's first slice on them.
+PC_CONST float PC_SUN_CASCADE_NEAREST = 0.005f;
 // Texels kept free at a map's border: the 3x3 filter's gathers read two texels past the centre.
 PC_CONST float PC_SUN_CASCADE_MARGIN_TEXELS = 3.0f;
 // The band along a map's border (share of its width) where it fades into the next map.
