@@ -67,7 +67,8 @@ void addCube(LightSet& set, gpu::GpuLight& light, int array, glm::vec3 position,
   layers += 6;
 }
 
-void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const ShadowSettings& s) {
+void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const ShadowSettings& s,
+                 const ShadowFocus& focus) {
   gpu::GpuLight g = packLight(l);
   const float diag = std::max(bounds.diagonal(), 1e-3f);
   const float nearPlane = 1e-3f * diag;
@@ -90,28 +91,27 @@ void addPunctual(LightSet& set, const Light& l, const Bounds& bounds, const Shad
     set.matrices.push_back(m);
     set.views.push_back(shadowView(kLargeShadowArray, g.shadowLayer, m, g.position));
   } else {
-    // The sun: an orthographic map fitted around the scene's bounds as the light sees them.
+    // The sun: cascaded orthographic maps fitted to the views (sun_cascades.h).
     const glm::vec3 centre = 0.5f * (bounds.lo + bounds.hi);
     glm::vec3 up(0.0f, 1.0f, 0.0f);
     if (std::abs(glm::dot(up, g.direction)) > 0.99f) up = glm::vec3(1.0f, 0.0f, 0.0f);
-    // The shadow origin: the map's eye, where the light's position would be.
+    // The shadow origin: the maps' eye, where the light's position would be. Fixed by the
+    // scene's bounds, so the cascades' texel grids stay put while the camera moves.
     g.position = centre - g.direction * diag;
     const glm::mat4 view = glm::lookAtRH(glm::vec3(0.0f), g.direction, up);
-    glm::vec3 lo(INFINITY), hi(-INFINITY);
-    for (int i = 0; i < 8; ++i) {
-      const glm::vec3 p = glm::vec3(view * glm::vec4(bounds.corner(i) - g.position, 1.0f));
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
-    }
-    // View space looks down -z: near and far are the negated z extremes.
-    const glm::mat4 m = glm::orthoRH_ZO(lo.x, hi.x, lo.y, hi.y, -hi.z, -lo.z) * view;
+    const SunCascadeMatrices cascades = fitSunCascades(
+        view, g.position, bounds.lo, bounds.hi, s.sunCascades ? focus : ShadowFocus{}, s.largeSize);
     g.shadowArray = kLargeShadowArray;
-    g.shadowLayer = set.layers[kLargeShadowArray]++;
+    g.shadowLayer = set.layers[kLargeShadowArray];
     g.shadowMatrix = int(set.matrices.size());
     g.shadowTexel = 1.0f / float(s.largeSize);
-    g.normalOffset = kNormalOffsetTexels * std::max(hi.x - lo.x, hi.y - lo.y) / float(s.largeSize);
-    set.matrices.push_back(m);
-    set.views.push_back(shadowView(kLargeShadowArray, g.shadowLayer, m, g.position));
+    g.normalOffset = gpu::PC_SUN_NORMAL_OFFSET_TEXELS;  // in texels of each cascade's map
+    for (int c = 0; c < gpu::PC_SUN_CASCADES; ++c) {
+      set.matrices.push_back(cascades[std::size_t(c)]);
+      set.views.push_back(
+          shadowView(kLargeShadowArray, g.shadowLayer + c, cascades[std::size_t(c)], g.position));
+    }
+    set.layers[kLargeShadowArray] += gpu::PC_SUN_CASCADES;
   }
   set.lights.push_back(g);
 }
@@ -136,10 +136,10 @@ void addAreaLight(LightSet& set, glm::vec3 position, glm::vec3 normal, glm::vec3
 }  // namespace
 
 LightSet buildLights(const Scene& scene, const SceneState& state, const EmissiveLights& emitters,
-                     const ShadowSettings& settings) {
+                     const ShadowSettings& settings, const ShadowFocus& focus) {
   LightSet set;
   const Bounds bounds = sceneBounds(scene);
-  for (const Light& l : state.lights) addPunctual(set, l, bounds, settings);
+  for (const Light& l : state.lights) addPunctual(set, l, bounds, settings, focus);
   if (emitters.empty() || settings.areaLights <= 0) return set;
 
   const auto& tris = emitters.triangles();

@@ -17,17 +17,21 @@
 #include "common/light_pack.h"
 #include "common/scene.h"
 #include "shaders/interop/client_frame.h"
+#include "sun_cascades.h"
 
 namespace pc::client {
 
 struct ShadowSettings {
-  int largeSize = 2048;  // sun and spot light maps (texels per side)
+  int largeSize = 2048;  // spot light maps and each of the sun's cascades (texels per side)
   int smallSize = 512;   // the emitters' virtual point lights
   // Point lights' cube faces: a face spans 90 degrees, so 1024 texels give about the angular
   // resolution of a 1080p view with a 60-degree field of view, and a moving point light
   // redraws six faces a frame (a quarter of the texels of 2048^2 faces).
   int pointSize = 1024;
   int areaLights = 16;  // about this many virtual point lights for all emitters together
+  // The sun's maps fitted to the views (sun_cascades.h); false: each covers the whole scene,
+  // as one map did before cascades (to compare the two).
+  bool sunCascades = true;
 };
 
 // Shadow map arrays: sun and spots, the emitters' virtual point lights, point-light cube faces.
@@ -57,7 +61,9 @@ struct LightSet {
   int areaLightCount = 0;
 };
 
+// `focus`: the views the sun's cascades are fitted to (none: each covers the whole scene; the
+// number of layers and matrices does not depend on it).
 LightSet buildLights(const Scene& scene, const SceneState& state, const EmissiveLights& emitters,
-                     const ShadowSettings& settings);
+                     const ShadowSettings& settings, const ShadowFocus& focus = {});
 
 }  // namespace pc::client

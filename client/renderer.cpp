@@ -106,8 +106,13 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   }
   std::vector<gpu::DrawData> draws = drawData(scene, gpuScene_->packed(), state);
 
-  LightSet lights =
-      buildLights(scene, state, EmissiveLights::build(scene, state, *emissive_), options_.shadows);
+  // The sun's cascades follow the cameras (both eyes in stereo).
+  ShadowFocus focus;
+  focus.cameras.assign(input.cameras.begin(), input.cameras.begin() + options_.views);
+  focus.aspect = float(options_.width) / float(options_.height);
+  focus.nearPlane = nearPlane_;
+  LightSet lights = buildLights(scene, state, EmissiveLights::build(scene, state, *emissive_),
+                                options_.shadows, focus);
   // Counts are fixed at creation; a scene whose emitters changed count keeps what fits.
   const int lightCount = std::min(int(lights.lights.size()), lightCount_);
   const int matrixCount = std::min(int(lights.matrices.size()), matrixCount_);

@@ -77,7 +77,8 @@ TEST(ClientGolden, RtxgiCornell) {
   if (!std::filesystem::exists(scenePath("rtxgi-cornell/cornell.glb")))
     GTEST_SKIP() << "no shared scenes at " << PC_SCENES_DIR;
   const Golden g = measure("rtxgi-cornell/cornell.glb", 24, 256, "rtxgi-cornell");
-  // Achieved on lavapipe: 33.6 dB vs CPU, 33.6 dB vs reference.
+  // Achieved on lavapipe: 34.4 dB vs CPU, 34.5 dB vs reference (33.6 and 33.6 before edge
+  // samples were lit where they lie).
   EXPECT_GE(g.vsCpu, 32.0);
   EXPECT_GE(g.vsReference, 32.0);
 }

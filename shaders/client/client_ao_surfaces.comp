@@ -35,7 +35,7 @@ void main() {
   }
   vec2 centre = vec2(id.xy) + 0.5;
   vec3 ray = normalize(rayUnderPixel(id.z, centre));
-  Surface f = surfaceOf(visibility, frame.views[id.z].position.xyz, ray, ray, ray);
+  Surface f = surfaceOf(visibility, frame.views[id.z].position.xyz, ray, ray, ray, ray);
   // From the ray and its length, not the position minus the eye: nothing cancels far from
   // the world's origin (the CPU stores the same).
   aoSurfaces[2u * pixel] = vec4(ray * f.distance, 1.0);

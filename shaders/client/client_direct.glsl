@@ -4,6 +4,8 @@
 // small where graphics units are few (an H100: docs/BENCHMARKS.md), and surfaces are shaded
 // once per distinct triangle of a pixel.
 // Needs client_common.glsl first.
+#include "../interop/sun_cascades.h"
+
 layout(set = 0, binding = PC_CLIENT_BIND_LIGHTS, std430) readonly buffer LightBlock { GpuLight lights[]; };
 layout(set = 0, binding = PC_CLIENT_BIND_SHADOW_MATRICES, std430) readonly buffer ShadowBlock {
   mat4 shadowMatrices[];
@@ -18,16 +20,70 @@ int cubeFace(vec3 v) {
   return v.z >= 0.0 ? 4 : 5;
 }
 
-// Share of the light that reaches P, from the light's shadow map with 3x3 percentage-closer
-// filtering: the mean of nine bilinear 2x2 comparisons one texel apart. Those nine taps cover
-// a 4x4 block of texels with per-axis weights (1 - f, 1, 1, f) (f: the bilinear fraction),
-// so four gathered comparisons of that block, weighted here, give the same filter with four
-// fetches instead of nine. The receiver moves along its normal by a texel's footprint so
-// surfaces do not shadow themselves.
+// Share of the light that reaches the point at `uv` (depth `ref`) of a shadow map layer, with
+// 3x3 percentage-closer filtering: the mean of nine bilinear 2x2 comparisons one texel apart.
+// Those nine taps cover a 4x4 block of texels with per-axis weights (1 - f, 1, 1, f) (f: the
+// bilinear fraction), so four gathered comparisons of that block, weighted here, give the same
+// filter with four fetches instead of nine.
+float filteredShadow(int array, int layer, vec2 uv, float ref, float texel) {
+  vec3 coord = vec3(uv, float(layer));
+  // Gather components: x (low u, high v), y (high u, high v), z (high u, low v), w (low, low).
+  vec4 a = textureGatherOffset(shadowMaps[array], coord, ref, ivec2(-1, -1));
+  vec4 b = textureGatherOffset(shadowMaps[array], coord, ref, ivec2(1, -1));
+  vec4 c = textureGatherOffset(shadowMaps[array], coord, ref, ivec2(-1, 1));
+  vec4 d = textureGatherOffset(shadowMaps[array], coord, ref, ivec2(1, 1));
+  vec4 all4 = a + b + c + d;
+  float total = all4.x + all4.y + all4.z + all4.w;
+  if (total == 0.0 || total == 16.0) return total / 16.0;  // fully shadowed or fully lit
+  vec2 f = fract(uv / texel - 0.5);
+  vec2 lo = 1.0 - f;  // weight of the lowest texel row/column; the middle two weigh 1
+  float sum = dot(a, vec4(lo.x, 1.0, 1.0, lo.x) * vec4(1.0, 1.0, lo.y, lo.y)) +
+              dot(b, vec4(1.0, f.x, f.x, 1.0) * vec4(1.0, 1.0, lo.y, lo.y)) +
+              dot(c, vec4(lo.x, 1.0, 1.0, lo.x) * vec4(f.y, f.y, 1.0, 1.0)) +
+              dot(d, vec4(1.0, f.x, f.x, 1.0) * vec4(f.y, f.y, 1.0, 1.0));
+  return sum / 9.0;
+}
+
+// The sun's cascade `c` at P: its visibility, and how far inside the map P lies
+// (pcSunCascadeWeight: below 0 outside). The receiver moves along its normal by
+// PC_SUN_NORMAL_OFFSET_TEXELS of this map's texels (an orthographic map's x and y rows have
+// length 2 / its width and height; the larger texel counts), so surfaces do not shadow
+// themselves at any cascade's resolution.
+float sunCascade(GpuLight l, vec3 P, vec3 N, int c, out float visibility) {
+  mat4 m = shadowMatrices[l.shadowMatrix + c];
+  float rows =
+      min(length(vec3(m[0][0], m[1][0], m[2][0])), length(vec3(m[0][1], m[1][1], m[2][1])));
+  float texelWorld = 2.0 * l.shadowTexel / rows;
+  vec3 ndc = (m * vec4(P + N * (l.normalOffset * texelWorld) - l.position, 1.0)).xyz;
+  vec2 uv = ndc.xy * 0.5 + 0.5;
+  float weight = pcSunCascadeWeight(uv, ndc.z, l.shadowTexel);
+  visibility = weight < 0.0 ? 1.0
+                            : filteredShadow(l.shadowArray, l.shadowLayer + c, uv,
+                                             ndc.z - l.depthBias, l.shadowTexel);
+  return weight;
+}
+
+// The sun at P: the finest cascade that holds P, faded into the next one near its border;
+// lit where none holds it (outside the scene's bounds).
+float sunVisibility(GpuLight l, vec3 P, vec3 N) {
+  for (int c = 0; c < PC_SUN_CASCADES; ++c) {
+    float v;
+    float w = sunCascade(l, P, N, c, v);
+    if (w < 0.0) continue;
+    if (w >= 1.0 || c + 1 == PC_SUN_CASCADES) return v;
+    float next;
+    if (sunCascade(l, P, N, c + 1, next) < 0.0) return v;
+    return mix(next, v, w);
+  }
+  return 1.0;
+}
+
+// Share of a spot, point or area light that reaches P, from its perspective shadow map (a
+// cube face for point and area lights). The receiver moves along its normal by a texel's
+// footprint at its distance so surfaces do not shadow themselves.
 float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
   if (l.shadowLayer < 0) return 1.0;
-  bool perspective = l.type != PC_LIGHT_DIRECTIONAL;
-  vec3 offsetP = P + N * (perspective ? l.normalOffset * dist : l.normalOffset);
+  vec3 offsetP = P + N * (l.normalOffset * dist);
   int matrixIndex = l.shadowMatrix;
   int layer = l.shadowLayer;
   if (l.type == PC_LIGHT_POINT || l.type == PC_LIGHT_AREA) {
@@ -40,23 +96,7 @@ float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
   vec3 ndc = clip.xyz / clip.w;
   vec2 uv = ndc.xy * 0.5 + 0.5;
   if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0))) || ndc.z >= 1.0) return 1.0;
-  float ref = ndc.z - l.depthBias;
-  vec3 coord = vec3(uv, float(layer));
-  // Gather components: x (low u, high v), y (high u, high v), z (high u, low v), w (low, low).
-  vec4 a = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(-1, -1));
-  vec4 b = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(1, -1));
-  vec4 c = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(-1, 1));
-  vec4 d = textureGatherOffset(shadowMaps[l.shadowArray], coord, ref, ivec2(1, 1));
-  vec4 all4 = a + b + c + d;
-  float total = all4.x + all4.y + all4.z + all4.w;
-  if (total == 0.0 || total == 16.0) return total / 16.0;  // fully shadowed or fully lit
-  vec2 f = fract(uv / l.shadowTexel - 0.5);
-  vec2 lo = 1.0 - f;  // weight of the lowest texel row/column; the middle two weigh 1
-  float sum = dot(a, vec4(lo.x, 1.0, 1.0, lo.x) * vec4(1.0, 1.0, lo.y, lo.y)) +
-              dot(b, vec4(1.0, f.x, f.x, 1.0) * vec4(1.0, 1.0, lo.y, lo.y)) +
-              dot(c, vec4(lo.x, 1.0, 1.0, lo.x) * vec4(f.y, f.y, 1.0, 1.0)) +
-              dot(d, vec4(1.0, f.x, f.x, 1.0) * vec4(f.y, f.y, 1.0, 1.0));
-  return sum / 9.0;
+  return filteredShadow(l.shadowArray, layer, uv, ndc.z - l.depthBias, l.shadowTexel);
 }
 
 // Every light at P, each shadowed by its map; the light itself is the shared light model
@@ -71,10 +111,8 @@ vec3 directIrradiance(vec3 P, vec3 N, vec3 Nbias) {
     float d;
     float scale = pcLightScale(l, P, N, wi, d);
     if (!(scale > 0.0)) continue;  // behind P, outside its cone or range
-    // Two calls, so that the sun's lookup is compiled apart from the perspective maps' (it
-    // needs neither the distance nor a cube face): 2% of the pass on an H200.
     if (l.type == PC_LIGHT_DIRECTIONAL) {
-      E += l.power * (scale * shadowVisibility(l, P, Nbias, 0.0));
+      E += l.power * (scale * (l.shadowLayer < 0 ? 1.0 : sunVisibility(l, P, Nbias)));
     } else {
       E += l.power * (scale * shadowVisibility(l, P, Nbias, d));
     }

@@ -22,6 +22,7 @@ layout(constant_id = 2) const bool VIS_BUFFER = false;
 
 #include "client_field_fetch.glsl"
 #include "client_visibility.glsl"
+#include "client_samples.glsl"
 
 // Hooks of shaders/interop/screen_ao_horizons.h: the surface buffer and the view's rays.
 #define PC_AO_PARAM int view,
@@ -81,9 +82,15 @@ void main() {
   uint ids[SAMPLES];
   vec3 shaded[SAMPLES];
   vec3 sum = vec3(0.0);
+  // Where the pixel holds more than one triangle, each is lit where a sample of its own shows
+  // it, not on the centre ray (client_surface.glsl).
+  bool onePrimitive = true;
   for (int s = 0; s < SAMPLES; ++s) {
-    uint visibility = visibilityAt(id, s);
-    ids[s] = visibility;
+    ids[s] = visibilityAt(id, s);
+    onePrimitive = onePrimitive && ids[s] == ids[0];
+  }
+  for (int s = 0; s < SAMPLES; ++s) {
+    uint visibility = ids[s];
     int same = -1;
     for (int u = 0; u < s; ++u) {
       if (ids[u] == visibility) {
@@ -96,7 +103,9 @@ void main() {
     } else if (visibility == 0u) {
       shaded[s] = skyRadiance(ray);  // no geometry: the sky through the pixel centre
     } else {
-      Surface f = surfaceOf(visibility, eye, ray, rayDx, rayDy);
+      vec3 sampleRay =
+          onePrimitive ? ray : normalize(rayUnderPixel(id.z, vec2(id.xy) + samplePosition(s)));
+      Surface f = surfaceOf(visibility, eye, ray, rayDx, rayDy, sampleRay);
       vec3 V = -ray;
       vec3 indirect = fieldIrradiance(f.position, f.vertexNormal, f.normal, V);
       if (occlusion < 1.0) indirect *= pcAoMultiBounce(occlusion, f.albedo);

@@ -1,7 +1,13 @@
 // The surface a visibility-buffer sample names, rebuilt where the pixel-centre ray meets the
-// triangle's plane: the point the rasterizer would have interpolated attributes at (outside
-// the triangle on edge samples, as non-centroid interpolation does), so position, normal and
-// texture coordinates equal what a G-buffer would have stored, without its bytes per sample.
+// triangle's plane: the point the rasterizer would have interpolated attributes at, so normal
+// and texture coordinates equal what a G-buffer would have stored, without its bytes per
+// sample. In a pixel that holds more than one triangle, the pixel centre may not show this
+// one: its ray meets the triangle's plane beyond the triangle (as non-centroid interpolation
+// puts it), or the triangle itself behind another one. Past a junction that point lies behind
+// the other wall, where the sun or a probe on the far side reaches it: a bright line along
+// every junction. The position that is lit is therefore where the ray of a sample that shows
+// the triangle meets it (as the CPU renders' primary rays find it), clamped onto the triangle
+// against rounding.
 // Conventions follow the CPU renders (cpu/lighting.cpp, cpu/embree_scene.cpp): two-sided
 // diffuse surfaces whose shading normal is turned to the viewer's side, one-sided emitters
 // whose front is the mesh's counter-clockwise side. Needs client_common.glsl first, and
@@ -71,8 +77,9 @@ WorldTriangle worldTriangle(DrawData d, uint triangle) {
 }
 
 // `id`: a non-zero visibility value; `eye`, `ray` (unit): the pixel-centre ray of its view;
-// `rayDx`, `rayDy`: the next pixel's centre rays across and down (any length).
-Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
+// `rayDx`, `rayDy`: the next pixel's centre rays across and down (any length); `sampleRay`
+// (unit): the ray through a sample that shows the triangle (the centre ray where all do).
+Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy, vec3 sampleRay) {
   uint triangle = id - 1u;
   DrawData d = draws[drawOfTriangle(triangle)];
   WorldTriangle w = worldTriangle(d, triangle);
@@ -88,6 +95,16 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy) {
   Surface s;
   s.distance = max(hit.z, 0.0);
   s.position = eye + ray * s.distance;
+  if (sampleRay != ray) {
+    // The sample's ray, then the barycentrics clamped, as an offset from the ray's point (no
+    // large world coordinates cancel).
+    vec3 sampleHit = planeHit(sampleRay, e1, e2, tv, qv);
+    s.position = eye + sampleRay * max(sampleHit.z, 0.0);
+    vec3 b = vec3(1.0 - sampleHit.x - sampleHit.y, sampleHit.x, sampleHit.y);
+    vec3 clamped = max(b, vec3(0.0));
+    clamped /= clamped.x + clamped.y + clamped.z;
+    s.position += (clamped.y - b.y) * e1 + (clamped.z - b.z) * e2;
+  }
   vec3 cross12 = cross(e1, e2);
   float area = length(cross12);
   vec3 toEye = -ray;

@@ -42,7 +42,8 @@ struct GpuLight {
   float cosInner;
   int shadowLayer;     // client: first layer in its shadow array (6 for cubes), -1: no shadow
   int shadowArray;     // client: 0 large maps (sun, spots), 1 small (area), 2 point-light cubes
-  float normalOffset;  // client: world units per unit of distance (perspective) or absolute
+  float normalOffset;  // client: world units per unit of distance (perspective);
+                       // directional: texels of the cascade looked up
   // -- 64
   int shadowMatrix;   // client: index of its first matrix in the shadow matrix buffer
   float shadowTexel;  // client: 1 / shadow map resolution

@@ -21,6 +21,7 @@ vec4 pcFetchProbe(int cascade, int slot) { return vec4(0.0f); }
 #include "../../shaders/interop/probe_update.h"
 #include "../../shaders/interop/sh_probe.h"
 #include "../../shaders/interop/tonemap.h"
+#include "../../shaders/interop/sun_cascades.h"
 #include "../../shaders/interop/probe_view.h"
 #define PC_AO_PARAM
 #define PC_AO_ARG

@@ -25,6 +25,7 @@ namespace {
 struct QualityOptions {
   std::string scenePath = "builtin", sidecar, outDir, scenesDir;
   bool all = false, noClient = false;
+  bool singleSunMap = false;  // the client's sun with one map over the whole scene
   // The client renders at this many times the size on each axis (with its 4x MSAA) and is
   // box-filtered down in linear light: 16 samples at a geometric edge, as the probe-lit
   // render's 16 primary samples; at 1 it is measured as drawn.
@@ -41,7 +42,7 @@ Scores score(const Image8& test, const Image8& reference, double ppd) {
 // scene; where none can be made the client columns say so and the CPU figures still come.
 class ClientRenders {
  public:
-  explicit ClientRenders(bool enabled) {
+  ClientRenders(bool enabled, bool sunCascades) : sunCascades_(sunCascades) {
     if (!enabled) {
       note_ = "--no-client";
       return;
@@ -66,6 +67,7 @@ class ClientRenders {
     ro.width = setup.width * supersample;
     ro.height = setup.height * supersample;
     ro.aoRadius = setup.aoRadius;  // the probe-lit render applies the same occlusion
+    ro.shadows.sunCascades = sunCascades_;
     auto renderer = client::Renderer::create(*ctx_, scene, mirror, ro);
     if (!renderer) return Error{"client renderer: " + renderer.error().message};
     client::FrameInput input;
@@ -79,6 +81,7 @@ class ClientRenders {
  private:
   std::unique_ptr<vk::Context> ctx_;
   std::string note_;
+  bool sunCascades_ = true;
 };
 
 std::string today() {
@@ -99,6 +102,7 @@ std::string commandLine(const QualityOptions& o) {
   if (o.setup.autoVolumes) c += " --auto-volumes";
   c += " --aa " + std::to_string(o.setup.primarySamples);
   if (o.setup.encoding) c += std::string(" --encoding ") + probeEncodingName(*o.setup.encoding);
+  if (o.singleSunMap) c += " --single-sun-map";
   if (o.noClient)
     c += " --no-client";
   else
@@ -228,7 +232,7 @@ int run(QualityOptions o) {
   std::printf("%-28s %-7s %7s %7s %8s %7s %6s %6s %8s %7s %6s %6s %8s %7s %7s\n", "scene",
               "volumes", "probes", "spacing", "lit dB", "nf est", "SSIM", "FLIP", "client",
               "nf est", "SSIM", "FLIP", "ref noise", "bake s", "ref s");
-  ClientRenders clients(!o.noClient);
+  ClientRenders clients(!o.noClient, !o.singleSunMap);
   std::vector<QualityRow> rows;
   std::set<std::string> slugs;
   int failures = 0;
@@ -283,6 +287,9 @@ Benchmark addQuality(CLI::App& app) {
   cmd->add_flag("--auto-volumes", o.setup.autoVolumes,
                 "place the cascades from the geometry even where a sidecar names volumes");
   cmd->add_flag("--no-client", o.noClient, "skip the client renders (no Vulkan)");
+  cmd->add_flag("--single-sun-map", o.singleSunMap,
+                "the client's sun shadowed by one map over the whole scene instead of cascades "
+                "fitted to the view (to compare the two)");
   cmd->add_option("--client-supersample", o.clientSupersample,
                   "render the client at this many times the size per axis and box-filter it "
                   "down (1: as drawn)")
