@@ -193,6 +193,7 @@ std::size_t StreamSender::pendingBricks() const {
 }
 
 Status StreamSender::onMessage(std::span<const std::uint8_t> frame, double now) {
+  chargeMessage(frame.size());
   auto m = decodeMessage(frame);
   if (!m) {
     ++stats_.badMessages;
@@ -201,7 +202,13 @@ Status StreamSender::onMessage(std::span<const std::uint8_t> frame, double now) 
   return onMessage(*m, now);
 }
 
-Status StreamSender::onMessage(const SessionMessage& message, double now) {
+void StreamSender::chargeMessage(std::size_t frameBytes) {
+  // The client's messages share its link with the datagrams: a debt the bucket pays off.
+  tokens_ -= double(frameBytes) + options_.messageOverheadBytes;
+}
+
+Status StreamSender::onMessage(const SessionMessage& message, double now, std::size_t frameBytes) {
+  if (frameBytes > 0) chargeMessage(frameBytes);
   Status s;
   if (const auto* ack = std::get_if<AckMsg>(&message)) {
     s = onAck(*ack, now);
@@ -389,7 +396,10 @@ bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version
     else if (options_.irradianceMeanThreshold > 0 &&
              c.irradianceMean >= scale * options_.irradianceMeanThreshold)
       reason = Reason::IrradianceMean;
-    else if (c.depth >= scale * options_.depthThreshold)
+    // The sync level's depth is a merged version of the exact one: their difference is no
+    // change of the field (refinements bring it back), so a brick held at that level is judged
+    // by the rest.
+    else if (refPrecision < kSyncPrecision && c.depth >= scale * options_.depthThreshold)
       reason = Reason::Depth;
     else if (c.occlusion >= scale * options_.occlusionThreshold)
       reason = Reason::Occlusion;
@@ -572,7 +582,7 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
 void StreamSender::release(double now, std::vector<std::vector<std::uint8_t>>& out) {
   while (!paced_.empty() && tokens_ > 0) {
     Paced& p = paced_.front();
-    tokens_ -= double(p.datagram.size());
+    tokens_ -= double(p.datagram.size()) + options_.datagramOverheadBytes;
     for (const auto& [k, b] : p.completes) {
       if (k >= int(tracks_.size()) || b >= int(tracks_[std::size_t(k)].size())) continue;
       Track& t = tracks_[std::size_t(k)][std::size_t(b)];
@@ -635,7 +645,7 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
   const double agedAfter = std::max(0.0, options_.ageBound - options_.ageLead);
   // Lost updates of several fragments, which the receiver may hold in part.
   std::size_t lostUpdates = 0, lostBytes = 0;
-  const int precision = precisionNow();
+  const int precision = precisionNow();  // the ladder's
   for (int k = 0; k < int(tracks_.size()); ++k) {
     for (int b = 0; b < int(tracks_[k].size()); ++b) {
       Track& t = tracks_[k][b];
@@ -688,9 +698,16 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
       };
       const double key = missing ? distance - options_.agingBricksPerSecond * waited : 0.0;
       if (resendable) {  // lost: the resend timeout passed
-        candidates.push_back(Candidate{k, b, key, Reason::Timeout, true, missing, false});
+        candidates.push_back(
+            Candidate{k, b, key, Reason::Timeout, true, missing, false, t.sentPrecision});
         continue;
       }
+      // A brick the client lacks, or holds at the sync level, goes at the sync level; a
+      // refinement at the ladder's, but never with coarser irradiance than the sync level's
+      // (which ladder levels 2..4 have): a refinement must not make the light worse.
+      int level = syncForm(t) ? options_.syncPrecision : precision;
+      const int refined =
+          level != precision ? std::min(precision, kSyncIrradianceLevel) : precision;
       Reason reason = Reason::Timeout;
       if (t.repair) {
         reason = Reason::Repair;
@@ -712,17 +729,24 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
           reason = t.skipReason;
         } else if (now - cur.publishedAt >= options_.settleTime) {
           reason = Reason::Settled;
+          // A settled version of a brick held at the sync level: the time to refine it.
+          if (level != precision) reason = Reason::Refine;
         } else if (aged) {
           reason = Reason::Aged;
         } else if (now - t.sentAt >= options_.refreshInterval) {
           reason = Reason::Refresh;
+        } else if (level != precision) {
+          // Held at the sync level, the change small: refined (to the current version) with
+          // what room this poll has, after the changes that matter more.
+          reason = Reason::Refine;
         } else {
           ++stats_.skipped;
           continue;
         }
       }
+      if (reason == Reason::Refine) level = refined;
       candidates.push_back(
-          Candidate{k, b, missing ? key : valueKey(), reason, false, missing, aged});
+          Candidate{k, b, missing ? key : valueKey(), reason, false, missing, aged, level});
     }
   }
   // Lost updates first (finishing them frees the receiver's reassembly), then bricks the client
@@ -745,12 +769,11 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
     Track& t = tracks_[c.cascade][c.brick];
     std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
     std::uint64_t base = 0;
-    int level = precision, baseLevel = 0;
+    int level = c.level, baseLevel = 0;
     // A residual builds on what the client holds: an older version, or this one held coarser.
     const bool buildsOn = t.acked < version || (t.acked == version && t.ackedPrecision > level);
     if (c.again) {
       version = t.sent;  // self-contained, as it was sent
-      level = t.sentPrecision;
     } else if (t.acked != 0 && buildsOn &&
                now - t.selfContainedAt < options_.selfContainedInterval) {
       base = t.acked;
@@ -781,6 +804,7 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
     t.sentPrecision = level;
     t.sentBasePrecision = baseLevel;
     stats_.coarseUpdates += level != 0;
+    stats_.syncUpdates += level >= kSyncPrecision;
     t.sentBytes = std::uint32_t(update->payload.size());
     t.sentAt = now;
     if (base == 0) t.selfContainedAt = now;
