@@ -104,8 +104,11 @@ double StreamSender::resendTimeout() const {
 }
 
 double StreamSender::sendRate() const {
-  return options_.congestionControl ? std::min(rate_.rate(), options_.bytesPerSecond)
-                                    : options_.bytesPerSecond;
+  // The ceiling counts the session's bytes on the link both ways; the datagrams get their
+  // share of it. (The controller's rate is measured in datagram bytes as they arrive.)
+  const double share = wireBytes_ > 0 ? datagramBytes_ / wireBytes_ : 1.0;
+  const double ceiling = options_.bytesPerSecond * share;
+  return options_.congestionControl ? std::min(rate_.rate(), ceiling) : ceiling;
 }
 
 std::optional<BrickChange> StreamSender::changeOf(int k, int b, std::uint64_t version,
@@ -203,8 +206,7 @@ Status StreamSender::onMessage(std::span<const std::uint8_t> frame, double now) 
 }
 
 void StreamSender::chargeMessage(std::size_t frameBytes) {
-  // The client's messages share its link with the datagrams: a debt the bucket pays off.
-  tokens_ -= double(frameBytes) + options_.messageOverheadBytes;
+  wireBytes_ += double(frameBytes) + options_.messageOverheadBytes;
 }
 
 Status StreamSender::onMessage(const SessionMessage& message, double now, std::size_t frameBytes) {
@@ -582,7 +584,9 @@ std::vector<std::vector<std::uint8_t>> StreamSender::poll(double now) {
 void StreamSender::release(double now, std::vector<std::vector<std::uint8_t>>& out) {
   while (!paced_.empty() && tokens_ > 0) {
     Paced& p = paced_.front();
-    tokens_ -= double(p.datagram.size()) + options_.datagramOverheadBytes;
+    tokens_ -= double(p.datagram.size());
+    datagramBytes_ += double(p.datagram.size());
+    wireBytes_ += double(p.datagram.size()) + options_.datagramOverheadBytes;
     for (const auto& [k, b] : p.completes) {
       if (k >= int(tracks_.size()) || b >= int(tracks_[std::size_t(k)].size())) continue;
       Track& t = tracks_[std::size_t(k)][std::size_t(b)];
@@ -702,12 +706,12 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
             Candidate{k, b, key, Reason::Timeout, true, missing, false, t.sentPrecision});
         continue;
       }
-      // A brick the client lacks, or holds at the sync level, goes at the sync level; a
-      // refinement at the ladder's, but never with coarser irradiance than the sync level's
-      // (which ladder levels 2..4 have): a refinement must not make the light worse.
-      int level = syncForm(t) ? options_.syncPrecision : precision;
-      const int refined =
-          level != precision ? std::min(precision, kSyncIrradianceLevel) : precision;
+      // A brick the client lacks goes at the sync level; one it holds at the ladder's (a new
+      // version of a brick held at the sync level refines it too). A refinement alone never
+      // makes the light coarser than the sync level's (level 1's; levels 2..4 are coarser).
+      const bool syncHeld = syncForm(t) && !missing;
+      int level = syncForm(t) && missing ? options_.syncPrecision : precision;
+      const int refined = syncHeld ? std::min(precision, kSyncIrradianceLevel) : precision;
       Reason reason = Reason::Timeout;
       if (t.repair) {
         reason = Reason::Repair;
@@ -729,13 +733,11 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
           reason = t.skipReason;
         } else if (now - cur.publishedAt >= options_.settleTime) {
           reason = Reason::Settled;
-          // A settled version of a brick held at the sync level: the time to refine it.
-          if (level != precision) reason = Reason::Refine;
         } else if (aged) {
           reason = Reason::Aged;
         } else if (now - t.sentAt >= options_.refreshInterval) {
           reason = Reason::Refresh;
-        } else if (level != precision) {
+        } else if (syncHeld) {
           // Held at the sync level, the change small: refined (to the current version) with
           // what room this poll has, after the changes that matter more.
           reason = Reason::Refine;

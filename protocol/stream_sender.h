@@ -54,11 +54,12 @@ struct SenderOptions {
   // congestion control the sender sends at the controller's rate below it; without, at it.
   double bytesPerSecond = 4e6;
   double burstBytes = 256 * 1024;  // bucket size without congestion control
-  // What the rate counts: the session's bytes on the client's link, both ways (a Wi-Fi link
-  // shares its air time between them). Each datagram costs its bytes and these (IPv4 + UDP
-  // headers); each message from the client (acks, repair requests, poses) its frame and
-  // messageOverheadBytes (IPv4 + TCP, the larger of its two transports). Without them a
-  // sender at a 1 Mbit/s limit put 1.06 Mbit/s on the link.
+  // What the ceiling (bytesPerSecond) counts: the session's bytes on the client's link, both
+  // ways (a Wi-Fi link shares its air time between them). Each datagram costs its bytes and
+  // these (IPv4 + UDP headers); each message from the client (acks, repair requests, poses)
+  // its frame and messageOverheadBytes (IPv4 + TCP, the larger of its two transports). The
+  // datagrams are sent at the ceiling times their share of those bytes so far. Without this a
+  // sender at a 1 Mbit/s ceiling put 1.09 Mbit/s on the link.
   double datagramOverheadBytes = 28;
   double messageOverheadBytes = 40;
   // Congestion control (RateController) from the client's arrival reports. Off for clients
@@ -94,9 +95,9 @@ struct SenderOptions {
   // The first sync: a brick the client holds nothing of is sent at this level (brick_precision.h,
   // kSyncPrecision: depth at a quarter of its resolution per axis, a fifth of a brick's bytes),
   // so that the client holds the whole field within a second of joining. A brick held at it
-  // gets its changes at it too, while they pass the thresholds or the age bound; it is refined
-  // to the ladder's level (a residual on the coarse codes) when its version settles or a poll
-  // has room. 0: off (clients before protocol version 9, and wherever maxPrecision is 0).
+  // is refined to the ladder's level (a residual on the coarse codes) with its next version
+  // sent, or earlier when a poll has room (after the changes that matter more). 0: off
+  // (clients before protocol version 9, and wherever maxPrecision is 0).
   int syncPrecision = kSyncPrecision;
   double qualityInterval = 0.25;   // s between ladder decisions
   double minResendTimeout = 0.05;  // s; the timeout is max(this, 2 x smoothed round trip)
@@ -329,8 +330,8 @@ class StreamSender {
                                       int refPrecision);
   // The precision level versions are sent at now: the quality level's, within maxPrecision.
   int precisionNow() const { return std::min(level_, options_.maxPrecision); }
-  // Whether the client holds the brick at the sync level (or holds nothing of it): its new
-  // versions go at the sync level too, until a refinement brings it to the ladder's level.
+  // Whether the sync level applies to the brick: the client holds nothing of it (it is sent
+  // at the sync level) or holds it at that level (it is refined).
   // maxPrecision 0 (the codec's own precision always) leaves it out too.
   bool syncForm(const Track& t) const {
     return options_.maxPrecision > 0 && options_.syncPrecision > precisionNow() &&
@@ -372,6 +373,9 @@ class StreamSender {
   std::vector<std::vector<Track>> tracks_;
   std::optional<glm::vec3> viewer_;
   double tokens_ = 0, lastPoll_ = -1, lastDatagramAt_ = -1e30;
+  // Bytes the datagrams took, and the session's bytes on the link both ways (headers and the
+  // client's messages included): the share of the ceiling the datagrams may take.
+  double datagramBytes_ = 0, wireBytes_ = 0;
   std::uint32_t sequence_ = 0;
   std::vector<Repair> repairs_;
   std::deque<Paced> paced_;
