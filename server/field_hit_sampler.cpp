@@ -20,24 +20,19 @@ namespace {
 // ABI's dependence on -march does not matter here.
 #pragma GCC diagnostic ignored "-Wpsabi"
 
-// Eight probes side by side. Every operation below is the one of the shared code
+// Four probes side by side. Every operation below is the one of the shared code
 // (probe_sampling.h, probe_math.h, the bilinear fetch of field.cpp) in the same order, lane by
-// lane: IEEE rounding makes a lane's result the very float the scalar code computes.
-constexpr int kLanes = 8;
+// lane: IEEE rounding makes a lane's result the very float the scalar code computes. The
+// texels are read with SSE loads and transposes (x86-64-v2 has SSE4.2); elsewhere the shared
+// code runs as it is (FieldHitSampler::irradiance).
+#if defined(__SSE4_1__)
+constexpr bool kLanesAvailable = true;
+#else
+constexpr bool kLanesAvailable = false;
+#endif
+constexpr int kLanes = 4;
 using Lanes = float __attribute__((vector_size(kLanes * sizeof(float))));
 using IntLanes = std::int32_t __attribute__((vector_size(kLanes * sizeof(std::int32_t))));
-
-Lanes sqrtLanes(Lanes v) {
-#if defined(__SSE2__)
-  alignas(32) float f[kLanes];
-  std::memcpy(f, &v, sizeof v);
-  for (int i = 0; i < kLanes; i += 4) _mm_store_ps(f + i, _mm_sqrt_ps(_mm_load_ps(f + i)));
-  std::memcpy(&v, f, sizeof v);
-#else
-  for (int i = 0; i < kLanes; ++i) v[i] = std::sqrt(v[i]);
-#endif
-  return v;
-}
 
 Lanes splat(float x) { return Lanes{} + x; }
 Lanes absLanes(Lanes v) { return v >= 0.0f ? v : -v; }
@@ -47,7 +42,7 @@ IntLanes clampInt(IntLanes v, int hi) {  // std::clamp(v, 0, hi)
   return v < zero ? zero : (top < v ? top : v);
 }
 
-// Up to eight probes with data, in the order the shared code sums them, each with its position
+// Up to four probes with data, in the order the shared code sums them, each with its position
 // weight (trilinear in a cage, tent in the wide block).
 struct ProbeGroup {
   const FieldHitSampler::Probe* probe[kLanes];
@@ -79,20 +74,24 @@ struct SamplePoint {
 // each weighted by its position weight times pcProbeVisibilityWeight.
 void accumulate(const Field& field, const ProbeGroup& g, const SamplePoint& s, glm::vec4& sum,
                 float& weightSum) {
-  Lanes px, py, pz;
-  for (int l = 0; l < kLanes; ++l) {
-    const glm::vec3& p = g.probe[l < g.count ? l : 0]->position;
-    px[l] = p.x, py[l] = p.y, pz[l] = p.z;
+#if defined(__SSE4_1__)
+  // Position and depth tile of each probe: the first four words of its record, transposed.
+  __m128 px, py, pz, depthTexel;
+  {
+    __m128 r[kLanes];
+    for (int l = 0; l < kLanes; ++l) r[l] = _mm_loadu_ps(&g.probe[l < g.count ? l : 0]->position.x);
+    _MM_TRANSPOSE4_PS(r[0], r[1], r[2], r[3]);
+    px = r[0], py = r[1], pz = r[2], depthTexel = r[3];
   }
   // The backface term: toProbe = normalize(probeP - P).
   const Lanes dx = px - s.P.x, dy = py - s.P.y, dz = pz - s.P.z;
-  const Lanes inv = 1.0f / sqrtLanes(dx * dx + dy * dy + dz * dz);
+  const Lanes inv = 1.0f / Lanes(_mm_sqrt_ps(dx * dx + dy * dy + dz * dz));
   const Lanes wrap = ((dx * inv) * s.N.x + (dy * inv) * s.N.y + (dz * inv) * s.N.z + 1.0f) * 0.5f;
   Lanes weight = wrap * wrap + 0.2f;
 
   // The direction from the probe to the biased point, octahedrally encoded (pcTileCoord).
   const Lanes qx = s.biasedP.x - px, qy = s.biasedP.y - py, qz = s.biasedP.z - pz;
-  const Lanes dist = sqrtLanes(qx * qx + qy * qy + qz * qz);
+  const Lanes dist = _mm_sqrt_ps(qx * qx + qy * qy + qz * qz);
   const IntLanes away = dist > 0.0f;
   const Lanes ux = away ? qx / dist : splat(s.N.x), uy = away ? qy / dist : splat(s.N.y),
               uz = away ? qz / dist : splat(s.N.z);
@@ -105,27 +104,30 @@ void accumulate(const Field& field, const ProbeGroup& g, const SamplePoint& s, g
   constexpr int n = gpu::PC_DEPTH_TEXELS, tileSize = n + 2;
   const Lanes fx = 1.0f + (u * 0.5f + 0.5f) * float(n) - 0.5f;
   const Lanes fy = 1.0f + (v * 0.5f + 0.5f) * float(n) - 0.5f;
-  IntLanes x0 = __builtin_convertvector(fx, IntLanes), y0 = __builtin_convertvector(fy, IntLanes);
-  x0 = clampInt(x0, tileSize - 2);
-  y0 = clampInt(y0, tileSize - 2);
+  const IntLanes x0 = clampInt(__builtin_convertvector(fx, IntLanes), tileSize - 2);
+  const IntLanes y0 = clampInt(__builtin_convertvector(fy, IntLanes), tileSize - 2);
   const Lanes ax = clamp01(fx - __builtin_convertvector(x0, Lanes));
   const Lanes ay = clamp01(fy - __builtin_convertvector(y0, Lanes));
 
-  // The depth moments, bilinear, gathered lane by lane.
+  // The depth moments, bilinear: each probe's two texel pairs (rows y0 and y0 + 1, texels x0
+  // and x0 + 1, two moments each) in one load per row, transposed into lanes.
   const int depthRow = field.depth.width * 2;
-  Lanes m[2][4];  // [moment][texel 00, 10, 01, 11]
+  alignas(16) std::int32_t at[kLanes];
+  const IntLanes offsets = (IntLanes)depthTexel + y0 * depthRow + x0 * 2;  // bits, not values
+  _mm_store_si128(reinterpret_cast<__m128i*>(at), (__m128i)offsets);
+  __m128 r0[kLanes], r1[kLanes];
   for (int l = 0; l < kLanes; ++l) {
-    const float* t = field.depth.texels.data() + g.probe[l < g.count ? l : 0]->depthTexel +
-                     std::size_t(y0[l]) * depthRow + std::size_t(x0[l]) * 2;
-    for (int c = 0; c < 2; ++c) {
-      m[c][0][l] = t[c], m[c][1][l] = t[2 + c];
-      m[c][2][l] = t[depthRow + c], m[c][3][l] = t[depthRow + 2 + c];
-    }
+    const float* t = field.depth.texels.data() + std::uint32_t(at[l]);
+    r0[l] = _mm_loadu_ps(t);
+    r1[l] = _mm_loadu_ps(t + depthRow);
   }
+  _MM_TRANSPOSE4_PS(r0[0], r0[1], r0[2], r0[3]);  // t00 mean, t00 square, t10 mean, t10 square
+  _MM_TRANSPOSE4_PS(r1[0], r1[1], r1[2], r1[3]);  // t01 ..., t11 ...
   Lanes moment[2];
   for (int c = 0; c < 2; ++c) {
-    const Lanes top = m[c][0] + (m[c][1] - m[c][0]) * ax;
-    const Lanes bottom = m[c][2] + (m[c][3] - m[c][2]) * ax;
+    const Lanes t00 = r0[c], t10 = r0[2 + c], t01 = r1[c], t11 = r1[2 + c];
+    const Lanes top = t00 + (t10 - t00) * ax;
+    const Lanes bottom = t01 + (t11 - t01) * ax;
     moment[c] = top + (bottom - top) * ay;
   }
 
@@ -140,36 +142,36 @@ void accumulate(const Field& field, const ProbeGroup& g, const SamplePoint& s, g
   weight = weight < 0.000001f ? splat(0.000001f) : weight;
   const float crush = 0.2f;
   weight = weight < crush ? weight * (weight * weight / (crush * crush)) : weight;
-  Lanes position;
-  for (int l = 0; l < kLanes; ++l) position[l] = g.weight[l < g.count ? l : 0];
-  weight = position * weight;
+  weight = Lanes(_mm_loadu_ps(g.weight)) * weight;
+  alignas(16) float w[kLanes];
+  _mm_store_ps(w, weight);
 
-  // Irradiance toward N, bilinear at the same place of every tile, to the perceptual space.
+  // Each probe's irradiance toward N, bilinear at the same place of every tile, its three
+  // channels in one register (the fourth lane, a neighbour's channel, is dropped at the end),
+  // to the perceptual space and summed in the shared code's order.
   const BilinearCoord& b = s.irradiance;
   const int irradianceRow = field.irradiance.width * 3;
-  Lanes e[3][4];
-  for (int l = 0; l < kLanes; ++l) {
-    const float* t = field.irradiance.texels.data() +
-                     g.probe[l < g.count ? l : 0]->irradianceTexel +
-                     std::size_t(b.y0) * irradianceRow + std::size_t(b.x0) * 3;
-    for (int c = 0; c < 3; ++c) {
-      e[c][0][l] = t[c], e[c][1][l] = t[3 + c];
-      e[c][2][l] = t[irradianceRow + c], e[c][3][l] = t[irradianceRow + 3 + c];
-    }
-  }
-  Lanes perceptual[3];
-  for (int c = 0; c < 3; ++c) {
-    const Lanes top = e[c][0] + (e[c][1] - e[c][0]) * b.ax;
-    const Lanes bottom = e[c][2] + (e[c][3] - e[c][2]) * b.ax;
-    Lanes encoded = top + (bottom - top) * b.ay;
-    encoded = encoded < 0.0f ? splat(0.0f) : encoded;
-    perceptual[c] = encoded * encoded * sqrtLanes(encoded);
-  }
-  // Summed in the shared code's order.
+  const std::size_t texel = std::size_t(b.y0) * irradianceRow + std::size_t(b.x0) * 3;
+  __m128 total = _mm_setr_ps(sum.x, sum.y, sum.z, 0.0f);
   for (int l = 0; l < g.count; ++l) {
-    sum += weight[l] * glm::vec4(perceptual[0][l], perceptual[1][l], perceptual[2][l], 0.0f);
-    weightSum += weight[l];
+    const float* t = field.irradiance.texels.data() + g.probe[l]->irradianceTexel + texel;
+    // Loads of texel x0 and (from two floats before it) texel x0 + 1: nothing past the tile.
+    const Lanes t00 = _mm_loadu_ps(t), t01 = _mm_loadu_ps(t + irradianceRow);
+    const Lanes t10 = _mm_shuffle_ps(_mm_loadu_ps(t + 2), _mm_loadu_ps(t + 2), 0xF9);
+    const Lanes t11 = _mm_shuffle_ps(_mm_loadu_ps(t + irradianceRow + 2),
+                                     _mm_loadu_ps(t + irradianceRow + 2), 0xF9);
+    const Lanes top = t00 + (t10 - t00) * b.ax;
+    const Lanes bottom = t01 + (t11 - t01) * b.ax;
+    Lanes e = top + (bottom - top) * b.ay;
+    e = e < 0.0f ? splat(0.0f) : e;
+    const Lanes perceptual = e * e * Lanes(_mm_sqrt_ps(e));
+    total = Lanes(total) + w[l] * perceptual;
+    weightSum += w[l];
   }
+  sum = glm::vec4(total[0], total[1], total[2], sum.w);
+#else
+  (void)field, (void)g, (void)s, (void)sum, (void)weightSum;
+#endif
 }
 
 // Collects probes into groups of eight and sums each full group.
@@ -225,10 +227,10 @@ FieldHitSampler::FieldHitSampler(const Field& field) : field_(field) {
           const glm::ivec2 depth = gpu::pcAtlasTileOrigin(c, slot, gpu::PC_DEPTH_TEXELS + 2);
           probes[std::size_t(logicalIndex(c, logical))] = {
               gpu::pcProbeGridPosition(c, logical) + record.offset,
-              gpu::pcProbeHasData(record.state) ? 1u : 0u,
+              std::uint32_t((std::size_t(depth.y) * field.depth.width + depth.x) * 2),
               std::uint32_t((std::size_t(irradiance.y) * field.irradiance.width + irradiance.x) *
                             3),
-              std::uint32_t((std::size_t(depth.y) * field.depth.width + depth.x) * 2)};
+              gpu::pcProbeHasData(record.state) ? 1u : 0u};
         }
   }
 }
@@ -280,7 +282,8 @@ glm::vec4 FieldHitSampler::sampleCascadeWide(int k, glm::vec3 P, glm::vec3 N, gl
 }
 
 glm::vec3 FieldHitSampler::irradiance(glm::vec3 P, glm::vec3 N, glm::vec3 V) const {
-  if (!tiled_) return glm::vec3(sampleField(field_, P, N, V, gpu::PC_SAMPLE_NO_OCCLUSION));
+  if (!tiled_ || !kLanesAvailable)
+    return glm::vec3(sampleField(field_, P, N, V, gpu::PC_SAMPLE_NO_OCCLUSION));
   // pcSampleFieldShaded, cascade by cascade, then the wide fallback.
   const gpu::FieldDesc& f = field_.desc;
   glm::vec4 result(0.0f);

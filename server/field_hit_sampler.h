@@ -1,6 +1,6 @@
 // The previous field's indirect light at probe-ray hits, as the Embree update shades them: the
-// very result of sampleField(field, P, N, V, PC_SAMPLE_NO_OCCLUSION), computed for the eight
-// probes of a cage at once in SIMD lanes, with each probe's position, state and tile places
+// very result of sampleField(field, P, N, V, PC_SAMPLE_NO_OCCLUSION), computed for the probes
+// of a cage four at a time in SIMD lanes, with each probe's position, state and tile places
 // read from tables built once per update instead of derived per hit and probe.
 #pragma once
 
@@ -23,9 +23,10 @@ class FieldHitSampler {
   // One probe of a cascade, by logical grid index x + counts.x * (y + counts.y * z).
   struct Probe {
     glm::vec3 position;             // relocated, world
+    std::uint32_t depthTexel;       // float index of its depth tile's first texel (read with
+                                    // the position: keep it fourth)
+    std::uint32_t irradianceTexel;  // likewise in the irradiance atlas
     std::uint32_t hasData;          // pcProbeHasData of its state
-    std::uint32_t irradianceTexel;  // float index of its tile's first texel
-    std::uint32_t depthTexel;       // likewise in the depth atlas
   };
 
  private:
