@@ -1,7 +1,6 @@
 #include "brick_precision.h"
 
 #include <algorithm>
-#include <cmath>
 
 namespace pc {
 
@@ -23,61 +22,17 @@ void roundCodes(QuantizedBrick& q, std::size_t begin, std::size_t end, int bits,
   for (std::size_t i = begin; i < end; ++i) q.codes[i] = roundCode(q.codes[i], bits, maxCode);
 }
 
-// The sync level's depth: every block of every slot's tile holds the block's merged moments.
-// Means and standard deviations are codes of one scale (distance / maxRayDistance x 65535), so
-// they merge in code units: the block's mean is the mean of its means, its second moment the
-// mean of (mean^2 + sd^2). A block already merged merges to itself (idempotent).
-void mergeDepthBlocks(QuantizedBrick& q) {
-  constexpr int n = gpu::PC_DEPTH_TEXELS, m = kSyncDepthBlock;
-  static_assert(n % m == 0, "depth blocks must tile the depth tile");
-  constexpr std::size_t kPlane = std::size_t(kSlots) * kDepthTexels;
-  for (int s = 0; s < kSlots; ++s) {
-    const std::size_t tile = std::size_t(s) * kDepthTexels;
-    for (int by = 0; by < n; by += m) {
-      for (int bx = 0; bx < n; bx += m) {
-        double sum = 0, squares = 0;
-        for (int y = by; y < by + m; ++y) {
-          for (int x = bx; x < bx + m; ++x) {
-            const std::size_t i = kDepth + tile + std::size_t(y) * n + x;
-            const double mean = q.codes[i], sd = q.codes[i + kPlane];
-            sum += mean;
-            squares += mean * mean + sd * sd;
-          }
-        }
-        const double mean = sum / double(m * m);
-        const double sd = std::sqrt(std::max(squares / double(m * m) - mean * mean, 0.0));
-        const auto meanCode = std::uint16_t(std::min(std::lround(mean), 65535l));
-        const auto sdCode = std::uint16_t(std::min(std::lround(sd), 65535l));
-        for (int y = by; y < by + m; ++y) {
-          for (int x = bx; x < bx + m; ++x) {
-            const std::size_t i = kDepth + tile + std::size_t(y) * n + x;
-            q.codes[i] = meanCode;
-            q.codes[i + kPlane] = sdCode;
-          }
-        }
-      }
-    }
-  }
-}
-
 }  // namespace
 
 int droppedIrradianceBits(int precision, std::uint16_t code) {
   if (code == 0 || precision <= 0) return 0;
-  if (precision >= kSyncPrecision) precision = kSyncIrradianceLevel;
   // The code's exponent slot s holds e in [2^(s-16), 2^(s-15)), where one mantissa step is
   // 2^(s-23); 2^d steps stay within the level's step 2^(L-8) while d <= L + 15 - s.
   const int slot = code >> kIrradianceMantissaBits;
-  return std::clamp(std::min(precision, kMaxLadderPrecision) + 15 - slot, 0,
-                    kMaxIrradianceDropBits);
+  return std::clamp(std::min(precision, kMaxPrecision) + 15 - slot, 0, kMaxIrradianceDropBits);
 }
-int droppedDepthBits(int precision) {
-  return precision >= kSyncPrecision ? kSyncDepthDropBits : std::clamp(2 * precision, 0, 6);
-}
-int droppedOcclusionBits(int precision) {
-  if (precision >= kSyncPrecision) precision = kSyncOcclusionLevel;
-  return std::clamp(precision, 0, 3);
-}
+int droppedDepthBits(int precision) { return std::clamp(2 * precision, 0, 6); }
+int droppedOcclusionBits(int precision) { return std::clamp(precision, 0, 3); }
 
 QuantizedBrick coarsenBrick(const QuantizedBrick& q, int precision) {
   QuantizedBrick out = q;
@@ -90,7 +45,6 @@ QuantizedBrick coarsenBrick(const QuantizedBrick& q, int precision) {
     std::uint16_t& c = out.codes[i];
     c = roundCode(c, droppedIrradianceBits(precision, c), 0xFFF);
   }
-  if (precision == kSyncPrecision) mergeDepthBlocks(out);
   roundCodes(out, kDepth, kOcclusion, droppedDepthBits(precision), 0xFFFF);
   roundCodes(out, kOcclusion, kOffset, droppedOcclusionBits(precision), 0xFF);
   return out;

@@ -31,10 +31,7 @@ namespace pc {
 // member a version 7 server does not know, so it is sent only to version 8 servers) and hears
 // an EditResult; the SceneState says which edits it includes, the lights edits added and the
 // emission factors, which older clients ignore (they replay the animation as before).
-// Version 9: the first sync. A brick a client holds nothing of is sent at the sync level
-// (precision level 5, brick_precision.h: depth merged into blocks), a level a version 8
-// client refuses, so older clients get the ladder's levels only.
-inline constexpr std::uint32_t kProtocolVersion = 9;
+inline constexpr std::uint32_t kProtocolVersion = 8;
 inline constexpr std::uint32_t kMinProtocolVersion = 4;
 // The first version whose clients report arrivals and take StreamReport.
 inline constexpr std::uint32_t kCongestionControlVersion = 3;
@@ -46,8 +43,6 @@ inline constexpr std::uint32_t kUplinkDatagramsVersion = 6;
 inline constexpr std::uint32_t kResumeVersion = 7;
 // The first version whose clients send Edit and whose servers answer it with EditResult.
 inline constexpr std::uint32_t kEditsVersion = 8;
-// The first version whose clients take the sync level.
-inline constexpr std::uint32_t kSyncLevelVersion = 9;
 
 // UDP datagrams never exceed this (fits the IPv6 minimum MTU of 1280 with headers).
 inline constexpr std::size_t kMaxDatagramBytes = 1200;

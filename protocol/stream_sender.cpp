@@ -108,11 +108,8 @@ double StreamSender::resendTimeout() const {
 }
 
 double StreamSender::sendRate() const {
-  // The ceiling counts the session's bytes on the link both ways; the datagrams get their
-  // share of it. (The controller's rate is measured in datagram bytes as they arrive.)
-  const double share = wireBytes_ > 0 ? datagramBytes_ / wireBytes_ : 1.0;
-  const double ceiling = options_.bytesPerSecond * share;
-  return options_.congestionControl ? std::min(rate_.rate(), ceiling) : ceiling;
+  return options_.congestionControl ? std::min(rate_.rate(), options_.bytesPerSecond)
+                                    : options_.bytesPerSecond;
 }
 
 std::optional<BrickChange> StreamSender::changeOf(int k, int b, std::uint64_t version,
@@ -200,7 +197,6 @@ std::size_t StreamSender::pendingBricks() const {
 }
 
 Status StreamSender::onMessage(std::span<const std::uint8_t> frame, double now) {
-  chargeMessage(frame.size());
   auto m = decodeMessage(frame);
   if (!m) {
     ++stats_.badMessages;
@@ -209,12 +205,7 @@ Status StreamSender::onMessage(std::span<const std::uint8_t> frame, double now) 
   return onMessage(*m, now);
 }
 
-void StreamSender::chargeMessage(std::size_t frameBytes) {
-  wireBytes_ += double(frameBytes) + options_.messageOverheadBytes;
-}
-
-Status StreamSender::onMessage(const SessionMessage& message, double now, std::size_t frameBytes) {
-  if (frameBytes > 0) chargeMessage(frameBytes);
+Status StreamSender::onMessage(const SessionMessage& message, double now) {
   Status s;
   if (const auto* ack = std::get_if<AckMsg>(&message)) {
     s = onAck(*ack, now);
@@ -402,10 +393,7 @@ bool StreamSender::belowThresholds(Track& t, int k, int b, std::uint64_t version
     else if (options_.irradianceMeanThreshold > 0 &&
              c.irradianceMean >= scale * options_.irradianceMeanThreshold)
       reason = Reason::IrradianceMean;
-    // The sync level's depth is a merged version of the exact one: their difference is no
-    // change of the field (refinements bring it back), so a brick held at that level is judged
-    // by the rest.
-    else if (refPrecision < kSyncPrecision && c.depth >= scale * options_.depthThreshold)
+    else if (c.depth >= scale * options_.depthThreshold)
       reason = Reason::Depth;
     else if (c.occlusion >= scale * options_.occlusionThreshold)
       reason = Reason::Occlusion;
@@ -589,8 +577,6 @@ void StreamSender::release(double now, std::vector<std::vector<std::uint8_t>>& o
   while (!paced_.empty() && tokens_ > 0) {
     Paced& p = paced_.front();
     tokens_ -= double(p.datagram.size());
-    datagramBytes_ += double(p.datagram.size());
-    wireBytes_ += double(p.datagram.size()) + options_.datagramOverheadBytes;
     for (const auto& [k, b] : p.completes) {
       if (k >= int(tracks_.size()) || b >= int(tracks_[std::size_t(k)].size())) continue;
       Track& t = tracks_[std::size_t(k)][std::size_t(b)];
@@ -653,7 +639,7 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
   const double agedAfter = std::max(0.0, options_.ageBound - options_.ageLead);
   // Lost updates of several fragments, which the receiver may hold in part.
   std::size_t lostUpdates = 0, lostBytes = 0;
-  const int precision = precisionNow();  // the ladder's
+  const int precision = precisionNow();
   for (int k = 0; k < int(tracks_.size()); ++k) {
     for (int b = 0; b < int(tracks_[k].size()); ++b) {
       Track& t = tracks_[k][b];
@@ -706,16 +692,9 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
       };
       const double key = missing ? distance - options_.agingBricksPerSecond * waited : 0.0;
       if (resendable) {  // lost: the resend timeout passed
-        candidates.push_back(
-            Candidate{k, b, key, Reason::Timeout, true, missing, false, t.sentPrecision});
+        candidates.push_back(Candidate{k, b, key, Reason::Timeout, true, missing, false});
         continue;
       }
-      // A brick the client lacks goes at the sync level; one it holds at the ladder's (a new
-      // version of a brick held at the sync level refines it too). A refinement alone never
-      // makes the light coarser than the sync level's (level 1's; levels 2..4 are coarser).
-      const bool syncHeld = syncForm(t) && !missing;
-      int level = syncForm(t) && missing ? options_.syncPrecision : precision;
-      const int refined = syncHeld ? std::min(precision, kSyncIrradianceLevel) : precision;
       Reason reason = Reason::Timeout;
       if (t.repair) {
         reason = Reason::Repair;
@@ -741,18 +720,13 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
           reason = Reason::Aged;
         } else if (now - t.sentAt >= options_.refreshInterval) {
           reason = Reason::Refresh;
-        } else if (syncHeld) {
-          // Held at the sync level, the change small: refined (to the current version) with
-          // what room this poll has, after the changes that matter more.
-          reason = Reason::Refine;
         } else {
           ++stats_.skipped;
           continue;
         }
       }
-      if (reason == Reason::Refine) level = refined;
       candidates.push_back(
-          Candidate{k, b, missing ? key : valueKey(), reason, false, missing, aged, level});
+          Candidate{k, b, missing ? key : valueKey(), reason, false, missing, aged});
     }
   }
   // Lost updates first (finishing them frees the receiver's reassembly), then bricks the client
@@ -775,11 +749,12 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
     Track& t = tracks_[c.cascade][c.brick];
     std::uint64_t version = publisher_.current(c.cascade, c.brick).version;
     std::uint64_t base = 0;
-    int level = c.level, baseLevel = 0;
+    int level = precision, baseLevel = 0;
     // A residual builds on what the client holds: an older version, or this one held coarser.
     const bool buildsOn = t.acked < version || (t.acked == version && t.ackedPrecision > level);
     if (c.again) {
       version = t.sent;  // self-contained, as it was sent
+      level = t.sentPrecision;
     } else if (t.acked != 0 && buildsOn &&
                now - t.selfContainedAt < options_.selfContainedInterval) {
       base = t.acked;
@@ -810,7 +785,6 @@ void StreamSender::pack(double now, bool& waited, bool& changesWaited) {
     t.sentPrecision = level;
     t.sentBasePrecision = baseLevel;
     stats_.coarseUpdates += level != 0;
-    stats_.syncUpdates += level >= kSyncPrecision;
     t.sentBytes = std::uint32_t(update->payload.size());
     t.sentAt = now;
     if (base == 0) t.selfContainedAt = now;

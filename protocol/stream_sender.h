@@ -55,14 +55,6 @@ struct SenderOptions {
   // congestion control the sender sends at the controller's rate below it; without, at it.
   double bytesPerSecond = 4e6;
   double burstBytes = 256 * 1024;  // bucket size without congestion control
-  // What the ceiling (bytesPerSecond) counts: the session's bytes on the client's link, both
-  // ways (a Wi-Fi link shares its air time between them). Each datagram costs its bytes and
-  // these (IPv4 + UDP headers); each message from the client (acks, repair requests, poses)
-  // its frame and messageOverheadBytes (IPv4 + TCP, the larger of its two transports). The
-  // datagrams are sent at the ceiling times their share of those bytes so far. Without this a
-  // sender at a 1 Mbit/s ceiling put 1.09 Mbit/s on the link.
-  double datagramOverheadBytes = 28;
-  double messageOverheadBytes = 40;
   // Congestion control (RateController) from the client's arrival reports. Off for clients
   // that do not report arrivals (protocol version 2).
   bool congestionControl = true;
@@ -92,14 +84,7 @@ struct SenderOptions {
   // min(level, maxPrecision), so that the changes the age bound forces out cost fewer bits.
   // Bricks held coarser than the level allows are refined once the level comes down. 0: the
   // codec's own precision always (clients of protocol version 4).
-  int maxPrecision = kMaxLadderPrecision;
-  // The first sync: a brick the client holds nothing of is sent at this level (brick_precision.h,
-  // kSyncPrecision: depth at a quarter of its resolution per axis, a fifth of a brick's bytes),
-  // so that the client holds the whole field within a second of joining. A brick held at it
-  // is refined to the ladder's level (a residual on the coarse codes) with its next version
-  // sent, or earlier when a poll has room (after the changes that matter more). 0: off
-  // (clients before protocol version 9, and wherever maxPrecision is 0).
-  int syncPrecision = kSyncPrecision;
+  int maxPrecision = kMaxPrecision;
   double qualityInterval = 0.25;   // s between ladder decisions
   double minResendTimeout = 0.05;  // s; the timeout is max(this, 2 x smoothed round trip)
   double initialRtt = 0.1;         // s, until acks give samples
@@ -150,7 +135,6 @@ struct SenderStats {
                   refine = 0;  // the version held, again at a finer precision
   } reasons;
   std::uint64_t coarseUpdates = 0;  // updates sent at a precision level above 0
-  std::uint64_t syncUpdates = 0;    // of those, at the sync level
   std::uint64_t badMessages = 0;
   std::uint64_t aged = 0;  // updates sent because a change reached the age bound's lead
   // Resume (protocol version 7): claims of this field taken, claims of another field (taken
@@ -231,10 +215,8 @@ class StreamSender {
 
   // A session message frame from the client. Acks, repair requests and viewer poses are used;
   // anything else, or a frame that fails decoding, is an Error and changes nothing.
-  // `frameBytes`: the size of the frame it came in, charged to the rate (0: not charged; the
-  // frame overload charges its own).
   Status onMessage(std::span<const std::uint8_t> frame, double now);
-  Status onMessage(const SessionMessage& message, double now, std::size_t frameBytes = 0);
+  Status onMessage(const SessionMessage& message, double now);
 
   // The client will say what it holds (a Resume): until then, or `until`, only heartbeats.
   void awaitResume(double until) { awaitResumeUntil_ = until; }
@@ -305,7 +287,6 @@ class StreamSender {
     bool again;    // the lost update, resent as it was
     bool missing;  // the client holds no version of the brick
     bool aged;     // its oldest change nears the age bound
-    int level;     // the precision level to send it at (a lost update: as it was sent)
   };
   // Fragments a client asked for again (an Ack's gaps), sent first at the next poll. At most
   // one per brick: a newer report replaces the older one.
@@ -315,7 +296,6 @@ class StreamSender {
     std::shared_ptr<const EncodedUpdate> update;
     std::vector<std::uint16_t> fragments;
   };
-  void chargeMessage(std::size_t frameBytes);
   Status onAck(const AckMsg& ack, double now);
   void queueRepair(const FragmentGapMsg& gap);
   Status onRepair(const RepairRequestMsg& repair);
@@ -332,13 +312,6 @@ class StreamSender {
                                       int refPrecision);
   // The precision level versions are sent at now: the quality level's, within maxPrecision.
   int precisionNow() const { return std::min(level_, options_.maxPrecision); }
-  // Whether the sync level applies to the brick: the client holds nothing of it (it is sent
-  // at the sync level) or holds it at that level (it is refined).
-  // maxPrecision 0 (the codec's own precision always) leaves it out too.
-  bool syncForm(const Track& t) const {
-    return options_.maxPrecision > 0 && options_.syncPrecision > precisionNow() &&
-           (t.acked == 0 || t.ackedPrecision >= options_.syncPrecision);
-  }
   // The client acknowledged what was last sent, at the level it was sent at.
   static bool heldAsSent(const Track& t) {
     return t.acked == t.sent && t.ackedPrecision == t.sentPrecision;
@@ -375,9 +348,6 @@ class StreamSender {
   std::vector<std::vector<Track>> tracks_;
   std::optional<glm::vec3> viewer_;
   double tokens_ = 0, lastPoll_ = -1, lastDatagramAt_ = -1e30;
-  // Bytes the datagrams took, and the session's bytes on the link both ways (headers and the
-  // client's messages included): the share of the ceiling the datagrams may take.
-  double datagramBytes_ = 0, wireBytes_ = 0;
   std::uint32_t sequence_ = 0;
   std::vector<Repair> repairs_;
   std::deque<Paced> paced_;

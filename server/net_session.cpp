@@ -327,7 +327,7 @@ std::optional<UplinkDrop> Session::onUplink(std::span<const std::uint8_t> bytes,
                                           " as a datagram: only acks and repair requests");
     return std::nullopt;
   }
-  (void)handle(*message, frame->size(), true);
+  (void)handle(*message, true);
   return std::nullopt;
 }
 
@@ -350,10 +350,10 @@ bool Session::onFrame() {
     refuse(DisconnectCause::Malformed, message.error().message);
     return false;
   }
-  return handle(*message, frame_.size()) && !closed_;
+  return handle(*message) && !closed_;
 }
 
-bool Session::handle(const SessionMessage& message, std::size_t frameBytes, bool overUdp) {
+bool Session::handle(const SessionMessage& message, bool overUdp) {
   if (!sender_) {
     const HelloMsg* hello = std::get_if<HelloMsg>(&message);
     if (!hello) {
@@ -392,7 +392,7 @@ bool Session::handle(const SessionMessage& message, std::size_t frameBytes, bool
   Status status;
   {
     auto lock = server_.hub.lock();
-    status = sender_->onMessage(message, steadySeconds(), frameBytes);
+    status = sender_->onMessage(message, steadySeconds());
   }
   if (!status) {
     refuse(DisconnectCause::Invalid, status.error().message);
@@ -500,7 +500,6 @@ bool Session::onHello(const HelloMsg& hello) {
     senderOptions.congestionControl &= reports_;
     // Coarser precision levels only for clients that say which level they hold.
     if (hello.protocolVersion < kPrecisionLevelsVersion) senderOptions.maxPrecision = 0;
-    if (hello.protocolVersion < kSyncLevelVersion) senderOptions.syncPrecision = 0;
     sender_ = std::make_unique<StreamSender>(server_.hub.publisher(), id_, senderOptions,
                                              &server_.changeCache);
     // A client whose mirror holds this run's field says what of it in a Resume, which follows

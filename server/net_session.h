@@ -111,8 +111,7 @@ class Session : public std::enable_shared_from_this<Session> {
   // False when the session ended. A client changes nothing but its own pose and acks: the
   // session is the connection, so nothing it sends can name another session.
   // `overUdp`: it came as a datagram (counted apart).
-  // `frameBytes`: the frame's size, charged to the client's rate.
-  bool handle(const SessionMessage& message, std::size_t frameBytes, bool overUdp = false);
+  bool handle(const SessionMessage& message, bool overUdp = false);
 
   // What an ack or repair request may make the sender do is bounded by the field: a valid ack
   // lists each brick at most once, a repair request need not name one twice. Beyond that it is

@@ -53,12 +53,11 @@ QuantizedBrick randomBrick(std::uint32_t seed) {
 TEST(PrecisionLevels, CoarseCodesStayWithinHalfAStepAndKeepOffsetsAndStates) {
   const QuantizedBrick q = randomBrick(7);
   EXPECT_EQ(coarsenBrick(q, 0), q);
-  // The ladder's levels (the sync level above them: test_first_sync).
-  for (int level = 1; level <= kMaxLadderPrecision; ++level) {
+  for (int level = 1; level <= kMaxPrecision + 1; ++level) {
     const QuantizedBrick c = coarsenBrick(q, level);
     ASSERT_EQ(c.codes.size(), q.codes.size());
     EXPECT_EQ(coarsenBrick(c, level), c) << "level " << level << " is not idempotent";
-    const int clamped = level;
+    const int clamped = std::min(level, kMaxPrecision);
     const struct {
       std::size_t begin, end;
       int bits;
@@ -312,7 +311,7 @@ TEST(PrecisionLevels, ShortLinkHoldsACoarseButCurrentFieldThenTheExactOne) {
     return r;
   };
   const StreamSimulationResult exact = run(0);
-  const StreamSimulationResult coarse = run(kMaxLadderPrecision);
+  const StreamSimulationResult coarse = run(kMaxPrecision);
   const double ageExact = test::percentile(exact.heldAges, 0.95);
   const double ageCoarse = test::percentile(coarse.heldAges, 0.95);
   const double psnrExact = test::percentile(exact.heldPsnrs, 0.05);

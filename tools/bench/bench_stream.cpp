@@ -68,7 +68,6 @@ struct StreamSetup {
   double rateLimit = 0;  // Mbit/s of the sender's token bucket; 0: unconstrained
   int maxQualityLevel = SenderOptions{}.maxQualityLevel;
   int maxPrecision = SenderOptions{}.maxPrecision;
-  int syncPrecision = SenderOptions{}.syncPrecision;
   int width = 320, height = 180;
   int aa = 2;
   bool breakdown = false;
@@ -213,9 +212,6 @@ Benchmark addStream(CLI::App& app) {
   cmd->add_option("--max-precision", s.maxPrecision,
                   "coarsest precision level the ladder sends (0: the codec's own)")
       ->capture_default_str();
-  cmd->add_option("--sync-precision", s.syncPrecision,
-                  "level a brick the client lacks is first sent at (0: the ladder's)")
-      ->capture_default_str();
   cmd->add_option("--width", s.width, "probe-lit image width");
   cmd->add_option("--height", s.height, "probe-lit image height");
   cmd->add_option("--aa", s.aa, "primary samples per pixel of the probe-lit images");
@@ -266,7 +262,6 @@ Benchmark addStream(CLI::App& app) {
           so.refreshInterval = s.refresh;
           so.maxQualityLevel = s.maxQualityLevel;
           so.maxPrecision = s.maxPrecision;
-          so.syncPrecision = s.syncPrecision;
           so.bytesPerSecond = s.rateLimit > 0 ? s.rateLimit * 1e6 / 8.0 : 1e12;
           so.burstBytes = s.rateLimit > 0 ? so.burstBytes : 1e12;
           const std::uint32_t session = 0x57e4'0000u + std::uint32_t(i);
