@@ -101,8 +101,11 @@ Result<FieldGpu> FieldGpu::create(const vk::Context& ctx, const std::optional<gp
                    deviceBuffer(slots * kOcclusionBytes, f.occlusionNew_)}) {
     if (!s) return s.error();
   }
-  auto descBuffer = vk::Buffer::create(ctx, sizeof(gpu::FieldDesc),
-                                       VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::Upload);
+  // Written again in a frame's commands when cascades move (recordPlaces).
+  auto descBuffer =
+      vk::Buffer::create(ctx, sizeof(gpu::FieldDesc),
+                         VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                         vk::MemoryUsage::Upload);
   if (!descBuffer) return descBuffer.error();
   f.desc_ = std::move(descBuffer).value();
   f.desc_.write(&f.fieldDesc_, sizeof f.fieldDesc_);
@@ -271,9 +274,51 @@ VkDescriptorImageInfo FieldGpu::occlusion(VkSampler s) const {
   return {s, occlusion_.view(), VK_IMAGE_LAYOUT_GENERAL};
 }
 
+void FieldGpu::recordPlaces(VkCommandBuffer cmd, FieldMirror& mirror) {
+  std::vector<std::pair<std::size_t, std::vector<float>>> records;  // (first slot, vec4s)
+  mirror.read([&](const Field& field) {
+    if (field.desc.cascadeCount != fieldDesc_.cascadeCount) return;
+    for (int k = 0; k < field.desc.cascadeCount; ++k) {
+      gpu::CascadeDesc& c = fieldDesc_.cascades[k];
+      const gpu::CascadeDesc& now = field.desc.cascades[k];
+      if (c.origin == now.origin && c.scroll == now.scroll) continue;
+      c.origin = now.origin;
+      c.scroll = now.scroll;
+      std::vector<float> vec4s;
+      vec4s.reserve(std::size_t(gpu::pcSlotCount(c)) * 4);
+      for (int s = 0; s < gpu::pcSlotCount(c); ++s) {
+        const ProbeRecord& r = field.probe(k, s);
+        vec4s.insert(vec4s.end(), {r.offset.x, r.offset.y, r.offset.z, float(r.state)});
+      }
+      records.emplace_back(std::size_t(c.firstProbe), std::move(vec4s));
+    }
+  });
+  if (records.empty()) return;
+  // Earlier frames' reads finish before the places and records change under them.
+  vk::memoryBarrier(cmd, kShaders, VK_ACCESS_2_NONE, VK_PIPELINE_STAGE_2_COPY_BIT,
+                    VK_ACCESS_2_TRANSFER_WRITE_BIT);
+  vkCmdUpdateBuffer(cmd, desc_.get(), 0, sizeof fieldDesc_, &fieldDesc_);
+  // vkCmdUpdateBuffer takes at most 65,536 bytes a call.
+  constexpr std::size_t kChunk = 65536;
+  for (const auto& [first, vec4s] : records) {
+    const std::size_t bytes = vec4s.size() * sizeof(float);
+    for (std::size_t at = 0; at < bytes; at += kChunk) {
+      vkCmdUpdateBuffer(cmd, probes_.get(), first * kProbeRecordBytes + at,
+                        std::min(kChunk, bytes - at),
+                        reinterpret_cast<const std::uint8_t*>(vec4s.data()) + at);
+    }
+  }
+  vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, kShaders,
+                    VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_UNIFORM_READ_BIT);
+}
+
 FieldUploadStats FieldGpu::recordUploads(VkCommandBuffer cmd, int slot, FieldMirror& mirror,
                                          double now) {
   if (!present_) return {};
+  if (const std::uint64_t serial = mirror.placesSerial(); serial != placesSerial_) {
+    recordPlaces(cmd, mirror);
+    placesSerial_ = serial;
+  }
   return record(cmd, slot, mirror, mirror.takePending(bricksPerFrame_), now, fadeSeconds_ > 0);
 }
 

@@ -84,6 +84,10 @@ class FieldGpu {
   int maxWrites_ = 0;  // FieldWrite entries per frame (uploads plus fades)
   double fadeSeconds_ = 0;
   std::vector<std::vector<bool>> held_;  // [cascade][brick]: the atlases hold a version
+  std::uint64_t placesSerial_ = 0;       // FieldMirror::placesSerial the GPU copy has
+  // Records the moved cascades' places (the desc) and all their probe records, when the
+  // mirror's cascades moved since the last frame (common/field_scroll.h).
+  void recordPlaces(VkCommandBuffer cmd, FieldMirror& mirror);
   std::vector<Fade> fades_;
 
   vk::UniqueSampler nearest_;

@@ -86,6 +86,29 @@ bool FieldMirror::applyBrick(const Field& source, BrickId id, std::uint64_t vers
   return true;
 }
 
+bool FieldMirror::movePlaces(const Field& source) {
+  std::lock_guard lock(mutex_);
+  if (!field_ || !sameLayout(*field_, source)) return false;
+  bool moved = false;
+  for (int k = 0; k < field_->desc.cascadeCount; ++k) {
+    gpu::CascadeDesc& c = field_->desc.cascades[k];
+    const gpu::CascadeDesc& from = source.desc.cascades[k];
+    if (c.origin == from.origin && c.scroll == from.scroll) continue;
+    c.origin = from.origin;
+    c.scroll = from.scroll;
+    const auto first = source.probes.begin() + c.firstProbe;
+    std::copy(first, first + gpu::pcSlotCount(c), field_->probes.begin() + c.firstProbe);
+    moved = true;
+  }
+  if (moved) ++placesSerial_;
+  return moved;
+}
+
+std::uint64_t FieldMirror::placesSerial() const {
+  std::lock_guard lock(mutex_);
+  return placesSerial_;
+}
+
 bool FieldMirror::present() const {
   std::lock_guard lock(mutex_);
   return field_.has_value();

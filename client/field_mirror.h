@@ -38,6 +38,15 @@ class FieldMirror {
   // layout differs or the brick does not exist, or when `version` is not newer than the one held.
   bool applyBrick(const Field& source, BrickId id, std::uint64_t version, double now);
 
+  // Cascades that follow the viewers moved (common/field_scroll.h): takes each moved cascade's
+  // origin and scroll from `source` (of the same layout otherwise) with all its probe records
+  // at once, so that no frame shows the new places with the old records. True when a cascade
+  // moved; placesSerial() then counts one more.
+  bool movePlaces(const Field& source);
+  // Bumped by every movePlaces that moved a cascade: the GPU copy re-reads the places and the
+  // records of the moved cascades.
+  std::uint64_t placesSerial() const;
+
   bool present() const;
   FieldAge age(double now) const;
   std::uint64_t brickVersion(BrickId id) const;
@@ -62,6 +71,7 @@ class FieldMirror {
   };
   mutable std::mutex mutex_;
   std::optional<Field> field_;
+  std::uint64_t placesSerial_ = 0;
   std::vector<std::vector<BrickState>> bricks_;  // [cascade][brick]
   std::vector<BrickId> pending_;                 // arrival order
 };

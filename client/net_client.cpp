@@ -392,6 +392,8 @@ void NetClient::Impl::poll() {
   // Hand changed bricks to the mirror: the frame loop uploads them on its own schedule.
   const StreamReceiver& receiver = *session.receiver();
   std::uint64_t applied = 0, held = 0;
+  // Cascades that followed the viewers move first, records and all, in one step.
+  mirror.movePlaces(receiver.field());
   for (auto [k, b] : session.takeChangedBricks()) {
     if (mirror.applyBrick(receiver.field(), BrickId{k, b}, ++mirrorVersion, now)) ++applied;
     const std::uint64_t version = receiver.brickVersion(k, b);

@@ -87,6 +87,7 @@ Field Field::create(const std::vector<ProbeVolume>& volumes, const FieldSettings
     c.maxRayDistance = maxRay > 0.0f ? maxRay : 1.5f * std::sqrt(3.0f) * v.spacing;
     c.blendMargin = own.blendMargin.value_or(settings.blendMargin) * v.spacing;
     c.encoding = int(own.encoding.value_or(settings.encoding));
+    c.follows = own.follow.value_or(settings.followViewers) ? 1 : 0;
     int n = pcSlotCount(c);
     slots += n;
     rows += pcAtlasTileRows(n);

@@ -34,6 +34,8 @@ struct FieldSettings {
   float blendMargin = 1.0f;        // fraction of a cascade's spacing
   // How cascades store irradiance where their volume does not say (VolumeSettings::encoding).
   ProbeEncoding encoding = ProbeEncoding::Octahedral;
+  // Whether cascades follow the viewers where their volume does not say (VolumeSettings::follow).
+  bool followViewers = false;
 };
 
 // One SH probe's radiance coefficients, rgb each, in the order of pcShBasis (band 2; a band-1

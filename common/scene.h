@@ -135,6 +135,9 @@ struct VolumeSettings {
   std::optional<float> maxRayDistance;  // > 0
   std::optional<float> blendMargin;     // [0, 4]
   std::optional<ProbeEncoding> encoding;
+  // The cascade follows the viewers (common/field_scroll.h): a server moves it, by whole
+  // spacings, to keep the viewers near its middle. Baking ignores it.
+  std::optional<bool> follow;
 };
 
 // One cascade of probes. Cascades are ordered finest first.

@@ -262,6 +262,11 @@ VolumeSettings parseVolumeSettings(const json& j, const std::string& ptr, std::s
            volume + "max_ray_distance must be positive (world units), got " + std::to_string(v));
     s.maxRayDistance = v;
   }
+  if (j.contains("follow")) {
+    if (!j["follow"].is_boolean())
+      fail(ptr + "/follow", volume + "follow must be true or false, got " + j["follow"].dump());
+    s.follow = j["follow"].get<bool>();
+  }
   // Every cascade is traced in one pass with one set of ray directions (both tracers).
   if (j.contains("rays_per_probe"))
     fail(ptr + "/rays_per_probe", volume +
@@ -273,7 +278,7 @@ VolumeSettings parseVolumeSettings(const json& j, const std::string& ptr, std::s
 ProbeVolume parseVolume(const json& j, const std::string& ptr, std::size_t index) {
   object(j, ptr,
          {"origin", "spacing", "counts", "min", "max", "hysteresis", "normal_bias", "view_bias",
-          "max_ray_distance", "blend_margin", "rays_per_probe", "encoding"});
+          "max_ray_distance", "blend_margin", "rays_per_probe", "encoding", "follow"});
   ProbeVolume v;
   v.settings = parseVolumeSettings(j, ptr, index);
   if (!j.contains("spacing")) fail(ptr, "volume has no 'spacing'");

@@ -12,6 +12,8 @@
 #include <memory>
 #include <string>
 
+#include "common/field_scroll.h"
+
 namespace pc {
 
 namespace {
@@ -19,10 +21,12 @@ namespace {
 using namespace pc::gpu;
 using namespace brick_layout;
 
-// Payload header: magic "QZ", format 2, flags (bit 0: residual). Format 1 (protocol version 1)
-// had 9 irradiance mantissa bits.
-constexpr std::uint8_t kMagic0 = 'Q', kMagic1 = 'Z', kFormat = 2, kFlagResidual = 1;
-constexpr std::size_t kHeaderBytes = 4;
+// Payload header: magic "QZ", format 2, flags (bit 0: residual; bit 1, protocol version 9: the
+// layout stamp follows, three little-endian float32: the cascade's origin). Format 1
+// (protocol version 1) had 9 irradiance mantissa bits.
+constexpr std::uint8_t kMagic0 = 'Q', kMagic1 = 'Z', kFormat = 2, kFlagResidual = 1,
+                       kFlagOrigin = 2;
+constexpr std::size_t kHeaderBytes = 4, kOriginBytes = 12;
 constexpr std::size_t kRawBytes = kCodes * 2;
 
 // Irradiance mini-float: float bits rounded to kIrradianceMantissaBits mantissa bits; exponent
@@ -133,6 +137,7 @@ QuantizedBrick quantizeBrick(const Field& field, int cascade, int brick) {
   const float depthScale = c.maxRayDistance > 0.0f ? 1.0f / c.maxRayDistance : 0.0f;
   QuantizedBrick q;
   q.codes.assign(kCodes, 0);
+  if (c.follows != 0) q.origin = c.origin;
   std::uint16_t* out = q.codes.data();
   for (int s = 0; s < kSlots; ++s) {
     const int slot = brick * kSlots + s;
@@ -227,11 +232,26 @@ void applyBrick(Field& field, int cascade, int brick, const QuantizedBrick& q) {
         }
       }
     }
+    field.fixBorders(cascade, slot);
+  }
+  applyBrickRecords(field, cascade, brick, q);
+}
+
+void applyBrickRecords(Field& field, int cascade, int brick, const QuantizedBrick& q) {
+  const CascadeDesc& c = field.cascade(cascade);
+  const std::uint16_t* in = q.codes.data();
+  for (int s = 0; s < kSlots; ++s) {
+    const int slot = brick * kSlots + s;
     ProbeRecord& p = field.probe(cascade, slot);
+    p.updates = 0;
+    if (q.origin && !slotMatchesStamp(c, *q.origin, pcSlotCoord(c, slot))) {
+      // Data of another grid point: as the server's probe that scrolled in, not yet traced.
+      p.offset = glm::vec3(0.0f);
+      p.state = PC_PROBE_UNINITIALIZED;
+      continue;
+    }
     for (int a = 0; a < 3; ++a) p.offset[a] = offsetValue(in[kOffset + a * kSlots + s], c.spacing);
     p.state = int(in[kState + s]);
-    p.updates = 0;
-    field.fixBorders(cascade, slot);
   }
 }
 
@@ -264,6 +284,9 @@ BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b) {
   }
   ch.offset = float(offsetMax) / 32767.0f;
   for (std::size_t i = kState; i < kCodes; ++i) ch.states |= a.codes[i] != b.codes[i];
+  // Another layout stamp moves which grid points the slots stand for: as a change of state, it
+  // is never held back, or a client would hide the slots that scrolled in for good.
+  ch.states |= a.origin != b.origin;
   return ch;
 }
 
@@ -339,7 +362,9 @@ std::size_t holdSmallChanges(QuantizedBrick& q, const QuantizedBrick& previous,
   return held;
 }
 
-std::size_t maxEncodedBrickBytes() { return kHeaderBytes + ZSTD_compressBound(kRawBytes); }
+std::size_t maxEncodedBrickBytes() {
+  return kHeaderBytes + kOriginBytes + ZSTD_compressBound(kRawBytes);
+}
 
 std::vector<std::uint8_t> encodeBrick(const QuantizedBrick& q, const QuantizedBrick* base,
                                       int zstdLevel) {
@@ -373,13 +398,20 @@ std::vector<std::uint8_t> encodeBrick(const QuantizedBrick& q, const QuantizedBr
   scratch[0] = kMagic0;
   scratch[1] = kMagic1;
   scratch[2] = kFormat;
-  scratch[3] = base ? kFlagResidual : 0;
-  const std::size_t n = ZSTD_compress2(cctx.get(), scratch.data() + kHeaderBytes,
-                                       scratch.size() - kHeaderBytes, raw.data(), raw.size());
+  scratch[3] = std::uint8_t((base ? kFlagResidual : 0) | (q.origin ? kFlagOrigin : 0));
+  std::size_t header = kHeaderBytes;
+  if (q.origin) {
+    for (int a = 0; a < 3; ++a) {
+      std::uint32_t bits;
+      std::memcpy(&bits, &(*q.origin)[a], 4);
+      for (int b = 0; b < 4; ++b) scratch[header++] = std::uint8_t(bits >> (8 * b));
+    }
+  }
+  const std::size_t n = ZSTD_compress2(cctx.get(), scratch.data() + header, scratch.size() - header,
+                                       raw.data(), raw.size());
   // Compressing into a buffer of compressBound cannot fail short of memory exhaustion.
   if (ZSTD_isError(n)) return {};
-  return std::vector<std::uint8_t>(scratch.begin(),
-                                   scratch.begin() + std::ptrdiff_t(kHeaderBytes + n));
+  return std::vector<std::uint8_t>(scratch.begin(), scratch.begin() + std::ptrdiff_t(header + n));
 }
 
 Result<QuantizedBrick> decodeBrick(std::span<const std::uint8_t> payload,
@@ -392,15 +424,30 @@ Result<QuantizedBrick> decodeBrick(std::span<const std::uint8_t> payload,
   }
   if (payload[0] != kMagic0 || payload[1] != kMagic1) return fail("bad magic");
   if (payload[2] != kFormat) return fail("unknown format " + std::to_string(payload[2]));
-  if ((payload[3] & ~kFlagResidual) != 0) return fail("unknown flags");
+  if ((payload[3] & ~(kFlagResidual | kFlagOrigin)) != 0) return fail("unknown flags");
   const bool residual = (payload[3] & kFlagResidual) != 0;
+  std::size_t header = kHeaderBytes;
+  std::optional<glm::vec3> origin;
+  if ((payload[3] & kFlagOrigin) != 0) {
+    if (payload.size() < kHeaderBytes + kOriginBytes + 1)
+      return fail("truncated layout stamp (" + std::to_string(payload.size()) + " bytes)");
+    glm::vec3 o;
+    for (int a = 0; a < 3; ++a) {
+      std::uint32_t bits = 0;
+      for (int b = 0; b < 4; ++b) bits |= std::uint32_t(payload[header++]) << (8 * b);
+      std::memcpy(&o[a], &bits, 4);
+    }
+    if (!std::isfinite(o.x) || !std::isfinite(o.y) || !std::isfinite(o.z))
+      return fail("layout stamp is not finite");
+    origin = o;
+  }
   if (residual != (base != nullptr)) {
     return fail(residual ? "residual payload without a base"
                          : "self-contained payload given a base");
   }
   if (base && base->codes.size() != kCodes) return fail("base brick has the wrong size");
 
-  const std::span<const std::uint8_t> frame = payload.subspan(kHeaderBytes);
+  const std::span<const std::uint8_t> frame = payload.subspan(header);
   const unsigned long long content = ZSTD_getFrameContentSize(frame.data(), frame.size());
   if (content == ZSTD_CONTENTSIZE_ERROR) return fail("not a zstd frame");
   if (content != kRawBytes) {
@@ -423,6 +470,7 @@ Result<QuantizedBrick> decodeBrick(std::span<const std::uint8_t> payload,
     return fail("decoded " + std::to_string(n) + " bytes, expected " + std::to_string(kRawBytes));
 
   QuantizedBrick q;
+  q.origin = origin;
   q.codes.resize(kCodes);
   for (std::size_t i = 0; i < kCodes; ++i) {
     const std::uint16_t r = unzigzag(std::uint16_t(raw[i] | (raw[kCodes + i] << 8)));

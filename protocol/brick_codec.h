@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -54,6 +55,11 @@ inline constexpr float kOffsetBound = 1.0f / 65534.0f;  // x spacing
 // for residuals.
 struct QuantizedBrick {
   std::vector<std::uint16_t> codes;  // brick_layout::kCodes values
+  // The cascade's origin when the brick was quantized: its layout stamp (common/field_scroll.h).
+  // A slot's data stands for the grid point that layout put there; applyBrick shows only the
+  // slots that the field's current layout puts at the same grid point. Unset: the brick is of
+  // the field's own layout (a cascade that never moves).
+  std::optional<glm::vec3> origin;
   bool operator==(const QuantizedBrick&) const = default;
 };
 
@@ -61,7 +67,12 @@ struct QuantizedBrick {
 QuantizedBrick quantizeBrick(const Field& field, int cascade, int brick);
 // Writes decoded values into the brick's tile interiors, re-derives the tile borders, and sets
 // the probe records' offsets and states (update counts are server bookkeeping and not sent).
+// A slot whose data the stamp places at another grid point than the field's layout does gets
+// the uninitialized state: it is never sampled.
 void applyBrick(Field& field, int cascade, int brick, const QuantizedBrick& q);
+// The probe records (offsets, states) alone, masked as applyBrick does: after the cascade's
+// layout moved, the held bricks' slots are shown again or hidden by their stamps.
+void applyBrickRecords(Field& field, int cascade, int brick, const QuantizedBrick& q);
 
 // Individual code conversions, exposed for tests.
 std::uint16_t quantizeIrradiance(float encoded);
@@ -78,7 +89,7 @@ struct BrickChange {
   float depth = 0;      // max |delta mean| / maxRayDistance
   float occlusion = 0;  // max |delta|
   float offset = 0;     // max |delta| of a relocation offset component / spacing
-  bool states = false;  // a probe state changed
+  bool states = false;  // a probe state (or the layout stamp) changed
 };
 BrickChange brickChange(const QuantizedBrick& a, const QuantizedBrick& b);
 

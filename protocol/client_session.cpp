@@ -216,7 +216,13 @@ Status ClientSession::onMessage(SessionMessage& message, double now) {
   }
   auto& state = std::get<SceneStateMsg>(message);
   clock_.update(state.animationTime, now);
-  if (receiver_) receiver_->announceFieldVersion(state.fieldVersion);
+  if (receiver_) {
+    receiver_->announceFieldVersion(state.fieldVersion);
+    // Cascades that follow the viewers: the mirror moves with them (its bricks' layout stamps
+    // say which slots stay valid).
+    if (Status moved = receiver_->moveCascades(state.cascadePlaces); !moved)
+      return fail(moved.error().message);
+  }
   // The newest state with edits in force: the scene, until a state without them comes.
   if (state.editVersion > 0) {
     edited_ = state;

@@ -124,6 +124,14 @@ std::optional<double> FieldPublisher::changedAfter(int cascade, int brick,
   return times.front().second;
 }
 
+void FieldPublisher::moveCascades(const std::vector<CascadePlaceMsg>& places) {
+  if (places.size() != info_.cascades.size()) return;
+  for (std::size_t k = 0; k < places.size(); ++k) {
+    info_.cascades[k].origin = places[k].origin;
+    info_.cascades[k].scroll = places[k].scroll;
+  }
+}
+
 void FieldPublisher::commit(PreparedBricks prepared, double now) {
   info_.fieldVersion = prepared.fieldVersion;
   fieldVersion_ = prepared.fieldVersion;

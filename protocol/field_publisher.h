@@ -103,6 +103,9 @@ class FieldPublisher {
 
   std::uint64_t fieldVersion() const { return fieldVersion_; }
   const SessionInfoMsg& sessionInfo() const { return info_; }
+  // Cascades that follow the viewers moved (SceneStateMsg::cascadePlaces, one per cascade;
+  // empty changes nothing): SessionInfo and the senders' brick positions use the new places.
+  void moveCascades(const std::vector<CascadePlaceMsg>& places);
   int cascadeCount() const { return int(bricks_.size()); }
   int brickCount(int cascade) const { return int(bricks_[cascade].size()); }
   const gpu::CascadeDesc& cascade(int k) const { return info_.cascades[k]; }

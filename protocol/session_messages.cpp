@@ -97,8 +97,15 @@ struct Encoder {
     auto matsOff = fbb.CreateVectorOfStructs(mats);
     fb::Offset<fb::Vector<float>> emissionOff;
     if (!m.emissionScales.empty()) emissionOff = fbb.CreateVector(m.emissionScales);
+    fb::Offset<fb::Vector<const net::CascadePlace*>> placesOff;
+    if (!m.cascadePlaces.empty()) {
+      std::vector<net::CascadePlace> places;
+      for (const CascadePlaceMsg& p : m.cascadePlaces)
+        places.emplace_back(toWire(p.origin), toWire(p.scroll));
+      placesOff = fbb.CreateVectorOfStructs(places);
+    }
     return net::CreateSceneState(fbb, m.animationTime, lightsOff, matsOff, m.fieldVersion,
-                                 m.publishTime, m.editVersion, emissionOff)
+                                 m.publishTime, m.editVersion, emissionOff, placesOff)
         .Union();
   }
   fb::Offset<void> operator()(const EditMsg& m) {
@@ -402,6 +409,16 @@ Result<SessionMessage> decodeMessage(std::span<const std::uint8_t> frame) {
           m.emissionScales.push_back(f);
         }
       }
+      if (w->cascade_places()) {
+        if (w->cascade_places()->size() > std::size_t(PC_MAX_CASCADES))
+          return fail("scene state: " + std::to_string(w->cascade_places()->size()) +
+                      " cascade places (at most " + std::to_string(PC_MAX_CASCADES) + ")");
+        for (const net::CascadePlace* p : *w->cascade_places()) {
+          CascadePlaceMsg place{fromWire(&p->origin()), fromWire(&p->scroll())};
+          if (!finite(place.origin)) return fail("scene state: cascade origin not finite");
+          m.cascadePlaces.push_back(place);
+        }
+      }
       return SessionMessage(std::move(m));
     }
     case net::Body::ViewerPose: {
@@ -682,6 +699,17 @@ Result<Field> mirrorField(const SessionInfoMsg& info) {
   f.sceneHash = info.sceneHash;
   f.version = 0;
   return f;
+}
+
+std::vector<CascadePlaceMsg> cascadePlaces(const Field& field) {
+  std::vector<CascadePlaceMsg> places;
+  bool follows = false;
+  for (int k = 0; k < field.cascadeCount(); ++k) {
+    follows |= field.cascade(k).follows != 0;
+    places.push_back({field.cascade(k).origin, field.cascade(k).scroll});
+  }
+  if (!follows) places.clear();
+  return places;
 }
 
 SceneStateMsg sceneStateMessage(const SceneState& state) {

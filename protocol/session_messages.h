@@ -75,6 +75,13 @@ struct LightStateMsg {
   float range = 0;
 };
 
+// Where a cascade lies: its origin and toroidal scroll (common/field_scroll.h).
+struct CascadePlaceMsg {
+  glm::vec3 origin{0.0f};
+  glm::ivec3 scroll{0};
+  bool operator==(const CascadePlaceMsg&) const = default;
+};
+
 struct SceneStateMsg {
   double animationTime = 0;
   std::vector<LightStateMsg> lights;
@@ -88,6 +95,9 @@ struct SceneStateMsg {
   // and per material a factor on its emission (empty: all 1).
   std::uint64_t editVersion = 0;
   std::vector<float> emissionScales;
+  // Protocol version 9: every cascade's place when any cascade follows the viewers (empty:
+  // none moves). At most PC_MAX_CASCADES; the receiver checks them against its layout.
+  std::vector<CascadePlaceMsg> cascadePlaces;
 };
 
 struct ViewerPoseMsg {
@@ -239,6 +249,8 @@ Result<Field> mirrorField(const SessionInfoMsg& info);
 // Scene state <-> message. applySceneState needs the scene's own lights and instances (types,
 // cones, meshes), evaluated at any time, and fails when the instance counts differ or the
 // message's lights are neither the scene's nor, after them, lights edits added.
+// Every cascade's place when any cascade of `field` follows the viewers; else empty.
+std::vector<CascadePlaceMsg> cascadePlaces(const Field& field);
 SceneStateMsg sceneStateMessage(const SceneState& state);
 Status applySceneState(const SceneStateMsg& message, SceneState& state);
 

@@ -31,7 +31,11 @@ namespace pc {
 // member a version 7 server does not know, so it is sent only to version 8 servers) and hears
 // an EditResult; the SceneState says which edits it includes, the lights edits added and the
 // emission factors, which older clients ignore (they replay the animation as before).
-inline constexpr std::uint32_t kProtocolVersion = 8;
+// Version 9: cascades that follow the viewers. Bricks carry a layout stamp (the cascade's origin,
+// a codec flag older clients refuse) and SceneState every cascade's place; a server whose
+// cascades follow refuses older clients.
+inline constexpr std::uint32_t kProtocolVersion = 9;
+inline constexpr std::uint32_t kFirstMovingCascadesVersion = 9;
 inline constexpr std::uint32_t kMinProtocolVersion = 4;
 // The first version whose clients report arrivals and take StreamReport.
 inline constexpr std::uint32_t kCongestionControlVersion = 3;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "common/field_scroll.h"
+
 namespace pc {
 
 namespace {
@@ -55,6 +57,53 @@ std::vector<std::pair<int, int>> StreamReceiver::takeChangedBricks() {
 }
 
 void StreamReceiver::requestRepair(BrickState& b) { b.wantRepair = true; }
+
+Status StreamReceiver::moveCascades(const std::vector<CascadePlaceMsg>& places) {
+  if (places.empty()) return Status::success();
+  if (int(places.size()) != field_.cascadeCount())
+    return Error{"scene state: " + std::to_string(places.size()) +
+                 " cascade places for a field of " + std::to_string(field_.cascadeCount()) +
+                 " cascades"};
+  for (int k = 0; k < field_.cascadeCount(); ++k) {
+    const gpu::CascadeDesc& c = field_.cascade(k);
+    const CascadePlaceMsg& p = places[std::size_t(k)];
+    const glm::ivec3 s = p.scroll;
+    if (s.x < 0 || s.y < 0 || s.z < 0 || s.x >= c.counts.x || s.y >= c.counts.y ||
+        s.z >= c.counts.z)
+      return Error{"scene state: cascade " + std::to_string(k) + "'s scroll out of range"};
+    // The move must be whole spacings, and the scroll must have moved with it.
+    const glm::ivec3 shift = originShift(c.origin, p.origin, c.spacing);
+    const glm::vec3 error = p.origin - (c.origin + glm::vec3(shift) * c.spacing);
+    if (glm::length(error) > 1e-3f * c.spacing)
+      return Error{"scene state: cascade " + std::to_string(k) +
+                   " moved by other than whole spacings"};
+    for (int a = 0; a < 3; ++a) {
+      const int n = c.counts[a];
+      if (((c.scroll[a] + shift[a]) % n + n) % n != s[a])
+        return Error{"scene state: cascade " + std::to_string(k) +
+                     "'s scroll does not match its move"};
+    }
+  }
+  for (int k = 0; k < field_.cascadeCount(); ++k) {
+    gpu::CascadeDesc& c = field_.desc.cascades[k];
+    const CascadePlaceMsg& p = places[std::size_t(k)];
+    if (c.origin == p.origin && c.scroll == p.scroll) continue;
+    c.origin = p.origin;
+    c.scroll = p.scroll;
+    for (int b = 0; b < int(bricks_[k].size()); ++b) {
+      BrickState& held = bricks_[k][b];
+      if (!held.content) continue;
+      const int first = c.firstProbe + b * gpu::PC_PROBES_PER_BRICK;
+      std::vector<int> before(gpu::PC_PROBES_PER_BRICK);
+      for (int i = 0; i < gpu::PC_PROBES_PER_BRICK; ++i)
+        before[std::size_t(i)] = field_.probes[std::size_t(first + i)].state;
+      applyBrickRecords(field_, k, b, *held.content);
+      for (int i = 0; i < gpu::PC_PROBES_PER_BRICK; ++i)
+        held.changed |= before[std::size_t(i)] != field_.probes[std::size_t(first + i)].state;
+    }
+  }
+  return Status::success();
+}
 
 bool StreamReceiver::adoptHeld(StreamReceiver&& previous) {
   if (!sameLayout(previous.field_.desc, field_.desc) || previous.bricks_.size() != bricks_.size())

@@ -129,6 +129,12 @@ class StreamReceiver {
   void announceFieldVersion(std::uint64_t version);
   // The newest version a datagram or brick update may carry now.
   std::uint64_t newestAcceptedVersion() const;
+  // A SceneState's cascade places (protocol version 9): each cascade that moved takes its new
+  // origin and scroll, and the slots of its held bricks are shown or hidden again by their
+  // layout stamps (brick_codec.h); bricks whose records changed count as changed. An Error
+  // names a place that does not fit the layout (count, scroll out of range, an origin not a
+  // whole number of spacings away), and nothing moves.
+  Status moveCascades(const std::vector<CascadePlaceMsg>& places);
   // (cascade, brick) of every brick changed since the previous call, for tile uploads.
   std::vector<std::pair<int, int>> takeChangedBricks();
 

@@ -84,6 +84,7 @@ StreamSimulationResult runStreamSimulation(Field& server, const FieldAdvance& ad
         // The scene state a server sends with every update, announcing its field version.
         SceneStateMsg state;
         state.fieldVersion = server.version;
+        state.cascadePlaces = cascadePlaces(server);
         (void)client.onStreamBytes(encodeMessage(state), t);
       }
     }

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <thread>
 
+#include "common/field_scroll.h"
 #include "common/log.h"
 #include "protocol/baked_file.h"
 
@@ -66,6 +67,42 @@ bool FieldLoop::fallBack() {
   return tracer_ != nullptr;
 }
 
+SceneStateMsg FieldLoop::publishedState(const SceneState& state) const {
+  SceneStateMsg m = sceneStateMessage(state);
+  m.cascadePlaces = cascadePlaces(field_);
+  return m;
+}
+
+void FieldLoop::followViewers() {
+  bool follows = false;
+  for (int k = 0; k < field_.cascadeCount(); ++k) follows |= field_.cascade(k).follows != 0;
+  if (!follows) return;
+  const std::vector<glm::vec3> viewers = hub_.viewers();
+  if (viewers.empty()) return;  // no one to follow: the cascades stay where they are
+  glm::vec3 lo = viewers.front(), hi = viewers.front();
+  for (const glm::vec3& v : viewers) {
+    lo = glm::min(lo, v);
+    hi = glm::max(hi, v);
+  }
+  const glm::vec3 center = 0.5f * (lo + hi);
+  std::uint64_t scrolls = 0, probes = 0;
+  for (int k = 0; k < field_.cascadeCount(); ++k) {
+    if (field_.cascade(k).follows == 0) continue;
+    const glm::ivec3 shift = followShift(field_.cascade(k), center);
+    if (shift == glm::ivec3(0)) continue;
+    const std::vector<int> reset = scrollCascade(field_, k, shift);
+    scheduler_.forget(field_, k, reset);
+    const std::size_t first = std::size_t(field_.cascade(k).firstProbe);
+    for (int s : reset) rest_.wake(first + std::size_t(s));
+    ++scrolls;
+    probes += reset.size();
+  }
+  if (scrolls == 0) return;
+  std::lock_guard lock(statsMutex_);
+  stats_.scrolls += scrolls;
+  stats_.scrolledProbes += probes;
+}
+
 void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   double t = options_.startTime + elapsed;
   const bool freezing = options_.freezeAt >= 0 && t >= options_.freezeAt;
@@ -77,7 +114,7 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
     scheduler_.prioritize(field_, edited);
     // A new edit's state goes out before the update that traces it: clients light the scene
     // as edited one update sooner, and the field follows over the next updates anyway.
-    if (Status early = hub_.publish(field_, sceneStateMessage(state), now); !early)
+    if (Status early = hub_.publish(field_, publishedState(state), now); !early)
       logError("publish: " + early.error().message);
   }
 
@@ -93,6 +130,7 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
       restKey_ = std::move(key);
     }
   }
+  if (!frozen_) followViewers();
   UpdateStats us;
   if (!frozen_ && tracer_) {
     if (convergeLeft_ > 0 && restoreHysteresis_.empty()) {
@@ -111,7 +149,7 @@ void FieldLoop::tickOnce(double elapsed, double now, std::uint64_t tick) {
   }
   // Published every tick, frozen or not: the scene state doubles as the clients' clock.
   const auto publishStart = std::chrono::steady_clock::now();
-  Status published = hub_.publish(field_, sceneStateMessage(state), now);
+  Status published = hub_.publish(field_, publishedState(state), now);
   const double publishMs =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - publishStart)
           .count();
@@ -175,6 +213,12 @@ void appendFieldLoopMetrics(MetricsText& m, const FieldLoopStats& s) {
           double(s.lastUpdate.bricksChanged));
   m.gauge("probecast_field_last_probes_updated", "Probes traced by the latest update.",
           double(s.lastUpdate.probesUpdated));
+  m.counter("probecast_field_scrolls_total",
+            "Moves of cascades that follow the viewers (each re-traces the probes that came in).",
+            double(s.scrolls));
+  m.counter("probecast_field_scrolled_probes_total",
+            "Probes that started over because their cascade moved to follow the viewers.",
+            double(s.scrolledProbes));
   m.gauge("probecast_field_resting_probes",
           "Probes at rest in a still scene (updated every rest period only).",
           double(s.restingProbes));

@@ -65,6 +65,8 @@ struct FieldLoopStats {
   std::uint64_t tracerFailures = 0;              // tracer calls that failed
   std::string lastFailure;                       // the latest one's message
   std::size_t restingProbes = 0;                 // probes at rest after the latest update
+  std::uint64_t scrolls = 0;                     // cascade moves to follow the viewers
+  std::uint64_t scrolledProbes = 0;              // probes that started over in them
 };
 
 // The field thread's metrics (probecast_field_*) for the server's /metrics endpoint.
@@ -108,6 +110,11 @@ class FieldLoop {
 
  private:
   void tickOnce(double elapsed, double now, std::uint64_t tick);
+  // Moves the cascades that follow the viewers (field_scroll.h) to the middle of the viewers'
+  // bounds; the probes that scrolled in go first in the next plans.
+  void followViewers();
+  // The scene state as published: with the cascades' places when any follows.
+  SceneStateMsg publishedState(const SceneState& state) const;
   // The tick's update on the current tracer, and on the fallback where that one fails.
   UpdateStats update(const SceneState& state, std::uint64_t tick);
   // The current tracer's setState, then its update.

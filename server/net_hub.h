@@ -59,6 +59,7 @@ class FieldHub {
     sceneFrame_ = std::move(frame);
     animationTime_ = stamped.animationTime;
     ++sceneSerial_;
+    publisher_.moveCascades(stamped.cascadePlaces);
     publisher_.commit(std::move(prepared), now);
     publishTimes_.emplace_back(stamped.fieldVersion, stamped.publishTime);
     if (publishTimes_.size() > kPublishTimesKept) publishTimes_.pop_front();

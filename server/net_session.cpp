@@ -434,6 +434,13 @@ std::optional<std::string> Session::checkSize(const SessionMessage& message) con
   return std::nullopt;
 }
 
+bool Session::followsViewers() const {
+  auto lock = server_.hub.sharedLock();
+  for (const gpu::CascadeDesc& c : server_.hub.publisher().sessionInfo().cascades)
+    if (c.follows != 0) return true;
+  return false;
+}
+
 bool Session::onHello(const HelloMsg& hello) {
   name_ = hello.clientName.substr(0, kMaxClientNameBytes);
   const std::int64_t nowUnix = unixSeconds();
@@ -442,6 +449,14 @@ bool Session::onHello(const HelloMsg& hello) {
   RejectCause cause = verdict.versionMismatch ? RejectCause::Version : RejectCause::Auth;
   // The per-client cap counts tokens: one token holder cannot take every place.
   const std::string tokenKey = tokenIdHex(verdict.claims.id);
+  if (!reject && hello.protocolVersion < kFirstMovingCascadesVersion && followsViewers()) {
+    // Its bricks carry layout stamps an older client cannot read, and it would not move its
+    // copy of the field with the cascades.
+    reject = RejectMsg{kProtocolVersion,
+                       "this server's cascades follow the viewers: protocol version " +
+                           std::to_string(kFirstMovingCascadesVersion) + " or later needed"};
+    cause = RejectCause::Version;
+  }
   if (!reject && server_.established >= server_.options.maxClients) {
     reject = RejectMsg{kProtocolVersion,
                        "server full: cap " + std::to_string(server_.options.maxClients)};

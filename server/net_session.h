@@ -119,6 +119,8 @@ class Session : public std::enable_shared_from_this<Session> {
   std::optional<std::string> checkSize(const SessionMessage& message) const;
 
   bool onHello(const HelloMsg& hello);
+  // Whether any cascade of the field moves with the viewers (takes the hub's shared lock).
+  bool followsViewers() const;
   // Writes the Reject and closes once it is out. Before its Hello is accepted a peer never
   // gets more bytes than it sent: the reason is cut to fit, and nothing is written when not
   // even an empty reason fits.

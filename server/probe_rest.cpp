@@ -27,6 +27,13 @@ void ProbeRest::wakeAll() {
   resting_ = 0;
 }
 
+void ProbeRest::wake(std::size_t probe) {
+  if (probe >= state_.size()) return;
+  Probe& p = state_[probe];
+  if (p.resting) --resting_;
+  p = Probe{};
+}
+
 void ProbeRest::observe(const Field& field, std::span<const ProbeRef> updated) {
   if (!options_.enabled) return;
   if (state_.size() != field.probes.size()) {

@@ -45,6 +45,8 @@ class ProbeRest {
 
   // The scene's state changed: every probe is awake, and its history of changes starts again.
   void wakeAll();
+  // One probe (field-wide slot index) starts over: awake, no history of changes.
+  void wake(std::size_t probe);
   // After an update: the probes it traced, read from the field they were blended into.
   void observe(const Field& field, std::span<const ProbeRef> updated);
   // A probe (field-wide slot index) rests: the scheduler leaves it to its period.

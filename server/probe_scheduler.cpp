@@ -86,6 +86,15 @@ std::vector<ProbeRef> ProbeScheduler::plan(const Field& field, std::uint64_t tic
   return plan;
 }
 
+void ProbeScheduler::forget(const Field& field, int k, const std::vector<int>& slots) {
+  const std::size_t first = std::size_t(field.cascade(k).firstProbe);
+  for (int s : slots) {
+    const std::size_t index = first + std::size_t(s);
+    if (index < lastUpdate_.size()) lastUpdate_[index] = 0;
+    if (index < boost_.size()) boost_[index] = 0;
+  }
+}
+
 void ProbeScheduler::prioritize(const Field& field, const std::vector<EditRegion>& regions) {
   if (boost_.size() != field.probes.size()) {
     boost_.assign(field.probes.size(), 0);

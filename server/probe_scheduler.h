@@ -34,6 +34,9 @@ class ProbeScheduler {
                              const ProbeRest* rest = nullptr);
   // Forces every probe into the next plan (scene cut, history reset).
   void resetAll() { lastUpdate_.clear(); }
+  // Probes that start over (cascade k's slots that scrolled in, field_scroll.h): they count as
+  // never updated, which ranks them before every probe traced before, nearest a viewer first.
+  void forget(const Field& field, int k, const std::vector<int>& slots);
   // An edit changed the light within `regions`: the probes there, sleeping or not, come first
   // in each of their next kEditBoostUpdates plans (nearest a region's centre first), so that
   // the field around the change converges before anything else is refreshed.

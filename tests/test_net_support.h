@@ -64,7 +64,9 @@ inline bool waitFor(const std::function<bool()>& done, double limit) {
 // tests run on two shared cores), frozen at `freezeAt` so that a client can match it exactly.
 class TestServer {
  public:
-  explicit TestServer(double freezeAt, NetServerOptions net = {}, std::uint16_t port = 0)
+  // `followViewers`: every cascade follows the clients' viewers (common/field_scroll.h).
+  explicit TestServer(double freezeAt, NetServerOptions net = {}, std::uint16_t port = 0,
+                      bool followViewers = false)
       : scene_(builtinScene()) {
     auto tracer = makeEmbreeTracer(scene_);
     EXPECT_TRUE(tracer.ok());
@@ -78,6 +80,8 @@ class TestServer {
     bake.updates = 4;
     setStateOrFail(*tracer_, evaluateScene(scene_, 0.0));
     bakeOrFail(field_, *tracer_, bake);
+    for (int k = 0; k < field_.cascadeCount() && followViewers; ++k)
+      field_.desc.cascades[k].follows = 1;
     hub_ = std::make_unique<FieldHub>(field_);
     (void)hub_->publish(field_, sceneStateMessage(evaluateScene(scene_, 0.0)), steadySeconds());
     net.port = port;

@@ -96,6 +96,7 @@ struct ServerSetup : pc::ServeSetup {
   pc::TracerOptions tracerOptions;
   std::size_t gpuShadowMiB = 0;
   bool noFallback = false;
+  bool followViewers = false;
   int gpuFailSubmission = 0;
   int rays = 256, warmup = 32;
   // Field distribution to relays (relay/): off while nats.urls is empty.
@@ -144,6 +145,10 @@ void addFieldOptions(CLI::App& app, ServerSetup& s) {
                "stopped changing rests: updated every --rest-period ticks)");
   app.add_option("--rest-period", s.loop.rest.period, "ticks between updates of a resting probe")
       ->check(CLI::Range(1, 100000));
+  app.add_flag("--follow-viewers", s.followViewers,
+               "every cascade follows the viewers: it moves by whole spacings to keep them near "
+               "its middle, re-tracing only the probes that scroll in (a volume's \"follow\" in "
+               "the sidecar does it per cascade); clients need protocol version 9");
   app.add_option("--time", s.loop.startTime, "animation time of the first update")
       ->check(pc::kFinite);
   app.add_option("--freeze-at", s.loop.freezeAt,
@@ -297,6 +302,9 @@ void waitForTheEnd(const pc::NetServer& server, const pc::FieldLoop& fieldLoop,
 // Streams `field` to clients while the field thread updates it, until a signal or --duration.
 int serve(const pc::Scene& scene, pc::Tracer& tracer, pc::Field& field, const ServerSetup& s,
           const Signals& signals) {
+  if (s.followViewers) {
+    for (int k = 0; k < field.cascadeCount(); ++k) field.desc.cascades[k].follows = 1;
+  }
   pc::FieldHub hub(field, s.publisherOptions);
   // Runtime edits from sessions with editor tokens: the network thread submits them, the
   // field thread traces and publishes the scene with them.

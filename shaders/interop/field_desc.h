@@ -59,7 +59,9 @@ struct CascadeDesc {
   // -- 64
   float hysteresis;  // the blend's weight of history (FieldSettings, or the volume's own)
   int encoding;      // PC_ENCODING_*: how the cascade stores irradiance (sh_probe.h)
-  float pad1;
+  // 1: the cascade follows the viewers (common/field_scroll.h): its origin and scroll move at
+  // run time, and its bricks carry a layout stamp. Server-side; shaders ignore it.
+  int follows;
   float pad2;
   // -- 80
 };
