@@ -27,7 +27,8 @@ float specularLobeChance(const SurfaceBrdf& brdf, glm::vec3 V) {
   const float NdotV = std::max(glm::dot(brdf.normal, V), 0.0f);
   const float specular =
       luminance(gpu::pcFresnelSchlick(gpu::pcSpecularF0(brdf.baseColor, brdf.metallic), NdotV));
-  const float diffuse = (1.0f - brdf.metallic) * luminance(brdf.baseColor);
+  const float diffuse =
+      (1.0f - brdf.metallic) * luminance(brdf.baseColor) * (1.0f - gpu::PC_DIELECTRIC_F0);
   const float total = specular + diffuse;
   return total > 0.0f ? specular / total : 0.5f;
 }

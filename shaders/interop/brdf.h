@@ -1,9 +1,10 @@
 // The surface BRDF, once for every renderer: glTF's metallic-roughness model as Lambert
-// diffuse weighted by (1 - metallic) plus a GGX (Trowbridge-Reitz) specular lobe with Smith's
-// height-correlated masking-shadowing and Schlick's Fresnel, F0 = mix(0.04, baseColor,
-// metallic). The reference path tracer (cpu/path_tracer.cpp, cpu/material_sampling.cpp)
-// evaluates and samples it from here; a GPU renderer that shades glossy surfaces includes the
-// same functions, so the formulas cannot drift apart.
+// diffuse weighted by (1 - metallic) and by what the dielectric coat's Fresnel leaves, plus a
+// GGX (Trowbridge-Reitz) specular lobe with Smith's height-correlated masking-shadowing and
+// Schlick's Fresnel, F0 = mix(0.04, baseColor, metallic). The reference path tracer
+// (cpu/path_tracer.cpp, cpu/material_sampling.cpp) evaluates and samples it from here; a GPU
+// renderer that shades glossy surfaces includes the same functions, so the formulas cannot drift
+// apart.
 //
 // Metallic 0 with roughness 1 is the plain diffuse surface (Material::isDiffuseOnly): Lambert
 // alone, without the dielectric's 4% lobe, so scenes without metallic-roughness data render
@@ -34,11 +35,16 @@ PC_FN vec3 pcSpecularF0(vec3 baseColor, float metallic) {
   return mix(vec3(PC_DIELECTRIC_F0), baseColor, metallic);
 }
 
-// Schlick's approximation at the angle whose cosine is `cosTheta` (between V and H).
-PC_FN vec3 pcFresnelSchlick(vec3 F0, float cosTheta) {
+// Schlick's weight (1 - cos)^5 at the angle whose cosine is `cosTheta` (between V and H).
+PC_FN float pcSchlickWeight(float cosTheta) {
   float m = clamp(1.0f - cosTheta, 0.0f, 1.0f);
   float m2 = m * m;
-  return F0 + (vec3(1.0f) - F0) * (m2 * m2 * m);
+  return m2 * m2 * m;
+}
+
+// Schlick's approximation of the Fresnel reflectance.
+PC_FN vec3 pcFresnelSchlick(vec3 F0, float cosTheta) {
+  return F0 + (vec3(1.0f) - F0) * pcSchlickWeight(cosTheta);
 }
 
 // GGX normal distribution D(h) for cos(N, H) = NdotH: integrates to 1 against NdotH over
@@ -79,12 +85,19 @@ PC_FN vec3 pcGgxSpecular(vec3 N, vec3 V, vec3 L, vec3 F0, float alpha) {
          (pcGgxD(NdotH, alpha) * pcSmithVisibility(NdotL, NdotV, alpha));
 }
 
-// The whole BRDF (no cosine): Lambert x (1 - metallic) + GGX specular, or Lambert alone
-// where the point has no specular lobe. Zero where L lies below the surface.
+// The whole BRDF (no cosine): the GGX lobe with Schlick's F0 = mix(0.04, baseColor,
+// metallic), plus Lambert x (1 - metallic) x (1 - F), F the dielectric coat's own Schlick
+// reflectance (F0 0.04) toward the viewer, at N.V: what the coat reflects toward V does not
+// come from the diffuse base, so a white surface never reflects more than arrives. (glTF's
+// appendix B takes F at the half-vector instead, which lets a smooth white dielectric reflect
+// 1.5 times what arrives at grazing views. F at N.V makes the BRDF not reciprocal, which a
+// path tracer that starts at the camera does not need.) Lambert alone where the point has
+// no specular lobe. Zero where L lies below the surface.
 PC_FN vec3 pcMaterialBrdf(vec3 N, vec3 V, vec3 L, vec3 baseColor, float metallic, float roughness) {
   if (!(dot(N, L) > 0.0f)) return vec3(0.0f);
   if (!pcHasSpecularLobe(metallic, roughness)) return baseColor * (1.0f / PC_PI);
-  vec3 diffuse = baseColor * ((1.0f - metallic) / PC_PI);
+  float coat = PC_DIELECTRIC_F0 + (1.0f - PC_DIELECTRIC_F0) * pcSchlickWeight(dot(N, V));
+  vec3 diffuse = baseColor * ((1.0f - metallic) * (1.0f - coat) / PC_PI);
   return diffuse + pcGgxSpecular(N, V, L, pcSpecularF0(baseColor, metallic), pcGgxAlpha(roughness));
 }
 
