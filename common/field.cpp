@@ -5,18 +5,7 @@
 
 #include "../shaders/interop/probe_update.h"
 #include "../shaders/interop/sh_probe.h"
-
-// The shared sampling code reads the field through these fetches; on the CPU they read the
-// atlases bilinearly, exactly as a GPU sampler with linear filtering would.
-namespace pc::gpu {
-vec3 pcFetchIrradiance(const pc::Field& field, int cascade, int slot, vec3 dir);
-vec2 pcFetchDepth(const pc::Field& field, int cascade, int slot, vec3 dir);
-float pcFetchOcclusion(const pc::Field& field, int cascade, int slot, vec3 dir);
-vec4 pcFetchProbe(const pc::Field& field, int cascade, int slot);
-}  // namespace pc::gpu
-#define PC_FIELD_PARAM const pc::Field &field,
-#define PC_FIELD_ARG field,
-#include "../shaders/interop/probe_sampling.h"
+#include "field_shared_sampling.h"
 
 namespace pc {
 

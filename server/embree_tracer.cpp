@@ -12,6 +12,7 @@
 #include "../shaders/interop/probe_math.h"
 #include "../shaders/interop/probe_update.h"
 #include "../shaders/interop/shadow_roulette.h"
+#include "field_hit_sampler.h"
 #include "probe_blend.h"
 
 namespace pc {
@@ -253,15 +254,14 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
     for (std::size_t r = 0; r < keys.size(); ++r)
       if (keys[r] != kNoDeferredHit) order.push_back(std::uint64_t(keys[r]) << 32 | r);
     radixSortByHighWord(order, scratch_->sortTmp);
+    const FieldHitSampler sampler(field);
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, order.size(), 256), [&](const auto& range) {
           for (std::size_t j = range.begin(); j != range.end(); ++j) {
             const std::size_t r = std::size_t(order[j] & 0xFFFFFFFFu);
             const DeferredHit& h = deferred[r];
             const glm::vec3 V = -dirs[r % std::size_t(rayCount)];
-            results[r].radiance +=
-                h.reflectance *
-                glm::vec3(sampleField(field, h.position, h.normal, V, gpu::PC_SAMPLE_NO_OCCLUSION));
+            results[r].radiance += h.reflectance * sampler.irradiance(h.position, h.normal, V);
           }
         });
   }
