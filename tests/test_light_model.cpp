@@ -156,7 +156,7 @@ Evaluated evaluateCpu(const LightCheckCase& c) {
   const glm::vec3 offset = gpu::pcOffsetRayOrigin(P, N);
   const float window = gpu::pcRangeWindow(glm::length(c.light.position - P), c.light.range);
   return {{glm::vec4(E, distance), glm::vec4(wi, geometry), glm::vec4(offset, window),
-           gpu::pcBrdfCheck(c, wi, E)}};
+           gpu::pcBrdfCheck(c, wi, E), gpu::pcSpecularCheck(c, E)}};
 }
 
 TEST(LightModel, KnownValues) {
@@ -345,6 +345,11 @@ TEST_F(LightModelGlsl, AgreesWithTheCppEvaluationToFloatPrecision) {
   auto closeBrdf = [](float a, float b) {
     return a == b || std::fabs(a - b) <= 2e-5f * std::max({std::fabs(a), std::fabs(b), 1e-6f});
   };
+  // The split-sum row adds the lobe fit's cosines, whose terms cancel down to a tenth of
+  // their size (pcGgxSpecularZh): a device cosine's last-place error weighs ten times more.
+  auto closeSpecular = [](float a, float b) {
+    return a == b || std::fabs(a - b) <= 1e-4f * std::max({std::fabs(a), std::fabs(b), 1e-3f});
+  };
   int lit = 0, glossy = 0;
   for (std::size_t i = 0; i < all.size(); ++i) {
     const Evaluated cpu = evaluateCpu(input[i]);
@@ -352,8 +357,10 @@ TEST_F(LightModelGlsl, AgreesWithTheCppEvaluationToFloatPrecision) {
     if (cpu.r[0].w > 0.0f && gpu::pcHasSpecularLobe(input[i].material.w, input[i].view.w)) ++glossy;
     for (int r = 0; r < gpu::PC_LIGHT_CHECK_RESULTS; ++r) {
       for (int k = 0; k < 4; ++k) {
-        EXPECT_TRUE(r == 3 ? closeBrdf(gpuResults[i].r[r][k], cpu.r[r][k])
-                           : close(gpuResults[i].r[r][k], cpu.r[r][k]))
+        const float g = gpuResults[i].r[r][k], c = cpu.r[r][k];
+        EXPECT_TRUE(r == 4   ? closeSpecular(g, c)
+                    : r == 3 ? closeBrdf(g, c)
+                             : close(g, c))
             << all[i].name << ": result " << r << "[" << k << "] GLSL " << gpuResults[i].r[r][k]
             << " C++ " << cpu.r[r][k];
       }

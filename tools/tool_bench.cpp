@@ -40,11 +40,11 @@ int main(int argc, char** argv) {
   CLI::App app{"probecast benchmarks: prints a table, then FIGURE <name> <value> <unit> lines"};
   app.require_subcommand(1);
   std::vector<pc::bench::Benchmark> benches = {
-      pc::bench::addEnergy(app),  pc::bench::addTrace(app),  pc::bench::addQuality(app),
-      pc::bench::addLeak(app),    pc::bench::addClient(app), pc::bench::addGpuTrace(app),
-      pc::bench::addFaults(app),  pc::bench::addStream(app), pc::bench::addLoad(app),
-      pc::bench::addContact(app), pc::bench::addScale(app),  pc::bench::addEdits(app),
-      pc::bench::addRest(app)};
+      pc::bench::addEnergy(app),  pc::bench::addTrace(app),   pc::bench::addQuality(app),
+      pc::bench::addLeak(app),    pc::bench::addClient(app),  pc::bench::addGpuTrace(app),
+      pc::bench::addFaults(app),  pc::bench::addStream(app),  pc::bench::addLoad(app),
+      pc::bench::addContact(app), pc::bench::addScale(app),   pc::bench::addEdits(app),
+      pc::bench::addRest(app),    pc::bench::addSpecular(app)};
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   for (auto& b : benches) {
     if (b.command->parsed()) return b.run();

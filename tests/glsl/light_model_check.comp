@@ -26,4 +26,5 @@ void main() {
   results[base + 1] = vec4(wi, geometry);
   results[base + 2] = vec4(offset, window);
   results[base + 3] = pcBrdfCheck(c, wi, E);
+  results[base + 4] = pcSpecularCheck(c, E);
 }

@@ -7,6 +7,7 @@
 
 #include "../../shaders/interop/brdf.h"
 #include "../../shaders/interop/light_model.h"
+#include "../../shaders/interop/specular_probe.h"
 
 PC_BEGIN
 
@@ -27,7 +28,10 @@ struct LightCheckCase {
 //   [2] pcOffsetRayOrigin(P, N) (xyz), pcRangeWindow(distance to the light, range) (w)
 //   [3] pcMaterialBrdf(N, V, wi, material) x the irradiance (xyz: the reflected radiance),
 //       pcGgxVndfPdf of wi (w)
-PC_CONST int PC_LIGHT_CHECK_RESULTS = 4;
+//   [4] the split-sum indirect term (specular_probe.h): pcIndirectReflected (xyz) with the
+//       irradiance as E and a specular radiance made by pcSpecularFromIrradiance toward the
+//       mirror direction; the lobe's k_1 + k_2 (w)
+PC_CONST int PC_LIGHT_CHECK_RESULTS = 5;
 
 // The light reflected toward V, and the density of drawing wi by GGX's visible normals (the
 // half-vector of V and wi): what a renderer evaluates with brdf.h for one light sample.
@@ -40,6 +44,23 @@ PC_FN vec4 pcBrdfCheck(LightCheckCase c, vec3 wi, vec3 E) {
   float hLength = length(h);
   float NdotH = hLength > 0.0f ? max(dot(N, h) / hLength, 0.0f) : 0.0f;
   return vec4(f * E, pcGgxVndfPdf(dot(N, V), NdotH, pcGgxAlpha(c.view.w)));
+}
+
+// The indirect light a renderer gets from the field for this case's surface, with the light's
+// irradiance E standing in for the probes': E toward the mirror direction, and E scaled
+// differently toward the opposite and the four side directions, so every band takes part. The
+// table's (A, B) is a smooth made-up function here (the table itself is a C++ upload).
+PC_FN vec4 pcSpecularCheck(LightCheckCase c, vec3 E) {
+  vec3 N = vec3(c.normal.x, c.normal.y, c.normal.z);
+  vec3 V = vec3(c.view.x, c.view.y, c.view.z);
+  vec3 base = vec3(c.material.x, c.material.y, c.material.z);
+  float roughness = c.view.w;
+  vec2 zh = pcGgxSpecularZh(roughness);
+  vec3 R = pcReflect(V, N);
+  vec3 S = pcSpecularFromIrradiance(E, E * abs(R.x), E * (1.0f + R.y * R.y), zh);
+  vec2 ab = vec2(0.5f + 0.4f * max(dot(N, V), 0.0f), 0.05f * roughness);
+  vec3 L = pcIndirectReflected(N, V, base, c.material.w, roughness, E, S, ab);
+  return vec4(L, zh.x + zh.y);
 }
 
 PC_END

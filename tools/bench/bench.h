@@ -41,5 +41,6 @@ Benchmark addContact(CLI::App& app);
 Benchmark addScale(CLI::App& app);
 Benchmark addEdits(CLI::App& app);
 Benchmark addRest(CLI::App& app);
+Benchmark addSpecular(CLI::App& app);
 
 }  // namespace pc::bench
