@@ -82,7 +82,8 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
               withSpecular
                   ? sampleFieldOrAmbientLit(field, sp.position, sp.vertexNormal, sp.normal, V,
                                             options.sampleFlags, ambient,
-                                            gpu::pcReflect(V, sp.normal), sp.roughness, specular)
+                                            gpu::pcSpecularDirection(sp.normal, V, sp.roughness),
+                                            sp.roughness, specular)
                   : sampleFieldOrAmbient(field, sp.position, sp.vertexNormal, sp.normal, V,
                                          options.sampleFlags, ambient);
           const glm::vec2 ab =

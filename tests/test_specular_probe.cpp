@@ -188,6 +188,17 @@ TEST(SpecularProbe, ProbeGivesTheConvolutionOfItsCoefficients) {
   }
 }
 
+// The path-traced reference at 128 paths per pixel, tone mapped.
+Result<Image8> referenceImage(const Scene& scene, int width, int height) {
+  PathTraceOptions options;
+  options.width = width;
+  options.height = height;
+  options.spp = 128;
+  auto reference = renderReference(scene, options);
+  if (!reference) return reference.error();
+  return tonemap(reference->image, scene.exposure);
+}
+
 // McGuire's Cornell box with a glossy floor and metal boxes (roughness 0.3): the probe-lit
 // render is closer to the path-traced reference with the field's specular than without it,
 // where the metal boxes get no indirect light at all. Tiny size: the comparison, not the
@@ -203,13 +214,8 @@ TEST(SpecularProbe, GlossyCornellBoxGainsPsnr) {
   fs::remove(sidecar);
   ASSERT_TRUE(scene.ok()) << scene.error().message;
   const int width = 64, height = 48;
-  PathTraceOptions pt;
-  pt.width = width;
-  pt.height = height;
-  pt.spp = 128;
-  auto reference = renderReference(*scene, pt);
-  ASSERT_TRUE(reference.ok()) << reference.error().message;
-  const Image8 ref = tonemap(reference->image, scene->exposure);
+  const Result<Image8> ref = referenceImage(*scene, width, height);
+  ASSERT_TRUE(ref.ok()) << ref.error().message;
   Field field = Field::create(scene->volumes, FieldSettings{});
   field.sceneHash = scene->hash;
   auto tracer = makeEmbreeTracer(*scene);
@@ -225,7 +231,7 @@ TEST(SpecularProbe, GlossyCornellBoxGainsPsnr) {
     lit.indirectSpecular = with == 1;
     auto image = renderProbeLit(*scene, field, lit);
     ASSERT_TRUE(image.ok());
-    psnr[with] = psnr8(tonemap(*image, scene->exposure), ref);
+    psnr[with] = psnr8(tonemap(*image, scene->exposure), ref.value());
   }
   std::printf("glossy Cornell (roughness 0.3): %.2f dB without the specular, %.2f dB with\n",
               psnr[0], psnr[1]);

@@ -87,7 +87,7 @@ vec3 fieldReflected(Surface f, vec3 V) {
   if (frame.fieldPresent != 0) {
     int flags = specular ? frame.sampleFlags : frame.sampleFlags & ~PC_SAMPLE_SPECULAR;
     E = pcSampleFieldOrAmbientLit(field, f.position, f.vertexNormal, f.normal, V, flags,
-                                  frame.ambient.rgb, pcReflect(V, f.normal),
+                                  frame.ambient.rgb, pcSpecularDirection(f.normal, V, f.roughness),
                                   pcGgxSpecularZh(f.roughness), S).rgb;
   }
   if (specular) ab = splitSumAt(max(dot(f.normal, V), 0.0), f.roughness);

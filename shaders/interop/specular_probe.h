@@ -83,6 +83,16 @@ PC_FN vec3 pcSpecularFromIrradiance(vec3 eR, vec3 eMinusR, vec3 eSides, vec2 zh)
 // Mirror direction of V (toward the viewer) about the unit normal N.
 PC_FN vec3 pcReflect(vec3 V, vec3 N) { return 2.0f * dot(N, V) * N - V; }
 
+// The direction S is read in: the mirror direction for a sharp lobe, bent toward N as the lobe
+// widens. The split sum centres the lobe on R, but a wide GGX lobe clipped by the horizon
+// peaks between R and N (at alpha 1 its weight D N.L is the cosine about N); the bend is
+// Lagarde and de Rousiers' fit ("Moving Frostbite to PBR", 2014, 4.9.3).
+PC_FN vec3 pcSpecularDirection(vec3 N, vec3 V, float roughness) {
+  float a = pcGgxAlpha(roughness);
+  float sharpness = 1.0f - a;
+  return normalize(mix(N, pcReflect(V, N), sharpness * (sqrt(sharpness) + a)));
+}
+
 // Radiance toward V reflected from indirect light by the brdf.h material: Lambert on the
 // irradiance E, weighted as pcMaterialBrdf weighs it ((1 - metallic) and what the coat's
 // Fresnel at N.V leaves), plus the split-sum specular S x (F0 A + B), `ab` the table's

@@ -87,8 +87,9 @@ Benchmark addSpecular(CLI::App& app) {
             std::printf("specular: no Vulkan device (%s): CPU only\n", c.error().message.c_str());
         }
         if (ctx) std::printf("device: %s\n", ctx->deviceName().c_str());
-        std::printf("%-9s %12s %12s %12s %12s %12s %12s\n", "roughness", "cpu without", "cpu with",
-                    "cpu gain", "client w/o", "client with", "client gain");
+        std::printf("%-9s %12s %12s %12s %12s %12s %12s %10s\n", "roughness", "cpu without",
+                    "cpu with", "cpu gain", "client w/o", "client with", "client gain",
+                    "ref noise");
         double specularMs = 0.0;
         bool timed = false;
         for (float roughness : {0.3f, 0.6f, 1.0f}) {
@@ -145,9 +146,9 @@ Benchmark addSpecular(CLI::App& app) {
             if (!outDir.empty()) writePng(work / ("client_" + name + ".png"), frame->display[0]);
           }
           if (!outDir.empty()) writePng(work / (std::string("reference_") + tag + ".png"), ref);
-          std::printf("%-9.1f %12.2f %12.2f %12.2f %12.2f %12.2f %12.2f\n", roughness, cpuDb[0],
-                      cpuDb[1], cpuDb[1] - cpuDb[0], clientDb[0], clientDb[1],
-                      clientDb[1] - clientDb[0]);
+          std::printf("%-9.1f %12.2f %12.2f %12.2f %12.2f %12.2f %12.2f %10.2f\n", roughness,
+                      cpuDb[0], cpuDb[1], cpuDb[1] - cpuDb[0], clientDb[0], clientDb[1],
+                      clientDb[1] - clientDb[0], reference->noisePsnr);
           const std::string t(tag);
           figure("psnr_specular_gain_db_" + t,
                  ctx ? clientDb[1] - clientDb[0] : cpuDb[1] - cpuDb[0], "dB");
