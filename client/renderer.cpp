@@ -6,6 +6,7 @@
 
 #include "camera.h"
 #include "common/log.h"
+#include "common/split_sum_table.h"
 #include "overlay_text.h"
 #include "renderer_internal.h"
 #include "vk_util.h"
@@ -165,7 +166,7 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   f.lightCount = lightCount;
   f.viewCount = options_.views;
   f.fieldPresent = field_->present() && options_.sampleField ? 1 : 0;
-  f.sampleFlags = options_.sampleFlags;
+  f.sampleFlags = options_.sampleFlags | (options_.indirectSpecular ? gpu::PC_SAMPLE_SPECULAR : 0);
   f.overlayLines = int(std::min<std::size_t>(input.overlay.size(), gpu::PC_OVERLAY_MAX_LINES));
   f.drawCount = int(draws.size());
   f.triangleCount = std::uint32_t(gpuScene_->packed().triangleIds);
@@ -173,6 +174,9 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   f.rasterJobCapacity = rasterJobCapacity_;
   f.aoRadius = options_.aoRadius;
   f.probeView = probeViewParams(slot, input);
+  const SplitSumTable& table = splitSumTable();
+  static_assert(sizeof f.splitSum == sizeof table);
+  std::memcpy(f.splitSum, table.data(), sizeof table);
   slot.frame.write(&f, sizeof f);
   if (!input.overlay.empty()) {
     const gpu::OverlayText text = makeOverlayText(input.overlay);

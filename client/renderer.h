@@ -78,6 +78,9 @@ struct RendererOptions {
   // light, radius in probe spacings: contacts the probes are too coarse to see. 0: off (the
   // surface pass before lighting is skipped too).
   float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;
+  // Glossy surfaces: the field's split-sum specular (shaders/interop/specular_probe.h) besides
+  // its irradiance. false: the indirect light stays diffuse (the comparison without it).
+  bool indirectSpecular = true;
 };
 
 struct FrameInput {

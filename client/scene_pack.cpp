@@ -59,10 +59,14 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
                             std::int32_t(packed.triangleBases[k]),
                             glm::determinant(glm::mat3(d.model)) < 0.0f ? -1 : 1);
     d.baseColor = glm::vec4(0.8f, 0.8f, 0.8f, 0.0f);
+    d.metallic = 0.0f;  // the plain diffuse surface (Material's defaults)
+    d.roughness = 1.0f;
     if (mat >= 0 && std::size_t(mat) < scene.materials.size()) {
       const Material& m = scene.materials[mat];
       d.baseColor = glm::vec4(m.baseColor, 0.0f);
       d.emissive = glm::vec4(m.emissive * state.emissionScaleOf(mat), 0.0f);  // runtime edits
+      d.metallic = m.metallic;
+      d.roughness = m.roughness;
       const int textures = int(scene.textures.size());
       d.textures.x = m.baseColorTexture < textures ? m.baseColorTexture : -1;
       d.textures.y = m.emissiveTexture < textures ? m.emissiveTexture : -1;

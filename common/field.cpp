@@ -156,6 +156,13 @@ glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm
   return pcSampleFieldOrAmbient(field, field.desc, P, N, Ns, V, flags, ambient);
 }
 
+glm::vec4 sampleFieldOrAmbientLit(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 Ns,
+                                  glm::vec3 V, int flags, glm::vec3 ambient, glm::vec3 R,
+                                  float roughness, glm::vec3& specular) {
+  return pcSampleFieldOrAmbientLit(field, field.desc, P, N, Ns, V, flags | PC_SAMPLE_SPECULAR,
+                                   ambient, R, pcGgxSpecularZh(roughness), specular);
+}
+
 glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir) {
   return pcDecodeIrradiance(pcFetchIrradiance(field, cascade, slot, dir));
 }

@@ -109,6 +109,12 @@ glm::vec4 sampleField(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 V,
 // the direction whose irradiance is looked up.
 glm::vec4 sampleFieldOrAmbient(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 Ns,
                                glm::vec3 V, int flags, glm::vec3 ambient);
+// sampleFieldOrAmbient that also returns, in `specular`, the probes' radiance convolved with
+// the GGX lobe of `roughness` toward the mirror direction R (unit), with the same probe weights
+// (shaders/interop/specular_probe.h); ambient / pi where no probe holds data.
+glm::vec4 sampleFieldOrAmbientLit(const Field& field, glm::vec3 P, glm::vec3 N, glm::vec3 Ns,
+                                  glm::vec3 V, int flags, glm::vec3 ambient, glm::vec3 R,
+                                  float roughness, glm::vec3& specular);
 
 // Bilinear fetches used by sampleField, exposed for tests and the bake checks.
 glm::vec3 fetchIrradiance(const Field& field, int cascade, int slot, glm::vec3 dir);  // decoded

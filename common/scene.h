@@ -59,8 +59,21 @@ struct Material {
   // (shadingNormal); -1: none.
   int normalTexture = -1;
   float normalScale = 1.0f;
+  // glTF's metallic-roughness model: `metallic` blends a dielectric (0) into a metal (1),
+  // `roughness` is the perceptual roughness (GGX alpha = roughness^2). Both are multiplied by
+  // metallicRoughnessTexture where there is one (a linear texture: B metallic, G roughness).
+  // The defaults, metallic 0 and roughness 1, are the diffuse surface every renderer drew
+  // before: a point whose metallic is 0 and roughness 1 reflects by Lambert's law alone, with
+  // no specular lobe (isDiffuseOnly), so OBJ scenes and glTF files that say so look as before.
+  float metallic = 0.0f;
+  float roughness = 1.0f;
+  int metallicRoughnessTexture = -1;  // index into Scene::textures, -1: the factors alone
   bool isEmissive() const { return emissive.x > 0 || emissive.y > 0 || emissive.z > 0; }
   bool isCutOut() const { return alphaCutoff > 0.0f; }
+  // Lambert alone everywhere: no point of the surface has a specular lobe.
+  bool isDiffuseOnly() const {
+    return metallicRoughnessTexture < 0 && metallic == 0.0f && roughness == 1.0f;
+  }
 };
 
 // Whether `material`'s surface exists at `uv` (always, unless it is a cut-out).

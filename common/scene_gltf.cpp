@@ -562,6 +562,7 @@ class GltfReader {
     const tinygltf::TextureInfo& base = gm.pbrMetallicRoughness.baseColorTexture;
     const tinygltf::TextureInfo& emissive = gm.emissiveTexture;
     const tinygltf::NormalTextureInfo& normal = gm.normalTexture;
+    const tinygltf::TextureInfo& metalRough = gm.pbrMetallicRoughness.metallicRoughnessTexture;
     struct Use {
       const char* what;
       int index;
@@ -570,7 +571,9 @@ class GltfReader {
     const Use uses[] = {
         {"base colour", base.index, uvSourceOf(base.texCoord, base.extensions)},
         {"emissive", emissive.index, uvSourceOf(emissive.texCoord, emissive.extensions)},
-        {"normal", normal.index, uvSourceOf(normal.texCoord, normal.extensions)}};
+        {"normal", normal.index, uvSourceOf(normal.texCoord, normal.extensions)},
+        {"metallic-roughness", metalRough.index,
+         uvSourceOf(metalRough.texCoord, metalRough.extensions)}};
     const Use* first = nullptr;
     for (const Use& use : uses) {
       if (use.index < 0) continue;
@@ -693,6 +696,7 @@ class GltfReader {
     const auto& bc = gm.pbrMetallicRoughness.baseColorFactor;
     if (bc.size() >= 3) mat.baseColor = glm::vec3(float(bc[0]), float(bc[1]), float(bc[2]));
     mat.baseColorTexture = textureFor(gm.pbrMetallicRoughness.baseColorTexture.index);
+    readMetallicRoughness(gm.pbrMetallicRoughness, mat);
     const auto& ef = gm.emissiveFactor;
     if (ef.size() == 3) mat.emissive = glm::vec3(float(ef[0]), float(ef[1]), float(ef[2]));
     auto strength = gm.extensions.find("KHR_materials_emissive_strength");
@@ -733,6 +737,24 @@ class GltfReader {
     scene_.materials.push_back(mat);
     materialCache_[gltfMaterial] = out;
     return out;
+  }
+
+  // glTF's metallic-roughness factors (defaults 1 and 1, as the specification gives them,
+  // whether or not the file writes pbrMetallicRoughness) and texture (linear data: B metallic,
+  // G roughness). Factors must be finite; they are clamped to [0, 1].
+  void readMetallicRoughness(const tinygltf::PbrMetallicRoughness& pbr, Material& mat) {
+    if (!std::isfinite(pbr.metallicFactor) || !std::isfinite(pbr.roughnessFactor))
+      throw GltfError{"material '" + mat.name +
+                      "': metallicFactor or roughnessFactor is not finite"};
+    mat.metallic = std::clamp(float(pbr.metallicFactor), 0.0f, 1.0f);
+    mat.roughness = std::clamp(float(pbr.roughnessFactor), 0.0f, 1.0f);
+    if (const int index = pbr.metallicRoughnessTexture.index; index != -1) {
+      if (index < 0 || std::size_t(index) >= m_.textures.size())
+        throw GltfError{"material '" + mat.name + "': metallicRoughnessTexture index " +
+                        std::to_string(index) + " out of range (" +
+                        std::to_string(m_.textures.size()) + " textures)"};
+      mat.metallicRoughnessTexture = textureFor(index, true);
+    }
   }
 
   // Scene texture index for glTF texture `index`, or -1 (with a warning) if its image is

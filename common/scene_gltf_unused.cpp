@@ -29,12 +29,6 @@ void collectMaterialFeatures(const tinygltf::Model& model, const std::set<std::s
   for (std::size_t i = 0; i < model.materials.size(); ++i) {
     const tinygltf::Material& m = model.materials[i];
     const std::string name = materialName(m, i);
-    const tinygltf::PbrMetallicRoughness& pbr = m.pbrMetallicRoughness;
-    // glTF's defaults are 1 and 1; only a file that sets other values expects them to matter.
-    if (pbr.metallicFactor != 1.0 || pbr.roughnessFactor != 1.0)
-      users["metallic/roughness factors"].push_back(name);
-    if (pbr.metallicRoughnessTexture.index >= 0)
-      users["metallic/roughness texture"].push_back(name);
     if (m.occlusionTexture.index >= 0) users["occlusion texture"].push_back(name);
     for (const auto& [ext, value] : m.extensions)
       if (!honoured.count(ext)) users["material extension " + ext].push_back(name);

@@ -293,6 +293,12 @@ std::uint64_t hashScene(const Scene& scene) {
       h.i32(m.normalTexture);
       h.f32(m.normalScale);
     }
+    // And only glossy materials their metallic-roughness terms.
+    if (!m.isDiffuseOnly()) {
+      h.f32(m.metallic);
+      h.f32(m.roughness);
+      h.i32(m.metallicRoughnessTexture);
+    }
   }
   for (const Mesh& m : scene.meshes) {
     if (m.tangents.empty()) continue;

@@ -1,5 +1,6 @@
 // Wavefront OBJ + MTL through tinyobjloader: one mesh per (group, material), diffuse colour and
-// texture (map_Kd), emission (Ke). Missing textures are warnings: such scenes still light.
+// texture (map_Kd), emission (Ke), metallic and roughness (Pm, Pr). Missing textures are warnings:
+// such scenes still light.
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
@@ -47,6 +48,15 @@ class ObjBuilder {
       mat.name = m.name;
       mat.baseColor = glm::vec3(m.diffuse[0], m.diffuse[1], m.diffuse[2]);
       mat.emissive = glm::vec3(m.emission[0], m.emission[1], m.emission[2]);
+      // The PBR extension's Pm (metallic) and Pr (roughness), where the file gives either;
+      // tinyobj reports both as 0 when absent, so a material naming neither (or both 0, which
+      // would be a perfect dielectric mirror) stays diffuse. Phong's Ks and Ns are not mapped:
+      // exporters write them for diffuse surfaces too, and they name no roughness.
+      if ((m.metallic > 0.0f || m.roughness > 0.0f) && std::isfinite(m.metallic) &&
+          std::isfinite(m.roughness)) {
+        mat.metallic = std::clamp(float(m.metallic), 0.0f, 1.0f);
+        mat.roughness = std::clamp(float(m.roughness), 0.0f, 1.0f);
+      }
       if (!m.diffuse_texname.empty()) {
         // MTL files often give map_Kd without Kd (tinyobj then reports Kd = 0): the texture
         // is the colour.

@@ -1,5 +1,6 @@
 // The scene.json sidecar (docs/SCENES.md): unit scale and up axis for what the scene file
-// holds, plus lights, cameras, sky, exposure, probe volumes and animations in world units.
+// holds, plus lights, cameras, sky, exposure, probe volumes and animations in world units,
+// and per-material metallic and roughness.
 // Every problem is reported with the sidecar's path and the JSON pointer of the bad value.
 #include <cmath>
 #include <fstream>
@@ -358,6 +359,34 @@ Animation parseAnimation(const json& j, const std::string& ptr) {
   return a;
 }
 
+// Float in [0, 1] at `ptr`.
+float unitInterval(const json& j, const std::string& ptr) {
+  const float v = number(j, ptr);
+  if (v < 0.0f || v > 1.0f) fail(ptr, "expected a number in [0, 1], got " + std::to_string(v));
+  return v;
+}
+
+// materials[]: per material name, metallic and roughness that replace the file's. The value
+// given is uniform over the surface: the material's metallic-roughness texture is dropped.
+void applyMaterialOverrides(Scene& scene, const json& list) {
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string ptr = at("/materials", i);
+    const json& j = list[i];
+    object(j, ptr, {"name", "metallic", "roughness"});
+    if (!j.contains("name")) fail(ptr, "a material override needs a name");
+    const std::string name = string(j["name"], ptr + "/name");
+    bool found = false;
+    for (Material& m : scene.materials) {
+      if (m.name != name) continue;
+      found = true;
+      if (j.contains("metallic")) m.metallic = unitInterval(j["metallic"], ptr + "/metallic");
+      if (j.contains("roughness")) m.roughness = unitInterval(j["roughness"], ptr + "/roughness");
+      m.metallicRoughnessTexture = -1;
+    }
+    if (!found) fail(ptr + "/name", "no material named '" + name + "'");
+  }
+}
+
 bool instanceMatches(const Scene& scene, const Instance& inst, const std::string& name) {
   if (inst.name == name) return true;
   if (inst.mesh < 0 || std::size_t(inst.mesh) >= scene.meshes.size()) return false;
@@ -370,7 +399,7 @@ bool instanceMatches(const Scene& scene, const Instance& inst, const std::string
 void applyJson(Scene& scene, const json& root) {
   object(root, "",
          {"unit_scale", "up_axis", "exposure", "emissive_mode", "sky", "lights", "keep_file_lights",
-          "cameras", "volumes", "animations"});
+          "cameras", "volumes", "animations", "materials"});
   Conversion conv;
   if (root.contains("unit_scale")) conv.scale = positive(root["unit_scale"], "/unit_scale");
   if (root.contains("up_axis")) {
@@ -397,6 +426,8 @@ void applyJson(Scene& scene, const json& root) {
     }
   }
   if (root.contains("sky")) scene.sky = parseSky(root["sky"], "/sky");
+  if (root.contains("materials"))
+    applyMaterialOverrides(scene, array(root["materials"], "/materials"));
 
   if (root.contains("keep_file_lights")) {
     if (!root["keep_file_lights"].is_boolean())

@@ -300,6 +300,13 @@ SurfacePoint EmbreeScene::surface(const Hit& hit, glm::vec3 origin, glm::vec3 di
                  : glm::vec3(1.0f);
     };
     sp.albedo = mat.baseColor * texture(mat.baseColorTexture);
+    sp.metallic = mat.metallic;
+    sp.roughness = mat.roughness;
+    if (mat.metallicRoughnessTexture >= 0) {  // linear data: B metallic, G roughness
+      const glm::vec3 mr = texture(mat.metallicRoughnessTexture);
+      sp.metallic *= mr.z;
+      sp.roughness *= mr.y;
+    }
     // Emitters are one-sided: their back does not glow.
     if (mat.isEmissive() && !sp.backface)
       sp.emission = mat.emissive * texture(mat.emissiveTexture) *

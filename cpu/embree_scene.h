@@ -37,7 +37,11 @@ struct SurfacePoint {
   glm::vec3 geometricNormal{0.0f};  // unit, flipped to face the incoming ray
   bool backface = false;            // the ray hit the back of the triangle's winding
   float extent = 0.0f;              // largest world coordinate of the triangle's corners
-  glm::vec3 albedo{0.0f};
+  glm::vec3 albedo{0.0f};           // the base colour (diffuse albedo of a dielectric)
+  // The metallic-roughness model at the point (Material::metallic and roughness times the
+  // texture); metallic 0 with roughness 1 is the plain Lambert surface.
+  float metallic = 0.0f;
+  float roughness = 1.0f;
   glm::vec3 emission{0.0f};  // radiance emitted toward the ray origin
   int material = 0;
 };

@@ -90,10 +90,14 @@ std::size_t directLightSamples(std::span<const gpu::GpuLight> lights,
   return out.size() - first;
 }
 
-template <class R>
-glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLight> lights,
-                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
-                           glm::vec3 N, R& rng, const DirectLightOptions& options) {
+namespace {
+
+// The light samples at P traced, each unshadowed one's `weigh(sample)` summed: punctual ones
+// as they are, emitter ones averaged over the emitter sample count.
+template <class R, class Weigh>
+glm::vec3 sumUnshadowed(const EmbreeScene& scene, std::span<const gpu::GpuLight> lights,
+                        const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                        glm::vec3 N, R& rng, const DirectLightOptions& options, Weigh weigh) {
   thread_local std::vector<ShadowSample> samples;
   samples.clear();
   directLightSamples(lights, emissive, P, shadowOrigin, N, rng, options, samples);
@@ -101,10 +105,29 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLig
   glm::vec3 E(0.0f), sum(0.0f);
   for (const ShadowSample& s : samples) {
     if (scene.occluded(s.origin, s.dir, gpu::PC_SHADOW_NEAR, s.far)) continue;
-    (s.emitter ? sum : E) += s.irradiance;
+    (s.emitter ? sum : E) += weigh(s);
   }
   return options.emissiveSamples > 0 && !emissive.empty() ? E + sum / float(options.emissiveSamples)
                                                           : E;
+}
+
+}  // namespace
+
+template <class R>
+glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLight> lights,
+                           const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                           glm::vec3 N, R& rng, const DirectLightOptions& options) {
+  return sumUnshadowed(scene, lights, emissive, P, shadowOrigin, N, rng, options,
+                       [](const ShadowSample& s) { return s.irradiance; });
+}
+
+template <class R>
+glm::vec3 directReflected(const EmbreeScene& scene, std::span<const gpu::GpuLight> lights,
+                          const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                          const SurfaceBrdf& brdf, glm::vec3 V, R& rng,
+                          const DirectLightOptions& options) {
+  return sumUnshadowed(scene, lights, emissive, P, shadowOrigin, brdf.normal, rng, options,
+                       [&](const ShadowSample& s) { return brdf.eval(V, s.dir) * s.irradiance; });
 }
 
 template std::size_t directLightSamples<RayRng>(std::span<const gpu::GpuLight>,
@@ -114,6 +137,10 @@ template std::size_t directLightSamples<RayRng>(std::span<const gpu::GpuLight>,
 template glm::vec3 directIrradiance<Rng>(const EmbreeScene&, std::span<const gpu::GpuLight>,
                                          const EmissiveLights&, glm::vec3, glm::vec3, glm::vec3,
                                          Rng&, const DirectLightOptions&);
+template glm::vec3 directReflected<Rng>(const EmbreeScene&, std::span<const gpu::GpuLight>,
+                                        const EmissiveLights&, glm::vec3, glm::vec3,
+                                        const SurfaceBrdf&, glm::vec3, Rng&,
+                                        const DirectLightOptions&);
 template glm::vec3 directIrradiance<RayRng>(const EmbreeScene&, std::span<const gpu::GpuLight>,
                                             const EmissiveLights&, glm::vec3, glm::vec3, glm::vec3,
                                             RayRng&, const DirectLightOptions&);

@@ -16,6 +16,7 @@
 #include "../shaders/interop/probe_math.h"
 #include "embree_scene.h"
 #include "random.h"
+#include "surface_brdf.h"
 
 namespace pc {
 
@@ -80,6 +81,20 @@ glm::vec3 directIrradiance(const EmbreeScene& scene, std::span<const gpu::GpuLig
                            const DirectLightOptions& options = {}) {
   return directIrradiance(scene, lights, emissive, P, P, N, rng, options);
 }
+
+// Radiance reflected toward V (unit, toward the viewer) at P by a surface with `brdf`, from
+// the same light samples and shadow rays as directIrradiance: each unshadowed sample's
+// irradiance times the BRDF for its direction. For a Lambert surface it equals
+// albedo / pi x directIrradiance.
+template <class R>
+glm::vec3 directReflected(const EmbreeScene& scene, std::span<const gpu::GpuLight> lights,
+                          const EmissiveLights& emissive, glm::vec3 P, glm::vec3 shadowOrigin,
+                          const SurfaceBrdf& brdf, glm::vec3 V, R& rng,
+                          const DirectLightOptions& options = {});
+extern template glm::vec3 directReflected<Rng>(const EmbreeScene&, std::span<const gpu::GpuLight>,
+                                               const EmissiveLights&, glm::vec3, glm::vec3,
+                                               const SurfaceBrdf&, glm::vec3, Rng&,
+                                               const DirectLightOptions&);
 
 // Rec. 709 luminance of linear RGB.
 inline float luminance(glm::vec3 c) { return gpu::pcLuminance(c); }

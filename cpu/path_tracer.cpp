@@ -9,6 +9,7 @@
 #include <string>
 
 #include "camera.h"
+#include "material_sampling.h"
 #include "render_setup.h"
 
 namespace pc {
@@ -53,18 +54,33 @@ struct Tracer {
       // Light cosines and the bounce see the shading normal (normal-mapped where the material
       // has a map); the offsets keep the geometric one.
       const glm::vec3 P = gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
-      const glm::vec3 E =
-          directIrradiance(scene, lights, emissive, sp.position, P, sp.normal, rng, direct);
-      L += throughput * sp.albedo * kInvPi * E;
-      if (bounce >= maxBounces) break;
+      const SurfaceBrdf brdf{sp.normal, sp.albedo, sp.metallic, sp.roughness};
+      if (brdf.hasSpecularLobe()) {
+        // Glossy: the light samples weighted by the whole BRDF, the bounce drawn from it.
+        const glm::vec3 V = -dir;
+        L += throughput *
+             directReflected(scene, lights, emissive, sp.position, P, brdf, V, rng, direct);
+        if (bounce >= maxBounces) break;
+        MaterialSample next;
+        const float uLobe = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+        if (!sampleMaterial(brdf, V, uLobe, u1, u2, next)) break;
+        dir = next.dir;
+        if (glm::dot(dir, sp.geometricNormal) <= 0.0f) break;
+        throughput *= next.weight;
+      } else {
+        const glm::vec3 E =
+            directIrradiance(scene, lights, emissive, sp.position, P, sp.normal, rng, direct);
+        L += throughput * sp.albedo * kInvPi * E;
+        if (bounce >= maxBounces) break;
 
-      // Cosine-weighted continuation: the pdf cancels the cosine and the 1/pi of the diffuse
-      // BRDF, leaving the albedo as the throughput factor.
-      dir = sampleCosineHemisphere(sp.normal, rng.uniform(), rng.uniform());
-      // A shading normal may send the ray below the real surface; such a path would pass
-      // through it, so it ends here instead.
-      if (glm::dot(dir, sp.geometricNormal) <= 0.0f) break;
-      throughput *= sp.albedo;
+        // Cosine-weighted continuation: the pdf cancels the cosine and the 1/pi of the diffuse
+        // BRDF, leaving the albedo as the throughput factor.
+        dir = sampleCosineHemisphere(sp.normal, rng.uniform(), rng.uniform());
+        // A shading normal may send the ray below the real surface; such a path would pass
+        // through it, so it ends here instead.
+        if (glm::dot(dir, sp.geometricNormal) <= 0.0f) break;
+        throughput *= sp.albedo;
+      }
       if (bounce + 1 >= kRouletteStart) {
         const float keep = std::min(0.95f, std::max({throughput.x, throughput.y, throughput.z}));
         if (keep <= 0.0f || rng.uniform() >= keep) break;

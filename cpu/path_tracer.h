@@ -1,6 +1,8 @@
 // Reference path tracer: the ground truth that every other renderer's image is measured
-// against. Diffuse surfaces, emission, the scene's punctual lights and sky; next-event
-// estimation with the same direct-light code as the field update; Russian roulette.
+// against. Diffuse and glossy surfaces (glTF's metallic-roughness model, Lambert + GGX:
+// shaders/interop/brdf.h; bounces importance-sample it, cpu/material_sampling.h), emission,
+// the scene's punctual lights and sky; next-event estimation with the same direct-light code
+// as the field update, weighted by the BRDF; Russian roulette.
 // Deterministic: each pixel draws from its own seeded generator, so the image depends on the
 // seed only, never on the thread count.
 #pragma once

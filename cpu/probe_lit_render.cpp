@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "../common/split_sum_table.h"
 #include "camera.h"
 #include "path_tracer.h"
 #include "render_setup.h"
@@ -27,7 +28,8 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
   const int width = options.width, height = options.height;
   const int primary = std::max(1, options.primarySamples);
   const int strata = int(std::sqrt(double(primary)));
-  const DirectLightOptions direct{std::max(1, options.emissiveSamples)};
+  const DirectLightOptions directOptions{std::max(1, options.emissiveSamples)};
+  const SplitSumTable& table = splitSumTable();
   const std::vector<gpu::GpuLight> lights = packLights(state);
   const PinholeCamera pinhole(camera, width, height);
   const Sky& sky = scene.scene().sky;
@@ -59,19 +61,41 @@ Image renderProbeLit(const EmbreeScene& scene, const SceneState& state,
           // Lights at the hit point, shadow rays from it moved off its triangle, as in the
           // field update and the reference (path_tracer.cpp).
           const glm::vec3 P = gpu::pcShadowOrigin(sp.position, sp.geometricNormal, sp.extent);
-          const glm::vec3 E =
-              directIrradiance(scene, lights, emissive, sp.position, P, sp.normal, rng, direct);
+          const SurfaceBrdf brdf{sp.normal, sp.albedo, sp.metallic, sp.roughness};
+          const bool glossy = brdf.hasSpecularLobe();
+          const glm::vec3 V = -dir;
+          // Lambert surfaces keep the irradiance form (same samples, same sums as before).
+          const glm::vec3 direct = glossy
+                                       ? directReflected(scene, lights, emissive, sp.position, P,
+                                                         brdf, V, rng, directOptions)
+                                       : sp.albedo * kInvPi *
+                                             directIrradiance(scene, lights, emissive, sp.position,
+                                                              P, sp.normal, rng, directOptions);
           // The field's sampler applies its own normal and view biases, so it gets the
           // surface point itself; V points from the surface back toward the camera. Its biases
           // and probe visibility follow the vertex normal, its irradiance lookup the shading
           // normal (probe_sampling.h). Where no probe near the point holds data, the ambient
           // term stands in, as in the client.
-          const glm::vec4 sampled = sampleFieldOrAmbient(
-              field, sp.position, sp.vertexNormal, sp.normal, -dir, options.sampleFlags, ambient);
-          glm::vec3 indirect(sampled.x, sampled.y, sampled.z);
+          glm::vec3 specular(0.0f);
+          const bool withSpecular = glossy && options.indirectSpecular;
+          const glm::vec4 sampled =
+              withSpecular
+                  ? sampleFieldOrAmbientLit(field, sp.position, sp.vertexNormal, sp.normal, V,
+                                            options.sampleFlags, ambient,
+                                            gpu::pcSpecularDirection(sp.normal, V, sp.roughness),
+                                            sp.roughness, specular)
+                  : sampleFieldOrAmbient(field, sp.position, sp.vertexNormal, sp.normal, V,
+                                         options.sampleFlags, ambient);
+          const glm::vec2 ab =
+              withSpecular
+                  ? lookupSplitSum(table, std::max(glm::dot(sp.normal, V), 0.0f), sp.roughness)
+                  : glm::vec2(0.0f);
+          glm::vec3 indirect =
+              gpu::pcIndirectReflected(sp.normal, V, sp.albedo, sp.metallic, sp.roughness,
+                                       glm::vec3(sampled.x, sampled.y, sampled.z), specular, ab);
           const float visibility = ao.empty() ? 1.0f : ao[std::size_t(y) * width + x];
           if (visibility < 1.0f) indirect *= gpu::pcAoMultiBounce(visibility, sp.albedo);
-          const glm::vec3 L = sp.emission + sp.albedo * kInvPi * (E + indirect);
+          const glm::vec3 L = sp.emission + direct + indirect;
           if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) sum += L;
         }
         image.at(x, y) = sum / float(primary);

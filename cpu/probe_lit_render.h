@@ -1,9 +1,10 @@
 // A camera view lit by a probe field, rendered on the CPU: the image a client would show,
 // computed with the reference's ray tracer instead of a rasterizer, so it isolates the
-// field's own error. Per pixel: jittered primary rays; at the hit, emission + albedo / pi x
-// (direct light with shadow rays + the field's irradiance, darkened by screen-space ambient
-// occlusion where the probes are too coarse to see a contact: cpu/screen_ao.h); escaped rays
-// see the sky.
+// field's own error. Per pixel: jittered primary rays; at the hit, emission + direct light with
+// shadow rays through the surface's BRDF (shaders/interop/brdf.h) + the field's irradiance
+// through its diffuse part and, on glossy surfaces, the field's split-sum specular
+// (shaders/interop/specular_probe.h), both darkened by screen-space ambient occlusion where the
+// probes are too coarse to see a contact (cpu/screen_ao.h); escaped rays see the sky.
 #pragma once
 
 #include <cstdint>
@@ -31,6 +32,10 @@ struct ProbeLitOptions {
   // Radius of the ambient occlusion of the indirect light, as a fraction of the probe spacing
   // (shaders/interop/screen_ao.h); 0: none.
   float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;
+  // Glossy surfaces (metallic-roughness with a specular lobe): the field's split-sum specular
+  // (shaders/interop/specular_probe.h) besides its irradiance; false leaves the indirect light
+  // diffuse alone (the comparison without it). Direct light follows the BRDF either way.
+  bool indirectSpecular = true;
   std::uint64_t seed = 1;
 };
 

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 
+#include "shaders/interop/brdf.h"
 #include "shaders/interop/client_frame.h"
 #include "shaders/interop/field_desc.h"
 #include "shaders/interop/gpu_trace.h"

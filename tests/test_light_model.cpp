@@ -1,7 +1,8 @@
 // The shared light model (shaders/interop/light_model.h) as C++ against known values, and as
 // GLSL on the Vulkan device (lavapipe in CI, validation on) against the same header compiled
 // as C++: every light type, inside and outside its cone and range, behind the surface, and the
-// emitter geometry and ray offsets the tracers share. The C++ side is what the Embree tracer
+// emitter geometry and ray offsets the tracers share, and the BRDF (shaders/interop/brdf.h)
+// that weighs each light sample. The C++ side is what the Embree tracer
 // and the CPU renders evaluate; the GLSL side what probe_shade.comp and the client evaluate.
 #include <gtest/gtest.h>
 
@@ -26,6 +27,18 @@ struct NamedCase {
   LightCheckCase c;
 };
 
+// Materials the cases cycle through (base colour, metallic; roughness): diffuse, a glossy
+// dielectric, rough and near-mirror metals and a blend.
+struct CheckMaterial {
+  glm::vec4 material;
+  float roughness;
+};
+constexpr CheckMaterial kCheckMaterials[] = {{{0.8f, 0.8f, 0.8f, 0.0f}, 1.0f},
+                                             {{0.7f, 0.2f, 0.1f, 0.0f}, 0.4f},
+                                             {{1.0f, 0.78f, 0.34f, 1.0f}, 0.6f},
+                                             {{0.9f, 0.9f, 0.9f, 1.0f}, 0.05f},
+                                             {{0.5f, 0.6f, 0.7f, 0.5f}, 0.25f}};
+
 LightCheckCase makeCase(const Light& light, glm::vec3 P, glm::vec3 N) {
   LightCheckCase c{};
   c.light = packLight(light);
@@ -34,6 +47,14 @@ LightCheckCase makeCase(const Light& light, glm::vec3 P, glm::vec3 N) {
   return c;
 }
 
+// Gives case `index` a view a little off its normal (oblique enough for Fresnel and masking
+// to act) and one of kCheckMaterials.
+void addViewAndMaterial(LightCheckCase& c, std::size_t index) {
+  const CheckMaterial& m = kCheckMaterials[index % std::size(kCheckMaterials)];
+  const glm::vec3 V = glm::normalize(glm::vec3(c.normal) + glm::vec3(0.7f, 0.1f, -0.2f));
+  c.view = glm::vec4(V, m.roughness);
+  c.material = m.material;
+}
 Light pointLight(glm::vec3 position, float intensity, float range = 0.0f) {
   Light l;
   l.type = LightType::Point;
@@ -118,6 +139,7 @@ std::vector<NamedCase> cases() {
   v.push_back(
       {"point near the origin, tilted normal",
        makeCase(pointLight({0.5f, 1, 0.25f}, 2), {0.01f, -0.02f, 0.005f}, {-0.4f, 1, 0.2f})});
+  for (std::size_t i = 0; i < v.size(); ++i) addViewAndMaterial(v[i].c, i);
   return v;
 }
 
@@ -133,7 +155,8 @@ Evaluated evaluateCpu(const LightCheckCase& c) {
   const float geometry = gpu::pcEmitterGeometry(c.light.position, c.light.direction, P, N);
   const glm::vec3 offset = gpu::pcOffsetRayOrigin(P, N);
   const float window = gpu::pcRangeWindow(glm::length(c.light.position - P), c.light.range);
-  return {{glm::vec4(E, distance), glm::vec4(wi, geometry), glm::vec4(offset, window)}};
+  return {{glm::vec4(E, distance), glm::vec4(wi, geometry), glm::vec4(offset, window),
+           gpu::pcBrdfCheck(c, wi, E), gpu::pcSpecularCheck(c, E)}};
 }
 
 TEST(LightModel, KnownValues) {
@@ -190,6 +213,21 @@ TEST(LightModel, KnownValues) {
   // away contributes nothing.
   EXPECT_FLOAT_EQ(get("area facing the surface").r[1].w, 0.25f);
   EXPECT_EQ(get("area facing away").r[1].w, 0.0f);
+  // The reflected light: the BRDF for the light's direction times the irradiance, and black
+  // where no light arrives.
+  {
+    const NamedCase* oblique = nullptr;
+    for (const NamedCase& nc : all)
+      if (nc.name == "point oblique") oblique = &nc;
+    ASSERT_NE(oblique, nullptr);
+    const Evaluated e = evaluateCpu(oblique->c);
+    const glm::vec3 N(oblique->c.normal), V(oblique->c.view), base(oblique->c.material);
+    const glm::vec3 f = gpu::pcMaterialBrdf(N, V, glm::vec3(e.r[1]), base, oblique->c.material.w,
+                                            oblique->c.view.w);
+    EXPECT_NEAR(e.r[3].x, f.x * e.r[0].x, 1e-6f * f.x * e.r[0].x);
+    EXPECT_GT(e.r[3].x, 0.0f);
+    EXPECT_EQ(glm::vec3(get("point behind the surface").r[3]), glm::vec3(0.0f));
+  }
   // The ray offset: 256 float steps along a unit axis far out, an absolute 1/65536 near zero.
   {
     const Evaluated far = get("point far from the origin");
@@ -302,19 +340,34 @@ TEST_F(LightModelGlsl, AgreesWithTheCppEvaluationToFloatPrecision) {
   auto close = [](float a, float b) {
     return a == b || std::fabs(a - b) <= 4e-7f * std::max({std::fabs(a), std::fabs(b), 1e-6f});
   };
-  int lit = 0;
+  // The BRDF row chains more divisions and square roots, each within a few ulps on the device
+  // (GLSL's precision rules), and near-mirror lobes are steep: a looser bound there.
+  auto closeBrdf = [](float a, float b) {
+    return a == b || std::fabs(a - b) <= 2e-5f * std::max({std::fabs(a), std::fabs(b), 1e-6f});
+  };
+  // The split-sum row adds the lobe fit's cosines, whose terms cancel down to a tenth of
+  // their size (pcGgxSpecularZh): a device cosine's last-place error weighs ten times more.
+  auto closeSpecular = [](float a, float b) {
+    return a == b || std::fabs(a - b) <= 1e-4f * std::max({std::fabs(a), std::fabs(b), 1e-3f});
+  };
+  int lit = 0, glossy = 0;
   for (std::size_t i = 0; i < all.size(); ++i) {
     const Evaluated cpu = evaluateCpu(input[i]);
     if (cpu.r[0].w > 0.0f) ++lit;
+    if (cpu.r[0].w > 0.0f && gpu::pcHasSpecularLobe(input[i].material.w, input[i].view.w)) ++glossy;
     for (int r = 0; r < gpu::PC_LIGHT_CHECK_RESULTS; ++r) {
       for (int k = 0; k < 4; ++k) {
-        EXPECT_TRUE(close(gpuResults[i].r[r][k], cpu.r[r][k]))
+        const float g = gpuResults[i].r[r][k], c = cpu.r[r][k];
+        EXPECT_TRUE(r == 4   ? closeSpecular(g, c)
+                    : r == 3 ? closeBrdf(g, c)
+                             : close(g, c))
             << all[i].name << ": result " << r << "[" << k << "] GLSL " << gpuResults[i].r[r][k]
             << " C++ " << cpu.r[r][k];
       }
     }
   }
-  EXPECT_GE(lit, 10);  // the table exercises lit cases, not only dark ones
+  EXPECT_GE(lit, 10);    // the table exercises lit cases, not only dark ones
+  EXPECT_GE(glossy, 6);  // and lights on glossy materials
   EXPECT_EQ(ctx_->validationErrorCount(), 0u);
 }
 

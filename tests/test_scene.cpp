@@ -624,6 +624,98 @@ TEST(GltfLoad, GlbWithHierarchyLightsCameraAndTexture) {
 // ---------------------------------------------------------------------------------------------
 // OBJ features
 
+// The quad with `pbr` as its material's pbrMetallicRoughness object and the red-blue PNG as
+// texture 0; `sidecar` is the sidecar's JSON text.
+pc::Result<Scene> loadQuadWithPbr(const TempDir& dir, const std::string& pbr,
+                                  const std::string& sidecar = "{}") {
+  writeBytes(dir / "quad.bin", quadBuffer());
+  writeBytes(dir / "t.png", redBluePng());
+  std::string json =
+      quadGltf("quad.bin", R"(, "images": [{"uri": "t.png"}], "textures": [{"source": 0}])");
+  const std::string old = R"({"baseColorFactor": [0.5, 0.25, 1, 1]})";
+  json.replace(json.find(old), old.size(), pbr);
+  writeFile(dir / "quad.gltf", json);
+  writeFile(dir / "side.json", sidecar);
+  return pc::loadScene(dir / "quad.gltf", dir / "side.json");
+}
+
+// glTF's metallic-roughness model: factors default to 1 and 1 (the specification's values),
+// the texture is linear data (B metallic, G roughness), and a sidecar override replaces both
+// and drops the texture.
+TEST(GltfLoad, MetallicRoughnessFactorsTextureAndSidecarOverride) {
+  TempDir dir;
+  auto r = loadQuadWithPbr(dir, R"({"baseColorFactor": [0.5, 0.25, 1, 1]})");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const pc::Material& defaults = r->materials[r->meshes[0].material];
+  EXPECT_FLOAT_EQ(defaults.metallic, 1.0f);
+  EXPECT_FLOAT_EQ(defaults.roughness, 1.0f);
+  EXPECT_EQ(defaults.metallicRoughnessTexture, -1);
+  EXPECT_FALSE(defaults.isDiffuseOnly());
+  for (const std::string& w : r->warnings)
+    EXPECT_EQ(w.find("metallic"), std::string::npos) << "read, yet warned unused: " << w;
+
+  const std::string textured =
+      R"({"metallicFactor": 0.25, "roughnessFactor": 0.5,
+          "metallicRoughnessTexture": {"index": 0}})";
+  r = loadQuadWithPbr(dir, textured);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const pc::Material& mat = r->materials[r->meshes[0].material];
+  EXPECT_FLOAT_EQ(mat.metallic, 0.25f);
+  EXPECT_FLOAT_EQ(mat.roughness, 0.5f);
+  ASSERT_GE(mat.metallicRoughnessTexture, 0);
+  const pc::Texture& tex = r->textures[std::size_t(mat.metallicRoughnessTexture)];
+  EXPECT_TRUE(tex.linear);  // data, never decoded from sRGB
+  // Texel 0 is red (G 0, B 0), texel 1 blue (B 1): metallic is blue, roughness green.
+  EXPECT_FLOAT_EQ(tex.sample({0.25f, 0.5f}).z, 0.0f);
+  EXPECT_FLOAT_EQ(tex.sample({0.75f, 0.5f}).z, 1.0f);
+  const std::uint64_t texturedHash = r->hash;
+
+  // The sidecar sets roughness and metallic by material name; the texture goes.
+  r = loadQuadWithPbr(dir, textured,
+                      R"({"materials": [{"name": "mat", "roughness": 0.3, "metallic": 0}]})");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const pc::Material& over = r->materials[r->meshes[0].material];
+  EXPECT_FLOAT_EQ(over.metallic, 0.0f);
+  EXPECT_FLOAT_EQ(over.roughness, 0.3f);
+  EXPECT_EQ(over.metallicRoughnessTexture, -1);
+  EXPECT_NE(r->hash, texturedHash);  // the wire's scene name follows the material
+  // Metallic 0 and roughness 1: the diffuse surface of before.
+  r = loadQuadWithPbr(dir, textured,
+                      R"({"materials": [{"name": "mat", "roughness": 1, "metallic": 0}]})");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_TRUE(r->materials[r->meshes[0].material].isDiffuseOnly());
+
+  // Errors name the sidecar and the bad value.
+  expectError(loadQuadWithPbr(dir, textured, R"({"materials": [{"name": "nope"}]})"), "side.json",
+              "at /materials/0/name: no material named 'nope'");
+  expectError(
+      loadQuadWithPbr(dir, textured, R"({"materials": [{"name": "mat", "roughness": 1.5}]})"),
+      "side.json", "at /materials/0/roughness: expected a number in [0, 1]");
+  expectError(loadQuadWithPbr(dir, textured, R"({"materials": [{"name": "mat", "gloss": 1}]})"),
+              "side.json", "unknown key 'gloss'");
+  // An out-of-range texture index is an error naming the material.
+  expectError(loadQuadWithPbr(dir, R"({"metallicRoughnessTexture": {"index": 4}})"), "quad.gltf",
+              "material 'mat': metallicRoughnessTexture index 4 out of range");
+}
+
+// MTL's PBR extension: Pm and Pr where given; Phong's Ks and Ns leave a surface diffuse.
+TEST(ObjLoad, PbrMetallicAndRoughnessAreReadPhongIsNot) {
+  TempDir dir;
+  writeFile(dir / "m.mtl",
+            "newmtl phong\nKd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nNs 200\n"
+            "newmtl metal\nKd 0.9 0.6 0.2\nPm 1\nPr 0.25\n");
+  writeFile(dir / "m.obj",
+            "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+            "usemtl phong\nf 1 2 3\nusemtl metal\nf 1 3 4\n");
+  auto r = pc::loadScene(dir / "m.obj", emptySidecar(dir));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  ASSERT_EQ(r->meshes.size(), 2u);
+  EXPECT_TRUE(r->materials[r->meshes[0].material].isDiffuseOnly());
+  const pc::Material& metal = r->materials[r->meshes[1].material];
+  EXPECT_FLOAT_EQ(metal.metallic, 1.0f);
+  EXPECT_FLOAT_EQ(metal.roughness, 0.25f);
+}
+
 TEST(ObjLoad, SplitsByMaterialLoadsKdKeAndWarnsOnMissingTexture) {
   TempDir dir;
   writeFile(dir / "box.mtl",

@@ -4,6 +4,7 @@
 // small where graphics units are few (an H100: docs/BENCHMARKS.md), and surfaces are shaded
 // once per distinct triangle of a pixel.
 // Needs client_common.glsl first.
+#include "../interop/brdf.h"
 #include "../interop/sun_cascades.h"
 
 layout(set = 0, binding = PC_CLIENT_BIND_LIGHTS, std430) readonly buffer LightBlock { GpuLight lights[]; };
@@ -99,23 +100,40 @@ float shadowVisibility(GpuLight l, vec3 P, vec3 N, float dist) {
   return filteredShadow(l.shadowArray, layer, uv, ndc.z - l.depthBias, l.shadowTexel);
 }
 
-// Every light at P, each shadowed by its map; the light itself is the shared light model
+// Irradiance at P from light `l`, shadowed by its map (0 where it does not reach P), and in
+// `wi` the direction toward it. The light itself is the shared light model
 // (shaders/interop/light_model.h), as the tracers evaluate it. N: the shading normal (the
 // light's cosine); Nbias: the vertex normal, along which the receiver moves off its surface
 // for the shadow lookup (a normal-mapped normal would move it off the real surface).
+vec3 lightIrradiance(GpuLight l, vec3 P, vec3 N, vec3 Nbias, out vec3 wi) {
+  float d;
+  float scale = pcLightScale(l, P, N, wi, d);
+  if (!(scale > 0.0)) return vec3(0.0);  // behind P, outside its cone or range
+  if (l.type == PC_LIGHT_DIRECTIONAL)
+    return l.power * (scale * (l.shadowLayer < 0 ? 1.0 : sunVisibility(l, P, Nbias)));
+  return l.power * (scale * shadowVisibility(l, P, Nbias, d));
+}
+
+// Every light at P, each shadowed by its map (see lightIrradiance).
 vec3 directIrradiance(vec3 P, vec3 N, vec3 Nbias) {
   vec3 E = vec3(0.0);
-  for (int i = 0; i < frame.lightCount; ++i) {
-    GpuLight l = lights[i];
-    vec3 wi;
-    float d;
-    float scale = pcLightScale(l, P, N, wi, d);
-    if (!(scale > 0.0)) continue;  // behind P, outside its cone or range
-    if (l.type == PC_LIGHT_DIRECTIONAL) {
-      E += l.power * (scale * (l.shadowLayer < 0 ? 1.0 : sunVisibility(l, P, Nbias)));
-    } else {
-      E += l.power * (scale * shadowVisibility(l, P, Nbias, d));
-    }
-  }
+  vec3 wi;
+  for (int i = 0; i < frame.lightCount; ++i) E += lightIrradiance(lights[i], P, N, Nbias, wi);
   return E;
+}
+
+// Radiance toward V (unit, toward the viewer) reflected from every light by the surface's
+// BRDF (shaders/interop/brdf.h), as the CPU renders weigh each light sample
+// (cpu/lighting.cpp, directReflected): Lambert alone where the surface has no specular lobe.
+vec3 directReflected(vec3 P, vec3 N, vec3 Nbias, vec3 V, vec3 baseColor, float metallic,
+                     float roughness) {
+  if (!pcHasSpecularLobe(metallic, roughness))
+    return baseColor * (1.0 / PC_PI) * directIrradiance(P, N, Nbias);
+  vec3 L = vec3(0.0);
+  for (int i = 0; i < frame.lightCount; ++i) {
+    vec3 wi;
+    vec3 E = lightIrradiance(lights[i], P, N, Nbias, wi);
+    if (E != vec3(0.0)) L += E * pcMaterialBrdf(N, V, wi, baseColor, metallic, roughness);
+  }
+  return L;
 }

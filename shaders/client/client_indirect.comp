@@ -47,21 +47,52 @@ float pixelOcclusion(int view, ivec2 p) {
   return pcScreenAo(view, p, P, aoSurfaces[2u * i + 1u].xyz, radius);
 }
 
+// The split-sum table's (A, B) at (N.V, roughness), bilinear between the uploaded entries.
+vec2 splitSumEntry(int i, int j) {
+  int e = i + PC_SPLIT_SUM_SIZE * j;
+  vec4 pair = frame.splitSum[e >> 1];
+  return (e & 1) == 0 ? pair.xy : pair.zw;
+}
+vec2 splitSumAt(float NdotV, float roughness) {
+  vec2 c = pcSplitSumCoord(NdotV, roughness);
+  int last = PC_SPLIT_SUM_SIZE - 1;
+  ivec2 c0 = min(ivec2(c), ivec2(last - 1));
+  vec2 t = c - vec2(c0);
+  return mix(mix(splitSumEntry(c0.x, c0.y), splitSumEntry(c0.x + 1, c0.y), t.x),
+             mix(splitSumEntry(c0.x, c0.y + 1), splitSumEntry(c0.x + 1, c0.y + 1), t.x), t.y);
+}
+
 vec3 skyRadiance(vec3 dir) {
   float y = clamp(dir.y, -1.0, 1.0);
   if (y >= 0.0) return mix(frame.skyHorizon.rgb, frame.skyZenith.rgb, y);
   return mix(frame.skyHorizon.rgb, frame.skyGround.rgb, -y);
 }
 
-// N: the vertex normal, which places the sample and weighs the probes; Ns: the shading
-// (normal-mapped) normal, whose irradiance is looked up. The sampler's normal bias and
-// backface and visibility weights describe where the surface itself lies: moved along a
-// perturbed normal, the biased point could sink into the surface or reach probes that do not
-// see it, and light would leak (probe_sampling.h).
-vec3 fieldIrradiance(vec3 P, vec3 N, vec3 Ns, vec3 V) {
-  if (frame.fieldPresent == 0) return frame.ambient.rgb;
-  // Where no probe near P holds data, the plain ambient term stands in (the shared rule).
-  return pcSampleFieldOrAmbient(field, P, N, Ns, V, frame.sampleFlags, frame.ambient.rgb).rgb;
+// Indirect light reflected toward V by surface `f` (client_surface.glsl): the field's
+// irradiance through the BRDF's diffuse part and, on glossy surfaces with
+// PC_SAMPLE_SPECULAR, the field's GGX-filtered radiance toward the mirror direction through the
+// split-sum table (shaders/interop/specular_probe.h), as the CPU probe-lit render shades it.
+// The vertex normal places the sample and weighs the probes; the shading (normal-mapped)
+// normal looks up the irradiance and reflects V. The sampler's normal bias and backface and
+// visibility weights describe where the surface itself lies: moved along a perturbed normal,
+// the biased point could sink into the surface or reach probes that do not see it, and light
+// would leak (probe_sampling.h). Where no probe near P holds data, the plain ambient term
+// stands in (the shared rule).
+vec3 fieldReflected(Surface f, vec3 V) {
+  vec3 E = frame.ambient.rgb;
+  vec3 S = frame.ambient.rgb * (1.0 / PC_PI);
+  vec2 ab = vec2(0.0);
+  bool specular = (frame.sampleFlags & PC_SAMPLE_SPECULAR) != 0 &&
+                  pcHasSpecularLobe(f.metallic, f.roughness);
+  if (frame.fieldPresent != 0) {
+    int flags = specular ? frame.sampleFlags : frame.sampleFlags & ~PC_SAMPLE_SPECULAR;
+    E = pcSampleFieldOrAmbientLit(field, f.position, f.vertexNormal, f.normal, V, flags,
+                                  frame.ambient.rgb, pcSpecularDirection(f.normal, V, f.roughness),
+                                  pcGgxSpecularZh(f.roughness), S).rgb;
+  }
+  if (specular) ab = splitSumAt(max(dot(f.normal, V), 0.0), f.roughness);
+  else S = vec3(0.0);
+  return pcIndirectReflected(f.normal, V, f.albedo, f.metallic, f.roughness, E, S, ab);
 }
 
 void main() {
@@ -107,11 +138,11 @@ void main() {
           onePrimitive ? ray : normalize(rayUnderPixel(id.z, vec2(id.xy) + samplePosition(s)));
       Surface f = surfaceOf(visibility, eye, ray, rayDx, rayDy, sampleRay);
       vec3 V = -ray;
-      vec3 indirect = fieldIrradiance(f.position, f.vertexNormal, f.normal, V);
+      vec3 indirect = fieldReflected(f, V);
       if (occlusion < 1.0) indirect *= pcAoMultiBounce(occlusion, f.albedo);
-      shaded[s] = f.emission + f.albedo * (1.0 / PC_PI) *
-                                   (directIrradiance(f.position, f.normal, f.vertexNormal) +
-                                    indirect);
+      shaded[s] = f.emission + indirect +
+                  directReflected(f.position, f.normal, f.vertexNormal, V, f.albedo, f.metallic,
+                                  f.roughness);
     }
     sum += shaded[s];
   }

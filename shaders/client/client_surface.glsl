@@ -28,6 +28,8 @@ struct Surface {
   vec3 albedo;
   vec3 emission;
   float distance;  // along the ray from the eye
+  float metallic;  // brdf.h's terms (DrawData: the material's factors)
+  float roughness;
 };
 
 // `dx`, `dy`: how uv changes to the next pixel across and down (the footprint a fragment
@@ -133,6 +135,8 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy, vec3 samp
   }
   s.albedo = d.baseColor.rgb * textureRgb(d.textures.x, uv, dx, dy);
   s.emission = front ? d.emissive.rgb * textureRgb(d.textures.y, uv, dx, dy) : vec3(0.0);
+  s.metallic = d.metallic;
+  s.roughness = d.roughness;
   // As the CPU renders do (cpu/embree_scene.cpp): the map perturbs the unflipped normal in the
   // mesh's frame, tangents following the model matrix (they lie in the surface) and their
   // handedness the sign of its determinant; the result is turned as the vertex normal was.

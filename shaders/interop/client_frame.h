@@ -8,6 +8,7 @@
 #include "light_model.h"
 #include "pc_interop.h"
 #include "probe_view.h"
+#include "specular_probe.h"
 
 PC_BEGIN
 
@@ -87,6 +88,10 @@ struct FrameUniforms {
   // -- 416
   ProbeViewParams probeView;
   // -- 448
+  // The split-sum table (specular_probe.h), two (A, B) entries per vec4: entry e in
+  // splitSum[e / 2], .xy when e is even, .zw when odd.
+  vec4 splitSum[PC_SPLIT_SUM_ENTRIES / 2];
+  // -- 448 + 16 x 128
 };
 
 // One draw: an instance of a mesh with its material. Indexed by gl_InstanceIndex (each draw
@@ -108,8 +113,8 @@ struct DrawData {
   // -- 192
   int normalTexture;  // tangent-space normal map (-1: none, or the mesh has no tangents)
   float normalScale;  // its x and y scale (Material::normalScale)
-  int pad0;
-  int pad1;
+  float metallic;     // Material::metallic and roughness (brdf.h; their texture is not read)
+  float roughness;
 };
 
 // Shadow map rendering's push constants (client_shadow.vert): the layer's view-projection from
@@ -188,7 +193,7 @@ PC_END
 
 #ifdef __cplusplus
 static_assert(sizeof(pc::gpu::ClientView) == 144);
-static_assert(sizeof(pc::gpu::FrameUniforms) == 448);
+static_assert(sizeof(pc::gpu::FrameUniforms) == 448 + 16 * pc::gpu::PC_SPLIT_SUM_ENTRIES / 2);
 static_assert(sizeof(pc::gpu::DrawData) == 208);
 static_assert(sizeof(pc::gpu::FieldWrite) == 16);
 static_assert(sizeof(pc::gpu::RasterTriangle) == 48);

@@ -29,6 +29,9 @@ PC_CONST int PC_SAMPLE_NO_VISIBILITY = 1;  // trilinear only: the naive baseline
 PC_CONST int PC_SAMPLE_NO_OCCLUSION = 2;   // skip the occlusion tile (probe-ray hit shading)
 // No wider search when a point's cages hold no probe with data (tests: what the fallback saves).
 PC_CONST int PC_SAMPLE_NO_FALLBACK = 4;
+// Also the probes' GGX-filtered radiance toward a mirror direction (specular_probe.h), with the
+// same probe weights as the irradiance: pcSampleFieldLit.
+PC_CONST int PC_SAMPLE_SPECULAR = 8;
 
 // Irradiance encodings of a cascade (CascadeDesc.encoding). Octahedral: the irradiance tiles
 // are the field's own. SH: spherical-harmonics coefficients of radiance per probe (sh_probe.h)

@@ -22,6 +22,7 @@
 #define PC_PROBE_SAMPLING_H
 
 #include "probe_math.h"
+#include "specular_probe.h"
 
 PC_BEGIN
 
@@ -82,6 +83,26 @@ PC_FN void pcAccumulateProbe(PC_FIELD_PARAM int cascade, int slot, vec3 encoded,
   weightSum += weight;
 }
 
+// One probe's GGX-filtered radiance toward R (specular_probe.h): its irradiance tile at the
+// six octahedron directions about R, decoded (e^gamma, gamma = 5, as two multiplies).
+PC_FN vec3 pcProbeSpecular(PC_FIELD_PARAM int cascade, int slot, vec3 R, vec2 zh) {
+  vec3 T = pcFrameTangent(R), B = pcFrameBitangent(R);
+  vec3 g[6];
+  g[0] = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, R);
+  g[1] = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, -R);
+  g[2] = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, T);
+  g[3] = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, -T);
+  g[4] = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, B);
+  g[5] = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, -B);
+  vec3 e[6];
+  for (int i = 0; i < 6; ++i) {
+    vec3 c = max(g[i], vec3(0.0f));
+    vec3 c2 = c * c;
+    e[i] = c2 * c2 * c;
+  }
+  return pcSpecularFromIrradiance(e[0], e[1], e[2] + e[3] + e[4] + e[5], zh);
+}
+
 PC_FN vec4 pcResolveProbeSum(vec4 sum, float weightSum) {
   if (weightSum <= 0.0f) return vec4(0.0f);
   vec4 m = sum / weightSum;  // rgb squared: back from the sqrt-irradiance space
@@ -90,8 +111,11 @@ PC_FN vec4 pcResolveProbeSum(vec4 sum, float weightSum) {
 
 // Irradiance (rgb, W/m^2) and sky occlusion (a) from one cascade; `weightSum` returns the sum
 // of cage weights (0 when no probe of the cage holds data).
+// With PC_SAMPLE_SPECULAR, `specular` returns the cage's GGX-filtered radiance toward R
+// (lobe coefficients zh), its probes weighted as for the irradiance, linearly.
 PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N,
-                           vec3 Ns, vec3 V, int flags, PC_INOUT(float) weightSum) {
+                           vec3 Ns, vec3 V, int flags, vec3 R, vec2 zh, PC_INOUT(float) weightSum,
+                           PC_INOUT(vec3) specular) {
   vec3 biasedP = P + N * c.normalBias + V * c.viewBias;
   vec3 grid = (biasedP - c.origin) / c.spacing;
   ivec3 base = clamp(ivec3(floor(grid)), ivec3(0), max(c.counts - ivec3(2), ivec3(0)));
@@ -99,6 +123,7 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
 
   vec4 sum = vec4(0.0f);
   weightSum = 0.0f;
+  specular = vec3(0.0f);
   for (int i = 0; i < 8; ++i) {
     ivec3 offset = ivec3(i & 1, (i >> 1) & 1, (i >> 2) & 1);
     ivec3 logical = min(base + offset, c.counts - ivec3(1));
@@ -116,7 +141,10 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
       weight *= pcProbeVisibilityWeight(PC_FIELD_ARG cascade, slot, probeP, P, biasedP, N);
     }
     pcAccumulateProbe(PC_FIELD_ARG cascade, slot, encoded, Ns, weight, flags, sum, weightSum);
+    if ((flags & PC_SAMPLE_SPECULAR) != 0)
+      specular += weight * pcProbeSpecular(PC_FIELD_ARG cascade, slot, R, zh);
   }
+  if (weightSum > 0.0f) specular /= weightSum;
   return pcResolveProbeSum(sum, weightSum);
 }
 
@@ -125,13 +153,15 @@ PC_FN vec4 pcSampleCascade(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec
 // around the cage, each weighted by a tent two cells wide around the biased point and by the
 // same visibility as the cage's, so that the nearest probes that see the point light it.
 PC_FN vec4 pcSampleCascadeWide(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade, vec3 P, vec3 N,
-                               vec3 Ns, vec3 V, int flags, PC_INOUT(float) weightSum) {
+                               vec3 Ns, vec3 V, int flags, vec3 R, vec2 zh,
+                               PC_INOUT(float) weightSum, PC_INOUT(vec3) specular) {
   vec3 biasedP = P + N * c.normalBias + V * c.viewBias;
   vec3 grid = (biasedP - c.origin) / c.spacing;
   ivec3 base = clamp(ivec3(floor(grid)), ivec3(0), max(c.counts - ivec3(2), ivec3(0)));
 
   vec4 sum = vec4(0.0f);
   weightSum = 0.0f;
+  specular = vec3(0.0f);
   for (int i = 0; i < 64; ++i) {
     ivec3 logical = base + ivec3(i & 3, (i >> 2) & 3, (i >> 4) & 3) - ivec3(1);
     if (logical.x < 0 || logical.y < 0 || logical.z < 0 || logical.x >= c.counts.x ||
@@ -149,7 +179,10 @@ PC_FN vec4 pcSampleCascadeWide(PC_FIELD_PARAM PC_IN(CascadeDesc) c, int cascade,
     }
     vec3 encoded = pcFetchIrradiance(PC_FIELD_ARG cascade, slot, Ns);
     pcAccumulateProbe(PC_FIELD_ARG cascade, slot, encoded, Ns, weight, flags, sum, weightSum);
+    if ((flags & PC_SAMPLE_SPECULAR) != 0)
+      specular += weight * pcProbeSpecular(PC_FIELD_ARG cascade, slot, R, zh);
   }
+  if (weightSum > 0.0f) specular /= weightSum;
   return pcResolveProbeSum(sum, weightSum);
 }
 
@@ -170,17 +203,24 @@ PC_FN float pcCascadeCoverage(PC_IN(CascadeDesc) c, vec3 P) {
 // cage holds data, the wider block of the finest cascade that has any (pcSampleCascadeWide)
 // fills the rest, unless PC_SAMPLE_NO_FALLBACK. `coverage` returns how much of the result came
 // from probes that hold data (0..1). N places and weighs, Ns looks up (see the top).
-PC_FN vec4 pcSampleFieldShaded(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 Ns, vec3 V,
-                               int flags, PC_INOUT(float) coverage) {
+// With PC_SAMPLE_SPECULAR, `specular` returns the GGX-filtered radiance toward R (lobe
+// coefficients zh, pcGgxSpecularZh) blended over cascades as the irradiance is.
+PC_FN vec4 pcSampleFieldLit(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 Ns, vec3 V,
+                            int flags, vec3 R, vec2 zh, PC_INOUT(float) coverage,
+                            PC_INOUT(vec3) specular) {
   vec4 result = vec4(0.0f);
+  specular = vec3(0.0f);
+  vec3 cascadeSpecular = vec3(0.0f);
   float remaining = 1.0f;
   for (int k = 0; k < f.cascadeCount; ++k) {
     float w = k == f.cascadeCount - 1 ? 1.0f : pcCascadeCoverage(f.cascades[k], P);
     if (w <= 0.0f) continue;
     float weightSum = 0.0f;
-    vec4 s = pcSampleCascade(PC_FIELD_ARG f.cascades[k], k, P, N, Ns, V, flags, weightSum);
+    vec4 s = pcSampleCascade(PC_FIELD_ARG f.cascades[k], k, P, N, Ns, V, flags, R, zh, weightSum,
+                             cascadeSpecular);
     if (weightSum <= 0.0f) continue;
     result += remaining * w * s;
+    specular += remaining * w * cascadeSpecular;
     remaining *= 1.0f - w;
     if (remaining <= 0.0f) break;
   }
@@ -188,15 +228,26 @@ PC_FN vec4 pcSampleFieldShaded(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N
     for (int k = 0; k < f.cascadeCount; ++k) {
       if (k < f.cascadeCount - 1 && pcCascadeCoverage(f.cascades[k], P) <= 0.0f) continue;
       float weightSum = 0.0f;
-      vec4 s = pcSampleCascadeWide(PC_FIELD_ARG f.cascades[k], k, P, N, Ns, V, flags, weightSum);
+      vec4 s = pcSampleCascadeWide(PC_FIELD_ARG f.cascades[k], k, P, N, Ns, V, flags, R, zh,
+                                   weightSum, cascadeSpecular);
       if (weightSum <= 0.0f) continue;
       result += remaining * s;
+      specular += remaining * cascadeSpecular;
       remaining = 0.0f;
       break;
     }
   }
   coverage = 1.0f - remaining;
+  if (coverage > 0.0f) specular /= coverage;
   return coverage > 0.0f ? result / coverage : vec4(0.0f);
+}
+
+// Irradiance and occlusion alone (no specular).
+PC_FN vec4 pcSampleFieldShaded(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 Ns, vec3 V,
+                               int flags, PC_INOUT(float) coverage) {
+  vec3 unused = vec3(0.0f);
+  return pcSampleFieldLit(PC_FIELD_ARG f, P, N, Ns, V, flags & ~PC_SAMPLE_SPECULAR, N, vec2(1.0f),
+                          coverage, unused);
 }
 
 // The same where the shading normal is the surface's own (probe rays, unmapped surfaces).
@@ -209,13 +260,24 @@ PC_FN vec4 pcSampleField(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3
 // partial field, a point walled in by probes inside geometry), the renderer's ambient term for
 // the rest (occlusion 1), so that no surface goes without indirect light. PC_SAMPLE_NO_FALLBACK
 // leaves the rest black. N places and weighs, Ns looks up (see the top).
-PC_FN vec4 pcSampleFieldOrAmbient(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 Ns,
-                                  vec3 V, int flags, vec3 ambient) {
+// With PC_SAMPLE_SPECULAR, `specular` returns the GGX-filtered radiance toward R, the ambient
+// term's radiance (ambient / pi) standing in where the irradiance's does.
+PC_FN vec4 pcSampleFieldOrAmbientLit(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 Ns,
+                                     vec3 V, int flags, vec3 ambient, vec3 R, vec2 zh,
+                                     PC_INOUT(vec3) specular) {
   float coverage = 0.0f;
-  vec4 s = pcSampleFieldShaded(PC_FIELD_ARG f, P, N, Ns, V, flags, coverage);
+  vec4 s = pcSampleFieldLit(PC_FIELD_ARG f, P, N, Ns, V, flags, R, zh, coverage, specular);
   if ((flags & PC_SAMPLE_NO_FALLBACK) != 0) return s;
+  specular = mix(ambient * (1.0f / PC_PI), specular, coverage);
   vec3 irradiance = mix(ambient, vec3(s.x, s.y, s.z), coverage);
   return vec4(irradiance.x, irradiance.y, irradiance.z, mix(1.0f, s.w, coverage));
+}
+
+PC_FN vec4 pcSampleFieldOrAmbient(PC_FIELD_PARAM PC_IN(FieldDesc) f, vec3 P, vec3 N, vec3 Ns,
+                                  vec3 V, int flags, vec3 ambient) {
+  vec3 unused = vec3(0.0f);
+  return pcSampleFieldOrAmbientLit(PC_FIELD_ARG f, P, N, Ns, V, flags & ~PC_SAMPLE_SPECULAR,
+                                   ambient, N, vec2(1.0f), unused);
 }
 
 PC_END

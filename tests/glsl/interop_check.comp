@@ -6,6 +6,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "../../shaders/interop/field_desc.h"
 #include "../../shaders/interop/normal_map.h"
+#include "../../shaders/interop/brdf.h"
 layout(std430, binding = 0) buffer Out { vec4 result[]; };
 layout(std140, binding = 1) uniform Desc { FieldDesc field; };
 layout(binding = 2) uniform sampler2D irradianceAtlas;
@@ -40,6 +41,9 @@ void main() {
   ivec2 b = pcBorderSource(0, 3, 8);
   float ao = pcScreenAo(ivec2(i, 0), d, d, pcAoRadius(field, d, PC_AO_DEFAULT_RADIUS));
   vec3 n = pcPerturbNormal(d, vec3(1.0f, 0.0f, 0.0f), 1.0f, pcNormalMapDirection(vec3(s), 1.0f));
-  result[i] = vec4(pcTonemap(vec3(s), 1.0f) * pcAoMultiBounce(ao, n),
+  vec3 h = pcSampleGgxVndf(d, 0.3f, 0.5f, 0.25f);
+  vec3 f = pcMaterialBrdf(n, d, pcFrameTangent(h) + pcFrameBitangent(h), vec3(s), 0.5f, 0.4f) *
+           pcGgxVndfPdf(d.z, h.z, pcGgxAlpha(0.4f));
+  result[i] = vec4(pcTonemap(vec3(s), 1.0f) * pcAoMultiBounce(ao, n) + f,
                    coverage + float(b.x) + pcIrradianceWeight(d, d));
 }

@@ -1,5 +1,5 @@
 #version 460
-// Evaluates the shared light model (shaders/interop/light_model.h) as GLSL on the device, for
+// Evaluates the shared light model (shaders/interop/light_model.h) and BRDF (brdf.h) as GLSL on the device, for
 // tests/test_light_model.cpp to compare with the same header compiled as C++.
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x = 64) in;
@@ -25,4 +25,6 @@ void main() {
   results[base] = vec4(E, distance);
   results[base + 1] = vec4(wi, geometry);
   results[base + 2] = vec4(offset, window);
+  results[base + 3] = pcBrdfCheck(c, wi, E);
+  results[base + 4] = pcSpecularCheck(c, E);
 }

@@ -42,5 +42,6 @@ Benchmark addScale(CLI::App& app);
 Benchmark addEdits(CLI::App& app);
 Benchmark addRest(CLI::App& app);
 Benchmark addFlight(CLI::App& app);
+Benchmark addSpecular(CLI::App& app);
 
 }  // namespace pc::bench
