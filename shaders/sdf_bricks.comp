@@ -1,0 +1,81 @@
+#version 460
+// The SDF build's second pass (interop/sdf_grid.h): one workgroup per near cell fills its
+// brick's samples with min(distance, band) to the nearest triangle and that triangle. The
+// workgroup walks the triangles a chunk at a time; those within the band of some sample (the
+// band plus the brick's half diagonal from its centre) go to a shared list, against which each
+// thread measures its samples. A triangle nearer to a sample than the band is always listed,
+// so samples within the band are exact; the others hold the band, a lower bound.
+#extension GL_GOOGLE_include_directive : require
+#include "interop/gpu_trace.h"
+#include "interop/sdf_grid.h"
+
+layout(local_size_x = PC_SDF_BRICK_THREADS) in;
+
+layout(std430, set = 0, binding = PC_BIND_SDF_GRID) readonly buffer Grid { SdfHeader sdf; SdfCell cells[]; };
+layout(std430, set = 0, binding = PC_BIND_SDF_BRICKS) writeonly buffer Bricks { SdfSample samples[]; };
+layout(std430, set = 0, binding = PC_BIND_SDF_TRIANGLES) readonly buffer Triangles { SdfTriangle triangles[]; };
+
+const int kSamplesPerThread = (PC_SDF_BRICK_SAMPLES + PC_SDF_BRICK_THREADS - 1) / PC_SDF_BRICK_THREADS;
+
+shared vec3 listed[3 * PC_SDF_BRICK_THREADS];
+shared uint listedIndex[PC_SDF_BRICK_THREADS];
+shared uint listedCount;
+
+void main() {
+  int cell = int(gl_WorkGroupID.y * uint(PC_DISPATCH_ROWS) + gl_WorkGroupID.x);
+  int cellCount = sdf.cells.x * sdf.cells.y * sdf.cells.z;
+  if (cell >= cellCount) return;
+  int brick = cells[cell].brick;
+  if (brick < 0 || brick >= sdf.brickCapacity) return;  // uniform over the workgroup
+  ivec3 c = pcSdfCellCoord(sdf, cell);
+  vec3 centre = pcSdfCellCentre(sdf, c);
+  float reach = sdf.band + pcSdfCellRadius(sdf);
+  uint lid = gl_LocalInvocationID.x;
+
+  vec3 position[kSamplesPerThread];
+  float best[kSamplesPerThread];
+  uint bestTriangle[kSamplesPerThread];
+  for (int k = 0; k < kSamplesPerThread; ++k) {
+    int s = int(lid) + k * PC_SDF_BRICK_THREADS;
+    ivec3 sc = ivec3(s % PC_SDF_BRICK_SIDE, (s / PC_SDF_BRICK_SIDE) % PC_SDF_BRICK_SIDE,
+                     s / (PC_SDF_BRICK_SIDE * PC_SDF_BRICK_SIDE));
+    position[k] = pcSdfSamplePosition(sdf, c, sc);
+    best[k] = 3.0e38f;
+    bestTriangle[k] = PC_SDF_NO_TRIANGLE;
+  }
+
+  for (int first = 0; first < sdf.triangleCount; first += PC_SDF_BRICK_THREADS) {
+    if (lid == 0u) listedCount = 0u;
+    barrier();
+    int i = first + int(lid);
+    if (i < sdf.triangleCount) {
+      SdfTriangle t = triangles[i];
+      if (pcPointTriangleDistance(centre, t.p0, t.p1, t.p2) <= reach) {
+        uint slot = atomicAdd(listedCount, 1u);
+        listed[3u * slot] = t.p0;
+        listed[3u * slot + 1u] = t.p1;
+        listed[3u * slot + 2u] = t.p2;
+        listedIndex[slot] = uint(i);
+      }
+    }
+    barrier();
+    uint n = listedCount;
+    for (uint j = 0u; j < n; ++j) {
+      vec3 a = listed[3u * j], b = listed[3u * j + 1u], d = listed[3u * j + 2u];
+      for (int k = 0; k < kSamplesPerThread; ++k) {
+        float dist = pcPointTriangleDistance(position[k], a, b, d);
+        // Ties go to the lower index, whatever order the list was filled in.
+        if (dist < best[k] || (dist == best[k] && listedIndex[j] < bestTriangle[k])) {
+          best[k] = dist;
+          bestTriangle[k] = listedIndex[j];
+        }
+      }
+    }
+    barrier();
+  }
+  for (int k = 0; k < kSamplesPerThread; ++k) {
+    int s = int(lid) + k * PC_SDF_BRICK_THREADS;
+    if (s >= PC_SDF_BRICK_SAMPLES) continue;
+    samples[brick * PC_SDF_BRICK_SAMPLES + s] = SdfSample(min(best[k], sdf.band), bestTriangle[k]);
+  }
+}
