@@ -185,6 +185,8 @@ struct VulkanTracer::Impl {
   vk::UniquePipeline sdfCellsPipeline, sdfBricksPipeline;
   bool sdfDirty = true;                  // the instances moved since the last build
   std::vector<glm::mat4> sdfTransforms;  // the animated records' transforms it was built for
+  std::vector<SdfTriangle> sdfLastTriangles;  // the triangles it was built for
+  std::uint32_t sdfAllocated = 0;             // bricks allocated (SdfHeader::brickCount)
   SdfBuildStats sdfBuild;
   std::vector<std::pair<std::string, double>> sdfPasses;  // the last build's, for the update
   // World-space triangles of every shading record in the current state.

@@ -3,6 +3,8 @@
 // sdf_bricks.comp, shaders/interop/sdf_grid.h) and the compute passes that take the ray-tracing
 // pipelines' place (sdf_trace.comp for the probe rays, sdf_shadow.comp for the shadow lists).
 // Everything else (shade, blend, changes, readback) is the Vulkan tracer's.
+#include <limits>
+
 #include "vulkan_tracer_impl.h"
 
 namespace pc {
@@ -92,7 +94,7 @@ Status VulkanTracer::Impl::createSdfPipelines(bool cutOuts) {
 // later are not hit outside it.
 void VulkanTracer::Impl::ensureSdf() {
   if (!sdf || !sdfDirty) return;
-  const std::vector<SdfTriangle> tris = sdfSceneTriangles();
+  std::vector<SdfTriangle> tris = sdfSceneTriangles();
   SdfHeader& h = sdfHeader;
   if (h.cells.x == 0) {
     glm::vec3 lo = scene->boundsMin, hi = scene->boundsMax;
@@ -136,19 +138,42 @@ void VulkanTracer::Impl::ensureSdf() {
   }
   sdfTrianglesHost.write(tris.data(), tris.size() * sizeof(SdfTriangle));
 
+  // After a build, an update where only some triangles moved: their old and new bounds.
+  bool update = sdfBuild.builds > 0 && sdfLastTriangles.size() == tris.size();
+  glm::vec3 dirtyLo(std::numeric_limits<float>::max()), dirtyHi(-dirtyLo);
+  bool moved = false;
+  for (std::size_t i = 0; update && i < tris.size(); ++i) {
+    const SdfTriangle &now = tris[i], &was = sdfLastTriangles[i];
+    if (now.p0 == was.p0 && now.p1 == was.p1 && now.p2 == was.p2) continue;
+    for (const glm::vec3& p : {now.p0, now.p1, now.p2, was.p0, was.p1, was.p2}) {
+      dirtyLo = glm::min(dirtyLo, p);
+      dirtyHi = glm::max(dirtyHi, p);
+    }
+    moved = true;
+  }
+  if (update && !moved) {
+    sdfDirty = false;
+    return;
+  }
+
   for (int attempt = 0;; ++attempt) {
     if (!sdfBricks.get() || sdfBricks.size() < brickBytes(h.brickCapacity)) {
       sdfBricks = orFail(vk::Buffer::create(*ctx, brickBytes(h.brickCapacity), kCopyable,
                                             vk::MemoryUsage::DeviceLocal),
                          "distance field bricks");
       descriptorsDirty = true;
+      update = false;  // the samples went with the old buffer
     }
     writeDescriptors();
     begin();
     const VkBufferCopy triCopy{0, 0, triBytes};
     vkCmdCopyBuffer(cmd, sdfTrianglesHost.get(), sdfTriangles.get(), 1, &triCopy);
     SdfHeader start = h;
-    start.brickCount = 0;
+    start.brickCount = update ? sdfAllocated : 0;
+    start.update = update ? 1 : 0;
+    start.dirtyLo = dirtyLo;
+    start.dirtyHi = dirtyHi;
+    start.bricksBuilt = 0;
     vkCmdUpdateBuffer(cmd, sdfGrid.get(), 0, sizeof start, &start);
     vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
                       kComputeStage, kShaderRW);
@@ -171,31 +196,38 @@ void VulkanTracer::Impl::ensureSdf() {
                       VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
     submitAndWait();
     checkCall(sdfHeaderReadback.invalidate(), "vkInvalidateMappedMemoryRanges (distance field)");
-    const std::uint32_t bricks = sdfHeaderReadback.as<SdfHeader>()->brickCount;
-    if (bricks <= std::uint32_t(h.brickCapacity) || attempt > 0) {
-      sdfPasses = timer.results();
-      sdfBuild.builds += 1;
-      sdfBuild.cellsMs = sdfBuild.bricksMs = 0;
-      for (const auto& [name, ms] : sdfPasses)
-        (name == "sdf cells" ? sdfBuild.cellsMs : sdfBuild.bricksMs) += ms;
-      sdfBuild.gpuMs = sdfBuild.cellsMs + sdfBuild.bricksMs;
-      sdfBuild.triangles = int(tris.size());
-      sdfBuild.cells = cellCount;
-      sdfBuild.bricks = int(std::min<std::uint32_t>(bricks, std::uint32_t(h.brickCapacity)));
-      sdfBuild.voxel = h.voxel;
-      sdfBuild.bytes = sdfGrid.size() + sdfBricks.size() + sdfTriangles.size();
-      if (sdfBuild.builds == 1)
-        logInfo("sdf tracer: distance field of " + std::to_string(tris.size()) + " triangles, " +
-                std::to_string(h.cells.x) + "x" + std::to_string(h.cells.y) + "x" +
-                std::to_string(h.cells.z) + " cells of " + std::to_string(PC_SDF_BRICK_CELLS) +
-                "^3 voxels of " + std::to_string(h.voxel) + " m, " + std::to_string(bricks) +
-                " bricks, " + std::to_string(sdfBuild.bytes >> 20) + " MiB, built in " +
-                std::to_string(sdfBuild.gpuMs) + " ms");
-      break;
+    const SdfHeader done = *sdfHeaderReadback.as<SdfHeader>();
+    if (done.brickCount > std::uint32_t(h.brickCapacity)) {
+      // More near cells than bricks: grow, and build the whole field again (the count of a
+      // whole build is known now, so that one fits).
+      if (attempt >= 2) fail("the distance field's brick count did not settle");
+      h.brickCapacity = int(done.brickCount + done.brickCount / 8 + 1);
+      continue;
     }
-    // More near cells than bricks: grow and build again (once: the count is now known).
-    h.brickCapacity = int(bricks + bricks / 8 + 1);
+    sdfAllocated = done.brickCount;
+    sdfPasses = timer.results();
+    sdfBuild.builds += 1;
+    sdfBuild.update = update;
+    sdfBuild.bricksBuilt = int(done.bricksBuilt);
+    sdfBuild.cellsMs = sdfBuild.bricksMs = 0;
+    for (const auto& [name, ms] : sdfPasses)
+      (name == "sdf cells" ? sdfBuild.cellsMs : sdfBuild.bricksMs) += ms;
+    sdfBuild.gpuMs = sdfBuild.cellsMs + sdfBuild.bricksMs;
+    sdfBuild.triangles = int(tris.size());
+    sdfBuild.cells = cellCount;
+    sdfBuild.bricks = int(done.brickCount);
+    sdfBuild.voxel = h.voxel;
+    sdfBuild.bytes = sdfGrid.size() + sdfBricks.size() + sdfTriangles.size();
+    if (sdfBuild.builds == 1)
+      logInfo("sdf tracer: distance field of " + std::to_string(tris.size()) + " triangles, " +
+              std::to_string(h.cells.x) + "x" + std::to_string(h.cells.y) + "x" +
+              std::to_string(h.cells.z) + " cells of " + std::to_string(PC_SDF_BRICK_CELLS) +
+              "^3 voxels of " + std::to_string(h.voxel) + " m, " + std::to_string(done.brickCount) +
+              " bricks, " + std::to_string(sdfBuild.bytes >> 20) + " MiB, built in " +
+              std::to_string(sdfBuild.gpuMs) + " ms");
+    break;
   }
+  sdfLastTriangles = std::move(tris);
   sdfDirty = false;
 }
 

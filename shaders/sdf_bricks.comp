@@ -11,7 +11,7 @@
 
 layout(local_size_x = PC_SDF_BRICK_THREADS) in;
 
-layout(std430, set = 0, binding = PC_BIND_SDF_GRID) readonly buffer Grid { SdfHeader sdf; SdfCell cells[]; };
+layout(std430, set = 0, binding = PC_BIND_SDF_GRID) buffer Grid { SdfHeader sdf; SdfCell cells[]; };
 layout(std430, set = 0, binding = PC_BIND_SDF_BRICKS) writeonly buffer Bricks { SdfSample samples[]; };
 layout(std430, set = 0, binding = PC_BIND_SDF_TRIANGLES) readonly buffer Triangles { SdfTriangle triangles[]; };
 
@@ -19,6 +19,7 @@ const int kSamplesPerThread = (PC_SDF_BRICK_SAMPLES + PC_SDF_BRICK_THREADS - 1) 
 
 shared vec3 listed[3 * PC_SDF_BRICK_THREADS];
 shared uint listedIndex[PC_SDF_BRICK_THREADS];
+shared bool listedCutOut[PC_SDF_BRICK_THREADS];
 shared uint listedCount;
 
 void main() {
@@ -31,17 +32,27 @@ void main() {
   vec3 centre = pcSdfCellCentre(sdf, c);
   float reach = sdf.band + pcSdfCellRadius(sdf);
   uint lid = gl_LocalInvocationID.x;
+  if (sdf.update != 0) {
+    // Only cells whose centre lies within `reach` of the moved triangles' bounds: a sample
+    // within the band of a moved triangle has its centre within `reach` of it, so elsewhere
+    // no sample changed; and a cell turns near only with its centre within `reach` of a
+    // triangle, so the new bricks are all here.
+    if (any(lessThan(centre, sdf.dirtyLo - vec3(reach))) ||
+        any(greaterThan(centre, sdf.dirtyHi + vec3(reach))))
+      return;
+  }
+  if (lid == 0u) atomicAdd(sdf.bricksBuilt, 1u);
 
   vec3 position[kSamplesPerThread];
-  float best[kSamplesPerThread];
-  uint bestTriangle[kSamplesPerThread];
+  float best[kSamplesPerThread], bestOpaque[kSamplesPerThread];
+  uint bestTriangle[kSamplesPerThread], bestOpaqueTriangle[kSamplesPerThread];
   for (int k = 0; k < kSamplesPerThread; ++k) {
     int s = int(lid) + k * PC_SDF_BRICK_THREADS;
     ivec3 sc = ivec3(s % PC_SDF_BRICK_SIDE, (s / PC_SDF_BRICK_SIDE) % PC_SDF_BRICK_SIDE,
                      s / (PC_SDF_BRICK_SIDE * PC_SDF_BRICK_SIDE));
     position[k] = pcSdfSamplePosition(sdf, c, sc);
-    best[k] = 3.0e38f;
-    bestTriangle[k] = PC_SDF_NO_TRIANGLE;
+    best[k] = bestOpaque[k] = 3.0e38f;
+    bestTriangle[k] = bestOpaqueTriangle[k] = PC_SDF_NO_TRIANGLE;
   }
 
   for (int first = 0; first < sdf.triangleCount; first += PC_SDF_BRICK_THREADS) {
@@ -56,6 +67,7 @@ void main() {
         listed[3u * slot + 1u] = t.p1;
         listed[3u * slot + 2u] = t.p2;
         listedIndex[slot] = uint(i);
+        listedCutOut[slot] = t.cutOut != 0;
       }
     }
     barrier();
@@ -69,6 +81,11 @@ void main() {
           best[k] = dist;
           bestTriangle[k] = listedIndex[j];
         }
+        if (!listedCutOut[j] &&
+            (dist < bestOpaque[k] || (dist == bestOpaque[k] && listedIndex[j] < bestOpaqueTriangle[k]))) {
+          bestOpaque[k] = dist;
+          bestOpaqueTriangle[k] = listedIndex[j];
+        }
       }
     }
     barrier();
@@ -76,6 +93,8 @@ void main() {
   for (int k = 0; k < kSamplesPerThread; ++k) {
     int s = int(lid) + k * PC_SDF_BRICK_THREADS;
     if (s >= PC_SDF_BRICK_SAMPLES) continue;
-    samples[brick * PC_SDF_BRICK_SAMPLES + s] = SdfSample(min(best[k], sdf.band), bestTriangle[k]);
+    uint opaque = bestOpaque[k] <= sdf.band && bestOpaqueTriangle[k] != bestTriangle[k]
+                      ? bestOpaqueTriangle[k] : PC_SDF_NO_TRIANGLE;
+    samples[brick * PC_SDF_BRICK_SAMPLES + s] = SdfSample(min(best[k], sdf.band), bestTriangle[k], opaque);
   }
 }

@@ -5,7 +5,9 @@
 // brick, which sdf_bricks.comp fills; any other keeps a lower bound of the distance from each
 // of its points to the surface (the centre's distance less the half diagonal), which the
 // tracer steps across in one go. Brute force over the triangles: every cell costs one pass over
-// them, cheap beside the bricks' samples, and it needs no structure of its own.
+// them, cheap beside the bricks' samples, and it needs no structure of its own. An update
+// (SdfHeader::update) runs it over every cell too: a moved instance changes the bounds of
+// empty cells anywhere.
 #extension GL_GOOGLE_include_directive : require
 #include "interop/gpu_trace.h"
 #include "interop/sdf_grid.h"
@@ -43,7 +45,9 @@ void main() {
   float d = nearest[0];
   float radius = pcSdfCellRadius(sdf);
   if (d <= radius + sdf.band) {
-    cells[cell] = SdfCell(0.0f, int(atomicAdd(sdf.brickCount, 1u)));
+    // An update keeps a cell's brick (sdf_bricks.comp refills it where the change reaches).
+    int kept = sdf.update != 0 ? cells[cell].brick : PC_SDF_NO_BRICK;
+    cells[cell] = SdfCell(0.0f, kept >= 0 ? kept : int(atomicAdd(sdf.brickCount, 1u)));
   } else {
     cells[cell] = SdfCell(d - radius, PC_SDF_NO_BRICK);
   }

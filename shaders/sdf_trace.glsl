@@ -5,7 +5,9 @@
 //   - in a brick, it steps by the trilinear distance less the largest error trilinear
 //     interpolation of a 1-Lipschitz field can make (sqrt(3)/2 voxel), at least half a voxel;
 //   - within two voxels of a surface it tests the ray against the nearest triangles of the
-//     voxel's eight corners (exact ray-triangle tests) and stops at the nearest hit among them
+//     voxel's eight corners (in scenes with cut-outs also their nearest triangles that are no
+//     cut-out: what lies behind an open texel) with exact ray-triangle tests, and stops at the
+//     nearest hit among them
 //     no farther than the distance plus a voxel ahead. A hit behind the current point counts
 //     too: where a step passed a surface, the next voxel's corners name its triangle.
 // So hits are exact points on triangles with the triangle's own barycentrics, the record the
@@ -68,17 +70,18 @@ SdfHit sdfTrace(vec3 o, vec3 dir, float tmin, float tmax) {
     ivec3 i0 = clamp(ivec3(floor(local)), ivec3(0), ivec3(PC_SDF_BRICK_CELLS - 1));
     vec3 f = clamp(local - vec3(i0), vec3(0.0f), vec3(1.0f));
     float d[8];
-    uint tri[8];
+    uint tri[16];  // the corners' nearest triangles, then (cut-outs only) their nearest opaque
     for (int k = 0; k < 8; ++k) {
       SdfSample s = samples[pcSdfSampleIndex(cell.brick, i0 + ivec3(k & 1, (k >> 1) & 1, k >> 2))];
       d[k] = s.distance;
       tri[k] = s.triangle;
+      tri[k + 8] = s.opaque;
     }
     float dist = mix(mix(mix(d[0], d[1], f.x), mix(d[2], d[3], f.x), f.y),
                      mix(mix(d[4], d[5], f.x), mix(d[6], d[7], f.x), f.y), f.z);
     if (dist <= kSdfNearVoxels * h) {
       float window = t + dist + h;
-      for (int k = 0; k < 8; ++k) {
+      for (int k = 0; k < (kCutOuts ? 16 : 8); ++k) {
         uint i = tri[k];
         bool seen = i == PC_SDF_NO_TRIANGLE;
         for (int j = 0; j < k; ++j) seen = seen || tri[j] == i;

@@ -8,10 +8,11 @@
 // centre) is "near" and owns a brick: (PC_SDF_BRICK_CELLS + 1)^3 samples on its voxel corners
 // (the faces shared with the neighbours are stored twice, so a brick interpolates alone). Each
 // sample holds min(distance, band) to the nearest triangle and that triangle (PC_SDF_NO_TRIANGLE
-// where none is within the band). Every other cell holds a lower bound of the distance from any
-// of its points to any triangle (its centre's distance less its half diagonal, above the band)
-// and no brick. Distances are unsigned: a hit's side comes from its triangle's winding, as for
-// the ray-tracing backend, so probes inside walls see backfaces alike.
+// where none is within the band), and the nearest triangle that is no cut-out. Every other cell
+// holds a lower bound of the distance from any of its points to any triangle (its centre's distance
+// less its half diagonal, above the band) and no brick. Distances are unsigned: a hit's side comes
+// from its triangle's winding, as for the ray-tracing backend, so probes inside walls see backfaces
+// alike.
 #ifndef PC_SDF_GRID_H
 #define PC_SDF_GRID_H
 
@@ -38,9 +39,20 @@ struct SdfHeader {
   // -- 32
   float band;         // samples hold min(distance, band)
   int triangleCount;  // SdfTriangle entries
-  uint brickCount;    // bricks the cells pass allocated (may pass the capacity: then grown)
-  int pad0;
+  uint brickCount;    // bricks allocated so far (may pass the capacity: then grown)
+  int update;         // 1: an update after instances moved (see below); 0: a whole build
   // -- 48
+  // An update keeps the bricks of cells that stay near and refills only those of cells whose
+  // centre lies within the band plus the half diagonal of [dirtyLo, dirtyHi] (the moved
+  // triangles' old and new bounds): no other sample's distance can change. Cells that become near
+  // take new bricks past brickCount; bricks of cells no longer near stay unused until the next
+  // whole build.
+  vec3 dirtyLo;
+  uint bricksBuilt;  // bricks the brick pass filled (counted by it)
+  // -- 64
+  vec3 dirtyHi;
+  int pad0;
+  // -- 80
 };
 
 struct SdfCell {
@@ -51,6 +63,10 @@ struct SdfCell {
 struct SdfSample {
   float distance;  // min(distance to the nearest triangle, band)
   uint triangle;   // that triangle (SdfTriangle index) or PC_SDF_NO_TRIANGLE
+  // The nearest triangle that is no cut-out, where it is not `triangle` and lies within the
+  // band: a ray through a cut-out's open texel meets what lies just behind it, which need not
+  // be the nearest triangle of any sample (a block's top 5 mm under a grille).
+  uint opaque;
 };
 
 // A triangle in world space with its shading record, as a probe ray's hit reports it.
@@ -133,9 +149,9 @@ PC_FN vec3 pcRayTriangle(vec3 o, vec3 d, vec3 a, vec3 b, vec3 c) {
 PC_END
 
 #ifdef __cplusplus
-static_assert(sizeof(pc::gpu::SdfHeader) == 48);
+static_assert(sizeof(pc::gpu::SdfHeader) == 80);
 static_assert(sizeof(pc::gpu::SdfCell) == 8);
-static_assert(sizeof(pc::gpu::SdfSample) == 8);
+static_assert(sizeof(pc::gpu::SdfSample) == 12);
 static_assert(sizeof(pc::gpu::SdfTriangle) == 48);
 #endif
 
