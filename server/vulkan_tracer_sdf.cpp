@@ -102,6 +102,19 @@ void VulkanTracer::Impl::ensureSdf() {
       lo = glm::min(lo, glm::min(t.p0, glm::min(t.p1, t.p2)));
       hi = glm::max(hi, glm::max(t.p0, glm::max(t.p1, t.p2)));
     }
+    // Where the scene has probe volumes, no farther than a spacing past them: a ground plane
+    // a kilometre wide would otherwise set the voxels' size (its triangles, reaching outside,
+    // are tested by every ray instead).
+    if (!scene->volumes.empty()) {
+      glm::vec3 vlo(std::numeric_limits<float>::max()), vhi(-vlo);
+      for (const ProbeVolume& v : scene->volumes) {
+        const glm::vec3 far = v.origin + v.spacing * glm::vec3(v.counts - 1);
+        vlo = glm::min(vlo, glm::min(v.origin, far) - glm::vec3(v.spacing));
+        vhi = glm::max(vhi, glm::max(v.origin, far) + glm::vec3(v.spacing));
+      }
+      lo = glm::max(lo, vlo);
+      hi = glm::max(glm::min(hi, vhi), lo);
+    }
     const glm::vec3 extent = glm::max(hi - lo, glm::vec3(0.0f));
     const float longest = std::max({extent.x, extent.y, extent.z, 1e-3f});
     const int voxels =
@@ -137,6 +150,31 @@ void VulkanTracer::Impl::ensureSdf() {
     descriptorsDirty = true;
   }
   sdfTrianglesHost.write(tris.data(), tris.size() * sizeof(SdfTriangle));
+  // The triangles that reach outside the grid.
+  std::vector<std::uint32_t> outside;
+  const glm::vec3 gridLo = h.origin, gridHi = h.origin + glm::vec3(h.cells) * pcSdfCellSize(h);
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    const SdfTriangle& t = tris[i];
+    for (const glm::vec3& p : {t.p0, t.p1, t.p2})
+      if (glm::any(glm::lessThan(p, gridLo)) || glm::any(glm::greaterThan(p, gridHi))) {
+        outside.push_back(std::uint32_t(i));
+        break;
+      }
+  }
+  h.outsideCount = int(outside.size());
+  const std::size_t outsideBytes = std::max<std::size_t>(outside.size(), 1) * 4;
+  if (!sdfOutside.get() || sdfOutside.size() < outsideBytes) {
+    sdfOutside = orFail(vk::Buffer::create(*ctx, outsideBytes, kHostInput, vk::MemoryUsage::Upload),
+                        "distance field outside triangles");
+    descriptorsDirty = true;
+  }
+  sdfOutside.write(outside.data(), outside.size() * 4);
+  if (outside.size() != sdfLastOutside) {
+    if (outside.size() > 64)
+      logWarn("sdf tracer: " + std::to_string(outside.size()) +
+              " triangles reach outside the distance field's bounds; every ray tests them all");
+    sdfLastOutside = outside.size();
+  }
 
   // After a build, an update where only some triangles moved: their old and new bounds.
   bool update = sdfBuild.builds > 0 && sdfLastTriangles.size() == tris.size();

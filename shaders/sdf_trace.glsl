@@ -23,6 +23,7 @@
 layout(std430, set = 0, binding = PC_BIND_SDF_GRID) readonly buffer Grid { SdfHeader sdf; SdfCell cells[]; };
 layout(std430, set = 0, binding = PC_BIND_SDF_BRICKS) readonly buffer Bricks { SdfSample samples[]; };
 layout(std430, set = 0, binding = PC_BIND_SDF_TRIANGLES) readonly buffer Triangles { SdfTriangle triangles[]; };
+layout(std430, set = 0, binding = PC_BIND_SDF_OUTSIDE) readonly buffer Outside { uint outside[]; };
 
 // Steps a ray may take before it counts as a miss (a ray grazing a wall steps half a voxel).
 const int kSdfMaxSteps = 2048;
@@ -45,7 +46,7 @@ float sdfBoxExit(vec3 o, vec3 inv, vec3 lo, vec3 hi) {
 }
 
 // The first hit of ray (o, dir) in [tmin, tmax) on a triangle of the field.
-SdfHit sdfTrace(vec3 o, vec3 dir, float tmin, float tmax) {
+SdfHit sdfTraceGrid(vec3 o, vec3 dir, float tmin, float tmax) {
   SdfHit hit = SdfHit(-1.0f, vec2(0.0f), PC_SDF_NO_TRIANGLE);
   vec3 safe = mix(dir, vec3(1e-30f), equal(dir, vec3(0.0f)));
   vec3 inv = 1.0f / safe;
@@ -96,6 +97,23 @@ SdfHit sdfTrace(vec3 o, vec3 dir, float tmin, float tmax) {
       if (hit.t >= 0.0f) return hit;
     }
     t += max(dist - kSdfInterpolationError * h, 0.5f * h);
+  }
+  return hit;
+}
+
+// The first hit of ray (o, dir) in [tmin, tmax): through the grid, and against each triangle
+// that reaches outside it.
+SdfHit sdfTrace(vec3 o, vec3 dir, float tmin, float tmax) {
+  SdfHit hit = sdfTraceGrid(o, dir, tmin, tmax);
+  float best = hit.t >= 0.0f ? hit.t : tmax;
+  for (int k = 0; k < sdf.outsideCount; ++k) {
+    uint i = outside[k];
+    SdfTriangle tr = triangles[i];
+    vec3 r = pcRayTriangle(o, dir, tr.p0, tr.p1, tr.p2);
+    if (!(r.x >= tmin && r.x < best)) continue;
+    if (kCutOuts && tr.cutOut != 0 && !pcCutOutCovered(tr.record, tr.primitive, vec2(r.y, r.z))) continue;
+    best = r.x;
+    hit = SdfHit(r.x, vec2(r.y, r.z), i);
   }
   return hit;
 }

@@ -4,15 +4,15 @@
 // device without ray tracing.
 //
 // Layout: a coarse grid of cells (PC_SDF_BRICK_CELLS voxels of `voxel` metres a side) over the
-// scene's bounds. A cell within `band` + its half diagonal of a triangle (measured from its
-// centre) is "near" and owns a brick: (PC_SDF_BRICK_CELLS + 1)^3 samples on its voxel corners
-// (the faces shared with the neighbours are stored twice, so a brick interpolates alone). Each
-// sample holds min(distance, band) to the nearest triangle and that triangle (PC_SDF_NO_TRIANGLE
-// where none is within the band), and the nearest triangle that is no cut-out. Every other cell
-// holds a lower bound of the distance from any of its points to any triangle (its centre's distance
-// less its half diagonal, above the band) and no brick. Distances are unsigned: a hit's side comes
-// from its triangle's winding, as for the ray-tracing backend, so probes inside walls see backfaces
-// alike.
+// scene's bounds, within a probe spacing of its probe volumes where it has some. A cell within
+// `band` + its half diagonal of a triangle (measured from its centre) is "near" and owns a brick:
+// (PC_SDF_BRICK_CELLS + 1)^3 samples on its voxel corners (the faces shared with the neighbours are
+// stored twice, so a brick interpolates alone). Each sample holds min(distance, band) to the
+// nearest triangle and that triangle (PC_SDF_NO_TRIANGLE where none is within the band), and the
+// nearest triangle that is no cut-out. Every other cell holds a lower bound of the distance from
+// any of its points to any triangle (its centre's distance less its half diagonal, above the band)
+// and no brick. Distances are unsigned: a hit's side comes from its triangle's winding, as for the
+// ray-tracing backend, so probes inside walls see backfaces alike.
 #ifndef PC_SDF_GRID_H
 #define PC_SDF_GRID_H
 
@@ -51,7 +51,9 @@ struct SdfHeader {
   uint bricksBuilt;  // bricks the brick pass filled (counted by it)
   // -- 64
   vec3 dirtyHi;
-  int pad0;
+  // Triangles that reach outside the grid (a ground plane past the probe volumes, an
+  // instance moved out): every ray tests them all (PC_BIND_SDF_OUTSIDE lists them).
+  int outsideCount;
   // -- 80
 };
 
