@@ -35,15 +35,15 @@ enum class VulkanTracing {
 
 // The SDF backend's last distance-field build.
 struct SdfBuildStats {
-  int builds = 0;        // builds so far (the first update, then after instances moved)
-  bool update = false;   // the last was an update: only the bricks near moved triangles
-  int bricksBuilt = 0;   // bricks the last build or update filled
+  int builds = 0;       // builds so far (the first update, then after instances moved)
+  bool update = false;  // the last was an update: only the bricks near moved triangles
+  int bricksBuilt = 0;  // bricks the last build or update filled
   double gpuMs = 0;     // the last build's GPU time: both passes
   double cellsMs = 0;   // its coarse-cell pass
   double bricksMs = 0;  // its brick pass
   int triangles = 0;
   int cells = 0;          // coarse cells
-  int bricks = 0;        // bricks allocated (near cells; after updates also unused ones)
+  int bricks = 0;         // bricks allocated (near cells; after updates also unused ones)
   float voxel = 0;        // voxel side, metres
   std::size_t bytes = 0;  // the grid's, bricks' and triangles' device memory
 };
