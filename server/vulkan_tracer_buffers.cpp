@@ -229,6 +229,7 @@ void VulkanTracer::Impl::writeDescriptors() {
     buffers[PC_BIND_SDF_BRICKS] = &sdfBricks;
     buffers[PC_BIND_SDF_TRIANGLES] = &sdfTriangles;
     buffers[PC_BIND_SDF_OUTSIDE] = &sdfOutside;
+    buffers[PC_BIND_SDF_LISTS] = &sdfLists;
   }
   std::vector<VkDescriptorImageInfo> images;
   for (std::size_t i = 0; i < textures.size(); ++i)

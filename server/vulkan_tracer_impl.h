@@ -183,11 +183,13 @@ struct VulkanTracer::Impl {
   vk::Buffer sdfTrianglesHost, sdfTriangles;  // SdfTriangle[]: host-written, device copy
   vk::Buffer sdfGrid, sdfBricks, sdfHeaderReadback;
   vk::Buffer sdfOutside;  // uint[]: the triangles reaching outside the grid (host-written)
+  vk::Buffer sdfLists;    // uint[]: each brick's cell's triangles (sdf_grid.h)
   vk::UniquePipeline sdfCellsPipeline, sdfBricksPipeline;
   bool sdfDirty = true;                       // the instances moved since the last build
   std::vector<glm::mat4> sdfTransforms;       // the animated records' transforms it was built for
   std::vector<SdfTriangle> sdfLastTriangles;  // the triangles it was built for
   std::uint32_t sdfAllocated = 0;             // bricks allocated (SdfHeader::brickCount)
+  std::uint32_t sdfListed = 0;                // list references written (SdfHeader::listCount)
   std::size_t sdfLastOutside = 0;             // triangles outside the grid, last reported
   SdfBuildStats sdfBuild;
   std::vector<std::pair<std::string, double>> sdfPasses;  // the last build's, for the update

@@ -128,6 +128,7 @@ void VulkanTracer::Impl::ensureSdf() {
     const int cellCount = h.cells.x * h.cells.y * h.cells.z;
     // A first guess; a build that allocates more grows the bricks and runs again.
     h.brickCapacity = std::max(64, cellCount / 4);
+    h.listCapacity = h.brickCapacity * 16;
     sdfGrid = orFail(vk::Buffer::create(*ctx, sizeof(SdfHeader) + std::size_t(cellCount) * 8,
                                         kCopyable, vk::MemoryUsage::DeviceLocal),
                      "distance field grid");
@@ -202,12 +203,22 @@ void VulkanTracer::Impl::ensureSdf() {
       descriptorsDirty = true;
       update = false;  // the samples went with the old buffer
     }
+    const std::size_t listBytes =
+        (2 * std::size_t(h.brickCapacity) + std::size_t(h.listCapacity)) * sizeof(std::uint32_t);
+    if (!sdfLists.get() || sdfLists.size() != listBytes) {
+      sdfLists =
+          orFail(vk::Buffer::create(*ctx, listBytes, kCopyable, vk::MemoryUsage::DeviceLocal),
+                 "distance field triangle lists");
+      descriptorsDirty = true;
+      update = false;  // the ranges and lists went with the old buffer
+    }
     writeDescriptors();
     begin();
     const VkBufferCopy triCopy{0, 0, triBytes};
     vkCmdCopyBuffer(cmd, sdfTrianglesHost.get(), sdfTriangles.get(), 1, &triCopy);
     SdfHeader start = h;
     start.brickCount = update ? sdfAllocated : 0;
+    start.listCount = update ? sdfListed : 0;
     start.update = update ? 1 : 0;
     start.dirtyLo = dirtyLo;
     start.dirtyHi = dirtyHi;
@@ -238,10 +249,17 @@ void VulkanTracer::Impl::ensureSdf() {
     if (done.brickCount > std::uint32_t(h.brickCapacity)) {
       // More near cells than bricks: grow, and build the whole field again (the count of a
       // whole build is known now, so that one fits).
-      if (attempt >= 2) fail("the distance field's brick count did not settle");
+      if (attempt >= 3) fail("the distance field's brick count did not settle");
       h.brickCapacity = int(done.brickCount + done.brickCount / 8 + 1);
+      h.listCapacity = std::max(h.listCapacity, h.brickCapacity * 16);
       continue;
     }
+    if (done.listCount > std::uint32_t(h.listCapacity)) {
+      if (attempt >= 3) fail("the distance field's triangle lists did not settle");
+      h.listCapacity = int(done.listCount + done.listCount / 4 + 1);
+      continue;
+    }
+    sdfListed = done.listCount;
     sdfAllocated = done.brickCount;
     sdfPasses = timer.results();
     sdfBuild.builds += 1;
@@ -255,7 +273,7 @@ void VulkanTracer::Impl::ensureSdf() {
     sdfBuild.cells = cellCount;
     sdfBuild.bricks = int(done.brickCount);
     sdfBuild.voxel = h.voxel;
-    sdfBuild.bytes = sdfGrid.size() + sdfBricks.size() + sdfTriangles.size();
+    sdfBuild.bytes = sdfGrid.size() + sdfBricks.size() + sdfTriangles.size() + sdfLists.size();
     if (sdfBuild.builds == 1)
       logInfo("sdf tracer: distance field of " + std::to_string(tris.size()) + " triangles, " +
               std::to_string(h.cells.x) + "x" + std::to_string(h.cells.y) + "x" +

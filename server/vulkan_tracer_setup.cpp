@@ -279,7 +279,8 @@ Status VulkanTracer::Impl::createPipelines() {
   for (int b = 0; b < PC_BINDING_COUNT; ++b) {
     // Each backend's own: the TLAS, or the distance field's buffers.
     const bool sdfBinding = b == PC_BIND_SDF_GRID || b == PC_BIND_SDF_BRICKS ||
-                            b == PC_BIND_SDF_TRIANGLES || b == PC_BIND_SDF_OUTSIDE;
+                            b == PC_BIND_SDF_TRIANGLES || b == PC_BIND_SDF_OUTSIDE ||
+                            b == PC_BIND_SDF_LISTS;
     if (sdf ? b == PC_BIND_TLAS : sdfBinding) continue;
     VkDescriptorSetLayoutBinding lb{};
     lb.binding = std::uint32_t(b);

@@ -14,6 +14,7 @@ layout(local_size_x = PC_SDF_BRICK_THREADS) in;
 layout(std430, set = 0, binding = PC_BIND_SDF_GRID) buffer Grid { SdfHeader sdf; SdfCell cells[]; };
 layout(std430, set = 0, binding = PC_BIND_SDF_BRICKS) writeonly buffer Bricks { SdfSample samples[]; };
 layout(std430, set = 0, binding = PC_BIND_SDF_TRIANGLES) readonly buffer Triangles { SdfTriangle triangles[]; };
+layout(std430, set = 0, binding = PC_BIND_SDF_LISTS) writeonly buffer Lists { uint lists[]; };
 
 const int kSamplesPerThread = (PC_SDF_BRICK_SAMPLES + PC_SDF_BRICK_THREADS - 1) / PC_SDF_BRICK_THREADS;
 
@@ -21,6 +22,10 @@ shared vec3 listed[3 * PC_SDF_BRICK_THREADS];
 shared uint listedIndex[PC_SDF_BRICK_THREADS];
 shared bool listedCutOut[PC_SDF_BRICK_THREADS];
 shared uint listedCount;
+// The triangles touching the cell (within its half diagonal of the centre), for its list.
+shared uint cellTriangles[PC_SDF_MAX_CELL_TRIANGLES];
+shared uint touching;
+shared uint cellBase;
 
 void main() {
   int cell = int(gl_WorkGroupID.y * uint(PC_DISPATCH_ROWS) + gl_WorkGroupID.x);
@@ -41,7 +46,11 @@ void main() {
         any(greaterThan(centre, sdf.dirtyHi + vec3(reach))))
       return;
   }
-  if (lid == 0u) atomicAdd(sdf.bricksBuilt, 1u);
+  if (lid == 0u) {
+    atomicAdd(sdf.bricksBuilt, 1u);
+    touching = 0u;
+  }
+  float radius = pcSdfCellRadius(sdf);
 
   vec3 position[kSamplesPerThread];
   float best[kSamplesPerThread], bestOpaque[kSamplesPerThread];
@@ -61,7 +70,12 @@ void main() {
     int i = first + int(lid);
     if (i < sdf.triangleCount) {
       SdfTriangle t = triangles[i];
-      if (pcPointTriangleDistance(centre, t.p0, t.p1, t.p2) <= reach) {
+      float d = pcPointTriangleDistance(centre, t.p0, t.p1, t.p2);
+      if (d <= radius) {
+        uint k = atomicAdd(touching, 1u);
+        if (k < uint(PC_SDF_MAX_CELL_TRIANGLES)) cellTriangles[k] = uint(i);
+      }
+      if (d <= reach) {
         uint slot = atomicAdd(listedCount, 1u);
         listed[3u * slot] = t.p0;
         listed[3u * slot + 1u] = t.p1;
@@ -90,6 +104,23 @@ void main() {
     }
     barrier();
   }
+  // The cell's list: one allocation per brick; too many triangles, or a full buffer (the host
+  // then grows it and builds again), leave the brick to the samples' nearest triangles.
+  if (lid == 0u) {
+    uint n = touching;
+    uint base = PC_SDF_LIST_OVERFLOW;
+    if (n <= uint(PC_SDF_MAX_CELL_TRIANGLES)) {
+      base = atomicAdd(sdf.listCount, n);
+      if (base + n > uint(sdf.listCapacity)) base = PC_SDF_LIST_OVERFLOW;
+    }
+    cellBase = base;
+    lists[2 * brick] = base == PC_SDF_LIST_OVERFLOW ? 0u : base;
+    lists[2 * brick + 1] = base == PC_SDF_LIST_OVERFLOW ? PC_SDF_LIST_OVERFLOW : n;
+  }
+  barrier();
+  if (cellBase != PC_SDF_LIST_OVERFLOW)
+    for (uint k = lid; k < touching; k += uint(PC_SDF_BRICK_THREADS))
+      lists[2u * uint(sdf.brickCapacity) + cellBase + k] = cellTriangles[k];
   for (int k = 0; k < kSamplesPerThread; ++k) {
     int s = int(lid) + k * PC_SDF_BRICK_THREADS;
     if (s >= PC_SDF_BRICK_SAMPLES) continue;

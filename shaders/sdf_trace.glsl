@@ -24,6 +24,7 @@ layout(std430, set = 0, binding = PC_BIND_SDF_GRID) readonly buffer Grid { SdfHe
 layout(std430, set = 0, binding = PC_BIND_SDF_BRICKS) readonly buffer Bricks { SdfSample samples[]; };
 layout(std430, set = 0, binding = PC_BIND_SDF_TRIANGLES) readonly buffer Triangles { SdfTriangle triangles[]; };
 layout(std430, set = 0, binding = PC_BIND_SDF_OUTSIDE) readonly buffer Outside { uint outside[]; };
+layout(std430, set = 0, binding = PC_BIND_SDF_LISTS) readonly buffer Lists { uint lists[]; };
 
 // Steps a ray may take before it counts as a miss (a ray grazing a wall steps half a voxel).
 const int kSdfMaxSteps = 2048;
@@ -58,10 +59,12 @@ SdfHit sdfTraceGrid(vec3 o, vec3 dir, float tmin, float tmax) {
   float t = max(tmin, max(max(near.x, near.y), near.z));
   float tEnd = min(tmax, min(min(far.x, far.y), far.z));
   float best = tmax;
+  int listed = -1;  // the cell whose list the ray was last tested against
   for (int step = 0; step < kSdfMaxSteps && t <= tEnd; ++step) {
     vec3 p = o + t * dir;
     ivec3 c = clamp(ivec3(floor((p - lo) / cellSize)), ivec3(0), sdf.cells - 1);
-    SdfCell cell = cells[pcSdfCellIndex(sdf, c)];
+    int cellIndex = pcSdfCellIndex(sdf, c);
+    SdfCell cell = cells[cellIndex];
     vec3 cellLo = lo + vec3(c) * cellSize;
     if (cell.brick < 0) {
       t = max(t + cell.distance, sdfBoxExit(o, inv, cellLo, cellLo + vec3(cellSize)) + 0.01f * h);
@@ -80,7 +83,28 @@ SdfHit sdfTraceGrid(vec3 o, vec3 dir, float tmin, float tmax) {
     }
     float dist = mix(mix(mix(d[0], d[1], f.x), mix(d[2], d[3], f.x), f.y),
                      mix(mix(d[4], d[5], f.x), mix(d[6], d[7], f.x), f.y), f.z);
-    if (dist <= kSdfNearVoxels * h) {
+    if (dist <= kSdfNearVoxels * h && cellIndex != listed &&
+        lists[2 * cell.brick + 1] != PC_SDF_LIST_OVERFLOW) {
+      // Every triangle touching the cell, once: the first hit within the cell, or none in it.
+      listed = cellIndex;
+      float exitT = sdfBoxExit(o, inv, cellLo, cellLo + vec3(cellSize)) + 0.01f * h;
+      uint first = 2u * uint(sdf.brickCapacity) + lists[2 * cell.brick];
+      uint count = lists[2 * cell.brick + 1];
+      for (uint k = 0u; k < count; ++k) {
+        uint i = lists[first + k];
+        SdfTriangle tr = triangles[i];
+        vec3 r = pcRayTriangle(o, dir, tr.p0, tr.p1, tr.p2);
+        if (!(r.x >= tmin && r.x < best && r.x <= exitT)) continue;
+        if (kCutOuts && tr.cutOut != 0 && !pcCutOutCovered(tr.record, tr.primitive, vec2(r.y, r.z))) continue;
+        best = r.x;
+        hit = SdfHit(r.x, vec2(r.y, r.z), i);
+      }
+      if (hit.t >= 0.0f) return hit;
+      t = exitT;
+      continue;
+    }
+    if (dist <= kSdfNearVoxels * h && cellIndex != listed) {
+      // A cell whose list overflowed: the nearest triangles of the voxel's corners.
       float window = t + dist + h;
       for (int k = 0; k < (kCutOuts ? 16 : 8); ++k) {
         uint i = tri[k];

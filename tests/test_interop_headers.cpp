@@ -78,7 +78,7 @@ TEST(InteropHeaders, BindingsFitTheirCounts) {
   for (int b : client) EXPECT_LT(b, PC_CLIENT_BINDING_COUNT);
   const int trace[] = {PC_BIND_TLAS,        PC_BIND_LIGHTS,     PC_BIND_EMISSIVE,
                        PC_BIND_SDF_GRID,    PC_BIND_SDF_BRICKS, PC_BIND_SDF_TRIANGLES,
-                       PC_BIND_SDF_OUTSIDE, PC_BIND_TEXTURES};
+                       PC_BIND_SDF_OUTSIDE, PC_BIND_SDF_LISTS,  PC_BIND_TEXTURES};
   for (int b : trace) EXPECT_LT(b, PC_BINDING_COUNT);
   // The tracer's textures are its variable-count binding, which must be the last.
   EXPECT_EQ(PC_BIND_TEXTURES, PC_BINDING_COUNT - 1);

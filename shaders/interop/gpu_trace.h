@@ -68,9 +68,10 @@ PC_CONST int PC_BIND_SDF_GRID = 27;       // SdfHeader, then SdfCell[]
 PC_CONST int PC_BIND_SDF_BRICKS = 28;     // SdfSample[]
 PC_CONST int PC_BIND_SDF_TRIANGLES = 29;  // SdfTriangle[]
 PC_CONST int PC_BIND_SDF_OUTSIDE = 30;    // uint[]: triangles reaching outside the grid
-PC_CONST int PC_BIND_TEXTURES = 31;       // sampler2D[]: base colour and emissive textures; the
+PC_CONST int PC_BIND_SDF_LISTS = 31;      // uint[]: each brick's cell's triangles (sdf_grid.h)
+PC_CONST int PC_BIND_TEXTURES = 32;       // sampler2D[]: base colour and emissive textures; the
                                           // variable-count binding, so it must stay the last
-PC_CONST int PC_BINDING_COUNT = 32;
+PC_CONST int PC_BINDING_COUNT = 33;
 
 // The counters (PC_BIND_COUNTERS), PC_COUNTER_WORDS per shadow slot: the length of the slot's
 // shadow list (the shadow rays it traces), then 1, 1: a VkTraceRaysIndirectCommandKHR for the

@@ -55,7 +55,21 @@ struct SdfHeader {
   // instance moved out): every ray tests them all (PC_BIND_SDF_OUTSIDE lists them).
   int outsideCount;
   // -- 80
+  uint listCount;    // triangle references the brick pass wrote (may pass the capacity)
+  int listCapacity;  // references the list buffer holds after its brick ranges
+  int pad0;
+  int pad1;
+  // -- 96
 };
+
+// Each brick's cell's triangles (PC_BIND_SDF_LISTS): words 2b and 2b + 1 are brick b's first
+// reference and count (PC_SDF_LIST_OVERFLOW: more than PC_SDF_MAX_CELL_TRIANGLES), then from
+// word 2 x brickCapacity the references. A cell lists every triangle within its half diagonal
+// of its centre: all that touch it. Near a surface the tracer tests the ray against the whole
+// list once and, without a hit, leaves the cell: no triangle is missed for not being a
+// sample's nearest.
+PC_CONST int PC_SDF_MAX_CELL_TRIANGLES = 2048;
+PC_CONST uint PC_SDF_LIST_OVERFLOW = 0xffffffffu;
 
 struct SdfCell {
   float distance;  // no brick: lower bound of the distance from the cell to any triangle
@@ -151,7 +165,7 @@ PC_FN vec3 pcRayTriangle(vec3 o, vec3 d, vec3 a, vec3 b, vec3 c) {
 PC_END
 
 #ifdef __cplusplus
-static_assert(sizeof(pc::gpu::SdfHeader) == 80);
+static_assert(sizeof(pc::gpu::SdfHeader) == 96);
 static_assert(sizeof(pc::gpu::SdfCell) == 8);
 static_assert(sizeof(pc::gpu::SdfSample) == 12);
 static_assert(sizeof(pc::gpu::SdfTriangle) == 48);
