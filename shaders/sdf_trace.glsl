@@ -4,12 +4,14 @@
 //     distance bound (the whole cell is free of surfaces: the coarse grid's skip);
 //   - in a brick, it steps by the trilinear distance less the largest error trilinear
 //     interpolation of a 1-Lipschitz field can make (sqrt(3)/2 voxel), at least half a voxel;
-//   - within two voxels of a surface it tests the ray against the nearest triangles of the
-//     voxel's eight corners (in scenes with cut-outs also their nearest triangles that are no
-//     cut-out: what lies behind an open texel) with exact ray-triangle tests, and stops at the
-//     nearest hit among them
-//     no farther than the distance plus a voxel ahead. A hit behind the current point counts
-//     too: where a step passed a surface, the next voxel's corners name its triangle.
+//   - within two voxels of a surface it tests the ray, once per cell, against every triangle
+//     touching the cell (the brick's list) with exact ray-triangle tests: the first hit inside
+//     the cell, else it leaves the cell;
+//   - in a cell whose list overflowed, it tests the nearest triangles of the voxel's eight
+//     corners (in scenes with cut-outs also their nearest triangles that are no cut-out: what
+//     lies behind an open texel) and stops at the nearest hit among them no farther than the
+//     distance plus a voxel ahead. A hit behind the current point counts too: where a step
+//     passed a surface, the next voxel's corners name its triangle.
 // So hits are exact points on triangles with the triangle's own barycentrics, the record the
 // ray-tracing backend writes. Cut-outs (kCutOuts) refuse hits on their open texels as the
 // any-hit shader does (cutout_coverage.glsl). The includer declares the scene bindings
