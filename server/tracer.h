@@ -1,7 +1,8 @@
 // The Tracer interface: one field update (trace probe rays, shade hits, blend into the
-// atlases, fix borders, classify and relocate probes, mark changed bricks). Two backends
-// implement it and must agree within a stated tolerance: Embree on the CPU and Vulkan
-// ray-tracing pipelines on a GPU.
+// atlases, fix borders, classify and relocate probes, mark changed bricks). Three backends
+// implement it and must agree within a stated tolerance: Embree on the CPU, Vulkan
+// ray-tracing pipelines on a GPU, and a signed-distance-field tracer in Vulkan compute
+// (VulkanTracing::DistanceField) for GPUs without ray tracing.
 #pragma once
 
 #include <cstdint>
@@ -82,7 +83,9 @@ Result<std::unique_ptr<Tracer>> makeEmbreeTracer(const Scene& scene,
 struct VulkanTracerOptions;
 
 // The backend by name (--backend): "embree"; "vulkan" (any Vulkan device with ray tracing,
-// lavapipe included); "auto" or "" (a GPU with ray tracing, else Embree, saying why).
+// lavapipe included); "sdf" (any Vulkan device with compute: a distance field sphere-traced in
+// compute shaders, lavapipe included); "auto" or "" (a GPU with ray tracing, else a GPU for the
+// SDF backend, else Embree, saying in the log which and why).
 // `vulkan`, where given, sets the Vulkan backend's options but allowCpuDevice, which the
 // backend's name decides.
 Result<std::unique_ptr<Tracer>> makeTracer(const Scene& scene, const std::string& backend,

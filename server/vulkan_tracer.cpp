@@ -62,7 +62,9 @@ VulkanTracer::~VulkanTracer() {
   }
 }
 
-std::string VulkanTracer::name() const { return "vulkan (" + impl_->ctx->deviceName() + ")"; }
+std::string VulkanTracer::name() const {
+  return std::string(impl_->sdf ? "sdf (" : "vulkan (") + impl_->ctx->deviceName() + ")";
+}
 
 const vk::Context& VulkanTracer::context() const { return *impl_->ctx; }
 
@@ -94,8 +96,17 @@ void VulkanTracer::setStateOnce(const SceneState& state) {
     gi[r] = g;
     if (!isStatic) top.push_back({t, scene.instances[i].mesh, std::uint32_t(r)});
   }
-  m.accel.setInstances(top);
-  m.tlasDirty = true;
+  if (m.sdf) {
+    // The distance field is rebuilt at the next update where an animated instance moved.
+    std::vector<glm::mat4> transforms;
+    for (const TopLevelInstance& t : top)
+      if (t.mesh >= 0) transforms.push_back(t.transform);
+    if (transforms != m.sdfTransforms) m.sdfDirty = true;
+    m.sdfTransforms = std::move(transforms);
+  } else {
+    m.accel.setInstances(top);
+    m.tlasDirty = true;
+  }
 
   // Lights, and emissive triangles by the same rule as the CPU (EmissiveLights).
   const std::vector<GpuLight> lights = packLights(state);
@@ -188,6 +199,7 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
             ")");
     m.loggedSlices = true;
   }
+  m.ensureSdf();
   std::vector<vk::Buffer> staging;
   for (std::size_t first = 0; first < total; first += perSlice) {
     const int n = int(std::min(perSlice, total - first));
@@ -197,7 +209,7 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
     VkCommandBuffer cmd = m.cmd;
     if (firstSlice) {
       m.recordFieldSync(field, staging);
-      if (m.tlasDirty) {
+      if (!m.sdf && m.tlasDirty) {
         m.timer.begin(cmd, "tlas");
         m.accel.recordTopLevelBuild(cmd);
         m.timer.end(cmd);
@@ -220,7 +232,7 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
     vkCmdCopyBuffer(cmd, m.countersInit.get(), m.counters.get(), 1, &counterCopy);
     vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
                       VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                      kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                      m.traceStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                       kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
     m.recordWavefront(n, rayCount);
 
@@ -330,6 +342,9 @@ UpdateStats VulkanTracer::updateOnce(Field& field, const UpdateRequest& request)
       m.records.size() + m.brickList.size();
   const double hostMs = msSince(th);
 
+  // A distance-field build this update needed comes first (as the ray tracer's "tlas").
+  stats.gpuPasses.insert(stats.gpuPasses.begin(), m.sdfPasses.begin(), m.sdfPasses.end());
+  m.sdfPasses.clear();
   for (const auto& [name, ms] : stats.gpuPasses) {
     stats.gpuMs += ms;
     if (name == "trace") stats.traceMs = ms;
@@ -352,6 +367,8 @@ double VulkanTracer::traceOnlyOnce(Field& field, const UpdateRequest& request) {
   const std::size_t total = request.probes.size();
   const int rayCount = field.settings.raysPerProbe;
   const std::size_t perSlice = m.sliceProbes(total, rayCount);
+  m.ensureSdf();
+  m.sdfPasses.clear();
   std::vector<vk::Buffer> staging;
   double ms = 0.0;
   // In the update's slices; the field stays as it is, so every slice reads it as it is.
@@ -361,7 +378,7 @@ double VulkanTracer::traceOnlyOnce(Field& field, const UpdateRequest& request) {
     m.begin();
     if (first == 0) {
       m.recordFieldSync(field, staging);
-      if (m.tlasDirty) {
+      if (!m.sdf && m.tlasDirty) {
         m.accel.recordTopLevelBuild(m.cmd);
         m.tlasDirty = false;
       }

@@ -16,9 +16,46 @@
 #include <string>
 
 #include "../common/vulkan/context.h"
+#include "../shaders/interop/gpu_trace.h"
+#include "../shaders/interop/sdf_grid.h"
 #include "tracer.h"
 
 namespace pc {
+
+// How the Vulkan tracer finds the probe and shadow rays' hits.
+enum class VulkanTracing {
+  // Ray-tracing pipelines against acceleration structures (VK_KHR_ray_tracing_pipeline).
+  RayPipelines,
+  // The SDF backend: compute shaders sphere-trace a sparse distance field of the scene, built on
+  // the GPU (shaders/interop/sdf_grid.h), on any Vulkan device with compute and descriptor
+  // indexing, no ray tracing. Hits land exactly on triangles (the nearest triangles of the
+  // voxel's corners are tested), so shading, emitters, textures and the blend are the same.
+  DistanceField,
+};
+
+// The SDF backend's last distance-field build.
+struct SdfBuildStats {
+  int builds = 0;       // builds so far (the first update, then after instances moved)
+  bool update = false;  // the last was an update: only the bricks near moved triangles
+  int bricksBuilt = 0;  // bricks the last build or update filled
+  double gpuMs = 0;     // the last build's GPU time: both passes
+  double cellsMs = 0;   // its coarse-cell pass
+  double bricksMs = 0;  // its brick pass
+  int triangles = 0;
+  int cells = 0;          // coarse cells
+  int bricks = 0;         // bricks allocated (near cells; after updates also unused ones)
+  float voxel = 0;        // voxel side, metres
+  std::size_t bytes = 0;  // the grid's, bricks' and triangles' device memory
+};
+
+// The SDF backend's distance field as read back for tests: the header, the cells and the
+// allocated bricks' samples, and the triangles (interop/sdf_grid.h).
+struct SdfFieldCopy {
+  gpu::SdfHeader header{};
+  std::vector<gpu::SdfCell> cells;
+  std::vector<gpu::SdfSample> samples;
+  std::vector<gpu::SdfTriangle> triangles;
+};
 
 struct VulkanTracerOptions {
   bool validation = false;      // Khronos validation layer; errors are counted (tests fail on any)
@@ -55,6 +92,10 @@ struct VulkanTracerOptions {
   // slot's launch (a pass "shadow slot N" each) instead of one over them all, and each slot's
   // shadow-ray count in the log. The pairs serialize the launches; single rounds only.
   bool shadowSlotTimes = false;
+  VulkanTracing tracing = VulkanTracing::RayPipelines;
+  // SDF backend: voxels along the scene's longest side (rounded up to whole bricks of
+  // PC_SDF_BRICK_CELLS); the band each sample holds exactly is 4 voxels.
+  int sdfVoxels = 128;
 };
 
 // Probe rays per pass of an update (the slices' size): at most `maxPassRays` (what the buffers
@@ -82,6 +123,14 @@ class VulkanTracer final : public Tracer {
   // no shading, shadow rays, blending or readback) and returns its GPU milliseconds: the raw
   // rate the full update is measured against.
   Result<double> traceOnly(Field& field, const UpdateRequest& request);
+  // traceOnly's closest hits, in launch order (gpu_trace.h: pcLaunchProbeRay): for tests that
+  // compare the backends' hits ray by ray. The request must fit one pass.
+  Result<std::vector<gpu::GpuHit>> traceHits(Field& field, const UpdateRequest& request);
+
+  // SDF backend: the last distance-field build, and the field itself (built first where the
+  // instances moved since). Errors on the ray-tracing backend.
+  const SdfBuildStats& sdfBuildStats() const;
+  Result<SdfFieldCopy> readSdf();
 
   const vk::Context& context() const;
   std::uint32_t validationErrorCount() const { return context().validationErrorCount(); }

@@ -63,7 +63,8 @@ void VulkanTracer::Impl::ensureRequestCapacity(std::size_t probes, int rayCount,
   requests = orFail(vk::Buffer::create(*ctx, probeCapacity * 8, kHostInput, MemoryUsage::Upload),
                     "requests");
   hits = orFail(
-      vk::Buffer::create(*ctx, rayRecords * sizeof(GpuHit), kStorage, MemoryUsage::DeviceLocal),
+      vk::Buffer::create(*ctx, rayRecords * sizeof(GpuHit),
+                         kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryUsage::DeviceLocal),
       "hits");
   rays = orFail(vk::Buffer::create(*ctx, rayRecords * 16, kStorage, MemoryUsage::DeviceLocal),
                 "ray results");
@@ -189,7 +190,7 @@ void VulkanTracer::Impl::recordMirrorCopies() {
     if (copy.size > 0) vkCmdCopyBuffer(cmd, host->get(), device->get(), 1, &copy);
   }
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                    kRayStage | kComputeStage, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+                    traceStage | kComputeStage, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
 }
 
 void VulkanTracer::Impl::writeDescriptors() {
@@ -223,6 +224,13 @@ void VulkanTracer::Impl::writeDescriptors() {
   buffers[PC_BIND_SHADOW_MASK] = &shadowMask;
   buffers[PC_BIND_SHADOW_RAYS] = &shadowRays;
   buffers[PC_BIND_SHADOW_LIGHT] = &shadowLight;
+  if (sdf) {
+    buffers[PC_BIND_SDF_GRID] = &sdfGrid;
+    buffers[PC_BIND_SDF_BRICKS] = &sdfBricks;
+    buffers[PC_BIND_SDF_TRIANGLES] = &sdfTriangles;
+    buffers[PC_BIND_SDF_OUTSIDE] = &sdfOutside;
+    buffers[PC_BIND_SDF_LISTS] = &sdfLists;
+  }
   std::vector<VkDescriptorImageInfo> images;
   for (std::size_t i = 0; i < textures.size(); ++i)
     images.push_back(
@@ -245,13 +253,15 @@ void VulkanTracer::Impl::writeDescriptors() {
       w.pBufferInfo = &infos[b];
       writes.push_back(w);
     }
-    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    w.pNext = &asw;
-    w.dstSet = dst;
-    w.dstBinding = PC_BIND_TLAS;
-    w.descriptorCount = 1;
-    w.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
-    writes.push_back(w);
+    if (!sdf) {
+      VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      w.pNext = &asw;
+      w.dstSet = dst;
+      w.dstBinding = PC_BIND_TLAS;
+      w.descriptorCount = 1;
+      w.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
+      writes.push_back(w);
+    }
     VkWriteDescriptorSet tw{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     tw.dstSet = dst;
     tw.dstBinding = PC_BIND_TEXTURES;
@@ -303,7 +313,7 @@ void VulkanTracer::Impl::recordSnapshot() {
     vkCmdCopyBuffer(cmd, live->get(), copy->get(), 1, &region);
   }
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                    kRayStage | kComputeStage, kShaderRW);
+                    traceStage | kComputeStage, kShaderRW);
 }
 
 void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateRequest& request,

@@ -18,6 +18,7 @@
 #include "../common/vulkan/texture_samplers.h"
 #include "../cpu/lighting.h"
 #include "../shaders/interop/gpu_trace.h"
+#include "../shaders/interop/sdf_grid.h"
 #include "probe_blend.h"
 #include "vulkan_accel.h"
 #include "vulkan_tracer.h"
@@ -35,6 +36,7 @@ inline double msSince(Clock::time_point t0) {
 inline constexpr VkBufferUsageFlags kStorage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
 // Host-written inputs: mapped host memory, copied to a device-local mirror per submission.
 inline constexpr VkBufferUsageFlags kHostInput = kStorage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+// The ray-tracing passes' stage (the SDF backend traces in compute: Impl::traceStage).
 inline constexpr VkPipelineStageFlags2 kRayStage = VK_PIPELINE_STAGE_2_RAY_TRACING_SHADER_BIT_KHR;
 inline constexpr VkPipelineStageFlags2 kComputeStage = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
 inline constexpr VkAccessFlags2 kShaderRW =
@@ -102,6 +104,13 @@ inline bool sameRecord(const ProbeRecord& a, const ProbeRecord& b) {
 using namespace vulkan_tracer_detail;
 
 struct VulkanTracer::Impl {
+  // The SDF backend (VulkanTracing::DistanceField): no ray-tracing extensions, the probe and
+  // shadow rays sphere-traced through a distance field in compute (vulkan_tracer_sdf.cpp).
+  bool sdf = false;
+  // The stage of the trace and shadow passes and the stages the descriptors and push constants
+  // serve: ray tracing, or compute alone for the SDF backend.
+  VkPipelineStageFlags2 traceStage = kRayStage;
+  VkShaderStageFlags shaderStages = VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT;
   const Scene* scene = nullptr;
   std::optional<EmissiveSurfaces> surfaces;  // found once: each state only places them
   TracerOptions options;
@@ -168,6 +177,30 @@ struct VulkanTracer::Impl {
   int blendScratch = 0;  // shared scratch entries the blend pipeline was made with
   BindingTable traceTable, shadowTable;
 
+  // ---- the SDF backend's distance field (vulkan_tracer_sdf.cpp) ----
+  int sdfVoxels = 128;                        // VulkanTracerOptions::sdfVoxels
+  SdfHeader sdfHeader{};                      // the grid's layout, fixed at the first build
+  vk::Buffer sdfTrianglesHost, sdfTriangles;  // SdfTriangle[]: host-written, device copy
+  vk::Buffer sdfGrid, sdfBricks, sdfHeaderReadback;
+  vk::Buffer sdfOutside;  // uint[]: the triangles reaching outside the grid (host-written)
+  vk::Buffer sdfLists;    // uint[]: each brick's cell's triangles (sdf_grid.h)
+  vk::UniquePipeline sdfCellsPipeline, sdfBricksPipeline;
+  bool sdfDirty = true;                       // the instances moved since the last build
+  std::vector<glm::mat4> sdfTransforms;       // the animated records' transforms it was built for
+  std::vector<SdfTriangle> sdfLastTriangles;  // the triangles it was built for
+  std::uint32_t sdfAllocated = 0;             // bricks allocated (SdfHeader::brickCount)
+  std::uint32_t sdfListed = 0;                // list references written (SdfHeader::listCount)
+  std::size_t sdfLastOutside = 0;             // triangles outside the grid, last reported
+  SdfBuildStats sdfBuild;
+  std::vector<std::pair<std::string, double>> sdfPasses;  // the last build's, for the update
+  // World-space triangles of every shading record in the current state.
+  std::vector<SdfTriangle> sdfSceneTriangles() const;
+  Status createSdfPipelines(bool cutOuts);
+  // Builds the field where the instances moved (sdfDirty): its own submission.
+  void ensureSdf();
+  void recordSdfTrace(int probeCount, int rayCount);
+  void recordSdfShadows(int slots, std::uint64_t rayCount, int slotBase);
+
   // ---- per-update buffers ----
   vk::Buffer params, rayDirs, requests, changes, counters, countersReadback;
   vk::Buffer countersInit;  // each slot's counters as an update starts: 0, 1, 1, 0
@@ -231,6 +264,7 @@ struct VulkanTracer::Impl {
   Status init(const VulkanTracerOptions& vulkan);
   Status uploadScene();
   Status createPipelines();
+  Status createComputePasses();
   // A compute pipeline of `name` with its specialization constants (none when empty).
   struct SpecConstant {
     std::uint32_t id;  // the shader's constant_id

@@ -70,7 +70,7 @@ void VulkanTracer::Impl::recordFieldSync(const Field& field, std::vector<vk::Buf
   for (std::size_t i = 0; i < field.probes.size(); ++i) gpuRecords[i] = toGpu(field.probes[i]);
   upload(records, gpuRecords.data(), gpuRecords.size() * sizeof(GpuProbeRecord));
   vk::memoryBarrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                    kRayStage | kComputeStage, kShaderRW);
+                    traceStage | kComputeStage, kShaderRW);
   timer.end(cmd);
 }
 
@@ -83,6 +83,7 @@ std::uint64_t VulkanTracer::Impl::maxLaunchWidth() const {
 }
 
 void VulkanTracer::Impl::recordTrace(int probeCount, int rayCount) {
+  if (sdf) return recordSdfTrace(probeCount, rayCount);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, tracePipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1,
                           &traceSet, 0, nullptr);
@@ -94,9 +95,7 @@ void VulkanTracer::Impl::recordTrace(int probeCount, int rayCount) {
                                      PC_TRACE_TILE_PROBES * PC_TRACE_TILE_PROBES);
   for (int base = 0; base < probeCount; base += maxProbes) {
     const TracePush push{base, std::min(probeCount - base, maxProbes), 0, 0};
-    vkCmdPushConstants(cmd, pipelineLayout.get(),
-                       VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push,
-                       &push);
+    vkCmdPushConstants(cmd, pipelineLayout.get(), shaderStages, 0, sizeof push, &push);
     ctx->rt().cmdTraceRays(cmd, &traceTable.raygen, &traceTable.miss, &traceTable.hit,
                            &traceTable.callable, std::uint32_t(std::uint64_t(push.count) * rays), 1,
                            1);
@@ -116,9 +115,7 @@ void VulkanTracer::Impl::recordShade(int probeCount, int rayCount, int slotBase)
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelineLayout.get(), 0, 1,
                           &traceSet, 0, nullptr);
   const TracePush push{0, 0, slotBase, 0};
-  vkCmdPushConstants(cmd, pipelineLayout.get(),
-                     VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push,
-                     &push);
+  vkCmdPushConstants(cmd, pipelineLayout.get(), shaderStages, 0, sizeof push, &push);
   const std::uint64_t rays = std::uint64_t(probeCount) * std::uint64_t(rayCount);
   dispatchRows((rays + PC_SHADE_THREADS - 1) / PC_SHADE_THREADS);
 }
@@ -138,6 +135,7 @@ void VulkanTracer::Impl::recordResolve(int probeCount, int rayCount) {
 // ray-generation shader returns past its end, at a cost per invocation. The launches do not
 // depend on each other, so nothing separates them.
 void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, int slotBase) {
+  if (sdf) return recordSdfShadows(slots, rayCount, slotBase);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, shadowPipeline.get());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipelineLayout.get(), 0, 1,
                           &traceSet, 0, nullptr);
@@ -153,9 +151,7 @@ void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, in
     }
     if (ctx->rt().cmdTraceRaysIndirect && rayCount <= maxWidth && !boundedShadowLaunch) {
       const TracePush push{int(listStart), int(rayCount), slotBase, 0};
-      vkCmdPushConstants(cmd, pipelineLayout.get(),
-                         VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                         sizeof push, &push);
+      vkCmdPushConstants(cmd, pipelineLayout.get(), shaderStages, 0, sizeof push, &push);
       ctx->rt().cmdTraceRaysIndirect(
           cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit, &shadowTable.callable,
           counters.address() + VkDeviceAddress(slotBase + slot) * PC_COUNTER_WORDS * 4);
@@ -164,9 +160,7 @@ void VulkanTracer::Impl::recordShadowTrace(int slots, std::uint64_t rayCount, in
     for (std::uint64_t first = 0; first < rayCount; first += maxWidth) {
       const TracePush push{int(listStart + first), int(std::min(rayCount - first, maxWidth)),
                            slotBase, 0};
-      vkCmdPushConstants(cmd, pipelineLayout.get(),
-                         VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                         sizeof push, &push);
+      vkCmdPushConstants(cmd, pipelineLayout.get(), shaderStages, 0, sizeof push, &push);
       ctx->rt().cmdTraceRays(cmd, &shadowTable.raygen, &shadowTable.miss, &shadowTable.hit,
                              &shadowTable.callable, std::uint32_t(push.count), 1, 1);
     }
@@ -193,7 +187,7 @@ void VulkanTracer::Impl::recordWavefront(int n, int rayCount) {
   timer.begin(cmd, "trace");
   recordTrace(n, rayCount);
   timer.end(cmd);
-  vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+  vk::memoryBarrier(cmd, traceStage, kShaderRW, kComputeStage, kShaderRW);
 
   // Several rounds are timed as one span (the timer holds a bounded number of passes).
   const bool roundTimes = rounds <= 1;
@@ -206,7 +200,7 @@ void VulkanTracer::Impl::recordWavefront(int n, int rayCount) {
     // The shadow launch may read its size from the counters the shade pass appended to: an
     // indirect-command read, which a plain shader-read barrier does not cover.
     vk::memoryBarrier(cmd, kComputeStage, kShaderRW,
-                      kRayStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                      traceStage | kComputeStage | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                       kShaderRW | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
 
     if (slots > 0) {
@@ -214,7 +208,7 @@ void VulkanTracer::Impl::recordWavefront(int n, int rayCount) {
       recordShadowTrace(std::min(roundSlots, slots - slotBase),
                         std::uint64_t(n) * std::uint64_t(rayCount), slotBase);
       if (roundTimes) timer.end(cmd);
-      vk::memoryBarrier(cmd, kRayStage, kShaderRW, kComputeStage, kShaderRW);
+      vk::memoryBarrier(cmd, traceStage, kShaderRW, kComputeStage, kShaderRW);
     }
     if (rounds > 1) {
       // The round's light into the rays, before the next round's shade pass reuses the

@@ -45,7 +45,13 @@ Result<BindingTable> makeBindingTable(const vk::Context& ctx, VkPipeline pipelin
 Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   vk::ContextOptions co;
   co.validation = vulkan.validation;
-  co.rayTracing = true;
+  sdf = vulkan.tracing == VulkanTracing::DistanceField;
+  co.rayTracing = !sdf;
+  if (sdf) {
+    traceStage = kComputeStage;
+    shaderStages = VK_SHADER_STAGE_COMPUTE_BIT;
+    sdfVoxels = std::max(PC_SDF_BRICK_CELLS, vulkan.sdfVoxels);
+  }
   co.allowCpuDevice = vulkan.allowCpuDevice;
   co.deviceNameFilter = vulkan.deviceNameFilter;
   boundedShadowLaunch = vulkan.boundedShadowLaunch;
@@ -74,6 +80,18 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   if (!(subgroup.supportedOperations & VK_SUBGROUP_FEATURE_BALLOT_BIT) ||
       !(subgroup.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT))
     return Error{"the Vulkan device lacks subgroup ballot in compute shaders"};
+  if (sdf) {
+    // The context enables descriptor indexing where the device has it (the shade pass's
+    // texture array); ray tracing requires it, the SDF backend checks it here.
+    VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    features.pNext = &v12;
+    vkGetPhysicalDeviceFeatures2(ctx->physicalDevice(), &features);
+    if (!v12.runtimeDescriptorArray || !v12.descriptorBindingPartiallyBound ||
+        !v12.shaderSampledImageArrayNonUniformIndexing ||
+        !v12.descriptorBindingVariableDescriptorCount)
+      return Error{"the Vulkan device " + ctx->deviceName() + " lacks descriptor indexing"};
+  }
   auto t = vk::GpuTimer::create(*ctx, 16);
   if (!t) return t.error();
   timer = std::move(t).value();
@@ -183,7 +201,7 @@ Status VulkanTracer::Impl::uploadScene() {
   }
 
   const VkBufferUsageFlags asInput =
-      VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
+      sdf ? 0 : VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
   auto vb =
       vk::uploadBuffer(*ctx, verts.data(), verts.size() * sizeof(GpuVertex), kStorage | asInput);
   if (!vb) return vb.error();
@@ -195,11 +213,14 @@ Status VulkanTracer::Impl::uploadScene() {
   if (!mb) return mb.error();
   meshes = std::move(mb).value();
 
+  // The SDF backend builds its distance field at the first update (ensureSdf) instead.
   const std::size_t animated = recordInstance.size() - std::size_t(staticCount);
-  auto as = SceneAccel::build(*ctx, vertices, sizeof(GpuVertex), indices, staticRanges, ranges,
-                              meshNeeded, 1 + animated);
-  if (!as) return as.error();
-  accel = std::move(as).value();
+  if (!sdf) {
+    auto as = SceneAccel::build(*ctx, vertices, sizeof(GpuVertex), indices, staticRanges, ranges,
+                                meshNeeded, 1 + animated);
+    if (!as) return as.error();
+    accel = std::move(as).value();
+  }
 
   // Textures: 8-bit sRGB, decoded to linear before filtering, as Texture::sample does.
   for (const Texture& t : s.textures) {
@@ -256,12 +277,16 @@ Status VulkanTracer::Impl::createPipelines() {
   std::vector<VkDescriptorSetLayoutBinding> bindings;
   std::vector<VkDescriptorBindingFlags> flags;
   for (int b = 0; b < PC_BINDING_COUNT; ++b) {
+    // Each backend's own: the TLAS, or the distance field's buffers.
+    const bool sdfBinding = b == PC_BIND_SDF_GRID || b == PC_BIND_SDF_BRICKS ||
+                            b == PC_BIND_SDF_TRIANGLES || b == PC_BIND_SDF_OUTSIDE ||
+                            b == PC_BIND_SDF_LISTS;
+    if (sdf ? b == PC_BIND_TLAS : sdfBinding) continue;
     VkDescriptorSetLayoutBinding lb{};
     lb.binding = std::uint32_t(b);
     lb.descriptorCount = 1;
     // Any-hit: cut-outs read the scene's records and textures (probe_cutout.rahit).
-    lb.stageFlags = VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT |
-                    VK_SHADER_STAGE_ANY_HIT_BIT_KHR;
+    lb.stageFlags = sdf ? shaderStages : shaderStages | VK_SHADER_STAGE_ANY_HIT_BIT_KHR;
     lb.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
     VkDescriptorBindingFlags f = 0;
     if (b == PC_BIND_TLAS) lb.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
@@ -279,15 +304,15 @@ Status VulkanTracer::Impl::createPipelines() {
   setLayout = std::move(created).value();
   const VkDescriptorSetLayout dsl = setLayout.get();
 
-  const VkDescriptorPoolSize sizes[] = {
-      {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 2},
+  std::vector<VkDescriptorPoolSize> sizes = {
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * std::uint32_t(PC_BINDING_COUNT)},
       {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
        2 * std::max<std::uint32_t>(std::uint32_t(textures.size()), 1)}};
+  if (!sdf) sizes.push_back({VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 2});
   VkDescriptorPoolCreateInfo pci{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pci.maxSets = 2;
-  pci.poolSizeCount = 3;
-  pci.pPoolSizes = sizes;
+  pci.poolSizeCount = std::uint32_t(sizes.size());
+  pci.pPoolSizes = sizes.data();
   VkDescriptorPool dp = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateDescriptorPool(ctx->device(), &pci, nullptr, &dp));
   descriptorPool = vk::UniqueDescriptorPool(ctx->device(), dp);
@@ -309,8 +334,7 @@ Status VulkanTracer::Impl::createPipelines() {
   snapshotSet = sets[1];
   traceSet = set;
 
-  auto layout = vk::createPipelineLayout(
-      *ctx, dsl, VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT, sizeof(TracePush));
+  auto layout = vk::createPipelineLayout(*ctx, dsl, shaderStages, sizeof(TracePush));
   if (!layout) return layout.error();
   pipelineLayout = std::move(layout).value();
   const VkPipelineLayout pl = pipelineLayout.get();
@@ -323,6 +347,10 @@ Status VulkanTracer::Impl::createPipelines() {
   const VkBool32 cutOutsSpec = cutOuts ? VK_TRUE : VK_FALSE;
   const VkSpecializationMapEntry cutOutsEntry{0, 0, sizeof(VkBool32)};
   const VkSpecializationInfo raygenSpec{1, &cutOutsEntry, sizeof cutOutsSpec, &cutOutsSpec};
+  if (sdf) {
+    if (Status st = createSdfPipelines(cutOuts); !st) return st;
+    return createComputePasses();
+  }
   auto makeRayPipeline = [&](const char* raygen,
                              std::vector<const char*> misses) -> Result<vk::UniquePipeline> {
     std::vector<vk::UniqueShaderModule> modules;
@@ -389,7 +417,11 @@ Status VulkanTracer::Impl::createPipelines() {
   auto st = makeBindingTable(*ctx, shadowPipeline.get(), 1);
   if (!st) return st.error();
   shadowTable = std::move(st).value();
+  return createComputePasses();
+}
 
+// The compute passes both backends share: shade, resolve, blend, brick changes and packing.
+Status VulkanTracer::Impl::createComputePasses() {
   auto shade = computePipeline("probe_shade.comp.spv",
                                {{1, options.shadowRouletteShare > 0.0f ? 1 : 0}});  // kRoulette
   if (!shade) return shade.error();

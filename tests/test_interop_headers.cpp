@@ -17,6 +17,7 @@
 #include "shaders/interop/probe_update.h"
 #include "shaders/interop/probe_view.h"
 #include "shaders/interop/screen_ao.h"
+#include "shaders/interop/sdf_grid.h"
 #include "shaders/interop/sh_probe.h"
 #include "shaders/interop/shadow_roulette.h"
 #include "shaders/interop/tonemap.h"
@@ -76,7 +77,9 @@ TEST(InteropHeaders, BindingsFitTheirCounts) {
   const int client[] = {PC_CLIENT_BIND_FRAME, PC_CLIENT_BIND_LIGHTS, PC_CLIENT_BIND_TEXTURES,
                         PC_CLIENT_BIND_RASTER_COUNTERS};
   for (int b : client) EXPECT_LT(b, PC_CLIENT_BINDING_COUNT);
-  const int trace[] = {PC_BIND_TLAS, PC_BIND_LIGHTS, PC_BIND_EMISSIVE, PC_BIND_TEXTURES};
+  const int trace[] = {PC_BIND_TLAS,        PC_BIND_LIGHTS,     PC_BIND_EMISSIVE,
+                       PC_BIND_SDF_GRID,    PC_BIND_SDF_BRICKS, PC_BIND_SDF_TRIANGLES,
+                       PC_BIND_SDF_OUTSIDE, PC_BIND_SDF_LISTS,  PC_BIND_TEXTURES};
   for (int b : trace) EXPECT_LT(b, PC_BINDING_COUNT);
   // The tracer's textures are its variable-count binding, which must be the last.
   EXPECT_EQ(PC_BIND_TEXTURES, PC_BINDING_COUNT - 1);

@@ -312,17 +312,7 @@ TEST(VulkanTracer, LightSampledEmittersMatchEmbree) {
   if (!gpu) GTEST_SKIP() << "no Vulkan ray-tracing device: " << why;
   auto cpu = makeEmbreeTracer(*scene);
   ASSERT_TRUE(cpu) << cpu.error().message;
-  const glm::vec3 lo = scene->boundsMin, hi = scene->boundsMax;
-  const float spacing = (hi.y - lo.y) / 5.0f;
-  const std::vector<ProbeVolume> volumes = {
-      {0.5f * (lo + hi) - 1.5f * spacing * glm::vec3(1.0f), spacing, glm::ivec3(4)}};
-  Field fg = Field::create(volumes, FieldSettings{});
-  Field fc = Field::create(volumes, FieldSettings{});
-  BakeOptions bake;
-  bake.updates = 4;
-  bakeOrFail(fg, *gpu, bake);
-  bakeOrFail(fc, **cpu, bake);
-  const FieldDifference d = compareFields(fg, fc);
+  const FieldDifference d = bakeBothAndCompare(*scene, *gpu, **cpu, 4);
   std::printf(
       "cornell box (sampled emitter): %d active probes, irradiance rel diff %.2e, depth rel diff "
       "%.2e\n",

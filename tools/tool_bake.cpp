@@ -1,7 +1,7 @@
 // probecast-bake: converges a scene's probe field (on the CPU with Embree, or with --backend on
-// a GPU's ray-tracing pipelines) and writes it as a baked .probes file. With --render DIR it also
-// renders the scene's camera lit by that field and path traced, and writes both images, their
-// difference and a summary (timings, PSNR).
+// a GPU: ray-tracing pipelines or the SDF tracer's compute passes) and writes it as a baked .probes
+// file. With --render DIR it also renders the scene's camera lit by that field and path traced, and
+// writes both images, their difference and a summary (timings, PSNR).
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -39,7 +39,8 @@ int main(int argc, char** argv) {
   app.add_option("--sidecar", sidecar, "scene.json sidecar (lights, cameras, volumes)");
   app.add_option("--backend", backend,
                  "tracer: embree (default), vulkan (any Vulkan ray-tracing device, lavapipe "
-                 "included) or auto (a GPU with ray tracing, else embree)")
+                 "included), sdf (a distance field traced in compute on any Vulkan device) or "
+                 "auto (a GPU with ray tracing, else a GPU for sdf, else embree)")
       ->capture_default_str();
   int gpuFailSubmission = 0;
   app.add_option("--gpu-fail-submission", gpuFailSubmission,

@@ -109,7 +109,9 @@ void addTracerOptions(CLI::App& app, ServerSetup& s) {
   app.add_option("--sidecar", s.sidecar, "scene.json sidecar");
   pc::addSceneLoadOptions(app, s.sceneLoad);
   app.add_option("--probes", s.probes, "start from this baked field (else a short warm-up bake)");
-  app.add_option("--backend", s.backend, "tracer: auto, embree or vulkan");
+  app.add_option(
+      "--backend", s.backend,
+      "tracer: auto, embree, vulkan (ray tracing) or sdf (distance field in Vulkan compute)");
   app.add_option(
          "--shadow-roulette", s.tracerOptions.shadowRouletteShare,
          "share of a hit's punctual light below which a light's shadow ray is drawn at random, "

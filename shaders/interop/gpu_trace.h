@@ -12,6 +12,7 @@
 //                                to that radiance (GpuShadowLight), and the ray appended to a
 //                                compacted list of GpuShadowRay
 //   shadow  (probe_shadow.rgen)  any-hit test of each listed ray -> a bit in its ray's mask
+// (The SDF backend traces and shadow-tests in compute: sdf_trace.comp, sdf_shadow.comp.)
 //   blend   (probe_blend.comp)   adds the visible slots' light, blends into the tiles
 // Per-ray records are stored in launch order (pcLaunchProbeRay below), so every pass reads
 // and writes them coalesced. The shadow list is appended a subgroup at a time, so each
@@ -61,9 +62,16 @@ PC_CONST int PC_BIND_SHADOW_RAYS = 25;   // GpuShadowRay[]: [slot * rays of the 
 PC_CONST int PC_BIND_SHADOW_LIGHT = 26;  // GpuShadowLight[]: [slot * rays of the update + launch
                                          // index] (masks, lists and lights: the slot's place in its
                                          // round, pcShadowRounds)
-PC_CONST int PC_BIND_TEXTURES = 27;      // sampler2D[]: base colour and emissive textures; the
-                                         // variable-count binding, so it must stay the last
-PC_CONST int PC_BINDING_COUNT = 28;
+// The SDF tracer's distance field (interop/sdf_grid.h), in place of the TLAS: the
+// ray-tracing backend's layout leaves these out, the SDF backend's leaves out PC_BIND_TLAS.
+PC_CONST int PC_BIND_SDF_GRID = 27;       // SdfHeader, then SdfCell[]
+PC_CONST int PC_BIND_SDF_BRICKS = 28;     // SdfSample[]
+PC_CONST int PC_BIND_SDF_TRIANGLES = 29;  // SdfTriangle[]
+PC_CONST int PC_BIND_SDF_OUTSIDE = 30;    // uint[]: triangles reaching outside the grid
+PC_CONST int PC_BIND_SDF_LISTS = 31;      // uint[]: each brick's cell's triangles (sdf_grid.h)
+PC_CONST int PC_BIND_TEXTURES = 32;       // sampler2D[]: base colour and emissive textures; the
+                                          // variable-count binding, so it must stay the last
+PC_CONST int PC_BINDING_COUNT = 33;
 
 // The counters (PC_BIND_COUNTERS), PC_COUNTER_WORDS per shadow slot: the length of the slot's
 // shadow list (the shadow rays it traces), then 1, 1: a VkTraceRaysIndirectCommandKHR for the

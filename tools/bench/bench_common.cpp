@@ -10,6 +10,7 @@
 #include "cpu/probe_lit_render.h"
 #include "server/bake.h"
 #include "server/embree_tracer.h"
+#include "server/tracer.h"
 
 namespace pc::bench {
 
@@ -28,6 +29,13 @@ void addRenderOptions(CLI::App& cmd, RenderSetup& s) {
                  "ambient occlusion radius of the indirect light, in probe spacings (0: off)")
       ->capture_default_str();
   cmd.add_option("--cache", s.cacheDir, "folder for cached reference renders ('' to disable)");
+}
+
+void addBakeBackendOption(CLI::App& cmd, RenderSetup& s) {
+  cmd.add_option("--backend", s.backend,
+                 "tracer that bakes the field: embree, vulkan (ray tracing), sdf (distance field "
+                 "in Vulkan compute) or auto")
+      ->capture_default_str();
 }
 
 std::string sceneSlug(const Scene& scene) {
@@ -80,7 +88,8 @@ Result<std::vector<std::string>> sceneFilesIn(const std::string& dir) {
 }
 
 Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, int cascades,
-                             bool autoVolumes, std::optional<ProbeEncoding> encoding) {
+                             bool autoVolumes, std::optional<ProbeEncoding> encoding,
+                             const std::string& backend) {
   std::vector<ProbeVolume> volumes = sceneVolumes(scene, autoVolumes);
   if (encoding) {
     for (ProbeVolume& v : volumes) v.settings.encoding = encoding;
@@ -98,7 +107,7 @@ Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds, i
   }
   Field field = Field::create(volumes, FieldSettings{});
   field.sceneHash = scene.hash;
-  auto tracer = makeEmbreeTracer(scene);
+  auto tracer = makeTracer(scene, backend);
   if (!tracer) return tracer.error();
   BakeOptions options;
   options.updates = updates;
@@ -189,8 +198,8 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
   Comparison c;
   auto camera = sceneCamera(scene, setup.camera);
   if (!camera) return camera.error();
-  auto field =
-      bakeSceneField(scene, setup.updates, &c.bakeSeconds, 0, setup.autoVolumes, setup.encoding);
+  auto field = bakeSceneField(scene, setup.updates, &c.bakeSeconds, 0, setup.autoVolumes,
+                              setup.encoding, setup.backend);
   if (!field) return field.error();
   c.probes = field->probeCount();
   c.field = std::move(field).value();

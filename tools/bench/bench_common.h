@@ -34,8 +34,11 @@ struct RenderSetup {
   bool autoVolumes = false;  // place cascades from the geometry, ignoring the sidecar's
   // Every cascade's irradiance encoding, overriding the volumes' own (quality --encoding).
   std::optional<ProbeEncoding> encoding;
+  std::string backend = "embree";  // the bake's tracer (makeTracer's names)
 };
 void addRenderOptions(CLI::App& cmd, RenderSetup& setup);
+// --backend: the tracer that bakes the field (RenderSetup::backend).
+void addBakeBackendOption(CLI::App& cmd, RenderSetup& setup);
 
 struct Comparison {
   double psnr = 0, psnrLinear = 0, ssim = 0;
@@ -61,7 +64,8 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
 // rounded to float16 after the bake, as files store them.
 Result<Field> bakeSceneField(const Scene& scene, int updates, double* seconds = nullptr,
                              int cascades = 0, bool autoVolumes = false,
-                             std::optional<ProbeEncoding> encoding = std::nullopt);
+                             std::optional<ProbeEncoding> encoding = std::nullopt,
+                             const std::string& backend = "embree");
 // Bytes per probe of the field's irradiance at 16 bits per value (irradianceBytesPerProbe),
 // averaged over its real probes; `withVisibility` adds the depth moments and occlusion tiles.
 double fieldBytesPerProbe(const Field& field, bool withVisibility);

@@ -1,4 +1,5 @@
-// gpu-trace: the Vulkan ray-tracing backend on one scene, in one run:
+// gpu-trace: a Vulkan backend (ray tracing, or with --backend sdf the distance field traced in
+// compute) on one scene, in one run:
 //   - speed: GPU milliseconds per pass, per update, probe rays per second end to end (trace,
 //     shade, shadow trace, blend: probe_grays) and all rays (with shadow rays), against the raw
 //     rate of the same probe rays through the update's trace pass alone (closest hits only: the
@@ -43,9 +44,10 @@ double grays(std::uint64_t rays, double ms) { return ms > 0 ? double(rays) / (ms
 Benchmark addGpuTrace(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "gpu-trace",
-      "Vulkan ray tracing: speed per pass, raw ceiling, agreement with Embree, quality");
-  static std::string scenePath = "builtin", sidecar, device;
-  static int updates = 8, rays = 256, worst = 0;
+      "Vulkan ray tracing or SDF tracing: speed per pass, raw ceiling, agreement with Embree, "
+      "quality");
+  static std::string scenePath = "builtin", sidecar, device, backend = "vulkan";
+  static int updates = 8, rays = 256, worst = 0, sdfVoxels = VulkanTracerOptions{}.sdfVoxels;
   static std::size_t shadowMemoryMiB = 0, passRays = 0;
   static std::vector<int> counts;
   static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false,
@@ -65,6 +67,14 @@ Benchmark addGpuTrace(CLI::App& app) {
   cmd->add_option("--counts", counts, "probes per axis of a single cascade over the scene (x y z)")
       ->expected(3);
   cmd->add_option("--device", device, "substring of the Vulkan device name");
+  cmd->add_option("--backend", backend,
+                  "vulkan (ray-tracing pipelines) or sdf (a distance field sphere-traced in "
+                  "compute)")
+      ->check(CLI::IsMember({"vulkan", "sdf"}))
+      ->capture_default_str();
+  cmd->add_option("--sdf-voxels", sdfVoxels,
+                  "sdf backend: distance-field voxels along the scene's longest side")
+      ->capture_default_str();
   cmd->add_flag("--gpu-only", gpuOnly, "refuse CPU Vulkan implementations (lavapipe)");
   cmd->add_flag("--no-embree", skipEmbree, "skip the Embree run (and the field comparison)");
   cmd->add_flag("--no-quality", skipQuality, "skip the probe-lit renders and the reference");
@@ -109,6 +119,8 @@ Benchmark addGpuTrace(CLI::App& app) {
         vo.maxPassRays = passRays;
         vo.pipelineStatistics = pipelineStatistics;
         vo.shadowSlotTimes = shadowSlotTimes;
+        vo.tracing = backend == "sdf" ? VulkanTracing::DistanceField : VulkanTracing::RayPipelines;
+        vo.sdfVoxels = sdfVoxels;
         TracerOptions options;
         options.shadowRouletteShare = roulette;
         auto gpu = VulkanTracer::create(*scene, options, vo);
@@ -198,8 +210,8 @@ Benchmark addGpuTrace(CLI::App& app) {
         // the acceleration-structure refit and the shadow rays). The whole update adds
         // packing the changed bricks for the host and the copies back.
         double traceShadeBlendMs = 0;
-        for (const char* pass :
-             {"tlas", "trace", "shade", "shadow trace", "shadow rounds", "blend"})
+        for (const char* pass : {"tlas", "sdf cells", "sdf bricks", "trace", "shade",
+                                 "shadow trace", "shadow rounds", "blend"})
           if (passMs.count(pass)) traceShadeBlendMs += passMs[pass];
         const double raw = grays(probeRays, rawMs);
         const double probe = grays(probeRays, traceShadeBlendMs);
@@ -210,7 +222,19 @@ Benchmark addGpuTrace(CLI::App& app) {
             "gpu-trace: %s (%zu triangles), %d probes x %d rays, %d measured updates after %d\n",
             scene->name.c_str(), scene->triangleCount(), int(request.probes.size()), rays, updates,
             setup.updates);
-        std::printf("device: %s\n", (*gpu)->context().deviceName().c_str());
+        std::printf("device: %s, backend %s\n", (*gpu)->context().deviceName().c_str(),
+                    (*gpu)->name().c_str());
+        if (vo.tracing == VulkanTracing::DistanceField) {
+          // The field was built once, before the bake; a moved instance builds it again at
+          // the same cost.
+          const SdfBuildStats& b = (*gpu)->sdfBuildStats();
+          std::printf(
+              "distance field: %d triangles, %d cells, %d bricks, voxel %.4g m, %.1f MiB, build "
+              "%.2f ms GPU (cells %.2f, bricks %.2f)\n",
+              b.triangles, b.cells, b.bricks, b.voxel, double(b.bytes) / double(1 << 20), b.gpuMs,
+              b.cellsMs, b.bricksMs);
+          figure("sdf_build_ms", b.gpuMs, "ms");
+        }
         std::printf("host: %s\n", machineDescription().c_str());
         std::printf("%-36s %12s\n", "GPU pass (timestamps)", "ms/update");
         for (const std::string& name : passOrder)
@@ -236,8 +260,8 @@ Benchmark addGpuTrace(CLI::App& app) {
           std::printf("%-36s %12.4f\n", "Embree all rays, full update",
                       grays(probeRays + embreeShadowRays, embreeMs));
         }
-        std::printf("bake of %d updates: vulkan %.1f s, embree %.1f s\n", setup.updates,
-                    gpuBake.ms / 1e3, cpuBake.ms / 1e3);
+        std::printf("bake of %d updates: %s %.1f s, embree %.1f s\n", setup.updates,
+                    backend.c_str(), gpuBake.ms / 1e3, cpuBake.ms / 1e3);
 
         if (cpu) {
           const FieldDifference d = compareFields(fg, fc);

@@ -49,6 +49,7 @@ Benchmark addLeak(CLI::App& app) {
                   "camera inside the open room (default: name has 'open')");
   cmd->add_option("--out", outDir, "write the images here");
   addRenderOptions(*cmd, setup);
+  addBakeBackendOption(*cmd, setup);
   return {
       cmd, [] {
         if (!std::filesystem::exists(scenePath)) {
@@ -70,7 +71,8 @@ Benchmark addLeak(CLI::App& app) {
           return 1;
         }
         double bakeSeconds = 0;
-        auto field = bakeSceneField(*scene, setup.updates, &bakeSeconds);
+        auto field = bakeSceneField(*scene, setup.updates, &bakeSeconds, 0, false, std::nullopt,
+                                    setup.backend);
         if (!field) {
           std::fprintf(stderr, "leak: %s\n", field.error().message.c_str());
           return 1;
@@ -100,9 +102,10 @@ Benchmark addLeak(CLI::App& app) {
         }
         const double ratio = mean[0][0] / std::max(mean[0][1], 1e-30);
         const double naiveRatio = mean[1][0] / std::max(mean[1][1], 1e-30);
-        std::printf("leak: %s, %d probes, bake %.1f s, cameras '%s' (closed) and '%s' (open)\n",
-                    scene->name.c_str(), field->probeCount(), bakeSeconds,
-                    scene->cameras[closed].name.c_str(), scene->cameras[open].name.c_str());
+        std::printf(
+            "leak: %s, %d probes, bake %.1f s (%s), cameras '%s' (closed) and '%s' (open)\n",
+            scene->name.c_str(), field->probeCount(), bakeSeconds, setup.backend.c_str(),
+            scene->cameras[closed].name.c_str(), scene->cameras[open].name.c_str());
         std::printf("%-24s %16s %16s %12s\n", "sampling", "closed mean L", "open mean L", "ratio");
         std::printf("%-24s %16.6g %16.6g %11.4f%%\n", "visibility-weighted", mean[0][0], mean[0][1],
                     100 * ratio);

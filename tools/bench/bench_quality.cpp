@@ -100,6 +100,7 @@ std::string commandLine(const QualityOptions& o) {
   c += " --width " + std::to_string(o.setup.width) + " --height " + std::to_string(o.setup.height) +
        " --spp " + std::to_string(o.setup.spp) + " --updates " + std::to_string(o.setup.updates);
   if (o.setup.autoVolumes) c += " --auto-volumes";
+  if (o.setup.backend != "embree") c += " --backend " + o.setup.backend;
   c += " --aa " + std::to_string(o.setup.primarySamples);
   if (o.setup.encoding) c += std::string(" --encoding ") + probeEncodingName(*o.setup.encoding);
   if (o.singleSunMap) c += " --single-sun-map";
@@ -298,6 +299,7 @@ Benchmark addQuality(CLI::App& app) {
   cmd->add_option("--ppd", o.pixelsPerDegree, "FLIP's observer: pixels per degree of view")
       ->check(CLI::PositiveNumber);
   addRenderOptions(*cmd, o.setup);
+  addBakeBackendOption(*cmd, o.setup);
   cmd->add_option_function<std::string>(
          "--encoding",
          // IsMember below has checked the name already.
