@@ -3,7 +3,7 @@
 // so down -Y), a uniform 2 x 2 normal map, a directional light arriving from (1, 1, 1) and a
 // camera on the +Z axis that sees nothing but the quad. The texel picks the tilt: (128, 128,
 // 255) is flat, a larger red leans the normal toward +X (the tangent), a larger green toward
-// +Y (the bitangent).
+// +Y (the bitangent). The quad is a diffuse dielectric (metallic 0; glTF's default is 1).
 #pragma once
 
 #include <array>
@@ -102,7 +102,8 @@ inline std::filesystem::path writeNormalMapQuad(const std::filesystem::path& dir
   "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}],
   "meshes": [{"name": "quad", "primitives": [{"attributes": {)"
       << attributes << R"(}, "indices": 4, "material": 0}]}],
-  "materials": [{"name": "bumpy", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1]})"
+  "materials": [{"name": "bumpy", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1],
+                                                  "metallicFactor": 0})"
       << normalTexture << R"(}],
   "images": [{"uri": "normal.png"}], "textures": [{"source": 0}],
   "buffers": [{"uri": "quad.bin", "byteLength": 204}],
