@@ -177,14 +177,13 @@ int runFlight(const FlightSetup& o) {
 
   // Hover: the viewer stays at the start.
   const double hoverStart = steadySeconds();
-  double hoverFrom = 0, hoverTo = 0;
+  double hoverFrom = -1;
   while (steadySeconds() - hoverStart < o.hover) {
     const double t = steadySeconds() - hoverStart;
-    if (hoverFrom == 0 && t >= 1.0) hoverFrom = bytes();
-    if (t >= o.hover - 1e-3 - 0.05) hoverTo = bytes();
+    if (hoverFrom < 0 && t >= 1.0) hoverFrom = bytes();
     sleep(0.05);
   }
-  hoverTo = bytes();
+  const double hoverTo = bytes();
   const double hoverRate = (hoverTo - hoverFrom) / std::max(1e-9, o.hover - 1.0);
   const std::uint64_t scrollsBefore = server.loop().stats().scrolls;
 
