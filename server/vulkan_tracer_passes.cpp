@@ -21,19 +21,14 @@ void VulkanTracer::Impl::begin() {
 
 void VulkanTracer::Impl::submitAndWait() {
   checkCall(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
-  VkCommandBufferSubmitInfo cbi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_SUBMIT_INFO};
-  cbi.commandBuffer = cmd;
-  VkSubmitInfo2 si{VK_STRUCTURE_TYPE_SUBMIT_INFO_2};
-  si.commandBufferInfoCount = 1;
-  si.pCommandBufferInfos = &cbi;
   VkFence f = fence.get();
   checkCall(vkResetFences(ctx->device(), 1, &f), "vkResetFences");
   ++submissions;
   if (submissions == failSubmission) {
     // VulkanTracerOptions::failSubmission: what a device lost in this submission reports.
-    fail(vk::vkErrorMessage("vkQueueSubmit2", VK_ERROR_DEVICE_LOST) + " (simulated)");
+    fail(vk::vkErrorMessage("vkQueueSubmit", VK_ERROR_DEVICE_LOST) + " (simulated)");
   }
-  checkCall(vkQueueSubmit2(ctx->queue(), 1, &si, f), "vkQueueSubmit2");
+  checkCall(vk::submitOne(ctx->queue(), cmd, f), "vkQueueSubmit");
   checkCall(vkWaitForFences(ctx->device(), 1, &f, VK_TRUE, UINT64_MAX), "vkWaitForFences");
 }
 

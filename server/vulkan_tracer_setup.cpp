@@ -44,6 +44,9 @@ Result<BindingTable> makeBindingTable(const vk::Context& ctx, VkPipeline pipelin
 
 Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   vk::ContextOptions co;
+  // Compute and ray tracing need nothing of 1.3: a 1.2 device runs every backend it has the
+  // extensions for (the SDF backend: any 1.2 device with descriptor indexing).
+  co.apiVersion = VK_API_VERSION_1_2;
   co.validation = vulkan.validation;
   sdf = vulkan.tracing == VulkanTracing::DistanceField;
   co.rayTracing = !sdf;

@@ -56,27 +56,18 @@ Status CommandPool::submitAndWait(const std::function<void(VkCommandBuffer)>& re
   VkFence fenceHandle = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateFence(ctx_->device(), &fci, nullptr, &fenceHandle));
   UniqueFence fence(ctx_->device(), fenceHandle);
-  VkCommandBufferSubmitInfo cbi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_SUBMIT_INFO};
-  cbi.commandBuffer = *cmd;
-  VkSubmitInfo2 si{VK_STRUCTURE_TYPE_SUBMIT_INFO_2};
-  si.commandBufferInfoCount = 1;
-  si.pCommandBufferInfos = &cbi;
-  PC_VK_TRY(vkQueueSubmit2(ctx_->queue(), 1, &si, fenceHandle));
+  PC_VK_TRY(submitOne(ctx_->queue(), *cmd, fenceHandle));
   PC_VK_TRY(vkWaitForFences(ctx_->device(), 1, &fenceHandle, VK_TRUE, UINT64_MAX));
   return Status::success();
 }
 
 void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 srcStage, VkAccessFlags2 srcAccess,
                    VkPipelineStageFlags2 dstStage, VkAccessFlags2 dstAccess) {
-  VkMemoryBarrier2 b{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
-  b.srcStageMask = srcStage;
-  b.srcAccessMask = srcAccess;
-  b.dstStageMask = dstStage;
-  b.dstAccessMask = dstAccess;
-  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
-  dep.memoryBarrierCount = 1;
-  dep.pMemoryBarriers = &b;
-  vkCmdPipelineBarrier2(cmd, &dep);
+  VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  b.srcAccessMask = legacyAccess(srcAccess);
+  b.dstAccessMask = legacyAccess(dstAccess);
+  vkCmdPipelineBarrier(cmd, legacyStages(srcStage, true), legacyStages(dstStage, false), 0, 1, &b,
+                       0, nullptr, 0, nullptr);
 }
 
 }  // namespace pc::vk

@@ -30,6 +30,12 @@ std::vector<VkExtensionProperties> deviceExtensions(VkPhysicalDevice device) {
   return list;
 }
 
+// "1.2" for VK_API_VERSION_1_2.
+std::string versionName(std::uint32_t version) {
+  return std::to_string(VK_API_VERSION_MAJOR(version)) + "." +
+         std::to_string(VK_API_VERSION_MINOR(version));
+}
+
 // Lower is better: discrete GPUs first, CPU implementations last.
 int typeRank(VkPhysicalDeviceType type) {
   switch (type) {
@@ -69,13 +75,18 @@ struct FeatureChain {
   VkPhysicalDeviceRayTracingPipelineFeaturesKHR rt{
       VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
 
-  // Not movable: the pNext pointers point into the object itself.
-  explicit FeatureChain(bool rayTracing) {
+  // Not movable: the pNext pointers point into the object itself. The 1.3 structure is chained
+  // only for a 1.3 context: a 1.2 device does not know it.
+  FeatureChain(bool rayTracing, bool vulkan13) {
     base.pNext = &v11;
     v11.pNext = &v12;
-    v12.pNext = &v13;
+    void** tail = &v12.pNext;
+    if (vulkan13) {
+      *tail = &v13;
+      tail = &v13.pNext;
+    }
     if (rayTracing) {
-      v13.pNext = &as;
+      *tail = &as;
       as.pNext = &rt;
     }
   }
@@ -86,13 +97,14 @@ struct FeatureChain {
 std::string missingSupport(VkPhysicalDevice device, const ContextOptions& o) {
   VkPhysicalDeviceProperties props;
   vkGetPhysicalDeviceProperties(device, &props);
-  if (props.apiVersion < VK_API_VERSION_1_3) return "Vulkan 1.3";
+  if (props.apiVersion < o.apiVersion) return "Vulkan " + versionName(o.apiVersion);
   const auto available = deviceExtensions(device);
   for (const char* e : requiredDeviceExtensions(o))
     if (!hasExtension(available, e)) return e;
-  FeatureChain f(o.rayTracing);
+  const bool vulkan13 = o.apiVersion >= VK_API_VERSION_1_3;
+  FeatureChain f(o.rayTracing, vulkan13);
   vkGetPhysicalDeviceFeatures2(device, &f.base);
-  if (!f.v13.dynamicRendering || !f.v13.synchronization2)
+  if (vulkan13 && (!f.v13.dynamicRendering || !f.v13.synchronization2))
     return "dynamicRendering/synchronization2";
   if (!f.v12.timelineSemaphore || !f.v12.bufferDeviceAddress)
     return "timelineSemaphore/bufferDeviceAddress";
@@ -195,9 +207,12 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
 
   // ---- instance ----
   std::uint32_t loaderVersion = 0;
+  if (options.apiVersion < VK_API_VERSION_1_2)
+    return Error{"Vulkan " + versionName(options.apiVersion) + " asked for; 1.2 is the oldest"};
   if (vkEnumerateInstanceVersion(&loaderVersion) != VK_SUCCESS ||
-      loaderVersion < VK_API_VERSION_1_3) {
-    return Error{"the Vulkan loader is older than 1.3; " + std::string(kNoDriverHint)};
+      loaderVersion < options.apiVersion) {
+    return Error{"the Vulkan loader is older than " + versionName(options.apiVersion) + "; " +
+                 std::string(kNoDriverHint)};
   }
   std::vector<const char*> instanceExt;
   for (const std::string& e : options.instanceExtensions) instanceExt.push_back(e.c_str());
@@ -230,7 +245,7 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
   app.pApplicationName = "probecast";
   app.pEngineName = "probecast";
-  app.apiVersion = VK_API_VERSION_1_3;
+  app.apiVersion = options.apiVersion;
   VkInstanceCreateInfo ici{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
   ici.pApplicationInfo = &app;
   ici.enabledLayerCount = std::uint32_t(layers.size());
@@ -323,9 +338,10 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   ctx->queueFamily_ = *pickQueueFamily(best);
 
   // ---- device ----
-  FeatureChain supported(options.rayTracing);
+  const bool vulkan13 = options.apiVersion >= VK_API_VERSION_1_3;
+  FeatureChain supported(options.rayTracing, vulkan13);
   vkGetPhysicalDeviceFeatures2(best, &supported.base);
-  FeatureChain enable(options.rayTracing);
+  FeatureChain enable(options.rayTracing, vulkan13);
   enable.base.features.shaderInt64 = supported.base.features.shaderInt64;
   enable.base.features.samplerAnisotropy = supported.base.features.samplerAnisotropy;
   enable.base.features.fragmentStoresAndAtomics = supported.base.features.fragmentStoresAndAtomics;
@@ -351,9 +367,11 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
       supported.v12.shaderSampledImageArrayNonUniformIndexing;
   enable.v12.shaderStorageBufferArrayNonUniformIndexing =
       supported.v12.shaderStorageBufferArrayNonUniformIndexing;
-  enable.v13.dynamicRendering = VK_TRUE;
-  enable.v13.synchronization2 = VK_TRUE;
-  enable.v13.maintenance4 = supported.v13.maintenance4;
+  if (vulkan13) {
+    enable.v13.dynamicRendering = VK_TRUE;
+    enable.v13.synchronization2 = VK_TRUE;
+    enable.v13.maintenance4 = supported.v13.maintenance4;
+  }
   if (options.rayTracing) {
     enable.as.accelerationStructure = VK_TRUE;
     enable.rt.rayTracingPipeline = VK_TRUE;
@@ -526,12 +544,7 @@ Status Context::submitAndWait(const std::function<void(VkCommandBuffer)>& record
   VkFence fenceHandle = VK_NULL_HANDLE;
   PC_VK_TRY(vkCreateFence(device_, &fci, nullptr, &fenceHandle));
   UniqueFence fence(device_, fenceHandle);
-  VkCommandBufferSubmitInfo cbi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_SUBMIT_INFO};
-  cbi.commandBuffer = cmd;
-  VkSubmitInfo2 si{VK_STRUCTURE_TYPE_SUBMIT_INFO_2};
-  si.commandBufferInfoCount = 1;
-  si.pCommandBufferInfos = &cbi;
-  PC_VK_TRY(vkQueueSubmit2(queue_, 1, &si, fence.get()));
+  PC_VK_TRY(submitOne(queue_, cmd, fence.get()));
   PC_VK_TRY(vkWaitForFences(device_, 1, &fenceHandle, VK_TRUE, UINT64_MAX));
   return Status::success();
 }

@@ -24,6 +24,7 @@
 
 #include "../result.h"
 #include "check.h"
+#include "legacy_sync.h"
 
 namespace pc::vk {
 
@@ -42,6 +43,11 @@ struct ContextOptions {
   // VK_KHR_pipeline_executable_properties where the device has it (never required): the
   // compiler's statistics of a pipeline (registers, shared memory, ...), for diagnostics.
   bool pipelineStatistics = false;
+  // The Vulkan version the context asks for and uses. 1.3 (the default) requires dynamic
+  // rendering and synchronization2, which the client's renderer records. 1.2 is enough for
+  // compute and ray tracing, so the server's tracers ask for it and run on devices that stop
+  // at 1.2; such a context enables no 1.3 feature even where the device has them.
+  std::uint32_t apiVersion = VK_API_VERSION_1_3;
 };
 
 // Extension entry points that the loader does not export; loaded per device.
@@ -253,7 +259,8 @@ class Image {
   VkImageAspectFlags aspect() const;
   VkImageSubresourceRange range() const;
 
-  // Records a full-image layout transition (synchronization2) and remembers the new layout.
+  // Records a full-image layout transition and remembers the new layout. The masks are
+  // synchronization2's; it is recorded with Vulkan 1.0's barrier (legacy_sync.h).
   // The stages/accesses default to "everything": correct, and fine outside hot paths.
   void transition(VkCommandBuffer cmd, VkImageLayout newLayout,
                   VkPipelineStageFlags2 srcStage = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT,
@@ -302,7 +309,8 @@ class CommandPool {
   VkCommandPool pool_ = VK_NULL_HANDLE;
 };
 
-// One memory barrier between two pipeline stages (synchronization2).
+// One memory barrier between two pipeline stages, in synchronization2's masks, recorded with
+// Vulkan 1.0's barrier so that it runs on Vulkan 1.2 devices too (legacy_sync.h).
 void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 srcStage, VkAccessFlags2 srcAccess,
                    VkPipelineStageFlags2 dstStage, VkAccessFlags2 dstAccess);
 

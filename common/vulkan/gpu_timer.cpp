@@ -32,12 +32,12 @@ void GpuTimer::reset(VkCommandBuffer cmd) {
 void GpuTimer::begin(VkCommandBuffer cmd, std::string name) {
   if (!supported_ || used_ + 2 > capacity_) return;
   names_.push_back(std::move(name));
-  vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool_.get(), used_++);
+  vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, pool_.get(), used_++);
 }
 
 void GpuTimer::end(VkCommandBuffer cmd) {
   if (!supported_ || used_ % 2 == 0) return;
-  vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool_.get(), used_++);
+  vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, pool_.get(), used_++);
 }
 
 std::vector<std::pair<std::string, double>> GpuTimer::results() const {

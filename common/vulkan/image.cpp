@@ -113,21 +113,17 @@ VkImageSubresourceRange Image::range() const {
 void Image::transition(VkCommandBuffer cmd, VkImageLayout newLayout, VkPipelineStageFlags2 srcStage,
                        VkAccessFlags2 srcAccess, VkPipelineStageFlags2 dstStage,
                        VkAccessFlags2 dstAccess) {
-  VkImageMemoryBarrier2 b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER_2};
-  b.srcStageMask = srcStage;
-  b.srcAccessMask = srcAccess;
-  b.dstStageMask = dstStage;
-  b.dstAccessMask = dstAccess;
+  VkImageMemoryBarrier b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
+  b.srcAccessMask = legacyAccess(srcAccess);
+  b.dstAccessMask = legacyAccess(dstAccess);
   b.oldLayout = layout_;
   b.newLayout = newLayout;
   b.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
   b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
   b.image = image_;
   b.subresourceRange = range();
-  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
-  dep.imageMemoryBarrierCount = 1;
-  dep.pImageMemoryBarriers = &b;
-  vkCmdPipelineBarrier2(cmd, &dep);
+  vkCmdPipelineBarrier(cmd, legacyStages(srcStage, true), legacyStages(dstStage, false), 0, 0,
+                       nullptr, 0, nullptr, 1, &b);
   layout_ = newLayout;
 }
 
