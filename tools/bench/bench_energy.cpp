@@ -19,10 +19,10 @@ struct EnergyResult {
   int probes = 0;
 };
 
-EnergyResult measure(float albedo, float emission, int updates) {
+EnergyResult measure(float albedo, float emission, int updates, const std::string& backend) {
   Scene scene = furnaceBox(albedo, emission);
   Field field = Field::create(scene.volumes, FieldSettings{});
-  auto tracer = makeEmbreeTracer(scene);
+  auto tracer = makeTracer(scene, backend);
   if (!tracer) {
     std::fprintf(stderr, "energy: %s\n", tracer.error().message.c_str());
     std::exit(1);
@@ -84,20 +84,25 @@ Benchmark addEnergy(CLI::App& app) {
   auto* cmd = app.add_subcommand("energy", "furnace box: converged irradiance vs pi Le/(1-a)");
   static int updates = 128;
   static float emission = 1.0f;
+  static std::string backend = "embree";
   cmd->add_option("--updates", updates, "field updates to converge");
+  cmd->add_option("--backend", backend,
+                  "tracer that updates the field: embree, vulkan (ray tracing), sdf (distance "
+                  "field in Vulkan compute) or auto")
+      ->capture_default_str();
   cmd->add_option("--emission", emission, "emitted radiance Le of every wall");
   return {cmd, [] {
             std::printf(
-                "energy: closed box, all walls albedo a and emission Le=%.3g, Embree field, %d "
+                "energy: closed box, all walls albedo a and emission Le=%.3g, %s field, %d "
                 "updates\n",
-                emission, updates);
+                emission, backend.c_str(), updates);
             std::printf("%6s %12s %12s %12s %12s %10s %10s %10s\n", "albedo", "expected",
                         "mean texel", "worst texel", "sampled", "err mean", "err worst",
                         "err sampl");
             double errors[2];
             const float albedos[2] = {0.5f, 0.8f};
             for (int i = 0; i < 2; ++i) {
-              EnergyResult r = measure(albedos[i], emission, updates);
+              EnergyResult r = measure(albedos[i], emission, updates, backend);
               std::printf("%6.2f %12.5f %12.5f %12.5f %12.5f %9.3f%% %9.3f%% %9.3f%%\n", albedos[i],
                           r.expected, r.meanTexel, r.worstTexel, r.meanSampled, 100 * r.errorMean,
                           100 * r.errorWorst, 100 * r.errorSampled);
