@@ -34,7 +34,7 @@ Benchmark addClient(CLI::App& app) {
   static std::string scenePath = "builtin", sidecar, outDir;
   static RenderSetup setup;
   static int speedWidth = 1920, speedHeight = 1080, frames = 5, areaLights = 16;
-  static bool validation = false, speedOnly = false, noPrepass = false;
+  static bool validation = false, speedOnly = false, noPrepass = false, stereo = false;
   static std::string raster = "auto";
   static int cascades = 0;
   static double dt = 0.0;
@@ -45,7 +45,12 @@ Benchmark addClient(CLI::App& app) {
   cmd->add_option("--out", outDir, "write the images here");
   cmd->add_option("--speed-width", speedWidth, "width of the timed frames");
   cmd->add_option("--speed-height", speedHeight, "height of the timed frames");
-  cmd->add_option("--frames", frames, "timed frames (after 2 warm-up frames)");
+  cmd->add_option("--frames", frames,
+                  "timed frames (after a warm-up of 1 s or 100 frames, whichever comes first)");
+  cmd->add_flag("--stereo", stereo,
+                "time stereo frames instead (both eyes in one multiview pass) at --width x "
+                "--height per eye, 2064x2208 (a current headset's panel) unless given; skips "
+                "the quality comparisons");
   cmd->add_option("--cascades", cascades,
                   "cascades: the scene's first volume and coarser ones around it (0: the scene's)");
   cmd->add_option("--area-lights", areaLights, "virtual point lights standing in for emitters");
@@ -58,8 +63,9 @@ Benchmark addClient(CLI::App& app) {
   cmd->add_option("--msaa", msaa, "main pass samples per pixel (2, 4, 8)");
   addRenderOptions(*cmd, setup);
   return {
-      cmd, [] {
+      cmd, [cmd] {
         namespace fs = std::filesystem;
+        if (stereo) speedOnly = true;
         auto scene = loadBenchScene(scenePath, sidecar);
         if (!scene) {
           std::printf("client: %s\n", scene.error().message.c_str());
@@ -102,6 +108,7 @@ Benchmark addClient(CLI::App& app) {
         int areaLightCount = 0;
         client::FrameInput input;
         input.cameras[0] = *camera;
+        const float ipd = 0.064f;  // m between the eyes
         if (!speedOnly) {
           // ---- quality ----
           ro.width = setup.width;
@@ -116,7 +123,6 @@ Benchmark addClient(CLI::App& app) {
           small->reset();
           ro.views = 2;
           client::FrameInput stereoInput;
-          const float ipd = 0.064f;
           stereoInput.cameras[0] = *camera;
           stereoInput.cameras[1] = client::offsetCamera(*camera, ipd);
           auto stereoRenderer = client::Renderer::create(**ctx, *scene, mirror, ro);
@@ -165,31 +171,58 @@ Benchmark addClient(CLI::App& app) {
         ro.views = 1;
         ro.width = speedWidth;
         ro.height = speedHeight;
+        if (stereo) {
+          // Per eye: the headset's panel unless --width/--height say otherwise.
+          ro.width = cmd->get_option("--width")->count() > 0 ? setup.width : 2064;
+          ro.height = cmd->get_option("--height")->count() > 0 ? setup.height : 2208;
+          speedWidth = ro.width;
+          speedHeight = ro.height;
+        }
         struct Timed {
           std::vector<double> frameMs, probeMs, shadowMs, mainMs, uploadMs, tonemapMs, redrawn;
           client::FrameStats stats;
           client::Rasterizer rasterizer = client::Rasterizer::Auto;
           int areaLights = 0;
           double wallMsPerFrame = 0;
+          int warmupFrames = 0;
         };
         // Frames are pipelined (no wait, no readback), as in a window: a GPU left idle between
         // frames lowers its clocks and inflates every timing. A frame's timings arrive when
         // its slot comes round again, client::kFrameSlots frames later.
-        auto timeFrames = [&](const client::RendererOptions& options) -> Result<Timed> {
+        // Warm-up before the clock starts: 1 s or 100 frames, whichever comes first (and at
+        // least until the first frame's timings are back), so that the GPU's clocks have risen
+        // and the caches and uploads are done.
+        auto timeFrames = [&](const client::RendererOptions& options,
+                              client::FrameInput frameInput) -> Result<Timed> {
           auto big = client::Renderer::create(**ctx, *scene, mirror, options);
           if (!big) return Error{"renderer: " + big.error().message};
           Timed out;
           out.areaLights = (*big)->areaLightCount();
           out.rasterizer = (*big)->options().rasterizer;
-          const auto wallStart = std::chrono::steady_clock::now();
-          const int timedFrames = frames + 2 + client::kFrameSlots;
+          using Clock = std::chrono::steady_clock;
+          const auto warmStart = Clock::now();
+          int warmFrames = 0;
+          for (;; ++warmFrames) {
+            const bool enough =
+                warmFrames >= 2 + client::kFrameSlots &&
+                (warmFrames >= 100 || Clock::now() - warmStart >= std::chrono::seconds(1));
+            if (enough) break;
+            frameInput.time = warmFrames * dt;
+            if (Status r = (*big)->renderFrame(frameInput); !r)
+              return Error{"frame failed: " + r.error().message};
+          }
+          out.warmupFrames = warmFrames;
+          const auto wallStart = Clock::now();
+          const int timedFrames = frames + client::kFrameSlots;
           for (int f = 0; f < timedFrames; ++f) {
-            input.time = f * dt;
-            Status r = (*big)->renderFrame(input);
+            frameInput.time = (warmFrames + f) * dt;
+            Status r = (*big)->renderFrame(frameInput);
             out.stats = (*big)->lastStats();
             if (!r) return Error{"frame failed: " + r.error().message};
             const client::FrameTimings& t = (*big)->lastTimings();
-            if (f < 2 + client::kFrameSlots || !t.valid) continue;  // warm-up: caches, uploads
+            // A frame's timings come back kFrameSlots frames later: the first ones are the
+            // warm-up's.
+            if (f < client::kFrameSlots || !t.valid) continue;
             out.frameMs.push_back(t.frameMs());
             out.probeMs.push_back(t.probeMs);
             out.shadowMs.push_back(t.shadowMs);
@@ -205,7 +238,12 @@ Benchmark addClient(CLI::App& app) {
                                timedFrames;
           return out;
         };
-        auto timed = timeFrames(ro);
+        client::FrameInput timedInput = input;
+        if (stereo) {
+          ro.views = 2;
+          timedInput.cameras[1] = client::offsetCamera(*camera, ipd);
+        }
+        auto timed = timeFrames(ro, timedInput);
         if (!timed) {
           std::printf("client: %s\n", timed.error().message.c_str());
           return 1;
@@ -214,10 +252,21 @@ Benchmark addClient(CLI::App& app) {
         // rebuild); its cost is the lighting pass's time with the field minus without it.
         client::RendererOptions noField = ro;
         noField.sampleField = false;
-        auto timedNoField = timeFrames(noField);
+        auto timedNoField = timeFrames(noField, timedInput);
         if (!timedNoField) {
           std::printf("client: %s\n", timedNoField.error().message.c_str());
           return 1;
+        }
+        // Stereo: one eye alone at the same size, for what rendering both in one pass saves.
+        Result<Timed> timedMonoEye = Error{"not measured"};
+        if (stereo) {
+          client::RendererOptions mono = ro;
+          mono.views = 1;
+          timedMonoEye = timeFrames(mono, input);
+          if (!timedMonoEye) {
+            std::printf("client: %s\n", timedMonoEye.error().message.c_str());
+            return 1;
+          }
         }
         const std::vector<double>& frameMs = timed->frameMs;
         const std::vector<double>& probeMs = timed->probeMs;
@@ -248,7 +297,9 @@ Benchmark addClient(CLI::App& app) {
         }
         std::printf("%-34s %10s\n",
                     ("GPU ms at " + std::to_string(speedWidth) + "x" + std::to_string(speedHeight) +
-                     " (median of " + std::to_string(frameMs.size()) + ")")
+                     (stereo ? " per eye, both eyes" : "") + " (median of " +
+                     std::to_string(frameMs.size()) + " after " +
+                     std::to_string(timed->warmupFrames) + " warm-up)")
                         .c_str(),
                     "ms");
         std::printf("%-34s %10.3f\n", "frame", median(frameMs));
@@ -262,6 +313,12 @@ Benchmark addClient(CLI::App& app) {
         std::printf("%-34s %10.3f\n", "  tone mapping", median(tonemapMs));
         std::printf("%-34s %10.3f\n", "wall clock per frame (CPU + GPU)", timed->wallMsPerFrame);
         std::printf("%-34s %10s\n", "rasterizer", client::rasterizerName(timed->rasterizer));
+        if (stereo) {
+          std::printf("%-34s %10.3f\n", "stereo frame, per eye", median(frameMs) / 2);
+          std::printf("%-34s %10.3f\n", "one eye alone (mono, same size)",
+                      median(timedMonoEye->frameMs));
+          std::printf("%-34s %10.3f\n", "  its lighting pass", median(timedMonoEye->probeMs));
+        }
         std::printf(
             "per frame (%s): %d draw calls, %llu triangles (all passes), %d lights per "
             "fragment, %d shadow layers (%g redrawn, median), %dx MSAA\n",
@@ -273,6 +330,16 @@ Benchmark addClient(CLI::App& app) {
           figure("psnr_client_vs_reference", vsRef, "dB");
           figure("psnr_client_vs_cpu", vsCpu, "dB");
           figure("psnr_stereo_left_vs_mono", stereoDb, "dB");
+        }
+        if (stereo) {
+          // The figures of a stereo frame: both eyes, every pass.
+          figure("stereo_frame_ms", median(frameMs), "ms");
+          figure("stereo_eye_ms", median(frameMs) / 2, "ms");
+          figure("stereo_probe_pass_ms", samplingMs, "ms");
+          figure("stereo_lighting_pass_ms", median(probeMs), "ms");
+          // Below 2: one multiview pass costs less than two mono frames.
+          figure("stereo_vs_mono_eye", median(frameMs) / median(timedMonoEye->frameMs), "ratio");
+          return 0;
         }
         figure("frame_ms", median(frameMs), "ms");
         figure("probe_pass_ms", samplingMs, "ms");
