@@ -54,6 +54,7 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
     const int mat = scene.meshes[inst.mesh].material;
     d.textures = glm::ivec4(-1, -1, 0, -1);
     d.normalTexture = -1;
+    d.metallicRoughnessTexture = -1;
     const MeshRange& range = packed.meshes[std::size_t(inst.mesh)];
     d.geometry = glm::ivec4(std::int32_t(range.firstIndex), range.vertexOffset,
                             std::int32_t(packed.triangleBases[k]),
@@ -70,6 +71,8 @@ std::vector<gpu::DrawData> drawData(const Scene& scene, const PackedScene& packe
       const int textures = int(scene.textures.size());
       d.textures.x = m.baseColorTexture < textures ? m.baseColorTexture : -1;
       d.textures.y = m.emissiveTexture < textures ? m.emissiveTexture : -1;
+      d.metallicRoughnessTexture =
+          m.metallicRoughnessTexture < textures ? m.metallicRoughnessTexture : -1;
       // Meshes without tangents (no coordinates to make them from) keep their vertex normals.
       const Mesh& mesh = scene.meshes[std::size_t(inst.mesh)];
       if (m.normalTexture >= 0 && m.normalTexture < textures &&

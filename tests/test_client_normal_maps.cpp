@@ -131,5 +131,48 @@ TEST(ClientNormalMaps, ProbeFieldIsLookedUpWithTheMappedNormal) {
   EXPECT_GT(means[1], 1.1 * means[0]);
 }
 
+// glTF's metallic-roughness texture (linear: B metallic, G roughness) scales the factors in the
+// client as in the CPU renders. A rough metal (factors 1, 1) becomes a dielectric at roughness
+// 0.25 through a texture whose B is 0 and G 64: its direct light changes in the client as in the
+// reference, and the client agrees with the CPU probe-lit render with and without it.
+TEST(ClientNormalMaps, MetallicRoughnessTextureScalesTheFactorsAsOnTheCpu) {
+  auto ctx = validatingContext();
+  if (!ctx) GTEST_SKIP() << "no Vulkan device";
+  const std::filesystem::path dir = testOutputDir("normal-maps") / "scenes";
+  Renders r[2];
+  for (int textured = 0; textured < 2; ++textured) {
+    NormalMapQuad q;
+    q.normalMap = false;
+    auto scene = pc::test::loadNormalMapQuad(dir / (textured ? "mr_textured" : "mr_plain"), q);
+    ASSERT_TRUE(scene.ok()) << scene.error().message;
+    ASSERT_FALSE(scene->materials.empty());
+    Material& m = scene->materials[0];
+    m.metallic = 1.0f;
+    m.roughness = 1.0f;
+    if (textured) {
+      Texture t;
+      t.name = "metallic-roughness";
+      t.width = t.height = 2;
+      t.linear = true;
+      for (int i = 0; i < 4; ++i)
+        t.rgba.insert(t.rgba.end(),
+                      {std::uint8_t(255), std::uint8_t(64), std::uint8_t(0), std::uint8_t(255)});
+      scene->textures.push_back(t);
+      m.metallicRoughnessTexture = int(scene->textures.size()) - 1;
+    }
+    r[textured] = renderAll(*ctx, *scene, nullptr, textured ? "mr_textured" : "mr_plain");
+    std::printf("%s: client mean %.4f, reference %.4f, client vs CPU probe-lit %.2f dB\n",
+                textured ? "textured (dielectric, roughness 0.25)" : "factors (rough metal)",
+                r[textured].client, r[textured].reference, r[textured].agreement);
+    EXPECT_GT(r[textured].agreement, 35.0);
+  }
+  const double clientChange = r[1].client - r[0].client;
+  const double referenceChange = r[1].reference - r[0].reference;
+  EXPECT_GT(std::abs(referenceChange), 0.1 * r[0].reference) << "the texture changes the quad";
+  // Within 15%: the client's ambient term (absent from the reference) goes through the BRDF too.
+  EXPECT_NEAR(clientChange, referenceChange, 0.15 * std::abs(referenceChange));
+  EXPECT_EQ(ctx->validationErrorCount(), 0u);
+}
+
 }  // namespace
 }  // namespace pc::client::test

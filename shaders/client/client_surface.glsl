@@ -126,7 +126,7 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy, vec3 samp
   // The neighbouring pixels' rays on the same plane: uv there minus uv here (only where a
   // texture is read; untextured surfaces skip the two extra plane intersections).
   vec2 dx = vec2(0.0), dy = vec2(0.0);
-  if (d.textures.x >= 0 || d.textures.y >= 0 || normalMapped) {
+  if (d.textures.x >= 0 || d.textures.y >= 0 || d.metallicRoughnessTexture >= 0 || normalMapped) {
     vec2 du1 = v1.uv - v0.uv, du2 = v2.uv - v0.uv;
     vec2 bx = planeHit(rayDx, e1, e2, tv, qv).xy - hit.xy;
     vec2 by = planeHit(rayDy, e1, e2, tv, qv).xy - hit.xy;
@@ -137,6 +137,11 @@ Surface surfaceOf(uint id, vec3 eye, vec3 ray, vec3 rayDx, vec3 rayDy, vec3 samp
   s.emission = front ? d.emissive.rgb * textureRgb(d.textures.y, uv, dx, dy) : vec3(0.0);
   s.metallic = d.metallic;
   s.roughness = d.roughness;
+  if (d.metallicRoughnessTexture >= 0) {  // linear data: B metallic, G roughness (glTF)
+    vec3 mr = textureRgb(d.metallicRoughnessTexture, uv, dx, dy);
+    s.metallic *= mr.b;
+    s.roughness *= mr.g;
+  }
   // As the CPU renders do (cpu/embree_scene.cpp): the map perturbs the unflipped normal in the
   // mesh's frame, tangents following the model matrix (they lie in the surface) and their
   // handedness the sign of its determinant; the result is turned as the vertex normal was.

@@ -113,8 +113,13 @@ struct DrawData {
   // -- 192
   int normalTexture;  // tangent-space normal map (-1: none, or the mesh has no tangents)
   float normalScale;  // its x and y scale (Material::normalScale)
-  float metallic;     // Material::metallic and roughness (brdf.h; their texture is not read)
-  float roughness;
+  float metallic;     // Material::metallic and roughness (brdf.h), multiplied by the texture's
+  float roughness;    // B and G where metallicRoughnessTexture is one
+  // -- 208
+  int metallicRoughnessTexture;  // linear (UNORM) texture: B metallic, G roughness; -1: none
+  int pad0;
+  int pad1;
+  int pad2;
 };
 
 // Shadow map rendering's push constants (client_shadow.vert): the layer's view-projection from
@@ -194,7 +199,7 @@ PC_END
 #ifdef __cplusplus
 static_assert(sizeof(pc::gpu::ClientView) == 144);
 static_assert(sizeof(pc::gpu::FrameUniforms) == 448 + 16 * pc::gpu::PC_SPLIT_SUM_ENTRIES / 2);
-static_assert(sizeof(pc::gpu::DrawData) == 208);
+static_assert(sizeof(pc::gpu::DrawData) == 224);
 static_assert(sizeof(pc::gpu::FieldWrite) == 16);
 static_assert(sizeof(pc::gpu::RasterTriangle) == 48);
 static_assert(sizeof(pc::gpu::RasterCounters) == 32);
