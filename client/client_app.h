@@ -38,6 +38,7 @@ struct ClientConfig {
   ShadowSettings shadows;
   int sampleFlags = 0;
   float aoRadius = gpu::PC_AO_DEFAULT_RADIUS;  // RendererOptions::aoRadius
+  float foveaRadius = 0.0f;                    // RendererOptions::foveaRadius
   // The probe debug view the run starts with (windowed: keys P, M, C and L change it).
   ProbeViewSettings probeView;
   std::string readyFile;  // windowed: written after half the frames (tests take a screenshot)

@@ -41,6 +41,7 @@ int runHeadless(const ClientConfig& config) {
   ro.shadows = config.shadows;
   ro.sampleFlags = config.sampleFlags;
   ro.aoRadius = config.aoRadius;
+  ro.foveaRadius = config.foveaRadius;
   auto renderer = Renderer::create(**ctx, *scene, mirror, ro);
   if (!renderer) {
     logError("renderer: " + renderer.error().message);

@@ -47,6 +47,7 @@ Result<std::unique_ptr<Renderer>> makeRenderer(const vk::Context& ctx, const Sce
   ro.shadows = config.shadows;
   ro.sampleFlags = config.sampleFlags;
   ro.aoRadius = config.aoRadius;
+  ro.foveaRadius = config.foveaRadius;
   return Renderer::create(ctx, scene, mirror, ro);
 }
 

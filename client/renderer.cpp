@@ -173,6 +173,7 @@ void Renderer::updateFrameData(Slot& slot, const FrameInput& input) {
   f.rasterTriangleCapacity = rasterTriangleCapacity_;
   f.rasterJobCapacity = rasterJobCapacity_;
   f.aoRadius = options_.aoRadius;
+  f.foveaRadius = options_.foveaRadius;
   f.probeView = probeViewParams(slot, input);
   const SplitSumTable& table = splitSumTable();
   static_assert(sizeof f.splitSum == sizeof table);

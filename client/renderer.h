@@ -81,6 +81,11 @@ struct RendererOptions {
   // Glossy surfaces: the field's split-sum specular (shaders/interop/specular_probe.h) besides
   // its irradiance. false: the indirect light stays diffuse (the comparison without it).
   bool indirectSpecular = true;
+  // Foveated field sampling: outside this radius (a fraction of the view's half width and
+  // height, an ellipse about its centre, where a headset's lens is sharpest) the lighting pass
+  // samples the field at one pixel of each 2x2 quad and shares it with the quad's pixels on the
+  // same surface (client_indirect.comp). 0: every pixel samples the field.
+  float foveaRadius = 0.0f;
 };
 
 struct FrameInput {

@@ -163,6 +163,7 @@ int runWindow(const ClientConfig& config, const NetRunConfig* net) {
     ro.shadows = config.shadows;
     ro.sampleFlags = config.sampleFlags;
     ro.aoRadius = config.aoRadius;
+    ro.foveaRadius = config.foveaRadius;
     ro.fieldFadeSeconds = kFieldFadeSeconds;
     auto renderer = Renderer::create(**ctx, *scene, mirror, ro);
     if (!renderer) {

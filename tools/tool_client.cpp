@@ -74,6 +74,11 @@ int main(int argc, char** argv) {
   app.add_option("--ao-radius", c.aoRadius,
                  "ambient occlusion of the indirect light (GTAO): radius in probe spacings, 0 off")
       ->check(pc::kFinite & CLI::NonNegativeNumber);
+  app.add_option("--fovea", c.foveaRadius,
+                 "foveated field sampling: outside this radius (fraction of the half view, about "
+                 "its centre) one field sample per 2x2 pixels, shared on matching surfaces; 0 off")
+      ->check(pc::kFinite & CLI::NonNegativeNumber)
+      ->capture_default_str();
   std::string probeView = "off";
   app.add_option("--probe-view", probeView,
                  "probe debug view: off, irradiance (spheres lit by their probes) or state");

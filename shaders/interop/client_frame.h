@@ -82,7 +82,10 @@ struct FrameUniforms {
   uint rasterJobCapacity;       // tile jobs it may append
   // -- 400
   float aoRadius;  // ambient occlusion radius of the indirect light, in probe spacings; 0: off
-  int pad0;
+  // Foveated field sampling: outside this radius (a fraction of the view's half width and half
+  // height, an ellipse about its centre) the field is sampled at one pixel of four and shared
+  // with the neighbours whose surface matches (client_indirect.comp); 0: every pixel.
+  float foveaRadius;
   int pad1;
   int pad2;
   // -- 416

@@ -39,6 +39,7 @@ Benchmark addClient(CLI::App& app) {
   static int cascades = 0;
   static double dt = 0.0;
   static int msaa = 4;
+  static float fovea = 0.5f;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
   cmd->add_option("--sidecar", sidecar, "scene.json sidecar");
   addSceneLoadOptions(*cmd, sceneLoadOptions());
@@ -47,6 +48,10 @@ Benchmark addClient(CLI::App& app) {
   cmd->add_option("--speed-height", speedHeight, "height of the timed frames");
   cmd->add_option("--frames", frames,
                   "timed frames (after a warm-up of 1 s or 100 frames, whichever comes first)");
+  cmd->add_option("--fovea", fovea,
+                  "also time foveated field sampling with this radius (the client's --fovea) and "
+                  "compare its image with full-rate sampling; 0: not measured")
+      ->capture_default_str();
   cmd->add_flag("--stereo", stereo,
                 "time stereo frames instead (both eyes in one multiview pass) at --width x "
                 "--height per eye, 2064x2208 (a current headset's panel) unless given; skips "
@@ -268,6 +273,34 @@ Benchmark addClient(CLI::App& app) {
             return 1;
           }
         }
+        // Foveated field sampling against full rate: the same frames timed, and one image of
+        // each (tone-mapped, the first view) compared.
+        Result<Timed> timedFovea = Error{"not measured"};
+        double foveaDb = 0;
+        if (fovea > 0.0f) {
+          client::RendererOptions foveated = ro;
+          foveated.foveaRadius = fovea;
+          timedFovea = timeFrames(foveated, timedInput);
+          if (!timedFovea) {
+            std::printf("client: %s\n", timedFovea.error().message.c_str());
+            return 1;
+          }
+          Image8 images[2];
+          for (int k = 0; k < 2; ++k) {
+            auto r = client::Renderer::create(**ctx, *scene, mirror, k == 0 ? ro : foveated);
+            if (!r) {
+              std::printf("client: renderer: %s\n", r.error().message.c_str());
+              return 1;
+            }
+            auto frame = (*r)->renderOffscreen(timedInput);
+            if (!frame) {
+              std::printf("client: frame failed: %s\n", frame.error().message.c_str());
+              return 1;
+            }
+            images[k] = frame->display[0];
+          }
+          foveaDb = psnr8(images[1], images[0]);
+        }
         const std::vector<double>& frameMs = timed->frameMs;
         const std::vector<double>& probeMs = timed->probeMs;
         const std::vector<double>& shadowMs = timed->shadowMs;
@@ -313,6 +346,15 @@ Benchmark addClient(CLI::App& app) {
         std::printf("%-34s %10.3f\n", "  tone mapping", median(tonemapMs));
         std::printf("%-34s %10.3f\n", "wall clock per frame (CPU + GPU)", timed->wallMsPerFrame);
         std::printf("%-34s %10s\n", "rasterizer", client::rasterizerName(timed->rasterizer));
+        const double foveaSamplingMs =
+            fovea > 0.0f ? median(timedFovea->probeMs) - median(timedNoField->probeMs) : 0.0;
+        if (fovea > 0.0f) {
+          char label[64];
+          std::snprintf(label, sizeof label, "frame, fovea %.2g", double(fovea));
+          std::printf("%-34s %10.3f\n", label, median(timedFovea->frameMs));
+          std::printf("%-34s %10.3f\n", "  its probe sampling", foveaSamplingMs);
+          std::printf("%-34s %10.2f\n", "  its image vs full rate, dB", foveaDb);
+        }
         if (stereo) {
           std::printf("%-34s %10.3f\n", "stereo frame, per eye", median(frameMs) / 2);
           std::printf("%-34s %10.3f\n", "one eye alone (mono, same size)",
@@ -330,6 +372,13 @@ Benchmark addClient(CLI::App& app) {
           figure("psnr_client_vs_reference", vsRef, "dB");
           figure("psnr_client_vs_cpu", vsCpu, "dB");
           figure("psnr_stereo_left_vs_mono", stereoDb, "dB");
+        }
+        if (fovea > 0.0f) {
+          figure(stereo ? "stereo_frame_ms_fovea" : "frame_ms_fovea", median(timedFovea->frameMs),
+                 "ms");
+          figure(stereo ? "stereo_probe_pass_ms_fovea" : "probe_pass_ms_fovea", foveaSamplingMs,
+                 "ms");
+          figure("psnr_fovea_vs_full", foveaDb, "dB");
         }
         if (stereo) {
           // The figures of a stereo frame: both eyes, every pass.
