@@ -29,8 +29,8 @@ struct TestMaterial {
 
 // Radiance reflected toward V under uniform incident radiance 1: the integral of
 // pcMaterialBrdf cos over the hemisphere, midpoint quadrature in (cos theta, phi) (uniform in
-// cos theta puts the samples where the sharp lobes near the normal need them). Accurate to
-// about 1e-4 for roughness 0.3 and up.
+// cos theta puts the samples where the sharp lobes near the normal need them); 512 x 512
+// and 1024 x 1024 agree to 1e-4 for roughness 0.3 and up.
 glm::dvec3 furnaceByQuadrature(glm::vec3 V, const TestMaterial& m, float roughness) {
   constexpr int kCos = 512, kPhi = 512;
   const glm::vec3 N(0.0f, 1.0f, 0.0f);
@@ -73,7 +73,8 @@ TEST(ProbeHitShading, WhiteFurnaceSendsBackTheBrdfsDirectionalAlbedo) {
         for (int c = 0; c < 3; ++c) {
           const double error = std::abs(double(sent[c]) - exact[c]) / double(L);
           worst = std::max(worst, error);
-          EXPECT_LT(error, 0.01) << m.name << " roughness " << roughness << " N.V " << NdotV
+          // Measured 3.2e-3 at most: the split-sum table's bilinear steps between its nodes.
+          EXPECT_LT(error, 5e-3) << m.name << " roughness " << roughness << " N.V " << NdotV
                                  << " channel " << c << ": sent " << sent[c] << ", BRDF integral "
                                  << exact[c];
           // Energy: a surface never sends back more than the furnace's radiance.

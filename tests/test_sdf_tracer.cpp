@@ -356,9 +356,9 @@ TEST(SdfTracer, CornellBoxFieldMatchesEmbree) {
 // dielectric and its boxes metals (kGlossyCornellMaterials) at roughness 0.4, so probe rays
 // see lights and the field through the GGX lobe. Both GPU backends shade hits in the one
 // shade pass with the function the Embree tracer calls, and draw the same random streams: the
-// fields agree to rounding as the diffuse box's do, within the same 1e-3. The glossy box's
-// field must also differ from the diffuse box's by far more (a shade pass that ignored the
-// material would pass the agreement only by matching a diffuse Embree field).
+// fields agree to rounding as the diffuse box's do, within the same 1e-3 (measured 5.9e-7 ray
+// tracing, 6.1e-7 SDF on lavapipe). The glossy box's Embree field differs from the diffuse
+// box's by far more (measured 0.16), so a shade pass that ignored the material would fail.
 TEST(SdfTracer, GlossyCornellBoxFieldsMatchEmbree) {
   const std::string path =
       std::string(PC_SCENES_DIR) + "/mcguire-cornellbox/CornellBox-Original.obj";
@@ -378,6 +378,10 @@ TEST(SdfTracer, GlossyCornellBoxFieldsMatchEmbree) {
   ASSERT_TRUE(cpu) << cpu.error().message;
   auto cpuDiffuse = makeEmbreeTracer(*diffuse);
   ASSERT_TRUE(cpuDiffuse) << cpuDiffuse.error().message;
+  const FieldDifference fromDiffuse = bakeBothAndCompare(scene, **cpu, **cpuDiffuse, 3);
+  std::printf("glossy cornell box vs the diffuse one, embree: irradiance rel diff %.2e\n",
+              fromDiffuse.irradiance);
+  EXPECT_GT(fromDiffuse.irradiance, 0.05);
   for (VulkanTracing tracing : {VulkanTracing::RayPipelines, VulkanTracing::DistanceField}) {
     const char* name = tracing == VulkanTracing::RayPipelines ? "ray tracing" : "sdf";
     std::string why;
@@ -387,15 +391,13 @@ TEST(SdfTracer, GlossyCornellBoxFieldsMatchEmbree) {
       continue;
     }
     const FieldDifference d = bakeBothAndCompare(scene, *gpu, **cpu, 3);
-    const FieldDifference fromDiffuse = bakeBothAndCompare(scene, *gpu, **cpuDiffuse, 3);
     std::printf(
         "glossy cornell box, %s vs embree: %d active probes, irradiance rel diff %.2e, depth "
-        "rel diff %.2e; vs the diffuse box's field %.2e\n",
-        name, d.probes, d.irradiance, d.depth, fromDiffuse.irradiance);
+        "rel diff %.2e\n",
+        name, d.probes, d.irradiance, d.depth);
     EXPECT_GT(d.probes, 32) << name;
     EXPECT_LE(d.irradiance, 1e-3) << name;
     EXPECT_LE(d.depth, 1e-3) << name;
-    EXPECT_GT(fromDiffuse.irradiance, 1e-2) << name;
     EXPECT_EQ(gpu->validationErrorCount(), 0u) << name;
   }
 }
