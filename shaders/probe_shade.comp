@@ -69,14 +69,16 @@ GpuShadowRay pending;
 bool inRound(int slot) { return slot >= push.slotBase && slot < push.slotBase + params.roundSlots; }
 
 // Slot `slot`'s request: a shadow ray that adds the hit's reflection of `irradiance`, arriving
-// along `dir`, to the ray's radiance when nothing blocks it. tmax 0 leaves the slot empty (nothing is written: its mask
-// bit stays clear). appendRequest then lists the ray. Slots of other rounds are left alone
-// (their requests are computed all the same, so that the random streams stay in step).
+// along `dir`, to the ray's radiance when nothing blocks it. tmax 0 leaves the slot empty
+// (nothing is written: its mask bit stays clear). appendRequest then lists the ray. Slots of
+// other rounds are left alone (their requests are computed all the same, so that the random
+// streams stay in step).
 void request(int slot, vec3 origin, vec3 dir, float tmax, vec3 irradiance) {
   if (!inRound(slot)) return;
   uint light = uint(slot - push.slotBase) * slotStride + launchIndex;
   if (tmax > 0.0f) {
-    vec3 weight = pcProbeHitLightWeight(hitNormal, hitView, dir, hitBaseColor, hitMetallic, hitRoughness);
+    vec3 weight =
+        pcProbeHitLightWeight(hitNormal, hitView, dir, hitBaseColor, hitMetallic, hitRoughness);
     shadowLight[light] = GpuShadowLight(weight * irradiance, 0.0f);
   }
   pending = GpuShadowRay(origin, tmax, dir, light);
