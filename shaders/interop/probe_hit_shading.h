@@ -18,7 +18,8 @@
 // lobe's radiance for roughness 1 (where the GGX prefilter is the clamped cosine) and a
 // blurred one below; a probe ray's hit needs energy more than sharpness, since the probe
 // convolves what its rays bring back with the cosine once more. It costs one more field
-// sample per glossy hit, not the six of the client's exact band split (pcSampleFieldLit).
+// sample per glossy hit, not the six reads per probe of the client's exact band split
+// (pcSampleFieldLit), which measured no closer to the reference (docs/BENCHMARKS.md).
 //
 // The diffuse weight is the coat's (1 - F(N.V)) of brdf.h, not (1 - directional albedo of the
 // lobe): the field must hold what the reference renders, and the reference evaluates brdf.h.
