@@ -9,6 +9,8 @@
 #include <cmath>
 #include <limits>
 
+#include "../common/split_sum_table.h"
+#include "../shaders/interop/probe_hit_shading.h"
 #include "../shaders/interop/probe_math.h"
 #include "../shaders/interop/probe_update.h"
 #include "../shaders/interop/shadow_roulette.h"
@@ -24,9 +26,20 @@ static double msSince(Clock::time_point t0) {
 
 namespace {
 
+// What a probe-ray hit reflects with (shaders/interop/probe_hit_shading.h): the vertex
+// normal (the GPU tracer reads no normal maps) and the material's terms at the point.
+struct HitMaterial {
+  glm::vec3 normal{0.0f}, albedo{0.0f};
+  float metallic = 0.0f, roughness = 1.0f;
+  bool glossy() const { return gpu::pcHasSpecularLobe(metallic, roughness); }
+  // Whether it reflects anything: a dielectric's coat reflects even where its base is black.
+  bool reflects() const { return glossy() || albedo.x > 0 || albedo.y > 0 || albedo.z > 0; }
+};
+
 // A probe-ray hit waiting for its indirect light.
 struct DeferredHit {
-  glm::vec3 position, normal, reflectance;  // reflectance = albedo / pi
+  glm::vec3 position;
+  HitMaterial material;
 };
 constexpr std::uint32_t kNoDeferredHit = 0xFFFFFFFFu;  // a ray's key when it has none
 
@@ -180,7 +193,7 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
     // One probe's shaded hits wait here while its shadow rays are traced together.
     std::vector<ShadowSample> samples;
     std::vector<std::uint32_t> firstSample(std::size_t(rayCount) + 1);
-    std::vector<glm::vec3> reflectanceOf(static_cast<std::size_t>(rayCount));
+    std::vector<HitMaterial> materialOf(static_cast<std::size_t>(rayCount));
     std::vector<RTCRay> shadowRays;
     std::uint64_t shadowCount = 0;
     for (std::size_t p = range.begin(); p != range.end(); ++p) {
@@ -191,7 +204,7 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
       samples.clear();
       for (int i = 0; i < rayCount; ++i) {
         firstSample[std::size_t(i)] = std::uint32_t(samples.size());
-        reflectanceOf[std::size_t(i)] = glm::vec3(0.0f);
+        materialOf[std::size_t(i)] = HitMaterial{};
         Hit hit;
         if (indirect) keys[p * rayCount + i] = kNoDeferredHit;
         if (!embree_->intersect(origin, dirs[i], near, inf, hit)) {
@@ -215,12 +228,12 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
         // and both backends must trace the same field.
         directLightSamples(lights_, emissive_, sp.position, shadowOrigin, sp.vertexNormal, rng,
                            lightOptions, samples);
-        const glm::vec3 reflectance = sp.albedo * (1.0f / gpu::PC_PI);
-        reflectanceOf[std::size_t(i)] = reflectance;
+        const HitMaterial material{sp.vertexNormal, sp.albedo, sp.metallic, sp.roughness};
+        materialOf[std::size_t(i)] = material;
         // The emitted light for now; the direct light joins it once the shadow rays are in.
         out[i] = {emissive_.sampled(sp.material) ? glm::vec3(0.0f) : sp.emission, hit.t};
-        if (indirect && (reflectance.x > 0 || reflectance.y > 0 || reflectance.z > 0)) {
-          deferred[p * rayCount + i] = {sp.position, sp.vertexNormal, reflectance};
+        if (indirect && material.reflects()) {
+          deferred[p * rayCount + i] = {sp.position, material};
           keys[p * rayCount + i] = spatialKey(field, sp.position);
         }
       }
@@ -231,14 +244,25 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
         const std::uint32_t begin = firstSample[std::size_t(i)],
                             end = firstSample[std::size_t(i) + 1];
         if (begin == end) continue;
+        const HitMaterial& m = materialOf[std::size_t(i)];
+        // Lambert: albedo / pi x the irradiance, summed first (as always). Glossy: each
+        // sample through the BRDF for its direction (pcProbeHitLightWeight).
+        const bool glossy = m.glossy();
+        const glm::vec3 V = -dirs[std::size_t(i)];
         glm::vec3 punctual(0.0f), emitter(0.0f);
         for (std::uint32_t j = begin; j < end; ++j) {
           if (shadowRays[j].tfar < 0.0f) continue;  // occluded
-          (samples[j].emitter ? emitter : punctual) += samples[j].irradiance;
+          const ShadowSample& s = samples[j];
+          (s.emitter ? emitter : punctual) +=
+              glossy ? gpu::pcProbeHitLightWeight(m.normal, V, s.dir, m.albedo, m.metallic,
+                                                  m.roughness) *
+                           s.irradiance
+                     : s.irradiance;
         }
-        const glm::vec3 irradiance =
+        const glm::vec3 light =
             emitterSamples ? punctual + emitter / float(options_.emissiveSamples) : punctual;
-        out[i].radiance = out[i].radiance + reflectanceOf[std::size_t(i)] * irradiance;
+        out[i].radiance =
+            out[i].radiance + (glossy ? light : m.albedo * (1.0f / gpu::PC_PI) * light);
       }
     }
     shadowRaysOf.local() += shadowCount;
@@ -255,13 +279,25 @@ Result<UpdateStats> EmbreeTracer::update(Field& field, const UpdateRequest& requ
       if (keys[r] != kNoDeferredHit) order.push_back(std::uint64_t(keys[r]) << 32 | r);
     radixSortByHighWord(order, scratch_->sortTmp);
     const FieldHitSampler sampler(field);
+    const SplitSumTable& table = splitSumTable();
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, order.size(), 256), [&](const auto& range) {
           for (std::size_t j = range.begin(); j != range.end(); ++j) {
             const std::size_t r = std::size_t(order[j] & 0xFFFFFFFFu);
             const DeferredHit& h = deferred[r];
+            const HitMaterial& m = h.material;
             const glm::vec3 V = -dirs[r % std::size_t(rayCount)];
-            results[r].radiance += h.reflectance * sampler.irradiance(h.position, h.normal, V);
+            const glm::vec3 E = sampler.irradiance(h.position, m.normal, V);
+            // A glossy hit reads the field a second time, about its lobe's direction.
+            glm::vec3 lobeE(0.0f);
+            glm::vec2 ab(0.0f);
+            if (m.glossy()) {
+              const glm::vec3 lobeNormal = gpu::pcProbeHitSpecularNormal(m.normal, V, m.roughness);
+              lobeE = sampler.irradiance(h.position, m.normal, lobeNormal, V);
+              ab = lookupSplitSum(table, std::max(glm::dot(m.normal, V), 0.0f), m.roughness);
+            }
+            results[r].radiance += gpu::pcProbeHitIndirect(m.normal, V, m.albedo, m.metallic,
+                                                           m.roughness, E, lobeE, ab);
           }
         });
   }

@@ -62,7 +62,7 @@ BilinearCoord bilinearCoord(glm::vec2 tc, int tileSize) {
 }
 
 // What one point needs to weigh probes: the point, its biased position and its normal, and the
-// bilinear place of the normal's irradiance texel (the same in every probe's tile).
+// bilinear place of the lookup normal's irradiance texel (the same in every probe's tile).
 struct SamplePoint {
   glm::vec3 P, biasedP, N;
   BilinearCoord irradiance;
@@ -197,10 +197,11 @@ int logicalIndex(const gpu::CascadeDesc& c, glm::ivec3 logical) {
   return logical.x + c.counts.x * (logical.y + c.counts.y * logical.z);
 }
 
-SamplePoint samplePoint(const gpu::CascadeDesc& c, glm::vec3 P, glm::vec3 N, glm::vec3 V) {
+SamplePoint samplePoint(const gpu::CascadeDesc& c, glm::vec3 P, glm::vec3 N, glm::vec3 Ns,
+                        glm::vec3 V) {
   constexpr int n = gpu::PC_IRRADIANCE_TEXELS;
   SamplePoint s{P, P + N * c.normalBias + V * c.viewBias, N,
-                bilinearCoord(gpu::pcTileCoord(N, n), n + 2)};
+                bilinearCoord(gpu::pcTileCoord(Ns, n), n + 2)};
   s.grid = (s.biasedP - c.origin) / c.spacing;
   s.base = glm::clamp(glm::ivec3(glm::floor(s.grid)), glm::ivec3(0),
                       glm::max(c.counts - glm::ivec3(2), glm::ivec3(0)));
@@ -235,10 +236,10 @@ FieldHitSampler::FieldHitSampler(const Field& field) : field_(field) {
   }
 }
 
-glm::vec4 FieldHitSampler::sampleCascade(int k, glm::vec3 P, glm::vec3 N, glm::vec3 V,
+glm::vec4 FieldHitSampler::sampleCascade(int k, glm::vec3 P, glm::vec3 N, glm::vec3 Ns, glm::vec3 V,
                                          float& weightSum) const {
   const gpu::CascadeDesc& c = field_.cascade(k);
-  const SamplePoint point = samplePoint(c, P, N, V);
+  const SamplePoint point = samplePoint(c, P, N, Ns, V);
   const glm::ivec3 base = point.base;
   const glm::vec3 alpha =
       glm::clamp(point.grid - glm::vec3(base), glm::vec3(0.0f), glm::vec3(1.0f));
@@ -257,10 +258,10 @@ glm::vec4 FieldHitSampler::sampleCascade(int k, glm::vec3 P, glm::vec3 N, glm::v
   return gpu::pcResolveProbeSum(summer.sum, summer.weightSum);
 }
 
-glm::vec4 FieldHitSampler::sampleCascadeWide(int k, glm::vec3 P, glm::vec3 N, glm::vec3 V,
-                                             float& weightSum) const {
+glm::vec4 FieldHitSampler::sampleCascadeWide(int k, glm::vec3 P, glm::vec3 N, glm::vec3 Ns,
+                                             glm::vec3 V, float& weightSum) const {
   const gpu::CascadeDesc& c = field_.cascade(k);
-  const SamplePoint point = samplePoint(c, P, N, V);
+  const SamplePoint point = samplePoint(c, P, N, Ns, V);
   const glm::vec3 grid = point.grid;
   const glm::ivec3 base = point.base;
   const std::vector<Probe>& probes = probes_[std::size_t(k)];
@@ -282,8 +283,15 @@ glm::vec4 FieldHitSampler::sampleCascadeWide(int k, glm::vec3 P, glm::vec3 N, gl
 }
 
 glm::vec3 FieldHitSampler::irradiance(glm::vec3 P, glm::vec3 N, glm::vec3 V) const {
-  if (!tiled_ || !kLanesAvailable)
-    return glm::vec3(sampleField(field_, P, N, V, gpu::PC_SAMPLE_NO_OCCLUSION));
+  return irradiance(P, N, N, V);
+}
+
+glm::vec3 FieldHitSampler::irradiance(glm::vec3 P, glm::vec3 N, glm::vec3 Ns, glm::vec3 V) const {
+  if (!tiled_ || !kLanesAvailable) {
+    float coverage = 0.0f;
+    return glm::vec3(gpu::pcSampleFieldShaded(field_, field_.desc, P, N, Ns, V,
+                                              gpu::PC_SAMPLE_NO_OCCLUSION, coverage));
+  }
   // pcSampleFieldShaded, cascade by cascade, then the wide fallback.
   const gpu::FieldDesc& f = field_.desc;
   glm::vec4 result(0.0f);
@@ -292,7 +300,7 @@ glm::vec3 FieldHitSampler::irradiance(glm::vec3 P, glm::vec3 N, glm::vec3 V) con
     const float w = k == f.cascadeCount - 1 ? 1.0f : gpu::pcCascadeCoverage(f.cascades[k], P);
     if (w <= 0.0f) continue;
     float weightSum = 0.0f;
-    const glm::vec4 s = sampleCascade(k, P, N, V, weightSum);
+    const glm::vec4 s = sampleCascade(k, P, N, Ns, V, weightSum);
     if (weightSum <= 0.0f) continue;
     result += remaining * w * s;
     remaining *= 1.0f - w;
@@ -302,7 +310,7 @@ glm::vec3 FieldHitSampler::irradiance(glm::vec3 P, glm::vec3 N, glm::vec3 V) con
     for (int k = 0; k < f.cascadeCount; ++k) {
       if (k < f.cascadeCount - 1 && gpu::pcCascadeCoverage(f.cascades[k], P) <= 0.0f) continue;
       float weightSum = 0.0f;
-      const glm::vec4 s = sampleCascadeWide(k, P, N, V, weightSum);
+      const glm::vec4 s = sampleCascadeWide(k, P, N, Ns, V, weightSum);
       if (weightSum <= 0.0f) continue;
       result += remaining * s;
       remaining = 0.0f;

@@ -19,6 +19,9 @@ class FieldHitSampler {
 
   // Irradiance (W/m^2) at surface point P with normal N, seen from V (unit, toward the viewer).
   glm::vec3 irradiance(glm::vec3 P, glm::vec3 N, glm::vec3 V) const;
+  // The same looked up toward Ns (unit) instead of N, the probes placed and weighed by N:
+  // pcSampleFieldShaded.
+  glm::vec3 irradiance(glm::vec3 P, glm::vec3 N, glm::vec3 Ns, glm::vec3 V) const;
 
   // One probe of a cascade, by logical grid index x + counts.x * (y + counts.y * z).
   struct Probe {
@@ -30,8 +33,10 @@ class FieldHitSampler {
   };
 
  private:
-  glm::vec4 sampleCascade(int k, glm::vec3 P, glm::vec3 N, glm::vec3 V, float& weightSum) const;
-  glm::vec4 sampleCascadeWide(int k, glm::vec3 P, glm::vec3 N, glm::vec3 V, float& weightSum) const;
+  glm::vec4 sampleCascade(int k, glm::vec3 P, glm::vec3 N, glm::vec3 Ns, glm::vec3 V,
+                          float& weightSum) const;
+  glm::vec4 sampleCascadeWide(int k, glm::vec3 P, glm::vec3 N, glm::vec3 Ns, glm::vec3 V,
+                              float& weightSum) const;
 
   const Field& field_;
   bool tiled_ = true;                       // every cascade stores irradiance in tiles (not SH)

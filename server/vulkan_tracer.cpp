@@ -140,6 +140,9 @@ void VulkanTracer::setStateOnce(const SceneState& state) {
     g.alphaChannel = std::clamp(s.alphaChannel, 0, 3);
     g.alphaCutoff = s.isCutOut() ? s.alphaCutoff : 0.0f;
     g.baseAlpha = s.baseAlpha;
+    g.metallic = s.metallic;
+    g.roughness = s.roughness;
+    g.metallicRoughnessTexture = tex(s.metallicRoughnessTexture);
     if (g.alphaTexture >= 0) {
       g.alphaWrapU = int(scene.textures[g.alphaTexture].wrapU);
       g.alphaWrapV = int(scene.textures[g.alphaTexture].wrapV);

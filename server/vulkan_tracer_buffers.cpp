@@ -1,8 +1,10 @@
 // The Vulkan tracer's buffers: per-update capacity, the field on the GPU, the device-local
 // mirrors of host-written inputs, descriptors, the snapshot of sliced updates, and writing an
 // update's inputs.
+#include <cstring>
 #include <glm/gtc/packing.hpp>
 
+#include "../common/split_sum_table.h"
 #include "embree_tracer.h"  // probeRayDirections: both backends trace the same rays
 #include "vulkan_tracer_impl.h"
 
@@ -383,6 +385,9 @@ void VulkanTracer::Impl::writeUpdateInputs(const Field& field, const UpdateReque
   p.roundSlots = roundSlots;
   p.lightsResolved = pcShadowRounds(p.shadowSlots, roundSlots) > 1 ? 1 : 0;
   p.cascadeBrickOffset = glm::ivec4(brickOffset[0], brickOffset[1], brickOffset[2], brickOffset[3]);
+  const SplitSumTable& table = splitSumTable();
+  static_assert(sizeof p.splitSum == sizeof table);
+  std::memcpy(p.splitSum, table.data(), sizeof table);
   params.write(&p, sizeof p);
 
   // The blend reads the lobe exponent from the settings, as the CPU's blendProbe does.

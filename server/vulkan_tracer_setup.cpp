@@ -225,12 +225,13 @@ Status VulkanTracer::Impl::uploadScene() {
     accel = std::move(as).value();
   }
 
-  // Textures: 8-bit sRGB, decoded to linear before filtering, as Texture::sample does.
+  // Textures: 8-bit sRGB, decoded to linear before filtering, as Texture::sample does; data
+  // textures (Texture::linear: metallic-roughness) read as they are.
   for (const Texture& t : s.textures) {
     vk::ImageDesc d;
     const bool ok =
         t.width > 0 && t.height > 0 && t.rgba.size() >= std::size_t(t.width) * t.height * 4;
-    d.format = VK_FORMAT_R8G8B8A8_SRGB;
+    d.format = t.linear ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_R8G8B8A8_SRGB;
     d.width = ok ? std::uint32_t(t.width) : 1;
     d.height = ok ? std::uint32_t(t.height) : 1;
     auto img = vk::Image::create(*ctx, d);

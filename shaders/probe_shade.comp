@@ -2,9 +2,11 @@
 // The shade pass of the wavefront (interop/gpu_trace.h): shades each probe ray's stored hit as
 // the Embree backend does (server/embree_tracer.cpp, cpu/embree_scene.cpp, cpu/lighting.cpp):
 // direct light from punctual lights and light-sampled emissive triangles, emission when not
-// light-sampled, indirect light from the previous field through the shared sampling code.
+// light-sampled, indirect light from the previous field through the shared sampling code, all
+// reflected toward the probe by the material (interop/probe_hit_shading.h).
 // Direct light needs shadow rays: for each slot with a real shadow ray this pass writes what
-// the light adds to the ray's radiance if visible (albedo / pi x irradiance) in the slot's
+// the light adds to the ray's radiance if visible (the BRDF toward the probe x irradiance;
+// albedo / pi x irradiance on a Lambert surface) in the slot's
 // fixed place, and appends the ray to its slot's compacted shadow list, a subgroup at a time
 // (interop/gpu_trace.h); probe_shadow.rgen traces the list and sets the visible slots' bits
 // in the ray's mask, cleared here, and the blend adds them. Backface hits report a negative
@@ -14,6 +16,7 @@
 #extension GL_EXT_nonuniform_qualifier : require
 #extension GL_KHR_shader_subgroup_ballot : require
 #include "field_sampling.glsl"
+#include "interop/probe_hit_shading.h"
 #include "interop/probe_update.h"
 #include "interop/shadow_roulette.h"
 
@@ -50,28 +53,34 @@ float rnd() {
   return pcHashToFloat(rngState);
 }
 
-// This ray's launch index, the stride between its slots' records, and its albedo / pi (what
-// a light's irradiance is scaled by on its way to the probe).
+// This ray's launch index, the stride between its slots' records, and the hit's reflection
+// toward the probe (what a light's irradiance is scaled by on its way there).
 uint launchIndex;
 // Request x rays per probe + ray, the request index counted over the whole update (not the
 // slice): the ray's random streams are keyed by it, as on the CPU.
 uint rayIndex;
 uint slotStride;
-vec3 albedoOverPi;
+vec3 hitNormal, hitView, hitBaseColor;
+float hitMetallic, hitRoughness;
 // The shadow ray of the slot last requested, until appendRequest lists it (tmax 0: none).
 GpuShadowRay pending;
 
 // Whether slot `slot` is in this round; its place in the round indexes its list and lights.
 bool inRound(int slot) { return slot >= push.slotBase && slot < push.slotBase + params.roundSlots; }
 
-// Slot `slot`'s request: a shadow ray that adds albedo / pi x `irradiance` to the ray's
-// radiance when nothing blocks it. tmax 0 leaves the slot empty (nothing is written: its mask
-// bit stays clear). appendRequest then lists the ray. Slots of other rounds are left alone
-// (their requests are computed all the same, so that the random streams stay in step).
+// Slot `slot`'s request: a shadow ray that adds the hit's reflection of `irradiance`, arriving
+// along `dir`, to the ray's radiance when nothing blocks it. tmax 0 leaves the slot empty
+// (nothing is written: its mask bit stays clear). appendRequest then lists the ray. Slots of
+// other rounds are left alone (their requests are computed all the same, so that the random
+// streams stay in step).
 void request(int slot, vec3 origin, vec3 dir, float tmax, vec3 irradiance) {
   if (!inRound(slot)) return;
   uint light = uint(slot - push.slotBase) * slotStride + launchIndex;
-  if (tmax > 0.0f) shadowLight[light] = GpuShadowLight(albedoOverPi * irradiance, 0.0f);
+  if (tmax > 0.0f) {
+    vec3 weight =
+        pcProbeHitLightWeight(hitNormal, hitView, dir, hitBaseColor, hitMetallic, hitRoughness);
+    shadowLight[light] = GpuShadowLight(weight * irradiance, 0.0f);
+  }
   pending = GpuShadowRay(origin, tmax, dir, light);
 }
 void noRequest(int slot) { request(slot, vec3(0.0f), vec3(0.0f), 0.0f, vec3(0.0f)); }
@@ -187,6 +196,10 @@ vec3 textureRgb(int t, vec2 uv) {
   return textureLod(textures[nonuniformEXT(t)], uv, 0.0f).rgb;
 }
 
+// The split-sum table's (A, B) at (N.V, roughness), from the parameters' copy.
+#define PC_SPLIT_SUM_PAIR(p) params.splitSum[p]
+#include "split_sum_lookup.glsl"
+
 // The ray's record (first round) and a clear visibility mask for the round's slots (the
 // shadow pass sets the visible bits).
 void finish(vec3 radiance, float distance) {
@@ -236,23 +249,45 @@ void shadeHit(GpuHit hit, vec3 dir) {
 
   vec2 uv = w * vec2(v0.u, v0.v) + u * vec2(v1.u, v1.v) + v * vec2(v2.u, v2.v);
   vec3 albedo = vec3(0.0f), emission = vec3(0.0f);
+  float metallic = 0.0f, roughness = 1.0f;
   bool sampled = false;
   if (mesh.material >= 0) {
     GpuMaterial m = materials[mesh.material];
     albedo = m.baseColor * textureRgb(m.baseColorTexture, uv);
+    metallic = m.metallic;
+    roughness = m.roughness;
+    if (m.metallicRoughnessTexture >= 0) {  // linear data: B metallic, G roughness
+      vec3 mr = textureRgb(m.metallicRoughnessTexture, uv);
+      metallic *= mr.z;
+      roughness *= mr.y;
+    }
     if (!backface && (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f))
       emission = m.emissive * textureRgb(m.emissiveTexture, uv);
     sampled = m.sampled != 0;
   }
-  albedoOverPi = albedo * (1.0f / PC_PI);
+  vec3 V = -dir;
+  hitNormal = N;
+  hitView = V;
+  hitBaseColor = albedo;
+  hitMetallic = metallic;
+  hitRoughness = roughness;
   directRequests(P, pcShadowOrigin(P, ng, pcTriangleExtent(p0, p1, p2)), N);
   vec3 indirect = vec3(0.0f);
   if ((params.shading & 1) == 0 && push.slotBase == 0) {
     float coverage = 0.0f;
-    indirect = pcSampleField(field, P, N, -dir, PC_SAMPLE_NO_OCCLUSION, coverage).xyz;
+    vec3 E = pcSampleField(field, P, N, V, PC_SAMPLE_NO_OCCLUSION, coverage).xyz;
+    // A glossy hit reads the field a second time, about its lobe's direction.
+    vec3 lobeE = vec3(0.0f);
+    vec2 ab = vec2(0.0f);
+    if (pcHasSpecularLobe(metallic, roughness)) {
+      vec3 lobeNormal = pcProbeHitSpecularNormal(N, V, roughness);
+      lobeE = pcSampleFieldShaded(field, P, N, lobeNormal, V, PC_SAMPLE_NO_OCCLUSION, coverage).xyz;
+      ab = splitSumAt(max(dot(N, V), 0.0f), roughness);
+    }
+    indirect = pcProbeHitIndirect(N, V, albedo, metallic, roughness, E, lobeE, ab);
   }
-  // The CPU's emitted + albedo / pi (direct + indirect), with the direct part left to the blend.
-  finish((sampled ? vec3(0.0f) : emission) + albedoOverPi * indirect, hit.t);
+  // The CPU's emitted + reflected (direct + indirect), with the direct part left to the blend.
+  finish((sampled ? vec3(0.0f) : emission) + indirect, hit.t);
 }
 
 void main() {

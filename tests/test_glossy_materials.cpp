@@ -13,6 +13,7 @@
 #include "cpu/material_sampling.h"
 #include "cpu/path_tracer.h"
 #include "cpu/random.h"
+#include "test_directions.h"
 #include "test_meshes.h"
 
 namespace pc {
@@ -20,11 +21,7 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-// The direction at polar angle theta from +Y (the normal used throughout) and azimuth phi.
-glm::vec3 fromAngles(double theta, double phi) {
-  return {float(std::sin(theta) * std::cos(phi)), float(std::cos(theta)),
-          float(std::sin(theta) * std::sin(phi))};
-}
+using testdir::fromAngles;
 
 glm::vec3 viewAt(float cosTheta) { return fromAngles(std::acos(double(cosTheta)), 0.3); }
 

@@ -13,6 +13,7 @@
 #include "shaders/interop/light_model.h"
 #include "shaders/interop/normal_map.h"
 #include "shaders/interop/pc_interop.h"
+#include "shaders/interop/probe_hit_shading.h"
 #include "shaders/interop/probe_math.h"
 #include "shaders/interop/probe_update.h"
 #include "shaders/interop/probe_view.h"

@@ -47,20 +47,9 @@ float pixelOcclusion(int view, ivec2 p) {
   return pcScreenAo(view, p, P, aoSurfaces[2u * i + 1u].xyz, radius);
 }
 
-// The split-sum table's (A, B) at (N.V, roughness), bilinear between the uploaded entries.
-vec2 splitSumEntry(int i, int j) {
-  int e = i + PC_SPLIT_SUM_SIZE * j;
-  vec4 pair = frame.splitSum[e >> 1];
-  return (e & 1) == 0 ? pair.xy : pair.zw;
-}
-vec2 splitSumAt(float NdotV, float roughness) {
-  vec2 c = pcSplitSumCoord(NdotV, roughness);
-  int last = PC_SPLIT_SUM_SIZE - 1;
-  ivec2 c0 = min(ivec2(c), ivec2(last - 1));
-  vec2 t = c - vec2(c0);
-  return mix(mix(splitSumEntry(c0.x, c0.y), splitSumEntry(c0.x + 1, c0.y), t.x),
-             mix(splitSumEntry(c0.x, c0.y + 1), splitSumEntry(c0.x + 1, c0.y + 1), t.x), t.y);
-}
+// The split-sum table's (A, B) at (N.V, roughness), from the frame's uploaded copy.
+#define PC_SPLIT_SUM_PAIR(p) frame.splitSum[p]
+#include "../split_sum_lookup.glsl"
 
 vec3 skyRadiance(vec3 dir) {
   float y = clamp(dir.y, -1.0, 1.0);

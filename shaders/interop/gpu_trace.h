@@ -26,6 +26,7 @@
 
 #include "light_model.h"
 #include "probe_math.h"
+#include "specular_probe.h"
 
 PC_BEGIN
 
@@ -223,6 +224,13 @@ struct GpuMaterial {
   int alphaWrapV;  // 2 mirrored repeat), for the any-hit shader's own bilinear lookup
   int pad2;
   // -- 64
+  // The metallic-roughness model (Material::metallic, roughness, metallicRoughnessTexture: a
+  // linear texture, B metallic, G roughness), for probe_hit_shading.h.
+  float metallic;
+  float roughness;
+  int metallicRoughnessTexture;
+  int pad3;
+  // -- 80
 };
 
 struct GpuEmissiveTriangle {
@@ -322,6 +330,10 @@ struct UpdateParams {
   int lightsResolved;         // 1: the rounds' resolve passes added the visible light to the rays
   int requestBase;            // the request index of this pass's first probe (an update in slices)
   // -- 112
+  // The split-sum table (specular_probe.h, common/split_sum_table.h) that glossy hits weigh
+  // their specular lobe by: entry e in splitSum[e / 2], .xy when e is even, .zw when odd.
+  vec4 splitSum[PC_SPLIT_SUM_ENTRIES / 2];
+  // -- 112 + 16 x 128
 };
 
 PC_END
@@ -330,14 +342,14 @@ PC_END
 static_assert(sizeof(pc::gpu::GpuVertex) == 32);
 static_assert(sizeof(pc::gpu::GpuMesh) == 16);
 static_assert(sizeof(pc::gpu::GpuInstance) == 144);
-static_assert(sizeof(pc::gpu::GpuMaterial) == 64);
+static_assert(sizeof(pc::gpu::GpuMaterial) == 80);
 static_assert(sizeof(pc::gpu::GpuEmissiveTriangle) == 80);
 static_assert(sizeof(pc::gpu::GpuProbeRecord) == 32);
 static_assert(sizeof(pc::gpu::TracePush) == 16);
 static_assert(sizeof(pc::gpu::GpuHit) == 24);
 static_assert(sizeof(pc::gpu::GpuShadowRay) == 32);
 static_assert(sizeof(pc::gpu::GpuShadowLight) == 16);
-static_assert(sizeof(pc::gpu::UpdateParams) == 112);
+static_assert(sizeof(pc::gpu::UpdateParams) == 112 + 16 * pc::gpu::PC_SPLIT_SUM_ENTRIES / 2);
 static_assert(pc::gpu::PC_MAX_CASCADES == 4);  // cascadeBrickOffset is an ivec4
 #endif
 

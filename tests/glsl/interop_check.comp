@@ -20,6 +20,7 @@ float pcFetchOcclusion(int cascade, int slot, vec3 dir) { return 1.0f; }
 vec4 pcFetchProbe(int cascade, int slot) { return vec4(0.0f); }
 #include "../../shaders/interop/probe_sampling.h"
 #include "../../shaders/interop/probe_update.h"
+#include "../../shaders/interop/probe_hit_shading.h"
 #include "../../shaders/interop/sdf_grid.h"
 #include "../../shaders/interop/sh_probe.h"
 #include "../../shaders/interop/tonemap.h"

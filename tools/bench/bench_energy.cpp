@@ -1,10 +1,15 @@
 // energy: a closed box whose walls all have albedo a and emit Le. The converged field must
 // hold irradiance pi Le / (1 - a) everywhere: any gain or loss in tracing, shading, blending
-// or sampling shows up here.
+// or sampling shows up here. With glossy walls (metals of base colour a and roughness r) a
+// wall reflects a share rho(N.V) = a A + B of what arrives (the split-sum table), which
+// depends on the view, so there is no single figure: the converged irradiance must lie
+// between pi Le / (1 - min rho) and pi Le / (1 - max rho).
+#include <algorithm>
 #include <cmath>
 
 #include "bench.h"
 #include "common/field.h"
+#include "common/split_sum_table.h"
 #include "server/bake.h"
 #include "server/embree_tracer.h"
 #include "shaders/interop/probe_update.h"
@@ -19,8 +24,27 @@ struct EnergyResult {
   int probes = 0;
 };
 
-EnergyResult measure(float albedo, float emission, int updates, const std::string& backend) {
+// The walls' reflected share rho(N.V) over N.V: its least and largest value (min, max) for
+// a metal of base colour `albedo` and `roughness`.
+glm::dvec2 metalAlbedoRange(float albedo, float roughness) {
+  glm::dvec2 range(1e9, -1e9);
+  for (int i = 0; i <= 100; ++i) {
+    const float NdotV = std::max(float(i) / 100.0f, gpu::PC_SPLIT_SUM_MIN_NDOTV);
+    const glm::vec2 ab = lookupSplitSum(splitSumTable(), NdotV, roughness);
+    const double rho = double(albedo * ab.x + ab.y);
+    range = glm::dvec2(std::min(range.x, rho), std::max(range.y, rho));
+  }
+  return range;
+}
+
+// roughness < 0: Lambert walls; else metal walls of that roughness.
+EnergyResult measure(float albedo, float emission, int updates, const std::string& backend,
+                     float roughness = -1.0f) {
   Scene scene = furnaceBox(albedo, emission);
+  if (roughness >= 0.0f) {
+    scene.materials[0].metallic = 1.0f;
+    scene.materials[0].roughness = roughness;
+  }
   Field field = Field::create(scene.volumes, FieldSettings{});
   auto tracer = makeTracer(scene, backend);
   if (!tracer) {
@@ -110,6 +134,21 @@ Benchmark addEnergy(CLI::App& app) {
             }
             figure("energy_error_a50", errors[0], "relative");
             figure("energy_error_a80", errors[1], "relative");
+            // Glossy walls: the field between the bounds that the walls' least and largest
+            // reflected shares give.
+            const float metal = 0.8f, roughness = 0.5f;
+            const EnergyResult g = measure(metal, emission, updates, backend, roughness);
+            const glm::dvec2 rho = metalAlbedoRange(metal, roughness);
+            const double lo = gpu::PC_PI * emission / (1.0 - rho.x),
+                         hi = gpu::PC_PI * emission / (1.0 - rho.y);
+            std::printf(
+                "metal walls, base %.2f, roughness %.2f: reflected share %.3f..%.3f, irradiance "
+                "bounds %.5f..%.5f; mean texel %.5f, worst texel %.5f, sampled %.5f\n",
+                metal, roughness, rho.x, rho.y, lo, hi, g.meanTexel, g.worstTexel, g.meanSampled);
+            const bool within = g.meanTexel >= lo && g.meanTexel <= hi && g.meanSampled >= lo &&
+                                g.meanSampled <= hi;
+            figure("energy_glossy_mean_texel", g.meanTexel, "W/m^2");
+            figure("energy_glossy_within_bounds", within ? 1.0 : 0.0, "bool");
             return 0;
           }};
 }
