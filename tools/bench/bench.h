@@ -43,5 +43,6 @@ Benchmark addEdits(CLI::App& app);
 Benchmark addRest(CLI::App& app);
 Benchmark addFlight(CLI::App& app);
 Benchmark addSpecular(CLI::App& app);
+Benchmark addLdm(CLI::App& app);
 
 }  // namespace pc::bench
