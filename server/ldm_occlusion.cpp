@@ -15,6 +15,10 @@ namespace pc {
 
 using namespace pc::gpu;
 
+// std430 layouts, as the shaders read them.
+static_assert(sizeof(LdmParams) == 48 && sizeof(LdmTriangle) == 48 && sizeof(LdmNode) == 8 &&
+              sizeof(LdmCounters) == 16);
+static_assert(sizeof(LdmParams) <= 128, "push constants: the guaranteed 128 bytes");
 static_assert(PC_LDM_TRACE_THREADS == PC_OCCLUSION_TEXELS * PC_OCCLUSION_TEXELS,
               "ldm_occlusion.comp runs a thread per occlusion texel");
 
