@@ -216,7 +216,7 @@ Status LdmOcclusion::build(std::span<const LdmTriangle> triangles, glm::vec3 lo,
   for (int attempt = 1;; ++attempt) {
     const std::uint64_t maxNodes =
         std::min<std::uint64_t>(ctx.properties().limits.maxStorageBufferRange / sizeof(LdmNode),
-                                std::numeric_limits<std::uint32_t>::max() - 1);
+                                std::uint64_t(PC_LDM_NONE) - 1);
     capacity = std::min(capacity, maxNodes);
     if (m.nodes.size() < capacity * sizeof(LdmNode)) {
       m.nodes = vk::Buffer{};
@@ -339,7 +339,8 @@ Result<std::vector<std::vector<float>>> LdmOcclusion::layers(int direction) {
   const LdmNode* nd = nodes->as<LdmNode>();
   std::vector<std::vector<float>> out(std::size_t(n) * n);
   for (std::size_t px = 0; px < out.size(); ++px)
-    for (std::uint32_t i = h[px]; i != PC_LDM_NONE; i = nd[i].next) out[px].push_back(nd[i].depth);
+    for (std::uint32_t i = h[px]; i != PC_LDM_NONE; i = nd[i].next & PC_LDM_NONE)
+      out[px].push_back(nd[i].depth);
   return out;
 }
 
@@ -351,11 +352,19 @@ std::vector<LdmTriangle> ldmSceneTriangles(const Scene& scene, const SceneState&
     const glm::mat4 t =
         i < state.instanceTransforms.size() ? state.instanceTransforms[i] : inst.transform;
     const Mesh& mesh = scene.meshes[std::size_t(inst.mesh)];
+    // Cut-outs' backs are surface to the tracers (pcBackfaceIsSurface); the winding is fixed
+    // by the time-0 transform, as the Embree scene and the Vulkan tracer fix it.
+    const bool twoSided =
+        mesh.material >= 0 && std::size_t(mesh.material) < scene.materials.size() &&
+        pcBackfaceIsSurface(scene.materials[std::size_t(mesh.material)].alphaCutoff);
+    const bool mirrored = glm::determinant(glm::mat3(inst.transform)) < 0.0f;
     for (std::size_t k = 0; k < mesh.triangleCount(); ++k) {
       LdmTriangle tri;
       tri.p0 = t * glm::vec4(mesh.positions[mesh.indices[3 * k]], 1.0f);
       tri.p1 = t * glm::vec4(mesh.positions[mesh.indices[3 * k + 1]], 1.0f);
       tri.p2 = t * glm::vec4(mesh.positions[mesh.indices[3 * k + 2]], 1.0f);
+      if (mirrored) std::swap(tri.p1, tri.p2);
+      tri.p0.w = twoSided ? 1.0f : 0.0f;
       const glm::vec3 a(tri.p0), b(tri.p1), c(tri.p2);
       const glm::vec3 tlo = glm::min(a, glm::min(b, c)), thi = glm::max(a, glm::max(b, c));
       if (glm::any(glm::lessThan(thi, lo)) || glm::any(glm::greaterThan(tlo, hi))) continue;

@@ -5,7 +5,8 @@
 // occlusion texel, weighs those 2 x directions answers by the texel's cosine lobe, as the
 // tracers' blend weighs its rays (server/probe_blend.cpp): the cos-weighted share of
 // directions that travel past d_max. A surface exactly at d_max still blocks, as a ray hit at
-// d_max does ("open" is distance > d_max).
+// d_max does ("open" is distance > d_max), and so does a first surface met from its back at any
+// distance (the tracers store a backface hit's distance negative).
 #extension GL_GOOGLE_include_directive : require
 #include "interop/ldm.h"
 #include "interop/probe_math.h"
@@ -34,17 +35,21 @@ void main() {
     pcLdmBasis(d, t, b);
     vec3 q = pcLdmProject(params, d, t, b, p);
     int x = int(floor(q.x)), y = int(floor(q.y));
+    // The first layer at or past the probe each way decides: open where there is none, or
+    // where it lies beyond d_max and faces the probe.
     bool ahead = true, behind = true;
     if (x >= 0 && y >= 0 && x < n && y < n) {
       uint node = heads[uint(j) * uint(n) * uint(n) + uint(y * n + x)];
       while (node != PC_LDM_NONE) {
         float s = nodes[node].depth - q.z;  // signed distance along d
-        if (s > params.dmax) break;          // sorted: everything after is farther
-        if (s >= -params.dmax) {
-          if (s >= 0.0f) ahead = false;
-          if (s <= 0.0f) behind = false;
+        uint link = nodes[node].next;
+        if (s <= 0.0f)  // sorted: the last of these is the first behind the probe
+          behind = -s > params.dmax && (link & PC_LDM_BACK_BEHIND) == 0u;
+        if (s >= 0.0f) {  // the first ahead: nothing after it matters
+          ahead = s > params.dmax && (link & PC_LDM_BACK_AHEAD) == 0u;
+          break;
         }
-        node = nodes[node].next;
+        node = link & PC_LDM_NONE;
       }
     }
     uint bits = (ahead ? 1u : 0u) | (behind ? 2u : 0u);

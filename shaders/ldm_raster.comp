@@ -45,6 +45,10 @@ void main() {
   vec3 b3 = pcLdmProject(params, d, t, b, tr.p1.xyz);
   vec3 c3 = pcLdmProject(params, d, t, b, tr.p2.xyz);
   vec2 pa = a3.xy, pb = b3.xy, pc = c3.xy;
+  // Which way along d a line meets the triangle's back (its winding's normal, as the tracers
+  // take it); neither for a two-sided one.
+  float facing = dot(cross(tr.p1.xyz - tr.p0.xyz, tr.p2.xyz - tr.p0.xyz), d);
+  uint back = tr.p0.w != 0.0f ? 0u : (facing > 0.0f ? PC_LDM_BACK_AHEAD : PC_LDM_BACK_BEHIND);
   float area = edgeFunction(pa, pb, pc);
   if (area == 0.0f) return;  // edge-on along d: it covers no pixel centre
   if (area < 0.0f) {         // counter-clockwise, whichever side faces d
@@ -71,7 +75,7 @@ void main() {
       uint node = atomicAdd(counters.nodeCount, 1u);
       if (node >= params.nodeCapacity) continue;  // counted: the build grows the buffer, runs again
       nodes[node].depth = depth;
-      nodes[node].next = atomicExchange(heads[base + uint(y * n + x)], node);
+      nodes[node].next = atomicExchange(heads[base + uint(y * n + x)], node) | back;
     }
   }
 }

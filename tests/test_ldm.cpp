@@ -52,9 +52,9 @@ std::vector<gpu::LdmTriangle> trianglesOf(const Mesh& mesh) {
   std::vector<gpu::LdmTriangle> out;
   for (std::size_t k = 0; k < mesh.triangleCount(); ++k) {
     gpu::LdmTriangle t;
-    t.p0 = glm::vec4(mesh.positions[mesh.indices[3 * k]], 1.0f);
-    t.p1 = glm::vec4(mesh.positions[mesh.indices[3 * k + 1]], 1.0f);
-    t.p2 = glm::vec4(mesh.positions[mesh.indices[3 * k + 2]], 1.0f);
+    t.p0 = glm::vec4(mesh.positions[mesh.indices[3 * k]], 0.0f);  // w 0: one-sided
+    t.p1 = glm::vec4(mesh.positions[mesh.indices[3 * k + 1]], 0.0f);
+    t.p2 = glm::vec4(mesh.positions[mesh.indices[3 * k + 2]], 0.0f);
     out.push_back(t);
   }
   return out;
@@ -197,13 +197,19 @@ TEST(Ldm, TessellatedFloorIsHeldOnceEverywhere) {
 // Cos-weighted share of directions s around texel direction w for which a point at height h
 // above the infinite plane z = 0 sees the plane no closer than dmax: over `dirs` when given
 // (the LDMs' own set, each both ways), else the continuous lobe (a dense Fibonacci set).
-float planeOpenShare(glm::vec3 w, float h, float dmax, const std::vector<glm::vec3>& dirs) {
+// `backFacing`: the plane's front faces down, so a line down meets its back, blocked at any
+// distance (as the tracers count a backface hit), where it meets the plane within the quad
+// |x|, |y| < 20 (seen from `xy`).
+float planeOpenShare(glm::vec3 w, float h, float dmax, const std::vector<glm::vec3>& dirs,
+                     bool backFacing = false, glm::vec2 xy = glm::vec2(0.0f)) {
   float open = 0.0f, total = 0.0f;
   auto add = [&](glm::vec3 s) {
     const float c = glm::dot(w, s);
     if (c <= 0.0f) return;
     total += c;
-    const bool blocked = s.z < 0.0f && h / -s.z <= dmax;
+    const glm::vec2 at = xy + (h / -s.z) * glm::vec2(s.x, s.y);
+    const bool onQuad = std::abs(at.x) < 20.0f && std::abs(at.y) < 20.0f;
+    const bool blocked = s.z < 0.0f && (backFacing ? onQuad : h / -s.z <= dmax);
     if (!blocked) open += c;
   };
   if (!dirs.empty()) {
@@ -265,6 +271,23 @@ TEST(Ldm, OcclusionAbovePlaneIsExact) {
   EXPECT_LT(exactSet / n, 0.004);
   EXPECT_LT(worstSet, 0.06);
   EXPECT_LT(exactLobe / n, 0.01);
+
+  // The same floor facing down: from above, every line down meets its back, however far.
+  Mesh flipped;
+  testmesh::addQuad(flipped, {-20, -20, 0}, {-20, 20, 0}, {20, 20, 0}, {20, -20, 0});
+  ASSERT_TRUE(ldm->build(trianglesOf(flipped), glm::vec3(-3, -3, -1), glm::vec3(3, 3, 3)));
+  auto backTiles = ldm->occlusion(probes, dmax);
+  ASSERT_TRUE(backTiles) << backTiles.error().message;
+  double backError = 0;
+  for (std::size_t i = 0; i < probes.size(); ++i)
+    for (int t = 0; t < kTexels; ++t) {
+      const glm::vec3 w = gpu::pcTexelDirection(
+          t % gpu::PC_OCCLUSION_TEXELS, t / gpu::PC_OCCLUSION_TEXELS, gpu::PC_OCCLUSION_TEXELS);
+      backError += std::abs(
+          (*backTiles)[i * kTexels + std::size_t(t)] -
+          planeOpenShare(w, heights[i], dmax, dirs, true, glm::vec2(probes[i].x, probes[i].y)));
+    }
+  EXPECT_LT(backError / n, 1e-4) << "a floor seen from its back blocks at any distance";
   EXPECT_EQ(ctx->validationErrorCount(), 0u);
 }
 

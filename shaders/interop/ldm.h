@@ -18,9 +18,15 @@
 
 PC_BEGIN
 
-PC_CONST uint PC_LDM_NONE = 0xffffffffu;  // end of a pixel's list
-PC_CONST int PC_LDM_RASTER_THREADS = 64;  // ldm_raster.comp: a (triangle, direction) each
-PC_CONST int PC_LDM_SORT_THREADS = 64;    // ldm_sort.comp: a pixel each
+// A node's `next` holds the next node's index in its low 30 bits (PC_LDM_NONE at the list's
+// end) and the layer's facing in the top two: the tracers count a backface hit as blocked at
+// any distance (its distance is stored negative, and "open" is distance > d_max), so a layer
+// records which way along the LDM's direction a line meets its back.
+PC_CONST uint PC_LDM_NONE = 0x3fffffffu;         // end of a pixel's list (and the index mask)
+PC_CONST uint PC_LDM_BACK_AHEAD = 0x80000000u;   // a line along +d meets this layer's back
+PC_CONST uint PC_LDM_BACK_BEHIND = 0x40000000u;  // a line along -d meets this layer's back
+PC_CONST int PC_LDM_RASTER_THREADS = 64;         // ldm_raster.comp: a (triangle, direction) each
+PC_CONST int PC_LDM_SORT_THREADS = 64;           // ldm_sort.comp: a pixel each
 // ldm_sort.comp sorts lists up to this long in registers; longer ones (rare: that many surfaces
 // on one line across the field) are sorted in place in the node buffer, slower but complete.
 PC_CONST int PC_LDM_SORT_LOCAL = 48;
@@ -55,12 +61,12 @@ struct LdmParams {
 };
 
 struct LdmTriangle {
-  vec4 p0, p1, p2;  // world space (w unused)
+  vec4 p0, p1, p2;  // world space; p0.w 1: both sides are surface (cut-outs), else 0
 };
 
 struct LdmNode {
   float depth;  // along the LDM's direction, from its centre
-  uint next;    // the next node of the pixel's list, PC_LDM_NONE at its end
+  uint next;    // the next node of the pixel's list and the layer's facing (see above)
 };
 
 // The counters: nodes appended (may pass the capacity: then the build grows it and runs
