@@ -174,7 +174,11 @@ Result<UpdateStats> VulkanTracer::update(Field& field, const UpdateRequest& requ
                    "; the GPU blend writes octahedral tiles only: trace SH cascades with the "
                    "Embree backend"};
   }
-  return impl_->guarded("update", [&] { return updateOnce(field, request); });
+  return impl_->guarded("update", [&] {
+    UpdateStats stats = updateOnce(field, request);
+    if (impl_->ldm) impl_->applyLdmOcclusion(field, request, stats);
+    return stats;
+  });
 }
 
 // The host field is written only after the last submission completed, so a failure in any of

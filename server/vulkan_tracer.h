@@ -18,6 +18,7 @@
 #include "../common/vulkan/context.h"
 #include "../shaders/interop/gpu_trace.h"
 #include "../shaders/interop/sdf_grid.h"
+#include "ldm_occlusion.h"
 #include "tracer.h"
 
 namespace pc {
@@ -96,6 +97,12 @@ struct VulkanTracerOptions {
   // SDF backend: voxels along the scene's longest side (rounded up to whole bricks of
   // PC_SDF_BRICK_CELLS); the band each sample holds exactly is 4 voxels.
   int sdfVoxels = 128;
+  // The occlusion tiles from layered depth maps (ldm_occlusion.h) instead of the probe rays:
+  // after each update the updated probes' tiles are replaced by their LDM occlusion, on the
+  // host and on the GPU. The LDMs are rebuilt where the field's bounds or (SDF backend) the
+  // distance field were. Off by default (docs/LDM.md says why).
+  bool ldmOcclusion = false;
+  LdmOptions ldm;
 };
 
 // Probe rays per pass of an update (the slices' size): at most `maxPassRays` (what the buffers
@@ -130,6 +137,8 @@ class VulkanTracer final : public Tracer {
   // SDF backend: the last distance-field build, and the field itself (built first where the
   // instances moved since). Errors on the ray-tracing backend.
   const SdfBuildStats& sdfBuildStats() const;
+  // With VulkanTracerOptions::ldmOcclusion: the LDMs' last build (empty before the first update).
+  const LdmBuildStats* ldmBuildStats() const;
   Result<SdfFieldCopy> readSdf();
 
   const vk::Context& context() const;

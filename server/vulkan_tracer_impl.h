@@ -201,6 +201,15 @@ struct VulkanTracer::Impl {
   void recordSdfTrace(int probeCount, int rayCount);
   void recordSdfShadows(int slots, std::uint64_t rayCount, int slotBase);
 
+  // ---- occlusion from layered depth maps (VulkanTracerOptions::ldmOcclusion,
+  // vulkan_tracer_ldm.cpp) ----
+  std::unique_ptr<LdmOcclusion> ldm;
+  glm::vec3 ldmLo{0.0f}, ldmHi{0.0f};
+  bool ldmBuilt = false;
+  std::vector<glm::mat4> ldmTransforms;  // the state's instance transforms they were built for
+  // Replaces the occlusion tiles of the request's probes (host and GPU) by their LDM occlusion,
+  // after the update; marks the bricks whose tiles changed. Its own submissions.
+  void applyLdmOcclusion(Field& field, const UpdateRequest& request, UpdateStats& stats);
   // ---- per-update buffers ----
   vk::Buffer params, rayDirs, requests, changes, counters, countersReadback;
   vk::Buffer countersInit;  // each slot's counters as an update starts: 0, 1, 1, 0

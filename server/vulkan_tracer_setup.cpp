@@ -100,6 +100,11 @@ Status VulkanTracer::Impl::init(const VulkanTracerOptions& vulkan) {
   timer = std::move(t).value();
   if (Status s = uploadScene(); !s) return s;
   if (Status s = createPipelines(); !s) return s;
+  if (vulkan.ldmOcclusion) {
+    auto made = LdmOcclusion::create(*ctx, vulkan.ldm);
+    if (!made) return made.error();
+    ldm = std::move(made).value();
+  }
   const VkPhysicalDeviceMemoryProperties& mp = ctx->memoryProperties();
   VkDeviceSize largestHeap = 0;
   for (std::uint32_t h = 0; h < mp.memoryHeapCount; ++h)

@@ -10,6 +10,7 @@
 #include "shaders/interop/client_frame.h"
 #include "shaders/interop/field_desc.h"
 #include "shaders/interop/gpu_trace.h"
+#include "shaders/interop/ldm.h"
 #include "shaders/interop/light_model.h"
 #include "shaders/interop/normal_map.h"
 #include "shaders/interop/pc_interop.h"

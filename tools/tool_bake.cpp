@@ -47,6 +47,18 @@ int main(int argc, char** argv) {
                  "failure drill: the GPU tracer's N-th submission fails as a lost device would "
                  "(0: never)")
       ->check(CLI::Range(0, 1 << 30));
+  pc::VulkanTracerOptions vulkan;
+  app.add_flag("--ldm-occlusion", vulkan.ldmOcclusion,
+               "vulkan and sdf backends: the occlusion tiles from layered depth maps (rasterized "
+               "in compute) instead of the probe rays (docs/LDM.md)");
+  app.add_option("--ldm-directions", vulkan.ldm.directions,
+                 "--ldm-occlusion: LDMs, each traced both ways")
+      ->check(CLI::Range(1, pc::gpu::PC_LDM_MAX_DIRECTIONS))
+      ->capture_default_str();
+  app.add_option("--ldm-resolution", vulkan.ldm.resolution,
+                 "--ldm-occlusion: pixels a side of each LDM")
+      ->check(CLI::Range(8, 2048))
+      ->capture_default_str();
   app.add_option("--updates", updates, "field updates")->check(CLI::Range(1, 1000000));
   std::string encoding;
   app.add_option("--encoding", encoding,
@@ -116,7 +128,6 @@ int main(int argc, char** argv) {
   }
   pc::Field field = pc::Field::create(volumes, settings);
   field.sceneHash = scene->hash;
-  pc::VulkanTracerOptions vulkan;
   vulkan.failSubmission = gpuFailSubmission;
   auto tracer = pc::makeTracer(*scene, backend, {}, &vulkan);
   if (!tracer) {

@@ -45,7 +45,7 @@ int main(int argc, char** argv) {
       pc::bench::addFaults(app),  pc::bench::addStream(app), pc::bench::addLoad(app),
       pc::bench::addContact(app), pc::bench::addScale(app),  pc::bench::addEdits(app),
       pc::bench::addRest(app),    pc::bench::addFlight(app), pc::bench::addSpecular(app),
-      pc::bench::addSdf(app)};
+      pc::bench::addSdf(app),     pc::bench::addLdm(app)};
   if (auto code = pc::parseCommandLine(app, argc, argv)) return *code;
   for (auto& b : benches) {
     if (b.command->parsed()) return b.run();

@@ -22,6 +22,7 @@ vec4 pcFetchProbe(int cascade, int slot) { return vec4(0.0f); }
 #include "../../shaders/interop/probe_update.h"
 #include "../../shaders/interop/probe_hit_shading.h"
 #include "../../shaders/interop/sdf_grid.h"
+#include "../../shaders/interop/ldm.h"
 #include "../../shaders/interop/sh_probe.h"
 #include "../../shaders/interop/tonemap.h"
 #include "../../shaders/interop/sun_cascades.h"

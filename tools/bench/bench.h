@@ -44,5 +44,6 @@ Benchmark addRest(CLI::App& app);
 Benchmark addFlight(CLI::App& app);
 Benchmark addSpecular(CLI::App& app);
 Benchmark addSdf(CLI::App& app);
+Benchmark addLdm(CLI::App& app);
 
 }  // namespace pc::bench

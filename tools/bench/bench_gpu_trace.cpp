@@ -51,7 +51,8 @@ Benchmark addGpuTrace(CLI::App& app) {
   static std::size_t shadowMemoryMiB = 0, passRays = 0;
   static std::vector<int> counts;
   static bool gpuOnly = false, skipEmbree = false, skipQuality = false, boundedShadowLaunch = false,
-              singleBounce = false, pipelineStatistics = false, shadowSlotTimes = false;
+              singleBounce = false, pipelineStatistics = false, shadowSlotTimes = false,
+              ldmOcclusion = false;
   static float roulette = pc::TracerOptions{}.shadowRouletteShare;
   static RenderSetup setup;
   cmd->add_option("--scene", scenePath, "scene file, or 'builtin'");
@@ -75,6 +76,8 @@ Benchmark addGpuTrace(CLI::App& app) {
   cmd->add_option("--sdf-voxels", sdfVoxels,
                   "sdf backend: distance-field voxels along the scene's longest side")
       ->capture_default_str();
+  cmd->add_flag("--ldm-occlusion", ldmOcclusion,
+                "the GPU backend's occlusion tiles from layered depth maps (docs/LDM.md)");
   cmd->add_flag("--gpu-only", gpuOnly, "refuse CPU Vulkan implementations (lavapipe)");
   cmd->add_flag("--no-embree", skipEmbree, "skip the Embree run (and the field comparison)");
   cmd->add_flag("--no-quality", skipQuality, "skip the probe-lit renders and the reference");
@@ -121,6 +124,7 @@ Benchmark addGpuTrace(CLI::App& app) {
         vo.shadowSlotTimes = shadowSlotTimes;
         vo.tracing = backend == "sdf" ? VulkanTracing::DistanceField : VulkanTracing::RayPipelines;
         vo.sdfVoxels = sdfVoxels;
+        vo.ldmOcclusion = ldmOcclusion;
         TracerOptions options;
         options.shadowRouletteShare = roulette;
         auto gpu = VulkanTracer::create(*scene, options, vo);
