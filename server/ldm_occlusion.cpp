@@ -54,17 +54,7 @@ struct LdmOcclusion::Impl {
   bool built = false;
 
   Result<vk::UniquePipeline> pipeline(const char* name) {
-    auto m = vk::loadShader(*ctx, name);
-    if (!m) return m.error();
-    VkComputePipelineCreateInfo cci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-    cci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-    cci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    cci.stage.module = m->get();
-    cci.stage.pName = "main";
-    cci.layout = layout.get();
-    VkPipeline p = VK_NULL_HANDLE;
-    PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
-    return vk::UniquePipeline(ctx->device(), p);
+    return vk::createComputePipeline(*ctx, name, layout.get());
   }
 
   // Points the set's bindings at the current buffers (after any was made again).

@@ -275,10 +275,7 @@ struct VulkanTracer::Impl {
   Status createPipelines();
   Status createComputePasses();
   // A compute pipeline of `name` with its specialization constants (none when empty).
-  struct SpecConstant {
-    std::uint32_t id;  // the shader's constant_id
-    int value;         // ints and bools (VkBool32) alike
-  };
+  using SpecConstant = vk::SpecConstant;
   Result<vk::UniquePipeline> computePipeline(const char* name,
                                              const std::vector<SpecConstant>& constants);
   // The compiler's statistics of a pipeline, logged where the context captures them.

@@ -449,28 +449,11 @@ Status VulkanTracer::Impl::createComputePasses() {
 
 Result<vk::UniquePipeline> VulkanTracer::Impl::computePipeline(
     const char* name, const std::vector<SpecConstant>& constants) {
-  auto m = vk::loadShader(*ctx, name);
-  if (!m) return m.error();
-  VkComputePipelineCreateInfo cci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-  cci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  cci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-  cci.stage.module = m->get();
-  cci.stage.pName = "main";
-  std::vector<VkSpecializationMapEntry> entries;
-  std::vector<int> values;
-  for (const SpecConstant& c : constants) {
-    entries.push_back({c.id, std::uint32_t(values.size() * sizeof(int)), sizeof(int)});
-    values.push_back(c.value);
-  }
-  const VkSpecializationInfo spec{std::uint32_t(entries.size()), entries.data(),
-                                  values.size() * sizeof(int), values.data()};
-  if (!constants.empty()) cci.stage.pSpecializationInfo = &spec;
-  cci.layout = pipelineLayout.get();
-  if (ctx->capturesStatistics()) cci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
-  VkPipeline p = VK_NULL_HANDLE;
-  PC_VK_TRY(vkCreateComputePipelines(ctx->device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
-  logStatistics(name, p);
-  return vk::UniquePipeline(ctx->device(), p);
+  auto p = vk::createComputePipeline(
+      *ctx, name, pipelineLayout.get(), constants,
+      ctx->capturesStatistics() ? VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR : 0);
+  if (p) logStatistics(name, p->get());
+  return p;
 }
 
 void VulkanTracer::Impl::logStatistics(const char* name, VkPipeline pipeline) const {

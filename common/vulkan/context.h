@@ -324,6 +324,17 @@ std::filesystem::path shaderPath(std::string_view name);
 Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name);
 Result<UniqueShaderModule> createShaderModule(const Context& ctx,
                                               std::span<const std::uint32_t> spirv);
+// One specialization constant of a compute shader: ints and bools (VkBool32) alike.
+struct SpecConstant {
+  std::uint32_t id;  // the shader's constant_id
+  int value;
+};
+// The compute pipeline of the SPIR-V file `name` (loadShader) with `layout`, specialized by
+// `constants`.
+Result<UniquePipeline> createComputePipeline(const Context& ctx, std::string_view name,
+                                             VkPipelineLayout layout,
+                                             std::span<const SpecConstant> constants = {},
+                                             VkPipelineCreateFlags flags = 0);
 // A descriptor set layout of `bindings`; `flags`, where given, holds one
 // VkDescriptorBindingFlags per binding (VK_EXT_descriptor_indexing's partially bound and
 // variable-count arrays).

@@ -73,4 +73,31 @@ Result<UniqueShaderModule> loadShader(const Context& ctx, std::string_view name)
   return createShaderModule(ctx, words);
 }
 
+Result<UniquePipeline> createComputePipeline(const Context& ctx, std::string_view name,
+                                             VkPipelineLayout layout,
+                                             std::span<const SpecConstant> constants,
+                                             VkPipelineCreateFlags flags) {
+  auto module = loadShader(ctx, name);
+  if (!module) return module.error();
+  VkComputePipelineCreateInfo cci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  cci.flags = flags;
+  cci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  cci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  cci.stage.module = module->get();
+  cci.stage.pName = "main";
+  std::vector<VkSpecializationMapEntry> entries;
+  std::vector<int> values;
+  for (const SpecConstant& c : constants) {
+    entries.push_back({c.id, std::uint32_t(values.size() * sizeof(int)), sizeof(int)});
+    values.push_back(c.value);
+  }
+  const VkSpecializationInfo spec{std::uint32_t(entries.size()), entries.data(),
+                                  values.size() * sizeof(int), values.data()};
+  if (!constants.empty()) cci.stage.pSpecializationInfo = &spec;
+  cci.layout = layout;
+  VkPipeline p = VK_NULL_HANDLE;
+  PC_VK_TRY(vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &cci, nullptr, &p));
+  return UniquePipeline(ctx.device(), p);
+}
+
 }  // namespace pc::vk

@@ -1,6 +1,7 @@
 #include "bench_common.h"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -229,6 +230,18 @@ Result<Comparison> compareWithReference(const Scene& scene, const RenderSetup& s
     writePng(fs::path(outDir) / "diff.png", differenceImage(a, b));
   }
   return c;
+}
+
+float groundHeight(float x, float z) {
+  return 10.0f * std::sin(x * 0.011f) * std::cos(z * 0.013f) +
+         2.0f * std::sin(x * 0.07f + 1.0f) * std::cos(z * 0.05f);
+}
+
+glm::vec3 groundNormal(float x, float z) {
+  const float e = 0.5f;
+  const float dx = (groundHeight(x + e, z) - groundHeight(x - e, z)) / (2 * e);
+  const float dz = (groundHeight(x, z + e) - groundHeight(x, z - e)) / (2 * e);
+  return glm::normalize(glm::vec3(-dx, 1.0f, -dz));
 }
 
 }  // namespace pc::bench

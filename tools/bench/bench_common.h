@@ -86,4 +86,9 @@ std::vector<std::string> sharedSceneFiles();
 Result<std::vector<std::string>> sceneFilesIn(const std::string& dir);
 std::string sceneSlug(const Scene& scene);
 
+// The generated terrain of `flight` and `sdf`: gentle hills with a ripple, the ground's height
+// at (x, z) and its normal there.
+float groundHeight(float x, float z);
+glm::vec3 groundNormal(float x, float z);
+
 }  // namespace pc::bench

@@ -24,6 +24,7 @@
 #include <thread>
 
 #include "bench.h"
+#include "bench_common.h"
 #include "client/field_mirror.h"
 #include "client/net_client.h"
 #include "common/field_scroll.h"
@@ -50,19 +51,6 @@ struct FlightSetup {
   int rays = 64, bakeUpdates = 24;
   int checkpoints = 3, width = 96, height8 = 64, spp = 64;
 };
-
-// Gentle hills with a ripple: the ground's height at (x, z).
-float groundHeight(float x, float z) {
-  return 10.0f * std::sin(x * 0.011f) * std::cos(z * 0.013f) +
-         2.0f * std::sin(x * 0.07f + 1.0f) * std::cos(z * 0.05f);
-}
-
-glm::vec3 groundNormal(float x, float z) {
-  const float e = 0.5f;
-  const float dx = (groundHeight(x + e, z) - groundHeight(x - e, z)) / (2 * e);
-  const float dz = (groundHeight(x, z + e) - groundHeight(x, z - e)) / (2 * e);
-  return glm::normalize(glm::vec3(-dx, 1.0f, -dz));
-}
 
 // Writes the terrain (OBJ, MTL) and its sidecar (sun, sky, following cascades) into `dir`.
 Status writeTerrain(const std::filesystem::path& dir, const FlightSetup& o, glm::vec3 start) {

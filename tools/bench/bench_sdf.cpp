@@ -49,7 +49,7 @@ Mesh crateMesh(float side) {
   return m;
 }
 
-// Rolling hills with a ripple (the same ground as `flight`), `cells` quads a side.
+// The ground of `flight` (groundHeight), `cells` quads a side.
 Scene heightField(int cells, float size) {
   Scene scene;
   scene.name = "height field " + std::to_string(2 * cells * cells) + " triangles";
@@ -57,20 +57,13 @@ Scene heightField(int cells, float size) {
       Material{.name = "ground", .baseColor = glm::vec3(0.45f, 0.42f, 0.36f)});
   Mesh m;
   m.name = "ground";
-  auto height = [](float x, float z) {
-    return 10.0f * std::sin(x * 0.011f) * std::cos(z * 0.013f) +
-           2.0f * std::sin(x * 0.07f + 1.0f) * std::cos(z * 0.05f);
-  };
   const int n = cells;
   m.positions.reserve(std::size_t(n + 1) * std::size_t(n + 1));
   for (int j = 0; j <= n; ++j)
     for (int i = 0; i <= n; ++i) {
       const float x = (float(i) / float(n) - 0.5f) * size, z = (float(j) / float(n) - 0.5f) * size;
-      m.positions.emplace_back(x, height(x, z), z);
-      const float e = 0.5f;
-      const float dx = (height(x + e, z) - height(x - e, z)) / (2 * e);
-      const float dz = (height(x, z + e) - height(x, z - e)) / (2 * e);
-      m.normals.push_back(glm::normalize(glm::vec3(-dx, 1.0f, -dz)));
+      m.positions.emplace_back(x, groundHeight(x, z), z);
+      m.normals.push_back(groundNormal(x, z));
     }
   m.indices.reserve(std::size_t(n) * std::size_t(n) * 6);
   for (int j = 0; j < n; ++j)
